@@ -1,0 +1,38 @@
+"""Helpers shared by the benchmarks: the machine's description and paired, interleaved timing."""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from datetime import date
+
+import numpy as np
+
+
+def machine() -> str:
+    """CPU model, core count, OS and Python: what the numbers were measured on."""
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+
+
+def today() -> str:
+    """The date of the measurement."""
+    return date.today().isoformat()
+
+
+def interleaved(a, b, repeats: int) -> tuple[np.ndarray, np.ndarray]:
+    """Wall times of a() and b(), run in turn A B A B ..., after one warm-up of each."""
+    a(), b()
+    ta, tb = [], []
+    for _ in range(repeats):
+        for fn, out in ((a, ta), (b, tb)):
+            start = time.perf_counter()
+            fn()
+            out.append(time.perf_counter() - start)
+    return np.array(ta), np.array(tb)

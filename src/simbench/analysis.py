@@ -1,0 +1,181 @@
+"""Metrics and events from a Recording: how well the tool followed the plan, and what it came near.
+
+Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points),
+its lag along that path, and its error against the time-indexed reference. Events, each
+{t_start, t_end, kind, detail}:
+  singularity_events  spans where the recorded configuration lies near one of the robot's singular sets;
+  limit_events        `joint_limit` (the plan asks for a value beyond a joint's range), `at_limit` (the joint
+                      sits at a limit), `reference_jump` (the plan steps farther in one sample than the joint's
+                      speed limit allows in ten: a discontinuity) and `velocity_limit` (the plan is faster than
+                      the joint can go).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from simbench.robots import Robot, Tolerance
+from simbench.sim import Recording
+from simbench.trajectory import JointTrajectory
+
+_JUMP_FACTOR = 10.0
+_BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Tracking summary, event lists and the per-sample series behind them."""
+
+    tracking: dict
+    singularity_events: list[dict]
+    limit_events: list[dict]
+    series: dict[str, np.ndarray]
+
+
+def spans(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [start, end] (inclusive) of the runs of True in mask."""
+    padded = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    edges = np.flatnonzero(padded[1:] != padded[:-1])
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dict:
+    return {"t_start": float(t[span[0]]), "t_end": float(t[span[1]]), "kind": kind, "detail": detail}
+
+
+def path_deviation(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance of each point from the polyline `path`, and the arc length of its nearest point on it.
+
+    Exact: a point's nearest vertex, at distance r, bounds its distance from the path, and every point of a
+    segment lies within half the longest segment, h, of one of its ends; so only segments with an end within
+    r + h of the point can be nearer, and a k-d tree finds those ends.
+    """
+    keep = np.concatenate([[True], np.any(np.diff(path, axis=0) != 0, axis=1)])
+    vertices = path[keep]
+    if len(vertices) == 1:
+        return np.linalg.norm(points - vertices[0], axis=1), np.zeros(len(points))
+    seg_len = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg_len)])
+    tree = cKDTree(vertices)
+    radius, _ = tree.query(points)
+    near = tree.query_ball_point(points, radius + 0.5 * seg_len.max() + 1e-12)
+    counts = np.array([len(n) for n in near])
+    owner = np.repeat(np.arange(len(points)), counts)
+    vertex = np.concatenate(near).astype(int)
+    owner = np.concatenate([owner, owner])
+    seg = np.clip(np.concatenate([vertex - 1, vertex]), 0, len(vertices) - 2)
+    a, ab = vertices[seg], vertices[seg + 1] - vertices[seg]
+    rel = points[owner] - a
+    u = np.clip(np.einsum("ij,ij->i", rel, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+    dist = np.linalg.norm(rel - u[:, None] * ab, axis=1)
+    order = np.lexsort((dist, owner))
+    first = order[np.concatenate([[True], owner[order][1:] != owner[order][:-1]])]
+    return dist[first], arc[seg[first]] + u[first] * seg_len[seg[first]]
+
+
+def _rms(x: np.ndarray, axis=0) -> np.ndarray:
+    return np.sqrt(np.mean(np.square(x), axis=axis))
+
+
+def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict, dict[str, np.ndarray]]:
+    """Tracking summary (SI units) and the per-sample series it summarises."""
+    joint_error = rec.q - traj.q_ref
+    deviation, arc_actual = path_deviation(traj.tool_ref, rec.tool)
+    arc_ref = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(traj.tool_ref, axis=0), axis=1))])
+    lag = arc_ref - arc_actual
+    tool_error = np.linalg.norm(rec.tool - traj.tool_ref, axis=1)
+    summary = {
+        "joint_rms": dict(zip(robot.joints, _rms(joint_error).tolist())),
+        "joint_max": dict(zip(robot.joints, np.abs(joint_error).max(axis=0).tolist())),
+        "tool_rms": float(_rms(deviation)),
+        "tool_max": float(deviation.max()),
+        "tool_lag_rms": float(_rms(lag)),
+        "tool_lag_max": float(np.abs(lag).max()),
+        "tool_error_rms": float(_rms(tool_error)),
+        "tool_error_max": float(tool_error.max()),
+        "tool_error_final": float(tool_error[-1]),
+        "path_length": float(arc_ref[-1]),
+    }
+    series = {"joint_error": joint_error, "path_deviation": deviation, "path_lag": lag, "tool_error": tool_error}
+    return summary, series
+
+
+def singularity_events(robot: Robot, t: np.ndarray, q: np.ndarray, tol: Tolerance) -> list[dict]:
+    """Spans where q lies near each of the robot's singular sets, with how near at the closest sample."""
+    events = []
+    for sset in robot.singular_sets(q, tol):
+        for span in spans(sset.distance <= 1.0):
+            i = span[0] + int(np.argmin(sset.distance[span[0]:span[1] + 1]))
+            detail = {"family": sset.family, "condition": sset.condition, "t_closest": float(t[i]),
+                      "distance": float(sset.distance[i]),
+                      "gaps_at_closest": {k: float(v[i]) for k, v in sset.gaps.items()}}
+            events.append(_event(t, span, sset.name, detail))
+    return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
+
+
+def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int] | None:
+    """1-based numbers of the waypoints a step from s0 to s1 lies between (Table 2's row numbers)."""
+    if not traj.waypoints:
+        return None
+    ws = np.array([w["s"] for w in traj.waypoints])
+    i = int(np.clip(np.searchsorted(ws, s0, side="right") - 1, 0, len(ws) - 2))
+    j = int(np.clip(np.searchsorted(ws, s1, side="left"), i + 1, len(ws) - 1))
+    return [i + 1, j + 1]
+
+
+def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: Tolerance,
+                 deviation: np.ndarray) -> list[dict]:
+    """Joint-limit, at-limit, reference-jump and velocity-limit events."""
+    t, events = traj.t, []
+    for j, (name, kind) in enumerate(zip(robot.joints, robot.kinds)):
+        lo, hi = robot.lower[j], robot.upper[j]
+        for bound, limit, beyond in (("lower", lo, traj.q_ref[:, j] < lo - 1e-9),
+                                     ("upper", hi, traj.q_ref[:, j] > hi + 1e-9)):
+            for span in spans(beyond):
+                seg = traj.q_ref[span[0]:span[1] + 1, j]
+                worst = float(seg.min() if bound == "lower" else seg.max())
+                events.append(_event(t, span, "joint_limit", {
+                    "joint": name, "bound": bound, "limit": float(limit), "worst": worst,
+                    "excess": abs(worst - float(limit)), "source": "reference"}))
+        tol = margin.of(kind)
+        for bound, limit, near in (("lower", lo, rec.q[:, j] < lo + tol), ("upper", hi, rec.q[:, j] > hi - tol)):
+            for span in spans(near):
+                seg = rec.q[span[0]:span[1] + 1, j]
+                extreme = float(seg.min() if bound == "lower" else seg.max())
+                events.append(_event(t, span, "at_limit", {
+                    "joint": name, "bound": bound, "limit": float(limit), "extreme": extreme}))
+    step = np.diff(traj.q_ref, axis=0)
+    jump = np.abs(step) > _JUMP_FACTOR * robot.qd_max * traj.dt
+    for k in np.flatnonzero(jump.any(axis=1)):
+        after = deviation[k + 1:]
+        peak = int(np.argmax(after))
+        back = np.flatnonzero(after[peak:] < _BACK_ON_PATH)
+        back_at = k + 1 + peak + int(back[0]) if back.size else len(t) - 1
+        events.append(_event(t, (k, k + 1), "reference_jump", {
+            "joints": [robot.joints[j] for j in np.flatnonzero(jump[k])],
+            "step": step[k].tolist(),
+            "s": [float(traj.s[k]), float(traj.s[k + 1])],
+            "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1]),
+            "cost": {"tool_off_path_max": float(after.max()),
+                     "time_off_path": float(t[back_at] - t[k + 1]),
+                     "back_on_path": bool(back.size)}}))
+    too_fast = np.abs(traj.qd_ref) > robot.qd_max
+    for j, name in enumerate(robot.joints):
+        for span in spans(too_fast[:, j]):
+            seg = np.abs(traj.qd_ref[span[0]:span[1] + 1, j])
+            events.append(_event(t, span, "velocity_limit", {
+                "joint": name, "limit": float(robot.qd_max[j]), "worst": float(seg.max())}))
+    return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
+
+
+def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance) -> Analysis:
+    """Everything the report says about a run."""
+    summary, series = tracking(robot, traj, rec)
+    series.update(robot.measures(rec.q))
+    return Analysis(tracking=summary,
+                    singularity_events=singularity_events(robot, rec.t, rec.q, near),
+                    limit_events=limit_events(robot, traj, rec, margin, series["path_deviation"]),
+                    series=series)

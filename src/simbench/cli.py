@@ -1,0 +1,83 @@
+"""Command line: `simbench run | validate | list`.
+
+Exit codes: 0 done; 2 bad input (one line naming the file, the field and what is expected); 1 the run itself
+failed (an unreachable path, diverged physics), with the reason.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from simbench import planners, robots
+from simbench.errors import RunError, ScenarioError
+from simbench.resources import scenarios_dir
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="simbench", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="plan, simulate, analyse and write a scenario's outputs")
+    run.add_argument("scenario", type=Path)
+    run.add_argument("--out", type=Path, default=None, help="output folder (default renders/<name>/)")
+    run.add_argument("--no-video", action="store_true", help="skip the MP4")
+    run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    validate = sub.add_parser("validate", help="check scenarios without simulating")
+    validate.add_argument("scenarios", type=Path, nargs="+")
+    sub.add_parser("list", help="list robots, planners and shipped scenarios")
+    return parser
+
+
+def _summary(result) -> str:
+    r = result.report
+    tr = r["tracking"]
+    lines = [f"{r['scenario']['name']}: {r['robot']} / {r['planner']} -> {result.out}",
+             f"  tool vs planned path: RMS {tr['tool_rms'] * 1e3:.3f} mm, max {tr['tool_max'] * 1e3:.3f} mm; "
+             f"lag RMS {tr['tool_lag_rms'] * 1e3:.3f} mm",
+             f"  events: {len(r['singularity_events'])} singularity, {len(r['limit_events'])} limit; "
+             f"MuJoCo warnings: {len(r['warnings'])}"]
+    for w in r["plan"]["warnings"]:
+        lines.append(f"  plan warning: {w}")
+    return "\n".join(lines)
+
+
+def _list() -> str:
+    lines = ["robots:"]
+    lines += [f"  {r.name:16s} {r.description}" for r in robots.registry().values()]
+    lines.append("planners:")
+    for p in planners.registry().values():
+        lines.append(f"  {p.name:20s} {p.description} [{', '.join(p.robots) if p.robots else 'any robot'}]")
+    lines.append("scenarios:")
+    root = scenarios_dir()
+    lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit code."""
+    args = _parser().parse_args(argv)
+    from simbench import pipeline, scenario
+
+    try:
+        if args.command == "list":
+            print(_list())
+        elif args.command == "validate":
+            for path in args.scenarios:
+                sc = scenario.load_scenario(path)
+                print(f"{path}: ok ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
+        else:
+            sc = scenario.load_scenario(args.scenario)
+            result = pipeline.run(sc, out=args.out, video=not args.no_video, progress=not args.quiet)
+            if not args.quiet:
+                print(_summary(result))
+    except ScenarioError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except RunError as err:
+        print(f"run failed: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    return 0

@@ -1,0 +1,119 @@
+"""One run, end to end: plan, simulate, analyse, then write every output into a folder at once.
+
+Outputs are written into a hidden sibling folder and moved into place only when all of them exist, so a run
+that fails leaves the previous complete output (or none), never a half-written one.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+from simbench.analysis import Analysis, analyse
+from simbench.plots import write_plots
+from simbench.render import render_video
+from simbench.report import build_report, write_report, write_timeseries
+from simbench.robots import Tolerance
+from simbench.scenario import Scenario
+from simbench.sim import Plant, Recording, simulate
+from simbench.trajectory import JointTrajectory
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """A scenario planned, simulated and analysed, with nothing written yet."""
+
+    trajectory: JointTrajectory
+    recording: Recording
+    analysis: Analysis
+
+
+@dataclass(frozen=True)
+class Result:
+    """A finished run: where its outputs are and what it found."""
+
+    out: Path
+    report: dict
+    evaluation: Evaluation
+
+
+class _Stopwatch:
+    """Wall time per stage."""
+
+    def __init__(self):
+        self.times: dict[str, float] = {}
+
+    @contextmanager
+    def stage(self, name: str):
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
+
+
+@contextmanager
+def _staging(out: Path):
+    """A fresh hidden folder beside `out`, moved onto `out` if the block succeeds, removed if it fails."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = out.parent / f".{out.name}.old-{os.getpid()}"
+    if out.exists():
+        out.rename(old)
+    tmp.rename(out)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | None = None) -> Evaluation:
+    """Plan, simulate and analyse a scenario."""
+    watch = watch or _Stopwatch()
+    robot = scenario.robot_def
+    with watch.stage("load"):
+        plant = Plant.load(robot, scenario.sim.timestep)
+    with watch.stage("plan"):
+        traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
+    with watch.stage("simulate"):
+        rec = simulate(plant, traj, settle=scenario.sim.settle, feedforward=scenario.sim.velocity_feedforward,
+                       progress=progress)
+    with watch.stage("analyse"):
+        a = scenario.analysis
+        result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
+                         margin=Tolerance(a.limit_angle, a.limit_length))
+    return Evaluation(traj, rec, result)
+
+
+def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, progress: bool = False) -> Result:
+    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4."""
+    watch = _Stopwatch()
+    ev = evaluate(scenario, progress, watch)
+    robot, traj, rec, result = scenario.robot_def, ev.trajectory, ev.recording, ev.analysis
+    out = Path(out) if out is not None else Path("renders") / scenario.name
+    with _staging(out) as tmp:
+        outputs = {"report": "report.json", "timeseries": "timeseries.npz"}
+        with watch.stage("plots"):
+            outputs["plots"] = [f"plots/{name}" for name in write_plots(robot, traj, rec, result, tmp / "plots")]
+        if video:
+            r = scenario.render
+            with watch.stage("video"):
+                outputs["video"] = "video.mp4"
+                outputs["video_info"] = render_video(robot.scene, rec, traj.tool_ref, tmp / "video.mp4",
+                                                     width=r.width, height=r.height, fps=r.fps, camera=r.camera,
+                                                     quality=r.quality, trace=r.trace)
+        with watch.stage("write"):
+            write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
+        wall = {k: round(v, 4) for k, v in watch.times.items()}
+        wall["total"] = round(sum(watch.times.values()), 4)
+        report = build_report(scenario, traj, rec, result, wall, outputs, scenario.source)
+        write_report(report, tmp / "report.json")
+    return Result(out=out, report=report, evaluation=ev)

@@ -1,0 +1,277 @@
+"""Paper 000's safe straight paths for the 4-DOF spherical arm (eqs. 21-34, flowchart Fig. 10).
+
+The tool moves on the line between the tool points of q_init and q_goal (eqs. 21-22) while q2 moves linearly
+(eq. 24). At each point q1, q3, q4 follow from the point and q2 (eqs. 23, 25, 26); where q4 would be negative
+it is held at 0 and q2 moves instead (eq. 27). Every point off the lift axis has two solutions, (q1, q3) and
+(q1 + pi, pi - q3) (eq. 28, Fig. 7). The branch rule that reproduces every row of Table 2 (NOTES.md section 1):
+keep q1 continuous, unless that branch breaks the q3 limits somewhere on the path; then take the forward
+branch (q3 <= 90 deg) from the first point after the start on.
+
+If the path leaves the workspace (Fig. 10's test) a new initial q3 is made by the tangent construction of
+Fig. 8 (eqs. 30-34), trying the S solution first and then B. The method is solved at every control sample
+along the timed path, not only at its nd points, so the reference stays on the line between them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydantic import Field
+
+from simbench.errors import RunError
+from simbench.planners import Planner
+from simbench.robots.spherical_arm import D1, D4, LOWER, UPPER, fk
+from simbench.schema import JointVector, SimbenchModel
+from simbench.trajectory import JointTrajectory, control_grid
+
+_AXIS_TOL = 1e-9  # m: a line passing this close to the lift axis crosses it (q1 keeps its value across)
+_LIMIT_TOL = 1e-12
+_CHECK_SAMPLES = 4001  # path samples on which the branch rule and the workspace test are decided
+_DIFF_STEP = 1e-6  # step in s of the central differences giving dq/ds
+
+
+class Task(SimbenchModel):
+    """`task:` of paper 000's straight path: the goal configuration and the method's settings."""
+
+    goal: JointVector
+    nd: int = Field(11, ge=2, le=100000, description="number of method points printed as waypoints (Table 2: 11)")
+    workspace_repair: bool = Field(True, description="make a new initial q3 when the path leaves the workspace")
+
+
+@dataclass(frozen=True)
+class Line:
+    """One run of the method: the configurations, their tool points and the branch choices."""
+
+    q_init: np.ndarray
+    q_goal: np.ndarray
+    x_init: np.ndarray
+    x_goal: np.ndarray
+    backward_start: bool
+    flip_at: float | None
+    forward_only: bool
+
+    def points(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Line points X(s) (eqs. 21-22) and the linear q2(s) (eq. 24)."""
+        x = self.x_init + s[:, None] * (self.x_goal - self.x_init)
+        return x, self.q_init[1] + s * (self.q_goal[1] - self.q_init[1])
+
+    def backward(self, s: np.ndarray) -> np.ndarray:
+        """Whether each sample takes the backward branch (q3 > 90 deg, eq. 28)."""
+        if self.forward_only:
+            return np.full(s.shape, self.backward_start) & (s == 0)
+        flipped = np.zeros(s.shape, bool) if self.flip_at is None else s >= self.flip_at
+        return flipped ^ self.backward_start
+
+
+def _azimuth_of_travel(line_x: np.ndarray, x_init: np.ndarray, x_goal: np.ndarray) -> np.ndarray:
+    """atan2(y, x) of each point (eq. 23); on the lift axis itself, the direction the line heads in."""
+    azimuth = np.arctan2(line_x[:, 1], line_x[:, 0])
+    on_axis = np.hypot(line_x[:, 0], line_x[:, 1]) < 1e-15
+    heading = x_goal[:2] - x_init[:2]
+    return np.where(on_axis, np.arctan2(heading[1], heading[0]), azimuth)
+
+
+def _solve(line: Line, s: np.ndarray, backward: np.ndarray) -> dict[str, np.ndarray]:
+    """Joint values at path parameters s on the given branches (eqs. 23-28), q1 not yet unwrapped."""
+    x, q2_lin = line.points(s)
+    d = np.hypot(x[:, 0], x[:, 1])
+    h_lin = x[:, 2] - q2_lin - D1
+    q4 = np.hypot(d, h_lin) - D4  # eq. 26
+    repaired = q4 < -_LIMIT_TOL
+    h = np.where(repaired, np.sqrt(np.clip(D4**2 - d**2, 0.0, None)), h_lin)  # eq. 27: q4 = 0, q2 moves
+    elevation = np.arctan2(h, d)  # eq. 25
+    azimuth = _azimuth_of_travel(x, line.x_init, line.x_goal)
+    q = np.stack([np.where(backward, azimuth - np.pi, azimuth),  # eq. 28
+                  x[:, 2] - D1 - h,
+                  np.where(backward, np.pi - elevation, elevation),
+                  np.where(repaired, 0.0, np.clip(q4, 0.0, None))], axis=-1)
+    return {"q": q, "x": x, "repaired": repaired, "h_lin": h_lin}
+
+
+def _unwrap_q1(q: np.ndarray, q1_init: float) -> np.ndarray:
+    """q1 made continuous along the samples, starting from the initial configuration's own value."""
+    q = q.copy()
+    q1 = np.unwrap(np.concatenate([[q1_init], q[:, 0]]))[1:]
+    q[:, 0] = q1
+    return q
+
+
+def evaluate(line: Line, s: np.ndarray) -> np.ndarray:
+    """Configurations (N, 4) at path parameters s; s = 0 is the initial configuration itself."""
+    s = np.asarray(s, float)
+    q = _solve(line, s, line.backward(s))["q"]
+    q[s == 0] = line.q_init
+    return _unwrap_q1(q, line.q_init[0])
+
+
+def derivative(line: Line, s: np.ndarray) -> np.ndarray:
+    """dq/ds (N, 4) by central differences on each sample's own branch (one-sided at the ends)."""
+    s = np.asarray(s, float)
+    backward = line.backward(s)
+    hi = np.clip(s + _DIFF_STEP, 0.0, 1.0)
+    lo = np.clip(s - _DIFF_STEP, 0.0, 1.0)
+    dq = _solve(line, hi, backward)["q"] - _solve(line, lo, backward)["q"]
+    dq[:, 0] = np.angle(np.exp(1j * dq[:, 0]))
+    return dq / (hi - lo)[:, None]
+
+
+def build(q_init: np.ndarray, q_goal: np.ndarray) -> Line:
+    """Set up the method for q_init -> q_goal and decide its branches by the rule in the module docstring."""
+    q_init, q_goal = np.asarray(q_init, float), np.asarray(q_goal, float)
+    x_init, x_goal = fk(q_init)[0], fk(q_goal)[0]
+    u0, du = x_init[:2], x_goal[:2] - x_init[:2]
+    flip_at = None
+    if du @ du > 0:
+        s_star = -(u0 @ du) / (du @ du)
+        if 0 < s_star < 1 and np.linalg.norm(u0 + s_star * du) <= _AXIS_TOL:
+            flip_at = float(s_star)
+    # The start's branch: the one whose q1 is continuous with q1_init as the tool leaves the start point.
+    leaving = u0 if np.hypot(*u0) > 1e-15 else du
+    backward_start = bool(np.cos(np.arctan2(leaving[1], leaving[0]) - q_init[0]) < 0)
+    line = Line(q_init, q_goal, x_init, x_goal, backward_start, flip_at, forward_only=False)
+    grid = _check_grid()
+    q3 = evaluate(line, grid)[:, 2]
+    if line.backward(grid[1:]).any() and np.any((q3 < LOWER[2] - _LIMIT_TOL) | (q3 > UPPER[2] + _LIMIT_TOL)):
+        line = replace(line, forward_only=True)
+    return line
+
+
+def _check_grid(nd: int = 11) -> np.ndarray:
+    return np.union1d(np.linspace(0.0, 1.0, _CHECK_SAMPLES), np.linspace(0.0, 1.0, nd))
+
+
+def exit_reasons(line: Line, nd: int = 11) -> list[dict]:
+    """Where and why the path leaves the workspace (Fig. 10's test), first s of each; empty if it does not.
+
+    The flowchart's tests: {q3_init > 90 deg and dq3 > 0 and z < d1} and {q3 < -75 deg}. Its third,
+    {x^2 + y^2 - (z - d1)^2 < d4^2}, is garbled (as printed it holds at the start of case 1, which the paper
+    says lies inside); in its place the method's own failures are tested: any joint limit broken, and the jump
+    eq. 27 makes when the tool leaves the q4 = 0 region below the pivot (case 4's printed start).
+    """
+    s = _check_grid(nd)
+    sol = _solve(line, s, line.backward(s))
+    q, x = sol["q"], sol["x"]
+    q[s == 0] = line.q_init
+    reasons = []
+
+    def note(mask: np.ndarray, condition: str) -> None:
+        if np.any(mask):
+            reasons.append({"s": float(s[np.argmax(mask)]), "condition": condition})
+
+    dq3 = line.q_goal[2] - line.q_init[2]
+    note((line.q_init[2] > np.pi / 2) & (dq3 > 0) & (x[:, 2] < D1), "q3_init > 90 deg, dq3 > 0 and z < d1")
+    note(q[:, 2] < LOWER[2] - _LIMIT_TOL, "q3 < -75 deg")
+    for j, name in ((1, "q2"), (2, "q3"), (3, "q4")):
+        if j != 2:
+            note(q[:, j] < LOWER[j] - _LIMIT_TOL, f"{name} below its lower limit")
+        note(q[:, j] > UPPER[j] + _LIMIT_TOL, f"{name} above its upper limit")
+    rep = sol["repaired"]
+    edge = np.flatnonzero(rep[1:] != rep[:-1])
+    outside = np.where(rep[edge], edge + 1, edge)  # the unrepaired sample of each boundary pair
+    jump = np.zeros(s.shape, bool)
+    jump[outside[sol["h_lin"][outside] < 0]] = True
+    note(jump, "eq. 27 jump: the tool leaves the q4 = 0 region below the pivot (q2 and q3 step)")
+    return sorted(reasons, key=lambda r: r["s"])
+
+
+def tangent_q3(line: Line) -> dict[str, float]:
+    """The two new initial q3 offsets of Fig. 8 (flowchart, eqs. 30-33): S (small) and B (big), NaN if none.
+
+    d is the distance between the two tool points; di, dg the reaches d4 + q4 at start and goal; dci, dcg the
+    tangent lengths from them to the circle of radius d4.
+    """
+    d = np.linalg.norm(line.x_goal - line.x_init)
+    di, dg = D4 + line.q_init[3], D4 + line.q_goal[3]
+    dci, dcg = np.sqrt(di**2 - D4**2), np.sqrt(dg**2 - D4**2)
+    with np.errstate(invalid="ignore"):
+        a1 = np.arcsin(D4 / dg)
+        a2 = np.arccos((d**2 + dg**2 - di**2) / (2 * d * dg))
+        out = {}
+        for name, angle in (("S", a1 - a2), ("B", a1 + a2)):
+            ad2 = d**2 + (dci + dcg) ** 2 - 2 * d * (dci + dcg) * np.cos(angle)  # eq. 32
+            out[name] = float(np.arccos((2 * di**2 - ad2) / (2 * di**2)))  # eq. 33
+    return out
+
+
+def repair(line: Line, nd: int) -> tuple[Line, dict]:
+    """New initial q3 = q3_init + sign(dq3) q3_S, else q3_B (eq. 34); RunError if neither keeps the path inside."""
+    offsets = tangent_q3(line)
+    sign = np.sign(line.q_goal[2] - line.q_init[2]) or 1.0
+    tried = []
+    for name in ("S", "B"):
+        if np.isnan(offsets[name]):
+            tried.append(f"{name}: the tangent triangle of Fig. 8 has no solution")
+            continue
+        q_init = line.q_init.copy()
+        q_init[2] += sign * offsets[name]
+        if not LOWER[2] <= q_init[2] <= UPPER[2]:
+            tried.append(f"{name}: new q3_init = {np.rad2deg(q_init[2]):.4f} deg is outside the q3 range")
+            continue
+        candidate = build(q_init, line.q_goal)
+        reasons = exit_reasons(candidate, nd)
+        if not reasons:
+            info = {"q3_S": offsets["S"], "q3_B": offsets["B"], "chosen": name, "q3_init_new": float(q_init[2])}
+            return candidate, info
+        tried.append(f"{name}: new q3_init = {np.rad2deg(q_init[2]):.4f} deg still leaves ({reasons[0]['condition']})")
+    raise RunError("the straight path leaves the workspace and the new initial q3 of Fig. 8 cannot repair it: "
+                   + "; ".join(tried))
+
+
+def waypoints(line: Line, nd: int) -> tuple[dict, ...]:
+    """The method's nd points as Table 2 prints them: X and q, q1 in [0, 2 pi), SI units."""
+    s = np.linspace(0.0, 1.0, nd)
+    x, _ = line.points(s)
+    q = evaluate(line, s)
+    q[:, 0] = np.mod(q[:, 0], 2 * np.pi)
+    return tuple({"s": float(sk), "X": xk.tolist(), "q": qk.tolist()} for sk, xk, qk in zip(s, x, q))
+
+
+def plan(scenario, robot, dt: float) -> JointTrajectory:
+    """Paper 000's method on the scenario's start and goal, solved at every control sample."""
+    task = scenario.task
+    line = build(np.array(scenario.start), np.array(task.goal))
+    reasons = exit_reasons(line, task.nd)
+    repair_info = None
+    warnings = []
+    if reasons and task.workspace_repair:
+        line, repair_info = repair(line, task.nd)
+    elif reasons:
+        warnings.append("the straight path leaves the workspace (workspace_repair is off): "
+                        + "; ".join(f"{r['condition']} at s = {r['s']:.4f}" for r in reasons))
+    law = scenario.timing.law_fn()
+    t = control_grid(law.duration, scenario.timing.hold, dt)
+    s, ds = law(t, order=1)
+    q_ref = evaluate(line, s)
+    qd_ref = derivative(line, s) * ds[:, None]
+    info = {
+        "method": "paper 000: safe straight path (eqs. 21-29), new initial q3 by Fig. 8 (eqs. 30-34)",
+        "q_init": line.q_init.tolist(),
+        "q_goal": line.q_goal.tolist(),
+        "x_init": line.x_init.tolist(),
+        "x_goal": line.x_goal.tolist(),
+        "branch": {"start": "backward" if line.backward_start else "forward",
+                   "lift_axis_crossing_s": line.flip_at,
+                   "forward_from_first_point": line.forward_only},
+        "workspace_exit": reasons,
+        "workspace_repair": repair_info,
+    }
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=qd_ref, tool_ref=line.points(s)[0],
+                           waypoints=waypoints(line, task.nd), info=info, warnings=tuple(warnings))
+
+
+def check(scenario, robot) -> tuple[str, str] | None:
+    """A goal whose tool point is the start's gives no line to follow."""
+    if np.linalg.norm(fk(np.array(scenario.task.goal)) - fk(np.array(scenario.start))) < 1e-9:
+        return "task.goal", "its tool point equals the start's: a zero-length path"
+    return None
+
+
+PLANNER = Planner(
+    name="safe_straight_path",
+    description="paper 000: straight tool path between two configurations, with workspace repair",
+    task=Task,
+    plan=plan,
+    robots=("spherical_arm",),
+    check=check,
+)

@@ -1,0 +1,83 @@
+"""report.json and timeseries.npz: what a run found, in SI units, for a reader and for a script."""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from simbench.analysis import Analysis
+from simbench.sim import Recording
+from simbench.trajectory import JointTrajectory
+
+
+def _plain(value):
+    """JSON-ready copy: NumPy scalars and arrays to Python, NaN and infinities to null."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def versions() -> dict:
+    """Versions of what produced the numbers."""
+    from simbench import __version__
+
+    return {"simbench": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
+            "python": platform.python_version()}
+
+
+def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analysis, wall_time: dict,
+                 outputs: dict, source: str | None) -> dict:
+    """The report.json document."""
+    timing = scenario.timing
+    return _plain({
+        "scenario": {"name": scenario.name, "file": source, "description": scenario.description},
+        "robot": scenario.robot,
+        "planner": scenario.planner,
+        "versions": versions(),
+        "timestep": rec.timestep,
+        "duration": timing.duration,
+        "hold": timing.hold,
+        "settle": scenario.sim.settle,
+        "time_law": timing.law,
+        "samples": int(rec.t.size),
+        "tracking": result.tracking,
+        "singularity_events": result.singularity_events,
+        "limit_events": result.limit_events,
+        "warnings": list(rec.warnings),
+        "plan": {**traj.info, "warnings": list(traj.warnings)},
+        "waypoints": list(traj.waypoints),
+        "wall_time": wall_time,
+        "outputs": outputs,
+        "config": scenario.model_dump(mode="json"),
+    })
+
+
+def write_report(report: dict, path: Path) -> None:
+    """Write report.json (strict JSON: no NaN)."""
+    path.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
+
+
+def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
+    """Write timeseries.npz: one row per control sample, SI units, radians."""
+    arrays = {
+        "t": rec.t, "s": traj.s, "joints": np.array(robot.joints),
+        "q_ref": traj.q_ref, "qd_ref": traj.qd_ref, "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
+        "ctrl": rec.ctrl, "tool_ref": traj.tool_ref, "tool": rec.tool,
+    }
+    arrays.update(result.series)
+    np.savez_compressed(path, **arrays)

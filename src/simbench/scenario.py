@@ -1,0 +1,241 @@
+"""Scenario files: the schema, loading, and validation whose errors name the file, the field and what is expected.
+
+A scenario is a YAML mapping:
+
+    name: case1                      # optional: the file's stem; names the output folder
+    description: ...
+    robot: spherical_arm
+    planner: safe_straight_path
+    units: {angle: deg, length: mm}  # how this file writes angles and lengths (default rad, m)
+    start: [120, 10, 120, 5]         # joint values, one per joint
+    task: {goal: [120, 75, 5, 90]}   # the planner's own fields
+    timing: {law: quintic, duration: 4.0, hold: 0.5}
+    sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}
+    analysis: {near_angle: 2, near_length: 2}
+    render: {width: 640, height: 480, fps: 30, camera: front, quality: fast, trace: true}
+
+Everything is converted to SI (radians, metres) while it is validated.
+"""
+
+from __future__ import annotations
+
+import difflib
+from functools import cache
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, Field, PrivateAttr, ValidationError, create_model
+
+from simbench import planners, robots
+from simbench.errors import ScenarioError
+from simbench.schema import JointVector, NonNegative, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
+from simbench.timing import TimeLaw
+
+_MAX_BYTES = 1 << 20
+
+
+class Timing(SimbenchModel):
+    """The time law along the path, its duration, and how long to hold the goal afterwards."""
+
+    law: Literal["cubic", "quintic", "4567", "trapezoidal"] = "quintic"
+    duration: Positive
+    hold: Annotated[float, Field(ge=0, le=60)] = 0.5
+    accel_fraction: Annotated[float, Field(gt=0, le=0.5)] = 0.25
+
+    def law_fn(self) -> TimeLaw:
+        """The time law s(t)."""
+        return TimeLaw(self.law, self.duration, self.accel_fraction)
+
+
+class Sim(SimbenchModel):
+    """Physics settings; the timestep is also the control period."""
+
+    timestep: Annotated[float, Field(gt=0, le=0.01)] | None = None
+    settle: Annotated[float, Field(ge=0, le=10)] = 0.2
+    velocity_feedforward: bool = True
+
+
+class Analysis(SimbenchModel):
+    """How near a singular set or a joint limit counts as near (angles for revolute, lengths for prismatic)."""
+
+    near_angle: PositiveAngle = float(np.deg2rad(2.0))
+    near_length: PositiveLength = 0.002
+    limit_angle: PositiveAngle = float(np.deg2rad(0.5))
+    limit_length: PositiveLength = 0.0005
+
+
+class Render(SimbenchModel):
+    """Video settings. `pretty` (shadows, reflections, multisampling) costs several times `fast` on a CPU."""
+
+    width: Annotated[int, Field(ge=64, le=1920, multiple_of=2)] = 640
+    height: Annotated[int, Field(ge=64, le=1080, multiple_of=2)] = 480
+    fps: Annotated[int, Field(ge=1, le=120)] = 30
+    camera: str | None = None
+    quality: Literal["fast", "pretty"] = "fast"
+    trace: bool = True
+
+
+class Scenario(SimbenchModel):
+    """Fields every scenario has; `task` is added per planner."""
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", max_length=100)] | None = None
+    description: str = ""
+    robot: str
+    planner: str
+    units: Units = Units()
+    start: JointVector
+    timing: Timing
+    sim: Sim = Sim()
+    analysis: Analysis = Analysis()
+    render: Render = Render()
+    _source: str | None = PrivateAttr(None)
+
+    @property
+    def source(self) -> str | None:
+        """The file this scenario was read from, if any."""
+        return self._source
+
+    @property
+    def robot_def(self) -> robots.Robot:
+        """The Robot this scenario runs."""
+        return robots.get(self.robot)
+
+    @property
+    def planner_def(self) -> planners.Planner:
+        """The Planner this scenario uses."""
+        return planners.registry()[self.planner]
+
+
+
+
+@cache
+def _scenario_class(planner_name: str) -> type[Scenario]:
+    task = planners.registry()[planner_name].task
+    return create_model(f"Scenario_{planner_name}", __base__=Scenario, task=(task, ...))
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file; ScenarioError names the field at fault."""
+    path = Path(path)
+    scenario = parse_scenario(_read_yaml(path), str(path), default_name=path.stem)
+    scenario._source = str(path)
+    return scenario
+
+
+def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Scenario:
+    """Validate a scenario already read into Python objects."""
+    if not isinstance(raw, dict):
+        raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {_kind(raw)}")
+    robot = robots.registry().get(_name_field(raw, "robot", robots.registry(), source))
+    planner = planners.registry()[_name_field(raw, "planner", planners.registry(), source)]
+    if not planner.supports(robot.name):
+        raise ScenarioError(source, "planner", f"'{planner.name}' works with {', '.join(planner.robots)}, "
+                                               f"not '{robot.name}'")
+    try:
+        units = Units.model_validate(raw.get("units", {}))
+    except ValidationError as err:
+        raise ScenarioError(source, *_describe(err, Units, prefix=("units",))) from None
+    cls = _scenario_class(planner.name)
+    try:
+        scenario = cls.model_validate(raw, context={"robot": robot, "units": units})
+    except ValidationError as err:
+        raise ScenarioError(source, *_describe(err, cls)) from None
+    if scenario.name is None:
+        scenario = scenario.model_copy(update={"name": default_name})
+    cameras = robot.cameras()
+    if scenario.render.camera is not None and scenario.render.camera not in cameras:
+        raise ScenarioError(source, "render.camera", f"no camera '{scenario.render.camera}' in the "
+                                                     f"{robot.name} scene (expected one of: {', '.join(cameras)})")
+    problem = planner.check(scenario, robot) if planner.check else None
+    if problem:
+        raise ScenarioError(source, *problem)
+    return scenario
+
+
+def _read_yaml(path: Path) -> Any:
+    source = str(path)
+    if not path.exists():
+        raise ScenarioError(source, None, "no such file")
+    if not path.is_file():
+        raise ScenarioError(source, None, "not a file (expected a YAML scenario)")
+    size = path.stat().st_size
+    if size > _MAX_BYTES:
+        raise ScenarioError(source, None, f"file too large ({size} bytes; a scenario is at most {_MAX_BYTES})")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise ScenarioError(source, None, "not a text file (expected UTF-8 YAML)") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise ScenarioError(source, None, f"not valid YAML{where}: {problem}") from None
+    if data is None:
+        raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
+    return data
+
+
+def _name_field(raw: dict, field: str, known: dict, source: str) -> str:
+    value = raw.get(field)
+    options = ", ".join(sorted(known))
+    if value is None:
+        raise ScenarioError(source, field, f"missing: this field is required (one of: {options})")
+    if not isinstance(value, str) or value not in known:
+        hint = difflib.get_close_matches(str(value), known, n=1)
+        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
+        raise ScenarioError(source, field, f"unknown {field} {value!r} (expected one of: {options}){suggestion}")
+    return value
+
+
+def _kind(value: Any) -> str:
+    return {list: "a list", str: "a string", int: "a number", float: "a number", bool: "a boolean"}.get(
+        type(value), f"a {type(value).__name__}")
+
+
+def _format_loc(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
+    """Field names of the model found by following loc from cls (for 'did you mean')."""
+    model = cls
+    for part in loc:
+        field = model.model_fields.get(part) if isinstance(part, str) else None
+        annotation = getattr(field, "annotation", None)
+        if not (isinstance(annotation, type) and issubclass(annotation, BaseModel)):
+            return []
+        model = annotation
+    return list(model.model_fields)
+
+
+def _describe(err: ValidationError, cls: type[BaseModel], prefix: tuple = ()) -> tuple[str, str]:
+    """The first validation error as (field path, message in the user's terms).
+
+    An unknown field goes first: a misspelt name also makes the field it meant go missing.
+    """
+    errors = err.errors(include_url=False)
+    first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+    loc = prefix + tuple(first["loc"])
+    kind, msg, given = first["type"], first["msg"], first.get("input")
+    if kind == "missing":
+        return _format_loc(loc), "missing: this field is required"
+    if kind == "extra_forbidden":
+        fields = _fields_at(cls, tuple(first["loc"])[:-1])
+        hint = difflib.get_close_matches(str(loc[-1]), fields, n=1)
+        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
+        return _format_loc(loc), f"unknown field (expected one of: {', '.join(fields)}){suggestion}"
+    if msg.startswith("Value error, "):
+        return _format_loc(loc), msg.removeprefix("Value error, ")
+    msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
+    if isinstance(given, (str, int, float, bool)) or given is None:
+        msg += f", got {given!r}"
+    elif isinstance(given, (list, dict)):
+        msg += f", got {_kind(given)}"
+    return _format_loc(loc), msg

@@ -1,0 +1,93 @@
+"""Building blocks of the scenario schema: strict models and quantities converted to SI at load time.
+
+A scenario states its units once (`units: {angle: deg, length: mm}`); every angle, length and joint vector is
+converted while it is validated, so everything downstream is in radians and metres. Joint vectors are checked
+against the robot's joint count and limits, and an error quotes the value in the file's own units.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo
+
+from simbench.robots import REVOLUTE, Robot
+
+_DEG = np.pi / 180.0
+
+
+class SimbenchModel(BaseModel):
+    """Strict, frozen, no unknown fields, no NaN or infinity."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+class Units(SimbenchModel):
+    """How the scenario file writes angles and lengths."""
+
+    angle: Literal["rad", "deg"] = "rad"
+    length: Literal["m", "mm"] = "m"
+
+    @property
+    def angle_factor(self) -> float:
+        """Radians per unit of the file's angles."""
+        return _DEG if self.angle == "deg" else 1.0
+
+    @property
+    def length_factor(self) -> float:
+        """Metres per unit of the file's lengths."""
+        return 1e-3 if self.length == "mm" else 1.0
+
+    def factor(self, kind: str) -> float:
+        """SI per file unit for a joint of this kind."""
+        return self.angle_factor if kind == REVOLUTE else self.length_factor
+
+    def name(self, kind: str) -> str:
+        """The file's unit for a joint of this kind."""
+        return self.angle if kind == REVOLUTE else self.length
+
+
+def _units(info: ValidationInfo) -> Units:
+    return (info.context or {}).get("units", Units())
+
+
+def _to_angle(value: float, info: ValidationInfo) -> float:
+    return value * _units(info).angle_factor
+
+
+def _to_length(value: float, info: ValidationInfo) -> float:
+    return value * _units(info).length_factor
+
+
+def _to_position(value: list[float], info: ValidationInfo) -> list[float]:
+    if len(value) != 3:
+        raise ValueError(f"expected a point [x, y, z], got {len(value)} values")
+    return [v * _units(info).length_factor for v in value]
+
+
+def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
+    robot: Robot = info.context["robot"]
+    units = _units(info)
+    if len(value) != robot.dof:
+        raise ValueError(f"expected {robot.dof} values, one per joint ({', '.join(robot.joints)}), got {len(value)}")
+    q = []
+    for name, kind, lo, hi, v in zip(robot.joints, robot.kinds, robot.lower, robot.upper, value):
+        k = units.factor(kind)
+        si = v * k
+        if not lo - 1e-12 <= si <= hi + 1e-12:
+            unit = units.name(kind)
+            raise ValueError(f"{name} = {v:g} {unit} is outside the joint range [{lo / k:g}, {hi / k:g}] {unit}")
+        q.append(si)
+    return q
+
+
+Number = float
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+Angle = Annotated[float, AfterValidator(_to_angle)]
+Length = Annotated[float, AfterValidator(_to_length)]
+PositiveAngle = Annotated[float, Field(gt=0), AfterValidator(_to_angle)]
+PositiveLength = Annotated[float, Field(gt=0), AfterValidator(_to_length)]
+Position = Annotated[list[float], AfterValidator(_to_position)]
+JointVector = Annotated[list[float], AfterValidator(_to_joints)]

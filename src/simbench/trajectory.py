@@ -1,0 +1,37 @@
+"""What a planner hands to the simulator: joint references on the control grid, and what the plan means."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class JointTrajectory:
+    """Joint references sampled at every control step, t = 0, dt, ..., T + hold.
+
+    `s` is the path parameter behind each sample, `tool_ref` the tool point the plan means to be at (on the
+    commanded path), `waypoints` the method's own points (paper 000's nd points, say) and `info` the choices the
+    planner made, for the report.
+    """
+
+    t: np.ndarray
+    s: np.ndarray
+    q_ref: np.ndarray
+    qd_ref: np.ndarray
+    tool_ref: np.ndarray
+    waypoints: tuple[dict, ...] = ()
+    info: dict = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def dt(self) -> float:
+        """Control period (s)."""
+        return float(self.t[1] - self.t[0])
+
+
+def control_grid(duration: float, hold: float, dt: float) -> np.ndarray:
+    """Sample times 0, dt, ..., covering the motion and the hold after it."""
+    n = int(round((duration + hold) / dt))
+    return np.arange(n + 1) * dt

@@ -1,0 +1,50 @@
+"""Analysis building blocks against closed-form geometry."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from simbench.analysis import path_deviation, spans
+from simbench.render import simplify
+
+coords = st.floats(-1.0, 1.0, allow_nan=False)
+point = st.tuples(coords, coords, coords).map(np.array)
+
+
+@settings(max_examples=60, deadline=None)
+@given(a=point, b=point, p=point)
+def test_distance_from_a_sampled_segment_is_the_segment_distance(a, b, p):
+    if np.linalg.norm(b - a) < 1e-3:
+        return
+    path = a + np.linspace(0, 1, 2001)[:, None] * (b - a)
+    dist, arc = path_deviation(path, p[None])
+    u = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+    assert abs(dist[0] - np.linalg.norm(a + u * (b - a) - p)) < 1e-9
+    assert abs(arc[0] - u * np.linalg.norm(b - a)) < 1e-9
+
+
+def test_distance_from_a_circle():
+    theta = np.linspace(0, 1.5 * np.pi, 20001)
+    circle = np.stack([0.2 * np.cos(theta), 0.2 * np.sin(theta), np.zeros_like(theta)], axis=1)
+    probe = np.array([[0.25 * np.cos(0.7), 0.25 * np.sin(0.7), 0.03]])
+    dist, arc = path_deviation(circle, probe)
+    assert abs(dist[0] - np.hypot(0.05, 0.03)) < 1e-6
+    assert abs(arc[0] - 0.2 * 0.7) < 2e-5  # chords of 47 um: the foot of the normal lies within one
+
+
+def test_spans_of_a_mask():
+    mask = np.array([0, 1, 1, 0, 0, 1, 0, 1, 1, 1], bool)
+    assert spans(mask) == [(1, 2), (5, 5), (7, 9)]
+    assert spans(np.zeros(4, bool)) == []
+    assert spans(np.ones(3, bool)) == [(0, 2)]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10**6), tol=st.floats(1e-4, 1e-2))
+def test_simplified_polyline_stays_within_tolerance(seed, tol):
+    rng = np.random.default_rng(seed)
+    pts = np.cumsum(rng.normal(scale=0.01, size=(300, 3)), axis=0)
+    kept = simplify(pts, tol)
+    assert kept[0] == 0 and kept[-1] == len(pts) - 1
+    dist, _ = path_deviation(pts[kept], pts)
+    assert dist.max() <= tol + 1e-12

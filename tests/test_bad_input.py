@@ -1,0 +1,113 @@
+"""Bad scenarios: exit 2 with one line naming the file, the field and what is expected; a path the method
+cannot repair: exit 1 with the reason. Neither leaves an output folder behind."""
+
+import subprocess
+import sys
+
+import pytest
+import yaml
+
+from simbench.cli import main
+
+GOOD = {
+    "robot": "spherical_arm",
+    "planner": "safe_straight_path",
+    "units": {"angle": "deg", "length": "mm"},
+    "start": [120, 10, 120, 5],
+    "task": {"goal": [120, 75, 5, 90], "nd": 11},
+    "timing": {"law": "quintic", "duration": 1.0},
+}
+
+
+def variant(**changes):
+    """GOOD with top-level or dotted fields replaced (value None deletes)."""
+    doc = yaml.safe_load(yaml.safe_dump(GOOD))
+    for dotted, value in changes.items():
+        *parents, leaf = dotted.split("__")
+        node = doc
+        for p in parents:
+            node = node[p]
+        if value is None:
+            node.pop(leaf)
+        else:
+            node[leaf] = value
+    return yaml.safe_dump(doc)
+
+
+CASES = [
+    ("unknown robot", variant(robot="puma9000"), "robot", "unknown robot 'puma9000'"),
+    ("unknown planner", variant(planner="rrt"), "planner", "unknown planner 'rrt'"),
+    ("missing field", variant(timing__duration=None), "timing.duration", "missing"),
+    ("missing start", variant(start=None), "start", "missing"),
+    ("extra field", variant(colour="red"), "colour", "unknown field"),
+    ("misspelt field", variant(timing={"law": "quintic", "duraton": 1.0}), "timing.duraton",
+     "did you mean 'duration'"),
+    ("list too short", variant(start=[120, 10, 120]), "start", "expected 4 values"),
+    ("list too long", variant(task__goal=[120, 75, 5, 90, 1]), "task.goal", "expected 4 values"),
+    ("outside joint limits", variant(start=[120, 500, 120, 5]), "start", "q2 = 500 mm is outside the joint range"),
+    ("q3 beyond its limit", variant(task__goal=[120, 75, -80, 90]), "task.goal", "q3 = -80 deg is outside"),
+    ("string for a number", variant(timing__duration="fast"), "timing.duration", "expected a valid number"),
+    ("string in a list", variant(start=[120, "ten", 120, 5]), "start[1]", "expected a valid number"),
+    ("NaN", variant(timing__duration=float("nan")), "timing.duration", "finite number"),
+    ("infinity in a list", variant(start=[120, 10, float("inf"), 5]), "start[2]", "finite number"),
+    ("negative duration", variant(timing__duration=-1), "timing.duration", "greater than 0"),
+    ("unknown time law", variant(timing__law="sine"), "timing.law", "expected 'cubic'"),
+    ("unknown unit", variant(units={"angle": "grad"}), "units.angle", "expected 'rad' or 'deg'"),
+    ("nd not an integer", variant(task__nd=11.5), "task.nd", "valid integer"),
+    ("zero-length path", variant(task__goal=[120, 10, 120, 5]), "task.goal", "zero-length path"),
+    ("same tool point from the twin", variant(task__goal=[300, 10, 60, 5]), "task.goal", "zero-length path"),
+    ("unknown camera", variant(render={"camera": "overhead"}), "render.camera", "no camera 'overhead'"),
+    ("odd video width", variant(render={"width": 641}), "render.width", "multiple of 2"),
+    ("not a mapping", "- 1\n- 2\n", None, "expected a mapping of scenario fields, got a list"),
+    ("not YAML", "robot: [spherical_arm\nplanner: x\n", None, "not valid YAML at line"),
+    ("empty file", "", None, "empty file"),
+]
+
+
+def run_cli(args, capsys):
+    code = main(args)
+    captured = capsys.readouterr()
+    return code, captured.err.strip().splitlines()
+
+
+@pytest.mark.parametrize("label, text, field, expected", CASES, ids=[c[0] for c in CASES])
+def test_bad_scenario_exits_2_with_one_line(tmp_path, capsys, label, text, field, expected):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    for command in (["validate", str(path)], ["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]):
+        code, lines = run_cli(command, capsys)
+        assert code == 2
+        assert len(lines) == 1, lines
+        assert lines[0].startswith(f"error: {path}: " + (f"{field}: " if field else ""))
+        assert expected in lines[0]
+        assert not (tmp_path / "out").exists()
+
+
+def test_missing_file_and_binary_file(tmp_path, capsys):
+    code, lines = run_cli(["validate", str(tmp_path / "nope.yaml")], capsys)
+    assert code == 2 and lines == [f"error: {tmp_path / 'nope.yaml'}: no such file"]
+    binary = tmp_path / "blob.yaml"
+    binary.write_bytes(bytes(range(256)) * 4)
+    code, lines = run_cli(["validate", str(binary)], capsys)
+    assert code == 2 and len(lines) == 1 and "not a text file" in lines[0]
+
+
+def test_unrepairable_path_exits_1_with_the_reason_and_writes_nothing(tmp_path, capsys):
+    path = tmp_path / "case4_printed.yaml"
+    path.write_text(variant(start=[300, 0, 80, 30], task={"goal": [47, 400, -75, 100]}))
+    code, lines = run_cli(["run", str(path), "--out", str(tmp_path / "out"), "--no-video"], capsys)
+    assert code == 1
+    assert len(lines) == 1 and lines[0].startswith("run failed: the straight path leaves the workspace")
+    assert "tangent triangle of Fig. 8 has no solution" in lines[0]
+    assert not (tmp_path / "out").exists()
+    assert list(tmp_path.iterdir()) == [path]
+
+
+def test_real_command_line_prints_no_traceback(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text(variant(start=[120, 500, 120, 5]))
+    proc = subprocess.run([sys.executable, "-m", "simbench", "run", str(path)], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert proc.stdout == ""

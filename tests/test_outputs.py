@@ -1,0 +1,112 @@
+"""What `python -m simbench run` writes, checked as a user would read it (DESIGN.md section 3)."""
+
+import json
+
+import imageio.v2 as imageio
+import mujoco
+import numpy as np
+import pytest
+
+from simbench.cli import main
+from simbench.resources import scenarios_dir
+
+from conftest import scenario_file
+
+SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "demo"
+    assert main(["run", str(scenario_file("spherical_arm", "demo")), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_report_has_the_contract_fields(demo_run):
+    report = json.loads((demo_run / "report.json").read_text())
+    for key in ("scenario", "robot", "planner", "versions", "timestep", "duration", "tracking",
+                "singularity_events", "limit_events", "warnings", "wall_time", "outputs", "waypoints"):
+        assert key in report, key
+    assert report["versions"]["mujoco"] == mujoco.__version__
+    tracking = report["tracking"]
+    assert set(tracking["joint_rms"]) == {"q1", "q2", "q3", "q4"} == set(tracking["joint_max"])
+    assert 0 < tracking["tool_rms"] <= tracking["tool_max"] < 2e-3
+    for stage in ("plan", "simulate", "analyse", "plots", "video", "write", "total"):
+        assert report["wall_time"][stage] >= 0
+    for event in report["singularity_events"] + report["limit_events"]:
+        assert set(event) == {"t_start", "t_end", "kind", "detail"} and event["t_start"] <= event["t_end"]
+    assert [e["kind"] for e in report["singularity_events"]] == ["cos_q3_zero"]
+    waypoint = report["waypoints"][0]
+    assert len(waypoint["X"]) == 3 and len(waypoint["q"]) == 4
+
+
+def test_timeseries_rows_match_the_report(demo_run):
+    report = json.loads((demo_run / "report.json").read_text())
+    ts = np.load(demo_run / "timeseries.npz")
+    n = report["samples"]
+    assert ts["t"].shape == (n,)
+    assert ts["t"][-1] == pytest.approx(report["duration"] + report["hold"])
+    for name, width in (("q_ref", 4), ("q", 4), ("qd", 4), ("ctrl", 4), ("tool_ref", 3), ("tool", 3)):
+        assert ts[name].shape == (n, width), name
+    for name in ("manipulability", "axis_distance", "path_deviation"):
+        assert ts[name].shape == (n,), name
+    deviation = ts["path_deviation"]
+    assert np.sqrt(np.mean(deviation**2)) == pytest.approx(report["tracking"]["tool_rms"])
+    assert np.abs(ts["q"][:, 2]).max() < np.pi + 0.01  # radians, not degrees
+
+
+def test_plots_are_pngs(demo_run):
+    report = json.loads((demo_run / "report.json").read_text())
+    assert len(report["outputs"]["plots"]) == 4
+    for name in report["outputs"]["plots"]:
+        image = imageio.imread(demo_run / name)
+        assert image.shape[0] > 300 and image.shape[1] > 500
+        assert image.std() > 10
+
+
+def test_video_plays_with_the_path_and_the_moving_arm(demo_run):
+    report = json.loads((demo_run / "report.json").read_text())
+    frames = np.array([frame for frame in imageio.get_reader(demo_run / "video.mp4")])
+    fps = report["outputs"]["video_info"]["fps"]
+    assert frames.shape[1:] == (480, 640, 3)
+    assert len(frames) == int((report["duration"] + report["hold"]) * fps) + 1
+    assert np.abs(frames[-1].astype(int) - frames[0].astype(int)).mean() > 1.0
+    blue = (frames[0, :, :, 2] > 180) & (frames[0, :, :, 0] < 80)
+    red_late = (frames[-1, :, :, 0] > 180) & (frames[-1, :, :, 1] < 80) & (frames[-1, :, :, 2] < 80)
+    assert blue.sum() > 50, "planned path not visible"
+    assert red_late.sum() > 200, "tool trace not visible"
+
+
+def test_same_run_twice_gives_identical_timeseries(tmp_path):
+    path = str(scenario_file("spherical_arm", "case1"))
+    for name in ("a", "b"):
+        assert main(["run", path, "--out", str(tmp_path / name), "--no-video", "--quiet"]) == 0
+    a, b = np.load(tmp_path / "a" / "timeseries.npz"), np.load(tmp_path / "b" / "timeseries.npz")
+    assert set(a.files) == set(b.files)
+    for name in a.files:
+        assert np.array_equal(a[name], b[name]), name
+    assert not (tmp_path / "a" / "video.mp4").exists()
+
+
+def test_rerun_replaces_the_output_folder_whole(tmp_path):
+    out = tmp_path / "out"
+    path = str(scenario_file("spherical_arm", "case1"))
+    assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 0
+    (out / "stale.txt").write_text("from an older run")
+    assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 0
+    assert not (out / "stale.txt").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_shipped_scenarios_validate(path, capsys):
+    assert main(["validate", str(path)]) == 0
+    assert capsys.readouterr().out.startswith(f"{path}: ok")
+
+
+def test_list_names_robots_planners_and_scenarios(capsys):
+    assert main(["list"]) == 0
+    text = capsys.readouterr().out
+    assert "spherical_arm" in text and "safe_straight_path" in text and "joint_move" in text
+    for path in SHIPPED:
+        assert path.name in text

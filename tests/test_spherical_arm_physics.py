@@ -1,0 +1,118 @@
+"""Paper 000's cases tracked in physics: accuracy, the case-2 jump, singular sets crossed, limits reported."""
+
+import numpy as np
+import pytest
+
+import simbench
+from simbench.robots import spherical_arm
+from simbench.sim import Plant, simulate
+from simbench.trajectory import JointTrajectory
+
+ROBOT = spherical_arm.ROBOT
+
+
+@pytest.mark.parametrize("name", ["case1", "case2_forward_twin", "case3", "case4", "demo"])
+def test_tool_stays_within_1mm_rms_of_the_line(evaluated, name):
+    _, ev = evaluated("spherical_arm", name)
+    assert ev.analysis.tracking["tool_rms"] < 1e-3
+    assert ev.analysis.tracking["tool_max"] < 2e-3
+    assert ev.recording.warnings == ()
+
+
+def test_case2_jump_is_named_with_its_time_step_and_cost(evaluated):
+    _, ev = evaluated("spherical_arm", "case2")
+    jumps = [e for e in ev.analysis.limit_events if e["kind"] == "reference_jump"]
+    assert len(jumps) == 1
+    jump = jumps[0]
+    assert jump["t_start"] == 0.0 and jump["t_end"] == pytest.approx(ev.recording.timestep)
+    assert jump["detail"]["between_waypoints"] == [1, 2]
+    assert set(jump["detail"]["joints"]) == {"q1", "q3"}
+    # The step goes to the start's forward twin: q1 by half a turn, q3 from 110 to 180 - 110 = 70 deg.
+    dq1, dq2, dq3, dq4 = jump["detail"]["step"]
+    assert abs(dq1) == pytest.approx(np.pi, abs=1e-6)
+    assert dq3 == pytest.approx(np.deg2rad(70 - 110), abs=1e-6)
+    assert abs(dq2) < 1e-6 and abs(dq4) < 1e-6
+    cost = jump["detail"]["cost"]
+    assert cost["tool_off_path_max"] > 0.01 and cost["back_on_path"]
+    assert ev.analysis.tracking["tool_max"] == pytest.approx(cost["tool_off_path_max"])
+
+
+def test_case2_twin_starts_at_the_same_tool_point(evaluated):
+    s2, _ = evaluated("spherical_arm", "case2")
+    twin, ev = evaluated("spherical_arm", "case2_forward_twin")
+    assert np.allclose(spherical_arm.fk(np.array(s2.start)), spherical_arm.fk(np.array(twin.start)), atol=1e-12)
+    assert not [e for e in ev.analysis.limit_events if e["kind"] == "reference_jump"]
+
+
+def test_case1_crosses_p1_where_the_plan_puts_q3_at_90_deg(evaluated):
+    _, ev = evaluated("spherical_arm", "case1")
+    crossing = ev.trajectory.t[np.argmin(np.abs(ev.trajectory.q_ref[:, 2] - np.pi / 2))]
+    kinds = {e["kind"]: e for e in ev.analysis.singularity_events}
+    assert {"p1", "cos_q3_zero"} <= set(kinds)
+    for kind in ("p1", "cos_q3_zero"):
+        assert kinds[kind]["t_start"] <= crossing <= kinds[kind]["t_end"]
+        assert kinds[kind]["detail"]["t_closest"] == pytest.approx(crossing, abs=0.01)
+
+
+def test_case3_repairs_its_start_to_66_32_deg(evaluated):
+    _, ev = evaluated("spherical_arm", "case3")
+    repair = ev.trajectory.info["workspace_repair"]
+    assert repair["chosen"] == "S"
+    assert np.rad2deg(repair["q3_init_new"]) == pytest.approx(66.32, abs=0.01)
+    assert ev.recording.q[0, 2] == pytest.approx(repair["q3_init_new"], abs=1e-4)
+
+
+def test_case4_reports_the_q3_limit_break(evaluated):
+    _, ev = evaluated("spherical_arm", "case4")
+    breaks = [e for e in ev.analysis.limit_events if e["kind"] == "joint_limit"]
+    assert [(e["detail"]["joint"], e["detail"]["bound"]) for e in breaks] == [("q3", "lower")]
+    assert np.rad2deg(breaks[0]["detail"]["worst"]) < -75.0405
+    assert ev.trajectory.warnings and "q3 < -75 deg" in ev.trajectory.warnings[0]
+    # The servo's range stops the joint at its limit.
+    assert ev.recording.q[:, 2].min() > np.deg2rad(-75) - 1e-4
+
+
+@pytest.mark.parametrize("name", ["case1", "case2", "case2_forward_twin", "case3", "case4", "demo"])
+def test_every_reference_sample_is_within_limits_or_reported(evaluated, name):
+    _, ev = evaluated("spherical_arm", name)
+    q = ev.trajectory.q_ref
+    outside = (q < ROBOT.lower - 1e-9) | (q > ROBOT.upper + 1e-9)
+    covered = np.zeros_like(outside)
+    for e in ev.analysis.limit_events:
+        if e["kind"] == "joint_limit":
+            j = ROBOT.joints.index(e["detail"]["joint"])
+            covered[(ev.trajectory.t >= e["t_start"]) & (ev.trajectory.t <= e["t_end"]), j] = True
+    assert not np.any(outside & ~covered)
+    assert np.abs(ROBOT.fk(q) - ev.trajectory.tool_ref).max() < 1e-9
+
+
+def hold(q: np.ndarray, seconds: float, plant: Plant) -> JointTrajectory:
+    t = np.arange(int(seconds / plant.model.opt.timestep) + 1) * plant.model.opt.timestep
+    q_ref = np.tile(q, (t.size, 1))
+    return JointTrajectory(t=t, s=np.zeros(t.size), q_ref=q_ref, qd_ref=np.zeros_like(q_ref),
+                           tool_ref=ROBOT.fk(q_ref))
+
+
+@pytest.mark.parametrize("q", [[0.3, 0.2, 0.0, 0.4], [2.0, 0.05, -1.2, 0.3], [4.0, 0.4, 2.5, 0.1]])
+def test_gravity_compensation_holds_a_pose_without_droop(q):
+    """Static equilibrium: with gravity compensated, the servo needs no error to hold the arm still."""
+    plant = Plant.load(ROBOT)
+    rec = simulate(plant, hold(np.array(q), 2.0, plant), settle=0.0)
+    assert np.abs(rec.q - np.array(q)).max() < 1e-6
+    assert np.abs(rec.qd).max() < 1e-6
+
+
+def test_velocity_feedforward_reduces_lag(evaluated):
+    scenario, with_ff = evaluated("spherical_arm", "demo")
+    plant = Plant.load(ROBOT)
+    without = simulate(plant, with_ff.trajectory, settle=scenario.sim.settle, feedforward=False)
+    lag_without = np.abs(without.q - with_ff.trajectory.q_ref).max(axis=0)
+    lag_with = np.abs(with_ff.recording.q - with_ff.trajectory.q_ref).max(axis=0)
+    assert np.all(lag_with[1:] < 0.5 * lag_without[1:])
+
+
+def test_same_scenario_twice_gives_identical_arrays(evaluated):
+    scenario, first = evaluated("spherical_arm", "case3")
+    second = simbench.evaluate(scenario)
+    for name in ("qpos", "q", "qd", "ctrl", "tool"):
+        assert np.array_equal(getattr(first.recording, name), getattr(second.recording, name)), name
