@@ -110,3 +110,13 @@ def test_list_names_robots_planners_and_scenarios(capsys):
     assert "spherical_arm" in text and "safe_straight_path" in text and "joint_move" in text
     for path in SHIPPED:
         assert path.name in text
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_every_shipped_scenario_runs_to_complete_outputs(path, tmp_path):
+    out = tmp_path / path.stem
+    assert main(["run", str(path), "--out", str(out), "--no-video", "--quiet"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["scenario"]["name"] == path.stem
+    assert np.load(out / "timeseries.npz")["t"].size == report["samples"]
+    assert all((out / name).is_file() for name in report["outputs"]["plots"])
