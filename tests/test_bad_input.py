@@ -13,8 +13,7 @@ GOOD = {
     "robot": "spherical_arm",
     "planner": "safe_straight_path",
     "units": {"angle": "deg", "length": "mm"},
-    "start": [120, 10, 120, 5],
-    "task": {"goal": [120, 75, 5, 90], "nd": 11},
+    "task": {"start": [120, 10, 120, 5], "goal": [120, 75, 5, 90], "nd": 11},
     "timing": {"law": "quintic", "duration": 1.0},
 }
 
@@ -38,18 +37,18 @@ CASES = [
     ("unknown robot", variant(robot="puma9000"), "robot", "unknown robot 'puma9000'"),
     ("unknown planner", variant(planner="rrt"), "planner", "unknown planner 'rrt'"),
     ("missing field", variant(timing__duration=None), "timing.duration", "missing"),
-    ("missing start", variant(start=None), "start", "missing"),
+    ("missing start", variant(task__start=None), "task.start", "missing"),
     ("extra field", variant(colour="red"), "colour", "unknown field"),
     ("misspelt field", variant(timing={"law": "quintic", "duraton": 1.0}), "timing.duraton",
      "did you mean 'duration'"),
-    ("list too short", variant(start=[120, 10, 120]), "start", "expected 4 values"),
+    ("list too short", variant(task__start=[120, 10, 120]), "task.start", "expected 4 values"),
     ("list too long", variant(task__goal=[120, 75, 5, 90, 1]), "task.goal", "expected 4 values"),
-    ("outside joint limits", variant(start=[120, 500, 120, 5]), "start", "q2 = 500 mm is outside the joint range"),
+    ("outside joint limits", variant(task__start=[120, 500, 120, 5]), "task.start", "q2 = 500 mm is outside the joint range"),
     ("q3 beyond its limit", variant(task__goal=[120, 75, -80, 90]), "task.goal", "q3 = -80 deg is outside"),
     ("string for a number", variant(timing__duration="fast"), "timing.duration", "expected a valid number"),
-    ("string in a list", variant(start=[120, "ten", 120, 5]), "start[1]", "expected a valid number"),
+    ("string in a list", variant(task__start=[120, "ten", 120, 5]), "task.start[1]", "expected a valid number"),
     ("NaN", variant(timing__duration=float("nan")), "timing.duration", "finite number"),
-    ("infinity in a list", variant(start=[120, 10, float("inf"), 5]), "start[2]", "finite number"),
+    ("infinity in a list", variant(task__start=[120, 10, float("inf"), 5]), "task.start[2]", "finite number"),
     ("negative duration", variant(timing__duration=-1), "timing.duration", "greater than 0"),
     ("unknown time law", variant(timing__law="sine"), "timing.law", "expected 'cubic'"),
     ("unknown unit", variant(units={"angle": "grad"}), "units.angle", "expected 'rad' or 'deg'"),
@@ -94,7 +93,7 @@ def test_missing_file_and_binary_file(tmp_path, capsys):
 
 def test_unrepairable_path_exits_1_with_the_reason_and_writes_nothing(tmp_path, capsys):
     path = tmp_path / "case4_printed.yaml"
-    path.write_text(variant(start=[300, 0, 80, 30], task={"goal": [47, 400, -75, 100]}))
+    path.write_text(variant(task={"start": [300, 0, 80, 30], "goal": [47, 400, -75, 100]}))
     code, lines = run_cli(["run", str(path), "--out", str(tmp_path / "out"), "--no-video"], capsys)
     assert code == 1
     assert len(lines) == 1 and lines[0].startswith("run failed: the straight path leaves the workspace")
@@ -105,7 +104,7 @@ def test_unrepairable_path_exits_1_with_the_reason_and_writes_nothing(tmp_path, 
 
 def test_real_command_line_prints_no_traceback(tmp_path):
     path = tmp_path / "bad.yaml"
-    path.write_text(variant(start=[120, 500, 120, 5]))
+    path.write_text(variant(task__start=[120, 500, 120, 5]))
     proc = subprocess.run([sys.executable, "-m", "simbench", "run", str(path)], capture_output=True, text=True,
                           cwd=tmp_path)
     assert proc.returncode == 2

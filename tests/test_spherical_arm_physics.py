@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import simbench
+from simbench.analysis import path_deviation
 from simbench.robots import spherical_arm
 from simbench.sim import Plant, simulate
 from simbench.trajectory import JointTrajectory
@@ -40,7 +41,7 @@ def test_case2_jump_is_named_with_its_time_step_and_cost(evaluated):
 def test_case2_twin_starts_at_the_same_tool_point(evaluated):
     s2, _ = evaluated("spherical_arm", "case2")
     twin, ev = evaluated("spherical_arm", "case2_forward_twin")
-    assert np.allclose(spherical_arm.fk(np.array(s2.start)), spherical_arm.fk(np.array(twin.start)), atol=1e-12)
+    assert np.allclose(spherical_arm.fk(np.array(s2.task.start)), spherical_arm.fk(np.array(twin.task.start)), atol=1e-12)
     assert not [e for e in ev.analysis.limit_events if e["kind"] == "reference_jump"]
 
 
@@ -116,3 +117,16 @@ def test_same_scenario_twice_gives_identical_arrays(evaluated):
     second = simbench.evaluate(scenario)
     for name in ("qpos", "q", "qd", "ctrl", "tool"):
         assert np.array_equal(getattr(first.recording, name), getattr(second.recording, name)), name
+
+
+def test_joint_move_interpolates_joints_and_leaves_the_straight_line(evaluated):
+    scenario, ev = evaluated("spherical_arm", "case1_joint_move")
+    traj = ev.trajectory
+    q0, q1 = np.array(scenario.task.start), np.array(scenario.task.goal)
+    assert np.allclose(traj.q_ref, q0 + traj.s[:, None] * (q1 - q0), atol=1e-12)
+    assert np.allclose(traj.tool_ref, ROBOT.fk(traj.q_ref), atol=1e-12)
+    assert np.abs(ev.recording.q - traj.q_ref).max(axis=0)[[1, 3]].max() < 1e-3
+    # Against the straight line between the same two tool points the joint move bows out by centimetres.
+    _, straight = evaluated("spherical_arm", "case1")
+    bow, _ = path_deviation(straight.trajectory.tool_ref, traj.tool_ref)
+    assert bow.max() > 0.01

@@ -7,8 +7,9 @@ A scenario is a YAML mapping:
     robot: spherical_arm
     planner: safe_straight_path
     units: {angle: deg, length: mm}  # how this file writes angles and lengths (default rad, m)
-    start: [120, 10, 120, 5]         # joint values, one per joint
-    task: {goal: [120, 75, 5, 90]}   # the planner's own fields
+    task:                            # the planner's own fields
+      start: [120, 10, 120, 5]       # joint values, one per joint
+      goal: [120, 75, 5, 90]
     timing: {law: quintic, duration: 4.0, hold: 0.5}
     sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}
     analysis: {near_angle: 2, near_length: 2}
@@ -30,7 +31,7 @@ from pydantic import BaseModel, Field, PrivateAttr, ValidationError, create_mode
 
 from simbench import planners, robots
 from simbench.errors import ScenarioError
-from simbench.schema import JointVector, NonNegative, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
+from simbench.schema import Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
 from simbench.timing import TimeLaw
 
 _MAX_BYTES = 1 << 20
@@ -85,7 +86,6 @@ class Scenario(SimbenchModel):
     robot: str
     planner: str
     units: Units = Units()
-    start: JointVector
     timing: Timing
     sim: Sim = Sim()
     analysis: Analysis = Analysis()

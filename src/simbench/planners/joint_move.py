@@ -12,6 +12,7 @@ from simbench.trajectory import JointTrajectory, control_grid
 class Task(SimbenchModel):
     """`task:` of a joint move."""
 
+    start: JointVector
     goal: JointVector
 
 
@@ -20,7 +21,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     law = scenario.timing.law_fn()
     t = control_grid(law.duration, scenario.timing.hold, dt)
     s, ds = law(t, order=1)
-    q0, dq = np.array(scenario.start), np.array(scenario.task.goal) - np.array(scenario.start)
+    q0, dq = np.array(scenario.task.start), np.array(scenario.task.goal) - np.array(scenario.task.start)
     q_ref = q0 + s[:, None] * dq
     waypoints = tuple({"s": float(v), "X": robot.fk(q0 + v * dq)[0].tolist(), "q": (q0 + v * dq).tolist()}
                       for v in (0.0, 1.0))
@@ -30,7 +31,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
 
 def check(scenario, robot) -> tuple[str, str] | None:
     """A move to where the robot already is has nothing to do."""
-    if np.allclose(scenario.start, scenario.task.goal, rtol=0.0, atol=1e-12):
+    if np.allclose(scenario.task.start, scenario.task.goal, rtol=0.0, atol=1e-12):
         return "task.goal", "equals start: a zero-length move"
     return None
 

@@ -32,8 +32,9 @@ _DIFF_STEP = 1e-6  # step in s of the central differences giving dq/ds
 
 
 class Task(SimbenchModel):
-    """`task:` of paper 000's straight path: the goal configuration and the method's settings."""
+    """`task:` of paper 000's straight path: the initial and goal configurations and the method's settings."""
 
+    start: JointVector
     goal: JointVector
     nd: int = Field(11, ge=2, le=100000, description="number of method points printed as waypoints (Table 2: 11)")
     workspace_repair: bool = Field(True, description="make a new initial q3 when the path leaves the workspace")
@@ -230,7 +231,7 @@ def waypoints(line: Line, nd: int) -> tuple[dict, ...]:
 def plan(scenario, robot, dt: float) -> JointTrajectory:
     """Paper 000's method on the scenario's start and goal, solved at every control sample."""
     task = scenario.task
-    line = build(np.array(scenario.start), np.array(task.goal))
+    line = build(np.array(task.start), np.array(task.goal))
     reasons = exit_reasons(line, task.nd)
     repair_info = None
     warnings = []
@@ -262,7 +263,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
 
 def check(scenario, robot) -> tuple[str, str] | None:
     """A goal whose tool point is the start's gives no line to follow."""
-    if np.linalg.norm(fk(np.array(scenario.task.goal)) - fk(np.array(scenario.start))) < 1e-9:
+    if np.linalg.norm(fk(np.array(scenario.task.goal)) - fk(np.array(scenario.task.start))) < 1e-9:
         return "task.goal", "its tool point equals the start's: a zero-length path"
     return None
 
