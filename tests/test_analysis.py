@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simbench.analysis import path_deviation, spans
+from simbench.analysis import along_path, path_deviation, spans
 from simbench.render import simplify
 
 coords = st.floats(-1.0, 1.0, allow_nan=False)
@@ -17,19 +17,26 @@ def test_distance_from_a_sampled_segment_is_the_segment_distance(a, b, p):
     if np.linalg.norm(b - a) < 1e-3:
         return
     path = a + np.linspace(0, 1, 2001)[:, None] * (b - a)
-    dist, arc = path_deviation(path, p[None])
+    dist = path_deviation(path, p[None])
     u = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
     assert abs(dist[0] - np.linalg.norm(a + u * (b - a) - p)) < 1e-9
-    assert abs(arc[0] - u * np.linalg.norm(b - a)) < 1e-9
 
 
 def test_distance_from_a_circle():
     theta = np.linspace(0, 1.5 * np.pi, 20001)
     circle = np.stack([0.2 * np.cos(theta), 0.2 * np.sin(theta), np.zeros_like(theta)], axis=1)
     probe = np.array([[0.25 * np.cos(0.7), 0.25 * np.sin(0.7), 0.03]])
-    dist, arc = path_deviation(circle, probe)
+    dist = path_deviation(circle, probe)
     assert abs(dist[0] - np.hypot(0.05, 0.03)) < 1e-6
-    assert abs(arc[0] - 0.2 * 0.7) < 2e-5  # chords of 47 um: the foot of the normal lies within one
+
+
+def test_lag_is_the_error_along_the_tangent_even_where_the_path_closes():
+    theta = np.linspace(0, 2 * np.pi, 4001)
+    circle = np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
+    tangent = along_path(np.vstack([circle, np.repeat(circle[-1:], 50, axis=0)]))
+    assert np.allclose(np.linalg.norm(tangent, axis=1), 1.0)
+    assert np.allclose(tangent[:4001], np.stack([-np.sin(theta), np.cos(theta), 0 * theta], axis=1), atol=1e-3)
+    assert np.allclose(tangent[4001:], tangent[4000])
 
 
 def test_spans_of_a_mask():
@@ -46,5 +53,5 @@ def test_simplified_polyline_stays_within_tolerance(seed, tol):
     pts = np.cumsum(rng.normal(scale=0.01, size=(300, 3)), axis=0)
     kept = simplify(pts, tol)
     assert kept[0] == 0 and kept[-1] == len(pts) - 1
-    dist, _ = path_deviation(pts[kept], pts)
+    dist = path_deviation(pts[kept], pts)
     assert dist.max() <= tol + 1e-12

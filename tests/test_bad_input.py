@@ -63,6 +63,51 @@ CASES = [
 ]
 
 
+PUMA = {
+    "robot": "puma600",
+    "planner": "decoupled_path",
+    "units": {"angle": "deg", "length": "mm"},
+    "task": {"path": [{"line": {"start": [450, -350, -300], "end": [650, 150, -300]}}],
+             "orientation": {"convention": "zyx", "value": [0, 180, 0]},
+             "configuration": {"wrist": "flip"}},
+    "timing": {"law": "quintic", "duration": 1.0},
+}
+ARC = {"center": [550, -100, -250], "radius": 100, "normal": [0, 0, 1], "start": 0, "end": 360}
+
+
+def puma(**task):
+    doc = yaml.safe_load(yaml.safe_dump(PUMA))
+    doc["task"].update(task)
+    return yaml.safe_dump(doc)
+
+
+CASES += [
+    ("circle of zero radius", puma(path=[{"arc": {**ARC, "radius": 0}}]), "task.path[0].arc.radius",
+     "greater than 0"),
+    ("zero normal", puma(path=[{"arc": {**ARC, "normal": [0, 0, 0]}}]), "task.path[0].arc.normal", "zero vector"),
+    ("arc with equal start and end", puma(path=[{"arc": {**ARC, "end": 0}}]), "task.path[0].arc",
+     "different start and end angles"),
+    ("line of one point", puma(path=[{"line": {"start": [500, 0, -300], "end": [500, 0, -300]}}]),
+     "task.path[0].line", "start equals end"),
+    ("segment neither line nor arc", puma(path=[{}]), "task.path[0]", "exactly one of 'line' or 'arc'"),
+    ("point outside the workspace", puma(path=[{"line": {"start": [450, 0, -300], "end": [1500, 0, -300]}}]),
+     "task.path[0].line", "its end [1.5000, 0.0000, -0.3000] m is outside the workspace"),
+    ("segments that do not join", puma(path=[{"line": {"start": [450, -300, -300], "end": [450, 0, -300]}},
+                                             {"line": {"start": [460, 0, -300], "end": [600, 0, -300]}}]),
+     "task.path[1]", "starts 10.000 mm from where task.path[0] ends"),
+    ("unknown orientation convention", puma(orientation={"convention": "xyz", "value": [0, 180, 0]}),
+     "task.orientation.convention", "expected 'zyx', 'quat' or 'rotvec'"),
+    ("zero quaternion", puma(orientation={"convention": "quat", "value": [0, 0, 0, 0]}), "task.orientation",
+     "zero length"),
+    ("point with two coordinates", puma(path=[{"line": {"start": [450, -300], "end": [450, 0, -300]}}]),
+     "task.path[0].line.start", "expected a point [x, y, z]"),
+    ("unknown arm configuration", puma(configuration={"arm": "left"}), "task.configuration.arm",
+     "expected 'righty' or 'lefty'"),
+    ("planner for another robot", puma() .replace("robot: puma600", "robot: spherical_arm"), "planner",
+     "works with puma600, not 'spherical_arm'"),
+]
+
+
 def run_cli(args, capsys):
     code = main(args)
     captured = capsys.readouterr()
@@ -100,6 +145,16 @@ def test_unrepairable_path_exits_1_with_the_reason_and_writes_nothing(tmp_path, 
     assert "tangent triangle of Fig. 8 has no solution" in lines[0]
     assert not (tmp_path / "out").exists()
     assert list(tmp_path.iterdir()) == [path]
+
+
+def test_path_leaving_the_reach_between_its_ends_exits_1_naming_where(tmp_path, capsys):
+    path = tmp_path / "through_the_base.yaml"
+    path.write_text(puma(path=[{"line": {"start": [450, 0, -300], "end": [-450, 0, -300]}}]))
+    code, lines = run_cli(["run", str(path), "--out", str(tmp_path / "out"), "--no-video"], capsys)
+    assert code == 1 and len(lines) == 1
+    assert lines[0].startswith("run failed: the path leaves the arm's reach at s = 0.")
+    assert "tool point [" in lines[0]
+    assert not (tmp_path / "out").exists()
 
 
 def test_real_command_line_prints_no_traceback(tmp_path):

@@ -57,7 +57,7 @@ def test_timeseries_rows_match_the_report(demo_run):
 
 def test_plots_are_pngs(demo_run):
     report = json.loads((demo_run / "report.json").read_text())
-    assert len(report["outputs"]["plots"]) == 4
+    assert len(report["outputs"]["plots"]) == 5
     for name in report["outputs"]["plots"]:
         image = imageio.imread(demo_run / name)
         assert image.shape[0] > 300 and image.shape[1] > 500

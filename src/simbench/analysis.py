@@ -1,7 +1,7 @@
 """Metrics and events from a Recording: how well the tool followed the plan, and what it came near.
 
 Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points),
-its lag along that path, and its error against the time-indexed reference. Events, each
+its lag along the path, and its error against the time-indexed reference. Events, each
 {t_start, t_end, kind, detail}:
   singularity_events  spans where the recorded configuration lies near one of the robot's singular sets;
   limit_events        `joint_limit` (the plan asks for a value beyond a joint's range), `at_limit` (the joint
@@ -46,8 +46,8 @@ def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dic
     return {"t_start": float(t[span[0]]), "t_end": float(t[span[1]]), "kind": kind, "detail": detail}
 
 
-def path_deviation(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance of each point from the polyline `path`, and the arc length of its nearest point on it.
+def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance of each point from the polyline `path`.
 
     Exact: a point's nearest vertex, at distance r, bounds its distance from the path, and every point of a
     segment lies within half the longest segment, h, of one of its ends; so only segments with an end within
@@ -56,14 +56,12 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np
     keep = np.concatenate([[True], np.any(np.diff(path, axis=0) != 0, axis=1)])
     vertices = path[keep]
     if len(vertices) == 1:
-        return np.linalg.norm(points - vertices[0], axis=1), np.zeros(len(points))
-    seg_len = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
-    arc = np.concatenate([[0.0], np.cumsum(seg_len)])
+        return np.linalg.norm(points - vertices[0], axis=1)
     tree = cKDTree(vertices)
     radius, _ = tree.query(points)
-    near = tree.query_ball_point(points, radius + 0.5 * seg_len.max() + 1e-12)
-    counts = np.array([len(n) for n in near])
-    owner = np.repeat(np.arange(len(points)), counts)
+    half = 0.5 * np.linalg.norm(np.diff(vertices, axis=0), axis=1).max()
+    near = tree.query_ball_point(points, radius + half + 1e-12)
+    owner = np.repeat(np.arange(len(points)), [len(n) for n in near])
     vertex = np.concatenate(near).astype(int)
     owner = np.concatenate([owner, owner])
     seg = np.clip(np.concatenate([vertex - 1, vertex]), 0, len(vertices) - 2)
@@ -71,21 +69,38 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np
     rel = points[owner] - a
     u = np.clip(np.einsum("ij,ij->i", rel, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
     dist = np.linalg.norm(rel - u[:, None] * ab, axis=1)
-    order = np.lexsort((dist, owner))
-    first = order[np.concatenate([[True], owner[order][1:] != owner[order][:-1]])]
-    return dist[first], arc[seg[first]] + u[first] * seg_len[seg[first]]
+    best = np.full(len(points), np.inf)
+    np.minimum.at(best, owner, dist)
+    return best
 
 
 def _rms(x: np.ndarray, axis=0) -> np.ndarray:
     return np.sqrt(np.mean(np.square(x), axis=axis))
 
 
+def along_path(points: np.ndarray) -> np.ndarray:
+    """Unit tangent (N, 3) of a sampled path; where it rests, the direction it last moved in (or first will)."""
+    step = np.gradient(points, axis=0)
+    norm = np.linalg.norm(step, axis=1)
+    moving = norm > 1e-12 * max(1.0, float(np.abs(points).max()))
+    if not moving.any():
+        return np.zeros_like(points)
+    index = np.maximum.accumulate(np.where(moving, np.arange(len(points)), -1))
+    index = np.where(index < 0, np.argmax(moving), index)
+    return step[index] / norm[index][:, None]
+
+
 def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict, dict[str, np.ndarray]]:
-    """Tracking summary (SI units) and the per-sample series it summarises."""
+    """Tracking summary (SI units) and the per-sample series it summarises.
+
+    The tool's error against the planned path splits into its distance from the path (`path_deviation`,
+    reported as tool_rms and tool_max) and its lag: the error's component along the path's tangent at the
+    reference point, positive when the tool trails.
+    """
     joint_error = rec.q - traj.q_ref
-    deviation, arc_actual = path_deviation(traj.tool_ref, rec.tool)
-    arc_ref = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(traj.tool_ref, axis=0), axis=1))])
-    lag = arc_ref - arc_actual
+    deviation = path_deviation(traj.tool_ref, rec.tool)
+    lag = np.einsum("ij,ij->i", traj.tool_ref - rec.tool, along_path(traj.tool_ref))
+    arc_ref = np.sum(np.linalg.norm(np.diff(traj.tool_ref, axis=0), axis=1))
     tool_error = np.linalg.norm(rec.tool - traj.tool_ref, axis=1)
     summary = {
         "joint_rms": dict(zip(robot.joints, _rms(joint_error).tolist())),
@@ -97,7 +112,7 @@ def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict,
         "tool_error_rms": float(_rms(tool_error)),
         "tool_error_max": float(tool_error.max()),
         "tool_error_final": float(tool_error[-1]),
-        "path_length": float(arc_ref[-1]),
+        "path_length": float(arc_ref),
     }
     series = {"joint_error": joint_error, "path_deviation": deviation, "path_lag": lag, "tool_error": tool_error}
     return summary, series

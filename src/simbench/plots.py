@@ -25,8 +25,11 @@ def _display(kind: str) -> tuple[float, str]:
     return (180.0 / np.pi, "deg") if kind == REVOLUTE else (1e3, "mm")
 
 
-def _shade(ax, events: list[dict], kinds: set[str] | None, color: str) -> None:
+def _shade(ax, events: list[dict], kinds: set[str] | None, color: str, joint: str | None = None) -> None:
+    """Shade the spans of the events of these kinds (all if None), only those of `joint` where given."""
     for e in events:
+        if joint is not None and e["detail"].get("joint", joint) != joint:
+            continue
         if kinds is None or e["kind"] in kinds:
             ax.axvspan(e["t_start"], max(e["t_end"], e["t_start"] + 1e-3), color=color, alpha=0.25, lw=0)
 
@@ -37,20 +40,47 @@ def _save(fig, path: Path) -> None:
     plt.close(fig)
 
 
-def plot_joints(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
-    """Each joint's reference against the simulated value; jumps and limit breaks shaded."""
-    fig, axes = plt.subplots(robot.dof, 1, figsize=(8, 1.9 * robot.dof + 0.6), sharex=True, squeeze=False)
+def _joint_panels(robot: Robot, t: np.ndarray, planned: np.ndarray, simulated: np.ndarray, labels: tuple[str, str],
+                  per_second: bool, title: str, path: Path, decorate) -> None:
+    """One panel a joint: planned (dashed) against simulated, in degrees or millimetres; decorate(ax, j) adds
+    each panel's limits and shading."""
+    fig, axes = plt.subplots(robot.dof, 1, figsize=(8, 1.8 * robot.dof + 0.6), sharex=True, squeeze=False)
     for j, ax in enumerate(axes[:, 0]):
         scale, unit = _display(robot.kinds[j])
-        ax.plot(traj.t, traj.q_ref[:, j] * scale, "--", color="tab:blue", lw=1.4, label="reference")
-        ax.plot(rec.t, rec.q[:, j] * scale, color="tab:orange", lw=1.0, label="simulated")
-        _shade(ax, result.limit_events, {"reference_jump", "joint_limit", "velocity_limit"}, "tab:red")
-        ax.set_ylabel(f"{robot.joints[j]} ({unit})")
+        ax.plot(t, planned[:, j] * scale, "--", color="tab:blue", lw=1.4, label=labels[0])
+        ax.plot(t, simulated[:, j] * scale, color="tab:orange", lw=1.0, label=labels[1])
+        decorate(ax, j, scale)
+        ax.set_ylabel(f"{robot.joints[j]} ({unit}{'/s' if per_second else ''})")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=8)
-    axes[0, 0].set_title("Joint reference and simulated joint values (red: jumps and limit breaks)")
+    axes[0, 0].set_title(title)
     axes[-1, 0].set_xlabel("time (s)")
     _save(fig, path)
+
+
+def plot_joints(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
+    """Each joint's reference against the simulated value; jumps and limit breaks shaded."""
+
+    def decorate(ax, j, scale):
+        _shade(ax, result.limit_events, {"reference_jump", "joint_limit", "velocity_limit"}, "tab:red",
+               robot.joints[j])
+
+    _joint_panels(robot, traj.t, traj.q_ref, rec.q, ("reference", "simulated"), False,
+                  "Joint reference and simulated joint values (red: jumps and limit breaks)", path, decorate)
+
+
+def plot_joint_speeds(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
+    """Each joint's planned and simulated speed against its speed limit; singular spans shaded orange."""
+
+    def decorate(ax, j, scale):
+        for sign in (-1, 1):
+            ax.axhline(sign * robot.qd_max[j] * scale, color="k", ls=":", lw=0.8)
+        _shade(ax, result.singularity_events, None, "tab:orange")
+        _shade(ax, result.limit_events, {"velocity_limit"}, "tab:red", robot.joints[j])
+
+    _joint_panels(robot, traj.t, traj.qd_ref, rec.qd, ("planned", "simulated"), True,
+                  "Joint speeds (dotted: speed limits; orange: near a singularity; red: over the limit)", path,
+                  decorate)
 
 
 def plot_tool(traj: JointTrajectory, result: Analysis, path: Path) -> None:
@@ -111,7 +141,8 @@ def write_plots(robot: Robot, traj: JointTrajectory, rec: Recording, result: Ana
     """All plots into folder; returns their file names."""
     folder.mkdir(parents=True, exist_ok=True)
     plot_joints(robot, traj, rec, result, folder / "joints.png")
+    plot_joint_speeds(robot, traj, rec, result, folder / "joint_speeds.png")
     plot_tool(traj, result, folder / "tool_deviation.png")
     plot_singularity(robot, rec, result, folder / "singularity.png")
     plot_path(traj, rec, folder / "path.png")
-    return ["joints.png", "tool_deviation.png", "singularity.png", "path.png"]
+    return ["joints.png", "joint_speeds.png", "tool_deviation.png", "singularity.png", "path.png"]

@@ -10,7 +10,8 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo, model_validator
+from scipy.spatial.transform import Rotation
 
 from simbench.robots import REVOLUTE, Robot
 
@@ -66,6 +67,15 @@ def _to_position(value: list[float], info: ValidationInfo) -> list[float]:
     return [v * _units(info).length_factor for v in value]
 
 
+def _to_direction(value: list[float]) -> list[float]:
+    if len(value) != 3:
+        raise ValueError(f"expected a direction [x, y, z], got {len(value)} values")
+    norm = float(np.linalg.norm(value))
+    if norm < 1e-9:
+        raise ValueError("expected a direction, got a zero vector")
+    return [v / norm for v in value]
+
+
 def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
     robot: Robot = info.context["robot"]
     units = _units(info)
@@ -90,4 +100,39 @@ Length = Annotated[float, AfterValidator(_to_length)]
 PositiveAngle = Annotated[float, Field(gt=0), AfterValidator(_to_angle)]
 PositiveLength = Annotated[float, Field(gt=0), AfterValidator(_to_length)]
 Position = Annotated[list[float], AfterValidator(_to_position)]
+Direction = Annotated[list[float], AfterValidator(_to_direction)]
 JointVector = Annotated[list[float], AfterValidator(_to_joints)]
+
+
+class Orientation(SimbenchModel):
+    """A rotation, written in one of three conventions.
+
+    zyx     [yaw, pitch, roll]: R = Rz(yaw) Ry(pitch) Rx(roll) (intrinsic Z-Y-X Euler angles), in the file's angle
+            unit;
+    quat    [w, x, y, z], any non-zero length (it is normalised);
+    rotvec  rotation vector, its length the angle in the file's angle unit.
+    """
+
+    convention: Literal["zyx", "quat", "rotvec"]
+    value: list[float]
+
+    @model_validator(mode="after")
+    def _check(self, info: ValidationInfo) -> "Orientation":
+        size = 4 if self.convention == "quat" else 3
+        if len(self.value) != size:
+            raise ValueError(f"{self.convention} expects {size} values, got {len(self.value)}")
+        if self.convention == "quat" and np.linalg.norm(self.value) < 1e-9:
+            raise ValueError("a quaternion of zero length is no rotation")
+        if self.convention == "quat":
+            return self
+        k = _units(info).angle_factor
+        return self.model_copy(update={"value": [v * k for v in self.value]})
+
+    def matrix(self) -> np.ndarray:
+        """The 3x3 rotation matrix."""
+        if self.convention == "zyx":
+            return Rotation.from_euler("ZYX", self.value).as_matrix()
+        if self.convention == "quat":
+            w, x, y, z = self.value
+            return Rotation.from_quat([x, y, z, w]).as_matrix()
+        return Rotation.from_rotvec(self.value).as_matrix()

@@ -2,8 +2,9 @@
 
 The arm starts at rest at the first reference, holds it while it settles, then tracks. Each actuator is a
 position servo, force = kp (ctrl - q) - kv qd. With velocity feed-forward the command is
-ctrl = q_ref + (kv / kp) qd_ref, which makes the same servo a PD on both errors,
-kp (q_ref - q) + kv (qd_ref - qd), as an industrial joint controller is. Commands are clamped to the
+ctrl = q_ref + ((kv + b) / kp) qd_ref, which makes the same servo a PD on both errors that also cancels the
+joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd_ref, as an industrial joint
+controller with friction compensation is. Commands are clamped to the
 actuators' control ranges (the joint ranges), as the servo's own limits would.
 
 The steps run in C through `mujoco.rollout` with the controls computed beforehand, in chunks; a chunk stops at
@@ -73,7 +74,7 @@ class Plant:
         ctrl[:, act] = q_ref
         if feedforward:
             kp = m.actuator_gainprm[act, 0]
-            kv = -m.actuator_biasprm[act, 2]
+            kv = -m.actuator_biasprm[act, 2] + m.dof_damping[self.dof_adr]
             ctrl[:, act] += qd_ref * (kv / kp)
         limited = m.actuator_ctrllimited.astype(bool)
         lo, hi = m.actuator_ctrlrange.T

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 from pydantic import BaseModel
 
 from simbench.trajectory import JointTrajectory
@@ -30,8 +31,22 @@ class Planner:
         return self.robots is None or robot in self.robots
 
 
+def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: np.ndarray,
+         step: float = 1e-6) -> np.ndarray:
+    """dq/ds (N, n) of a joint-space method q(s) by central differences (one-sided at s = 0 and 1).
+
+    `evaluate` maps an array of s to configurations, sample by sample, so a caller can pin each sample's
+    branch; differences of revolute joints are taken modulo one turn.
+    """
+    hi = np.clip(s + step, 0.0, 1.0)
+    lo = np.clip(s - step, 0.0, 1.0)
+    dq = evaluate(hi) - evaluate(lo)
+    dq[:, revolute] = np.angle(np.exp(1j * dq[:, revolute]))
+    return dq / (hi - lo)[:, None]
+
+
 def registry() -> dict[str, Planner]:
     """All planners by name."""
-    from simbench.planners import joint_move, safe_straight_path
+    from simbench.planners import decoupled_path, joint_move, safe_straight_path
 
-    return {p.name: p for p in (safe_straight_path.PLANNER, joint_move.PLANNER)}
+    return {p.name: p for p in (safe_straight_path.PLANNER, decoupled_path.PLANNER, joint_move.PLANNER)}

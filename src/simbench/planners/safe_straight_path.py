@@ -20,15 +20,15 @@ import numpy as np
 from pydantic import Field
 
 from simbench.errors import RunError
-from simbench.planners import Planner
-from simbench.robots.spherical_arm import D1, D4, LOWER, UPPER, fk
+from simbench.planners import Planner, rate
+from simbench.robots import REVOLUTE
+from simbench.robots.spherical_arm import D1, D4, KINDS, LOWER, UPPER, fk
 from simbench.schema import JointVector, SimbenchModel
 from simbench.trajectory import JointTrajectory, control_grid
 
 _AXIS_TOL = 1e-9  # m: a line passing this close to the lift axis crosses it (q1 keeps its value across)
 _LIMIT_TOL = 1e-12
 _CHECK_SAMPLES = 4001  # path samples on which the branch rule and the workspace test are decided
-_DIFF_STEP = 1e-6  # step in s of the central differences giving dq/ds
 
 
 class Task(SimbenchModel):
@@ -107,14 +107,10 @@ def evaluate(line: Line, s: np.ndarray) -> np.ndarray:
 
 
 def derivative(line: Line, s: np.ndarray) -> np.ndarray:
-    """dq/ds (N, 4) by central differences on each sample's own branch (one-sided at the ends)."""
+    """dq/ds (N, 4), each sample differenced on its own branch."""
     s = np.asarray(s, float)
     backward = line.backward(s)
-    hi = np.clip(s + _DIFF_STEP, 0.0, 1.0)
-    lo = np.clip(s - _DIFF_STEP, 0.0, 1.0)
-    dq = _solve(line, hi, backward)["q"] - _solve(line, lo, backward)["q"]
-    dq[:, 0] = np.angle(np.exp(1j * dq[:, 0]))
-    return dq / (hi - lo)[:, None]
+    return rate(lambda x: _solve(line, x, backward)["q"], s, np.array(KINDS) == REVOLUTE)
 
 
 def build(q_init: np.ndarray, q_goal: np.ndarray) -> Line:

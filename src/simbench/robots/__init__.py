@@ -98,9 +98,9 @@ def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dic
 
 def registry() -> dict[str, Robot]:
     """All robots by name."""
-    from simbench.robots import spherical_arm
+    from simbench.robots import puma600, spherical_arm
 
-    return {r.name: r for r in (spherical_arm.ROBOT,)}
+    return {r.name: r for r in (spherical_arm.ROBOT, puma600.ROBOT)}
 
 
 def get(name: str) -> Robot:

@@ -1,0 +1,81 @@
+"""Path points solved per second by each planner's vectorised method, on one core.
+
+Paper 002's method is also set against Craig's analytic IK called point by point (the way the paper says IK
+would otherwise be used), in the same run. Target (issue 3): at least 1e6 points per second on one core.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from simbench.paths import Arc  # noqa: E402
+from simbench.planners import decoupled_path, safe_straight_path  # noqa: E402
+from simbench.robots import puma600  # noqa: E402
+
+REPEATS = 5
+
+
+def _best(fn, repeats: int = REPEATS) -> float:
+    """Fastest of several wall times: the least disturbed by the machine's noise."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def measure(n: int = 200_000, n_loop: int = 2_000) -> dict:
+    """Points per second of each method."""
+    s = np.linspace(0.0, 1.0, n)
+    arc = Arc.from_plane([0.55, -0.1, -0.22], 0.12, [0.5, 0.0, 0.8660254], 0.0, 2 * np.pi)
+    rot = np.diag([-1.0, 1.0, -1.0]) @ np.eye(3)
+    flags = np.array([-1.0, 1.0, -1.0])
+
+    def paper002():
+        decoupled_path.solve(arc.point(s), np.broadcast_to(rot, (n, 3, 3)), flags)
+
+    pts = arc.point(s[:n_loop])
+
+    def craig_per_point():
+        for p in pts:
+            puma600.ik(p[None], rot, flags)
+
+    deg = np.pi / 180
+    line = safe_straight_path.build(np.array([120 * deg, 0.005, 120 * deg, 0.015]),
+                                    np.array([120 * deg, 0.07, -60 * deg, 0.1]))
+
+    def paper000():
+        safe_straight_path.evaluate(line, s)
+
+    t002, t_ik, t000 = _best(paper002), _best(craig_per_point, 3), _best(paper000)
+    return {"n": n, "paper002_points_per_s": n / t002, "ik_per_point_points_per_s": n_loop / t_ik,
+            "paper000_points_per_s": n / t000}
+
+
+def markdown(r: dict) -> str:
+    """The result as a BENCHMARKS.md section."""
+    ratio = r["paper002_points_per_s"] / r["ik_per_point_points_per_s"]
+    return "\n".join([
+        f"### Planners: path points solved per second, one core (best of {REPEATS}; {r['n']:,} points a call)",
+        "",
+        "| method | points/s |",
+        "|---|---|",
+        f"| paper 002, vectorised (PUMA 600 circle: path, wrist offset, q1..q6) | {r['paper002_points_per_s']:,.0f} |",
+        f"| Craig's analytic IK, one point a call (same circle) | {r['ik_per_point_points_per_s']:,.0f} |",
+        f"| paper 000, vectorised (spherical arm, Table 2 case 3 line) | {r['paper000_points_per_s']:,.0f} |",
+        "",
+        f"Paper 002 vectorised / per-point IK: {ratio:,.0f}x. Target: at least 1e6 points/s for paper 002.",
+    ])
+
+
+if __name__ == "__main__":
+    print(markdown(measure()))
