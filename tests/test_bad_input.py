@@ -108,6 +108,40 @@ CASES += [
 ]
 
 
+EYE = {
+    "robot": "agile_eye",
+    "planner": "avoidance_4567",
+    "units": {"angle": "deg", "length": "m"},
+    "task": {"start": {"convention": "zyx", "value": [0, 0, 0]},
+             "goal": {"convention": "zyx", "value": [30, 10, 5]},
+             "obstacles": [{"center": {"convention": "zyx", "value": [15, 5, 2]}, "radius": 5}]},
+    "timing": {"law": "4567", "duration": 2.0},
+}
+
+
+def eye(timing=None, **task):
+    doc = yaml.safe_load(yaml.safe_dump(EYE))
+    doc["task"].update(task)
+    doc["timing"].update(timing or {})
+    return yaml.safe_dump(doc)
+
+
+CASES += [
+    ("eye: unknown orientation convention", eye(start={"convention": "euler", "value": [0, 0, 0]}),
+     "task.start.convention", "expected 'zyx', 'quat' or 'rotvec'"),
+    ("eye: obstacle of negative size",
+     eye(obstacles=[{"center": {"convention": "zyx", "value": [15, 5, 2]}, "radius": -5}]),
+     "task.obstacles[0].radius", "greater than 0"),
+    ("eye: T* longer than T", eye(avoidance={"window": 3.0}), "task.avoidance.window",
+     "T* = 3 s is longer than the motion (timing.duration = 2 s)"),
+    ("eye: zyx with two angles", eye(goal={"convention": "zyx", "value": [30, 10]}), "task.goal",
+     "zyx expects 3 values, got 2"),
+    ("eye: start on a singular curve", eye(start={"convention": "zyx", "value": [0, -90, 0]}), "task.start",
+     "lies on a singular curve"),
+    ("eye: working mode out of range", eye(working_mode=8), "task.working_mode", "less than or equal to 7"),
+]
+
+
 def run_cli(args, capsys):
     code = main(args)
     captured = capsys.readouterr()

@@ -72,9 +72,14 @@ def test_video_plays_with_the_path_and_the_moving_arm(demo_run):
     assert len(frames) == int((report["duration"] + report["hold"]) * fps) + 1
     assert np.abs(frames[-1].astype(int) - frames[0].astype(int)).mean() > 1.0
     blue = (frames[0, :, :, 2] > 180) & (frames[0, :, :, 0] < 80)
-    red_late = (frames[-1, :, :, 0] > 180) & (frames[-1, :, :, 1] < 80) & (frames[-1, :, :, 2] < 80)
+
+    def red(frame):  # the trace's red, also where the faint past plan overlays it; not the orange links
+        f = frame.astype(int)
+        return ((f[:, :, 0] > 160) & (f[:, :, 1] < 100) & (f[:, :, 2] < 120)).sum()
+
     assert blue.sum() > 50, "planned path not visible"
-    assert red_late.sum() > 200, "tool trace not visible"
+    middle = len(frames) // 2  # by the end the radial link lies along the line and hides much of the trace
+    assert red(frames[middle]) - red(frames[0]) > 200, "tool trace not visible"
 
 
 def test_same_run_twice_gives_identical_timeseries(tmp_path):

@@ -12,7 +12,7 @@ its lag along the path, and its error against the time-indexed reference. Events
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -27,12 +27,15 @@ _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path wit
 
 @dataclass(frozen=True)
 class Analysis:
-    """Tracking summary, event lists and the per-sample series behind them."""
+    """Tracking summary, event lists, the per-sample series behind them, the names of the robot's singularity
+    measures among those series, and what the robot adds to the report (closure error, say)."""
 
     tracking: dict
     singularity_events: list[dict]
     limit_events: list[dict]
     series: dict[str, np.ndarray]
+    measures: tuple[str, ...] = ()
+    extra: dict = field(default_factory=dict)
 
 
 def spans(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -49,28 +52,28 @@ def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dic
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Distance of each point from the polyline `path`.
 
-    Exact: a point's nearest vertex, at distance r, bounds its distance from the path, and every point of a
-    segment lies within half the longest segment, h, of one of its ends; so only segments with an end within
-    r + h of the point can be nearer, and a k-d tree finds those ends.
+    A point's nearest vertex, at distance r, bounds its distance from the path, and every point of a segment
+    lies within half the longest segment, h, of one of its ends; so only segments with an end within r + h of
+    the point can be nearer, and a k-d tree finds those ends. Far from the path (r > 100 h) the nearest vertex is
+    taken as is: it is then within h^2 / 2r < h / 200 of the exact distance.
     """
     keep = np.concatenate([[True], np.any(np.diff(path, axis=0) != 0, axis=1)])
     vertices = path[keep]
     if len(vertices) == 1:
         return np.linalg.norm(points - vertices[0], axis=1)
     tree = cKDTree(vertices)
-    radius, _ = tree.query(points)
+    best, _ = tree.query(points)
     half = 0.5 * np.linalg.norm(np.diff(vertices, axis=0), axis=1).max()
-    near = tree.query_ball_point(points, radius + half + 1e-12)
-    owner = np.repeat(np.arange(len(points)), [len(n) for n in near])
-    vertex = np.concatenate(near).astype(int)
+    close = np.flatnonzero(best <= 100 * half)
+    near = tree.query_ball_point(points[close], best[close] + half + 1e-12)
+    owner = np.repeat(close, [len(n) for n in near])
+    vertex = np.concatenate(near).astype(int) if len(near) else np.zeros(0, int)
     owner = np.concatenate([owner, owner])
     seg = np.clip(np.concatenate([vertex - 1, vertex]), 0, len(vertices) - 2)
     a, ab = vertices[seg], vertices[seg + 1] - vertices[seg]
     rel = points[owner] - a
     u = np.clip(np.einsum("ij,ij->i", rel, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-    dist = np.linalg.norm(rel - u[:, None] * ab, axis=1)
-    best = np.full(len(points), np.inf)
-    np.minimum.at(best, owner, dist)
+    np.minimum.at(best, owner, np.linalg.norm(rel - u[:, None] * ab, axis=1))
     return best
 
 
@@ -118,10 +121,11 @@ def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict,
     return summary, series
 
 
-def singularity_events(robot: Robot, t: np.ndarray, q: np.ndarray, tol: Tolerance) -> list[dict]:
-    """Spans where q lies near each of the robot's singular sets, with how near at the closest sample."""
-    events = []
-    for sset in robot.singular_sets(q, tol):
+def singularity_events(robot: Robot, rec: Recording, tol: Tolerance) -> list[dict]:
+    """Spans where the recorded state lies near each of the robot's singular sets, with how near at the closest
+    sample."""
+    t, events = rec.t, []
+    for sset in robot.singular_sets(rec, tol):
         for span in spans(sset.distance <= 1.0):
             i = span[0] + int(np.argmin(sset.distance[span[0]:span[1] + 1]))
             detail = {"family": sset.family, "condition": sset.condition, "t_closest": float(t[i]),
@@ -189,8 +193,14 @@ def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: To
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance) -> Analysis:
     """Everything the report says about a run."""
     summary, series = tracking(robot, traj, rec)
-    series.update(robot.measures(rec.q))
-    return Analysis(tracking=summary,
-                    singularity_events=singularity_events(robot, rec.t, rec.q, near),
+    measures = robot.measures(rec)
+    series.update(measures)
+    singular = singularity_events(robot, rec, near)
+    extra = {}
+    if robot.summary is not None:
+        extra, events, more = robot.summary(traj, rec, series)
+        series.update(more)
+        singular = sorted(singular + events, key=lambda e: (e["t_start"], e["kind"]))
+    return Analysis(tracking=summary, singularity_events=singular,
                     limit_events=limit_events(robot, traj, rec, margin, series["path_deviation"]),
-                    series=series)
+                    series=series, measures=tuple(measures), extra=extra)

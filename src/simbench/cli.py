@@ -26,6 +26,11 @@ def _parser() -> argparse.ArgumentParser:
     validate = sub.add_parser("validate", help="check scenarios without simulating")
     validate.add_argument("scenarios", type=Path, nargs="+")
     sub.add_parser("list", help="list robots, planners and shipped scenarios")
+    train = sub.add_parser("train-fk", help="retrain the Agile Eye's learnt forward kinematics (needs scikit-learn)")
+    train.add_argument("--samples", type=int, default=20000, help="poses per working mode (75 %% train)")
+    train.add_argument("--hidden", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
+    train.add_argument("--seed", type=int, default=0)
+    train.add_argument("--out", type=Path, default=None, help="weights file (default: the shipped one)")
     return parser
 
 
@@ -62,6 +67,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "list":
             print(_list())
+        elif args.command == "train-fk":
+            from simbench import learnt_fk
+
+            learnt_fk.train(args.samples, tuple(args.hidden), args.seed, args.out or learnt_fk.WEIGHTS)
         elif args.command == "validate":
             for path in args.scenarios:
                 sc = scenario.load_scenario(path)

@@ -105,11 +105,13 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
             outputs["plots"] = [f"plots/{name}" for name in write_plots(robot, traj, rec, result, tmp / "plots")]
         if video:
             r = scenario.render
+            planner = scenario.planner_def
+            decorations = planner.decorations(scenario) if planner.decorations else []
             with watch.stage("video"):
                 outputs["video"] = "video.mp4"
                 outputs["video_info"] = render_video(robot.scene, rec, traj.tool_ref, tmp / "video.mp4",
                                                      width=r.width, height=r.height, fps=r.fps, camera=r.camera,
-                                                     quality=r.quality, trace=r.trace)
+                                                     quality=r.quality, trace=r.trace, decorations=decorations)
         with watch.stage("write"):
             write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
         wall = {k: round(v, 4) for k, v in watch.times.items()}

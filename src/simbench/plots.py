@@ -102,7 +102,7 @@ def plot_tool(traj: JointTrajectory, result: Analysis, path: Path) -> None:
 
 def plot_singularity(robot: Robot, rec: Recording, result: Analysis, path: Path) -> None:
     """The robot's singularity measures over time, with the spans near a singular set shaded and named."""
-    names = list(robot.measures(rec.q[:1]))
+    names = list(result.measures)
     fig, axes = plt.subplots(len(names), 1, figsize=(8, 2.4 * len(names) + 0.6), sharex=True, squeeze=False)
     for ax, name in zip(axes[:, 0], names):
         ax.plot(rec.t, result.series[name], color="tab:green")

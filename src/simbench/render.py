@@ -1,8 +1,10 @@
 """Headless video of a Recording: MuJoCo's offscreen renderer (EGL where there is no display) into H.264 MP4.
 
 Each frame poses the model at the recorded state nearest the frame's time, then draws the planned tool path
-(blue) and the tool's trace so far (red) as extra geoms in the scene. Both polylines are first simplified
-(Ramer-Douglas-Peucker, 0.2 mm), since every capsule costs render time on a CPU.
+as lines (blue: solid ahead of the reference, faint behind it) and the tool's trace so far as thin capsules
+(red), all unshaded. The faint part of the plan is translucent, drawn after the trace, so the trace shows
+through it. On a CPU a capsule costs about as much to draw as a link of the robot, so both polylines are first
+simplified (Ramer-Douglas-Peucker, 1 mm: under a pixel at these scenes' scale).
 
 Presets: `fast` (no shadows, reflections or multisampling: about 12 ms a 640x480 frame on Mesa's llvmpipe) and
 `pretty` (shadows, floor reflections and 4x multisampling: several times slower).
@@ -19,11 +21,12 @@ import numpy as np
 from simbench.errors import RunError
 from simbench.sim import Recording
 
-_PLAN_RGBA = np.array([0.1, 0.45, 1.0, 0.9], np.float32)
+_PLAN_RGBA = np.array([0.1, 0.45, 1.0, 1.0], np.float32)
+_PLAN_PAST_RGBA = np.array([0.1, 0.45, 1.0, 0.2], np.float32)
 _TRACE_RGBA = np.array([1.0, 0.15, 0.1, 1.0], np.float32)
-_PLAN_RADIUS = 0.0015
-_TRACE_RADIUS = 0.0025
-_SIMPLIFY_TOL = 2e-4
+_PLAN_WIDTH = 3.0  # pixels
+_TRACE_RADIUS = 0.0035  # m
+_SIMPLIFY_TOL = 1e-3
 QUALITY = ("fast", "pretty")
 
 
@@ -51,18 +54,43 @@ def simplify(points: np.ndarray, tol: float) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def add_polyline(scene: mujoco.MjvScene, points: np.ndarray, rgba: np.ndarray, radius: float) -> None:
-    """Append capsules joining consecutive points to the scene (as many as it has room for)."""
+def add_polyline(scene: mujoco.MjvScene, points: np.ndarray, rgba: np.ndarray, width: float,
+                 kind: int = mujoco.mjtGeom.mjGEOM_LINE) -> None:
+    """Append unshaded lines (`width` pixels) or capsules (radius `width` m) joining consecutive points to the
+    scene, as many as it has room for."""
     for a, b in zip(points[:-1], points[1:]):
         if scene.ngeom >= scene.maxgeom:
             return
         if np.linalg.norm(b - a) < 1e-9:
             continue
         geom = scene.geoms[scene.ngeom]
-        mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
-        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, radius, a, b)
+        mujoco.mjv_initGeom(geom, kind, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
+        mujoco.mjv_connector(geom, kind, width, a, b)
         geom.category = mujoco.mjtCatBit.mjCAT_DECOR
+        geom.emission = 1.0  # drawn in its own colour, unshaded
         scene.ngeom += 1
+
+
+def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length: float, rgba: np.ndarray,
+             lines: int = 8) -> None:
+    """A cone from the origin: its base as a thin translucent disc at `length` along `axis`, and lines to its rim."""
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    radius = length * np.tan(half_angle)
+    seed = np.eye(3)[np.argmin(np.abs(axis))]
+    e1 = np.cross(axis, seed)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    if scene.ngeom < scene.maxgeom:
+        frame = np.column_stack([e1, e2, axis])
+        mujoco.mjv_initGeom(scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_CYLINDER, np.array([radius, 1e-4, 0.0]),
+                            axis * length, frame.ravel(), np.asarray(rgba, np.float32))
+        scene.ngeom += 1
+    angles = np.linspace(0.0, 2 * np.pi, lines, endpoint=False)
+    rim = axis * length + radius * (np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2)
+    edge = np.asarray(rgba, np.float32).copy()
+    edge[3] = min(1.0, edge[3] * 2)
+    for point in rim:
+        add_polyline(scene, np.array([np.zeros(3), point]), edge, 1.0)
 
 
 def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str) -> mujoco.Renderer:
@@ -79,14 +107,15 @@ def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str)
 
 def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *, width: int = 640,
                  height: int = 480, fps: int = 30, camera: str | None = None, quality: str = "fast",
-                 trace: bool = True) -> dict:
-    """Write the MP4 and return what was made: frames, fps, size, camera, quality."""
+                 trace: bool = True, decorations: list[dict] = ()) -> dict:
+    """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
+    shapes to draw in every frame (`{"kind": "cone", "axis", "half_angle", "length", "rgba"}`)."""
     model = mujoco.MjModel.from_xml_path(str(scene))
     data = mujoco.MjData(model)
     camera = camera or model.camera(0).name
     frame_t = np.arange(0.0, rec.t[-1] + 1e-9, 1.0 / fps)
     rows = np.clip(np.searchsorted(rec.t, frame_t), 0, len(rec.t) - 1)
-    plan_pts = planned[simplify(planned, _SIMPLIFY_TOL)]
+    plan_idx = simplify(planned, _SIMPLIFY_TOL)
     trace_idx = simplify(rec.tool, _SIMPLIFY_TOL)
     renderer = _open_renderer(model, width, height, quality)
     pretty = quality == "pretty"
@@ -99,11 +128,17 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
             data.qpos[:] = rec.qpos[row]
             mujoco.mj_forward(model, data)
             renderer.update_scene(data, camera=camera)
-            add_polyline(renderer.scene, plan_pts, _PLAN_RGBA, _PLAN_RADIUS)
+            for item in decorations:
+                add_cone(renderer.scene, item["axis"], item["half_angle"], item["length"], item["rgba"])
+            here = planned[row:row + 1]
+            add_polyline(renderer.scene, np.vstack([here, planned[plan_idx[plan_idx > row]]]), _PLAN_RGBA,
+                         _PLAN_WIDTH)
+            add_polyline(renderer.scene, np.vstack([planned[plan_idx[plan_idx <= row]], here]), _PLAN_PAST_RGBA,
+                         _PLAN_WIDTH)
             if trace:
                 upto = trace_idx[trace_idx <= row]
                 add_polyline(renderer.scene, np.vstack([rec.tool[upto], rec.tool[row:row + 1]]), _TRACE_RGBA,
-                             _TRACE_RADIUS)
+                             _TRACE_RADIUS, mujoco.mjtGeom.mjGEOM_CAPSULE)
             writer.append_data(renderer.render())
     finally:
         writer.close()

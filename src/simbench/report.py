@@ -63,6 +63,7 @@ def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analys
         "waypoints": list(traj.waypoints),
         "wall_time": wall_time,
         "outputs": outputs,
+        **result.extra,
         "config": scenario.model_dump(mode="json"),
     })
 
@@ -79,5 +80,6 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
         "q_ref": traj.q_ref, "qd_ref": traj.qd_ref, "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
         "ctrl": rec.ctrl, "tool_ref": traj.tool_ref, "tool": rec.tool,
     }
+    arrays.update(traj.series)
     arrays.update(result.series)
     np.savez_compressed(path, **arrays)

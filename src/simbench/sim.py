@@ -14,7 +14,7 @@ the first MuJoCo warning, which is recorded, and a warning that means the state 
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -41,6 +41,7 @@ class Recording:
     tool: np.ndarray
     timestep: float
     warnings: tuple[dict, ...] = ()
+    sensors: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -48,10 +49,11 @@ class Plant:
     """A robot's compiled model with the indices the simulator needs."""
 
     model: mujoco.MjModel
+    robot: Robot
     qpos_adr: np.ndarray
     dof_adr: np.ndarray
     actuators: np.ndarray
-    tool_adr: int
+    sensors: dict[str, slice]
 
     @classmethod
     def load(cls, robot: Robot, timestep: float | None = None) -> "Plant":
@@ -60,11 +62,24 @@ class Plant:
         if timestep is not None:
             model.opt.timestep = timestep
         joints = [model.joint(name) for name in robot.joints]
-        return cls(model=model,
+        sensors = {}
+        for name in (robot.tool_sensor, *robot.sensors):
+            sensor = model.sensor(name)
+            sensors[name] = slice(int(sensor.adr[0]), int(sensor.adr[0] + sensor.dim[0]))
+        return cls(model=model, robot=robot,
                    qpos_adr=np.array([j.qposadr[0] for j in joints]),
                    dof_adr=np.array([j.dofadr[0] for j in joints]),
                    actuators=np.array([model.actuator(name).id for name in robot.joints]),
-                   tool_adr=int(model.sensor(robot.tool_sensor).adr[0]))
+                   sensors=sensors)
+
+    def initial_qpos(self, q: np.ndarray) -> np.ndarray:
+        """Full qpos for actuated joints q: the model's reference pose, q, and any passive joints assembled."""
+        qpos = self.model.qpos0.copy()
+        qpos[self.qpos_adr] = q
+        if self.robot.assemble is not None:
+            for name, value in self.robot.assemble(q).items():
+                qpos[self.model.joint(name).qposadr[0]] = value
+        return qpos
 
     def commands(self, q_ref: np.ndarray, qd_ref: np.ndarray, feedforward: bool) -> np.ndarray:
         """Actuator controls (N, nu) for joint references, clamped to the control ranges."""
@@ -144,7 +159,7 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
     sl = _state_slices(model)
     ctrl = plant.commands(traj.q_ref, traj.qd_ref, feedforward)
 
-    data.qpos[plant.qpos_adr] = traj.q_ref[0]
+    data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
     data.ctrl[:] = ctrl[0]
     mujoco.mj_forward(model, data)
     state0 = np.empty(nstate)
@@ -164,9 +179,10 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
     first_state = states[n_settle - 1] if n_settle else state0
     track = np.concatenate([first_state[None], states[n_settle:]])
     mujoco.mj_forward(model, data)
-    tool = np.concatenate([sensors[n_settle:, plant.tool_adr:plant.tool_adr + 3],
-                           data.sensordata[None, plant.tool_adr:plant.tool_adr + 3]])
+    readings = np.concatenate([sensors[n_settle:], data.sensordata[None]])
+    recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
     qpos = track[:, sl["mjSTATE_QPOS"]]
     qvel = track[:, sl["mjSTATE_QVEL"]]
     return Recording(t=traj.t.copy(), qpos=qpos, q=qpos[:, plant.qpos_adr], qd=qvel[:, plant.dof_adr],
-                     ctrl=ctrl, tool=tool, timestep=float(model.opt.timestep), warnings=tuple(warnings))
+                     ctrl=ctrl, tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
+                     warnings=tuple(warnings), sensors=recorded)

@@ -12,8 +12,9 @@ class JointTrajectory:
     """Joint references sampled at every control step, t = 0, dt, ..., T + hold.
 
     `s` is the path parameter behind each sample, `tool_ref` the tool point the plan means to be at (on the
-    commanded path), `waypoints` the method's own points (paper 000's nd points, say) and `info` the choices the
-    planner made, for the report.
+    commanded path), `waypoints` the method's own points (paper 000's nd points, say), `info` the choices the
+    planner made, for the report, and `series` any further per-sample references (the platform orientation a
+    parallel mechanism should reach, say), written to timeseries.npz.
     """
 
     t: np.ndarray
@@ -24,6 +25,7 @@ class JointTrajectory:
     waypoints: tuple[dict, ...] = ()
     info: dict = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    series: dict = field(default_factory=dict)
 
     @property
     def dt(self) -> float:

@@ -1,7 +1,8 @@
 """Planners: each turns a scenario's task into a JointTrajectory for one robot or for any.
 
 A planner is a task schema (the `task:` section of a scenario), a `plan` function and, optionally, a `check`
-that rejects a valid-looking task that means nothing (a zero-length path) before anything runs.
+that rejects a valid-looking task that means nothing (a zero-length path) before anything runs, and
+`decorations`: what of the task the video should show (obstacle regions, say).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ class Planner:
     plan: Callable[..., JointTrajectory]
     robots: tuple[str, ...] | None = None
     check: Callable[..., tuple[str, str] | None] | None = None
+    decorations: Callable[..., list[dict]] | None = None
 
     def supports(self, robot: str) -> bool:
         """Whether this planner works with the robot called `robot`."""
@@ -47,6 +49,7 @@ def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: 
 
 def registry() -> dict[str, Planner]:
     """All planners by name."""
-    from simbench.planners import decoupled_path, joint_move, safe_straight_path
+    from simbench.planners import avoidance_4567, decoupled_path, joint_move, safe_straight_path
 
-    return {p.name: p for p in (safe_straight_path.PLANNER, decoupled_path.PLANNER, joint_move.PLANNER)}
+    return {p.name: p for p in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
+                                joint_move.PLANNER)}

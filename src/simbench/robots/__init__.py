@@ -2,7 +2,10 @@
 
 A `Robot` says everything the pipeline needs without reaching into a robot module: where its MJCF scene is,
 its joints in the planner's order, their limits and speed limits, the tool site, and the functions for the tool
-point, the per-sample singularity measures and the singular sets of its paper.
+point, the per-sample singularity measures and the singular sets of its paper. Measures and singular sets are
+computed from a whole Recording, since a closed chain's state is more than its actuated joints; `of_joints`
+adapts functions of the joint values alone. A closed chain also names the sensors it needs recorded, assembles
+its passive joints from the actuated ones, and may add its own entries to the report (`summary`).
 """
 
 from __future__ import annotations
@@ -62,8 +65,11 @@ class Robot:
     tool_site: str
     tool_sensor: str
     fk: Callable[[np.ndarray], np.ndarray]
-    measures: Callable[[np.ndarray], dict[str, np.ndarray]]
-    singular_sets: Callable[[np.ndarray, Tolerance], list[SingularSet]]
+    measures: Callable[..., dict[str, np.ndarray]]
+    singular_sets: Callable[..., list[SingularSet]]
+    sensors: tuple[str, ...] = ()
+    assemble: Callable[[np.ndarray], dict[str, float]] | None = None
+    summary: Callable[..., tuple[dict, list[dict], dict[str, np.ndarray]]] | None = None
 
     @property
     def dof(self) -> int:
@@ -88,6 +94,16 @@ def _camera_names(scene: Path) -> tuple[str, ...]:
     return tuple(model.camera(i).name for i in range(model.ncam))
 
 
+def of_joints(fn: Callable) -> Callable:
+    """A function of the recorded joint values q (N, n) as a function of the whole Recording."""
+
+    def of_recording(rec, *args):
+        return fn(rec.q, *args)
+
+    of_recording.__doc__ = fn.__doc__
+    return of_recording
+
+
 def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dict[int, float],
               kinds: tuple[str, ...], joints: tuple[str, ...], tol: Tolerance) -> SingularSet:
     """A singular set given by joints held at constant values (paper 000's sets p_i, eqs. 15-17)."""
@@ -98,9 +114,9 @@ def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dic
 
 def registry() -> dict[str, Robot]:
     """All robots by name."""
-    from simbench.robots import puma600, spherical_arm
+    from simbench.robots import agile_eye, puma600, spherical_arm
 
-    return {r.name: r for r in (spherical_arm.ROBOT, puma600.ROBOT)}
+    return {r.name: r for r in (spherical_arm.ROBOT, puma600.ROBOT, agile_eye.ROBOT)}
 
 
 def get(name: str) -> Robot:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance
+from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, of_joints
 
 A2, A3, D3, D4 = 0.432, 0.02, 0.149, 0.432
 D6 = 0.056  # wrist centre to tool flange along z6 (PUMA 560 flange)
@@ -244,6 +244,6 @@ ROBOT = Robot(
     tool_site="tool",
     tool_sensor="tool_pos",
     fk=fk,
-    measures=measures,
-    singular_sets=singular_sets,
+    measures=of_joints(measures),
+    singular_sets=of_joints(singular_sets),
 )

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.robots import PRISMATIC, REVOLUTE, Robot, SingularSet, Tolerance, joint_set
+from simbench.robots import PRISMATIC, REVOLUTE, Robot, SingularSet, Tolerance, joint_set, of_joints
 
 D1 = 0.030
 D4 = 0.030
@@ -125,6 +125,6 @@ ROBOT = Robot(
     tool_site="tool",
     tool_sensor="tool_pos",
     fk=fk,
-    measures=measures,
-    singular_sets=singular_sets,
+    measures=of_joints(measures),
+    singular_sets=of_joints(singular_sets),
 )

@@ -1,0 +1,188 @@
+"""Learnt forward kinematics of the Agile Eye (paper 003, section 4): one network per working mode.
+
+The paper trains, for each of the 8 working modes, a network with one hidden layer of 7 tanh units on about 3000
+poses (75 % for training), mapping the base angles to ZYX Euler angles. simbench keeps one network per mode,
+learnt from inverse-kinematics samples the same way, with these changes, each for a reason:
+
+  - inputs sin(theta_i), cos(theta_i): the angles wrap at +-pi, their sines and cosines do not;
+  - outputs the first two columns of R, made a rotation by Gram-Schmidt: Euler angles wrap and lose a degree of
+    freedom at pitch +-90 deg, so a network fitting them has discontinuities to learn;
+  - two hidden layers of 64 tanh units, fitted by L-BFGS (scikit-learn's MLPRegressor), on 20000 poses over a
+    workspace a little wider than the prototype's (a 140 deg cone, +-30 deg torsion): the line of sight within
+    75 deg of home and a torsion within +-45 deg about it, all in one assembly mode (det A < 0) and at least
+    6 deg from every singular curve. Nearer the singular curves the forward kinematics is ill-conditioned and a
+    network's error grows (about 5 deg median within 10 deg of them, in a trial on a wider workspace), which
+    is why the planner checks every window with the exact FK;
+  - one network is trained, on mode 0, and the other seven are derived from it exactly: adding pi to leg i's
+    angle negates sin(theta_i) and cos(theta_i) and leaves the orientation as it was, so mode m's network is
+    mode 0's with the first-layer rows of its flipped legs negated. Each is checked on its own held-out poses.
+
+The trained weights ship in `data/agile_eye_fk.npz` with their held-out error against the exact FK (degrees);
+inference is plain NumPy, and nothing trains at import. `python -m simbench train-fk` retrains them (it needs
+scikit-learn: `pip install -e '.[train]'`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from simbench.errors import RunError
+from simbench.robots import agile_eye
+
+WEIGHTS = Path(__file__).resolve().parent / "data" / "agile_eye_fk.npz"
+CONE = np.deg2rad(75.0)
+TORSION = np.deg2rad(45.0)
+
+
+def sample_workspace(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n platform orientations (n, 3, 3): line of sight uniform in the cone, torsion uniform."""
+    los = agile_eye.LINE_OF_SIGHT
+    cos_tilt = rng.uniform(np.cos(CONE), 1.0, n)
+    tilt, azimuth = np.arccos(cos_tilt), rng.uniform(0.0, 2 * np.pi, n)
+    e1 = np.cross(los, [0.0, 0.0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(los, e1)
+    axis = np.cos(azimuth)[:, None] * e1 + np.sin(azimuth)[:, None] * e2  # tilt axes, perpendicular to los
+    tilt_rot = _rodrigues(axis, tilt)
+    twist = _rodrigues(np.broadcast_to(los, (n, 3)), rng.uniform(-TORSION, TORSION, n))
+    return tilt_rot @ twist
+
+
+def workspace_coordinates(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tilt of the line of sight from home and torsion about it (rad), the coordinates sample_workspace draws."""
+    los = agile_eye.LINE_OF_SIGHT
+    sight = np.reshape(rot, (-1, 3, 3)) @ los
+    axis = np.cross(los, sight)
+    sine = np.linalg.norm(axis, axis=1)
+    tilt = np.arctan2(sine, sight @ los)
+    axis = np.where(sine[:, None] > 1e-12, axis / np.maximum(sine, 1e-12)[:, None], [1.0, 0.0, 0.0])
+    untilted = np.einsum("nji,njk->nik", _rodrigues(axis, tilt), np.reshape(rot, (-1, 3, 3)))
+    e1 = np.cross(los, [0.0, 0.0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    turned = untilted @ e1
+    return tilt, np.arctan2(np.cross(e1, turned) @ los, turned @ e1)
+
+
+def in_workspace(rot: np.ndarray, slack: float = np.deg2rad(2.0)) -> np.ndarray:
+    """Whether orientations lie in the training workspace (within `slack` of its edge)."""
+    tilt, torsion = workspace_coordinates(rot)
+    return (tilt <= CONE + slack) & (np.abs(torsion) <= TORSION + slack)
+
+
+def _rodrigues(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    k = np.zeros((len(axis), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k -= k.transpose(0, 2, 1)
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * k @ k
+
+
+def features(theta: np.ndarray) -> np.ndarray:
+    """Network inputs (N, 6): sin and cos of the base angles."""
+    return np.concatenate([np.sin(theta), np.cos(theta)], axis=1)
+
+
+def to_rotation(out: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) from network outputs (N, 6) = two columns, by Gram-Schmidt."""
+    a, b = out[:, :3], out[:, 3:]
+    c1 = a / np.linalg.norm(a, axis=1, keepdims=True)
+    b = b - np.einsum("ij,ij->i", c1, b)[:, None] * c1
+    c2 = b / np.linalg.norm(b, axis=1, keepdims=True)
+    return np.stack([c1, c2, np.cross(c1, c2)], axis=-1)
+
+
+def targets(rot: np.ndarray) -> np.ndarray:
+    """Network outputs (N, 6) for orientations: their first two columns."""
+    return np.concatenate([rot[:, :, 0], rot[:, :, 1]], axis=1)
+
+
+@dataclass(frozen=True)
+class Network:
+    """A tanh multilayer perceptron with a linear output layer."""
+
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        for w, b in zip(self.weights[:-1], self.biases[:-1]):
+            x = np.tanh(x @ w + b)
+        return x @ self.weights[-1] + self.biases[-1]
+
+
+@dataclass(frozen=True)
+class LearntFK:
+    """The 8 per-mode networks and what their training measured."""
+
+    networks: tuple[Network, ...]
+    heldout_deg: dict
+
+    def __call__(self, theta: np.ndarray, mode: int) -> np.ndarray:
+        """Estimated platform orientations (N, 3, 3) for base angles (N, 3) of working mode `mode`."""
+        return to_rotation(self.networks[mode](features(np.atleast_2d(theta))))
+
+
+@cache
+def load(path: Path = WEIGHTS) -> LearntFK:
+    """The shipped (or given) networks."""
+    data = np.load(path)
+    networks = []
+    for m in range(8):
+        layers = int(data[f"layers_{m}"])
+        networks.append(Network(tuple(data[f"w_{m}_{k}"] for k in range(layers)),
+                                tuple(data[f"b_{m}_{k}"] for k in range(layers))))
+    heldout = {key: data[key].tolist() for key in ("median", "p95", "max")}
+    heldout.update(samples=int(data["samples"]), hidden=data["hidden"].tolist(), seed=int(data["seed"]))
+    return LearntFK(tuple(networks), heldout)
+
+
+def training_set(mode: int, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(theta, orientation) pairs of one working mode from the exact IK of workspace samples."""
+    rot = sample_workspace(samples, np.random.default_rng([seed, mode]))
+    return agile_eye.ik(rot, mode), rot
+
+
+def for_mode(base: Network, mode: int) -> Network:
+    """Mode `mode`'s network from mode 0's: the input rows of the legs the mode turns by pi, negated."""
+    flip = np.ones(6)
+    for leg in range(3):
+        if mode >> leg & 1:
+            flip[[leg, leg + 3]] = -1.0
+    return Network((base.weights[0] * flip[:, None], *base.weights[1:]), base.biases)
+
+
+def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 0, out: Path = WEIGHTS,
+          log=print) -> dict:
+    """Fit mode 0's network on 75 % of the samples, derive the other modes', check each on held-out poses of its
+    own mode, write them to `out`; return the held-out errors in degrees (geodesic angle to the exact R)."""
+    try:
+        from sklearn.neural_network import MLPRegressor
+    except ImportError as err:
+        raise RunError("training needs scikit-learn: pip install -e '.[train]'") from err
+    split = int(0.75 * samples)
+    theta, rot = training_set(0, samples, seed)
+    model = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="lbfgs", max_iter=4000, tol=1e-10,
+                         random_state=seed)
+    model.fit(features(theta[:split]), targets(rot[:split]))
+    base = Network(tuple(model.coefs_), tuple(model.intercepts_))
+    arrays: dict[str, np.ndarray] = {}
+    stats = {"median": [], "p95": [], "max": []}
+    for m in range(8):
+        net = for_mode(base, m)
+        theta, rot = training_set(m, samples, seed)
+        error = np.rad2deg(agile_eye.rotation_angle(to_rotation(net(features(theta[split:]))), rot[split:]))
+        for key, value in (("median", np.median(error)), ("p95", np.percentile(error, 95)), ("max", error.max())):
+            stats[key].append(float(value))
+        log(f"mode {m}: held-out error median {stats['median'][-1]:.3f} deg, 95th percentile "
+            f"{stats['p95'][-1]:.3f} deg, max {stats['max'][-1]:.3f} deg")
+        arrays[f"layers_{m}"] = np.array(len(net.weights))
+        for k, (w, b) in enumerate(zip(net.weights, net.biases)):
+            arrays[f"w_{m}_{k}"], arrays[f"b_{m}_{k}"] = w, b
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out, **arrays, **{k: np.array(v) for k, v in stats.items()}, samples=np.array(samples),
+                        hidden=np.array(hidden), seed=np.array(seed))
+    load.cache_clear()
+    return stats

@@ -1,0 +1,353 @@
+"""Paper 003's trajectory optimisation for the Agile Eye: a 4-5-6-7 joint path bent around obstacles and
+type 2 singularities by smooth bumps whose parameters SLSQP finds.
+
+  1. The start and goal orientations give the base angles by IK in the chosen working mode; each joint goes
+     theta_j(t) = theta_j_init + (theta_j_final - theta_j_init) S(t / T) with S = 35 tau^4 - 84 tau^5
+     + 70 tau^6 - 20 tau^7 (eqs. 8-10): zero velocity, acceleration and jerk at both ends.
+  2. Along the path the platform orientation is estimated (by the learnt FK, as the paper does, or exactly),
+     and so the clearance from every obstacle (a ball of orientations: geodesic angle to its centre minus its
+     radius) and from the type 2 singular curves (the angle between some v_i and u_i); a floor on the KCI may
+     be set too, since near the singular curves the platform magnifies joint errors by about 1 / KCI.
+  3. Where a clearance falls below its margin, a bump is added over a window of T* seconds centred on the
+     worst sample: theta_j += c_j L b((t - t0) / T*), b(tau) = 256 tau^4 (1 - tau)^4, whose value and first
+     three derivatives vanish at both ends of the window (the role of S*(tau*) in eqs. 11-12, whose printed
+     form is lost). (c_1, c_2, c_3) = (alpha, beta, gamma) is a unit direction and L the amplitude (rad);
+     scipy's SLSQP chooses them to maximise the path's mean KCI less a small cost on L, subject to every
+     clearance staying above its margin over the whole path (sections 6-7).
+  4. Repeat for the next violation, up to max_windows; then check the result with the exact FK.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field
+from scipy.optimize import minimize
+
+from simbench import learnt_fk
+from simbench.planners import Planner
+from simbench.robots import agile_eye
+from simbench.schema import NonNegative, NonNegativeAngle, Orientation, Positive, PositiveAngle, SimbenchModel
+from simbench.timing import TimeLaw
+from simbench.trajectory import JointTrajectory, control_grid
+
+_COARSE = 201  # samples of the whole path on which violations are found
+_WINDOW_SAMPLES = 101  # samples of a window on which SLSQP judges a candidate
+_SAFETY = np.deg2rad(0.1)  # kept above each margin on the window's samples, so the dense path keeps the margin
+_STEP = 1e-3  # rad: finite-difference step of the clearance gradient that seeds SLSQP
+_MAX_AMPLITUDE = np.pi / 4
+
+
+class Obstacle(SimbenchModel):
+    """A region of orientations the platform must stay out of: all within `radius` of `center`."""
+
+    name: str = ""
+    center: Orientation
+    radius: PositiveAngle
+
+
+class Avoidance(SimbenchModel):
+    """How the path is bent: window length T*, how many windows at most, which FK estimates clearances."""
+
+    enabled: bool = True
+    window: Positive = 1.0
+    max_windows: int = Field(4, ge=1, le=20)
+    estimator: Literal["network", "exact"] = "network"
+    deviation_weight: NonNegative = 0.1
+
+
+class Task(SimbenchModel):
+    """`task:` of paper 003's planner."""
+
+    start: Orientation
+    goal: Orientation
+    working_mode: int = Field(0, ge=0, le=7)
+    obstacles: list[Obstacle] = []
+    singularity_clearance: PositiveAngle = float(np.deg2rad(10.0))
+    kci_min: Annotated[float, Field(ge=0, lt=1)] = 0.0
+    obstacle_clearance: NonNegativeAngle = 0.0
+    avoidance: Avoidance = Avoidance()
+
+
+def bump(tau: np.ndarray, order: int = 0) -> np.ndarray:
+    """b(tau) = 256 tau^4 (1 - tau)^4 on [0, 1], zero outside, or its derivative of the given order (in tau)."""
+    coef = 256 * np.polynomial.polynomial.polypow([0.0, 1.0, -1.0], 4)  # 256 (tau - tau^2)^4
+    inside = (tau > 0) & (tau < 1)
+    return np.where(inside, np.polynomial.polynomial.polyval(tau, np.polynomial.polynomial.polyder(coef, order)), 0.0)
+
+
+@dataclass(frozen=True)
+class Window:
+    """One bump: start time, length T*, direction (alpha, beta, gamma), amplitude L (rad)."""
+
+    t0: float
+    length: float
+    direction: np.ndarray
+    amplitude: float
+
+    def offset(self, t: np.ndarray, order: int = 0) -> np.ndarray:
+        """Its contribution (N, 3) to the joint angles, or their derivative of the given order in t."""
+        tau = (t - self.t0) / self.length
+        return (self.amplitude * bump(tau, order) / self.length**order)[:, None] * self.direction
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The base 4-5-6-7 path plus its windows."""
+
+    theta_init: np.ndarray
+    theta_final: np.ndarray
+    law: TimeLaw
+    windows: tuple[Window, ...] = ()
+
+    def theta(self, t: np.ndarray, order: int = 0) -> np.ndarray:
+        """Joint angles (N, 3) at times t, or their time derivative of the given order (up to 3)."""
+        out = self.law(t, order=order)[order][:, None] * (self.theta_final - self.theta_init)
+        if order == 0:
+            out = out + self.theta_init
+        for w in self.windows:
+            out = out + w.offset(t, order)
+        return out
+
+
+def clearances(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict[str, np.ndarray]:
+    """Clearance (rad) of each obstacle and of the singular curves along orientations (N, 3, 3), positive
+    outside, negative inside; and the KCI where the task sets a floor on it."""
+    out = {}
+    if task.kci_min > 0:
+        out["kci"] = agile_eye.kci(theta, rot)
+    for k, obstacle in enumerate(task.obstacles):
+        center = np.broadcast_to(obstacle.center.matrix(), rot.shape)
+        out[obstacle.name or f"obstacle{k + 1}"] = agile_eye.rotation_angle(center, rot) - obstacle.radius
+    out["type2"] = agile_eye.axis_gaps(rot).min(axis=1)
+    return out
+
+
+def margins(task: Task) -> dict[str, float]:
+    """The clearance each constraint must keep."""
+    out = {obstacle.name or f"obstacle{k + 1}": task.obstacle_clearance for k, obstacle in enumerate(task.obstacles)}
+    out["type2"] = task.singularity_clearance
+    if task.kci_min > 0:
+        out["kci"] = task.kci_min
+    return out
+
+
+class _Estimator:
+    """Platform orientations along a stretch of joint path: the learnt FK of the working mode, or the exact FK
+    followed continuously from the orientation `anchor` at the stretch's first sample."""
+
+    def __init__(self, kind: str, mode: int):
+        self.kind, self.mode = kind, mode
+        self.network = learnt_fk.load() if kind == "network" else None
+
+    def __call__(self, theta: np.ndarray, anchor: np.ndarray) -> np.ndarray:
+        if self.network is not None:
+            return self.network(theta, self.mode)
+        return agile_eye.fk_track(theta, anchor)
+
+
+def _score(plan: Plan, t: np.ndarray, estimate: _Estimator, anchor: np.ndarray,
+           task: Task) -> tuple[float, dict[str, float]]:
+    """Mean KCI and the worst clearance minus margin of each constraint, for a candidate plan over times t."""
+    theta = plan.theta(t)
+    rot = estimate(theta, anchor)
+    need = margins(task)
+    slack = {name: float(c.min() - need[name]) for name, c in clearances(task, theta, rot).items()}
+    return float(agile_eye.kci(theta, rot).mean()), slack
+
+
+def _seeds(plan: Plan, t_worst: float, name: str, task: Task, estimate: _Estimator,
+           anchor: np.ndarray) -> list[np.ndarray]:
+    """Starting directions for SLSQP: the gradient of the violated clearance in the joint angles at its worst
+    instant (where the window peaks; `anchor` is the orientation there), and the two joint axes nearest it."""
+    theta = plan.theta(np.array([t_worst]))[0]
+    probes = theta + np.vstack([np.zeros(3), _STEP * np.eye(3)])
+    clear = clearances(task, probes, np.stack([estimate(p[None], anchor)[0] for p in probes]))[name]
+    grad = (clear[1:] - clear[0]) / _STEP
+    direction = grad / max(np.linalg.norm(grad), 1e-12)
+    axes = np.argsort(-np.abs(direction))[:2]
+    return [direction] + [np.sign(direction[a]) * np.eye(3)[a] for a in axes]
+
+
+def _optimise_window(plan: Plan, t0: float, seeds: list[np.ndarray], task: Task, estimate: _Estimator,
+                     anchor: np.ndarray) -> tuple[Window, bool]:
+    """(alpha, beta, gamma, L) of a new window at t0 by SLSQP: maximise the path's mean KCI - w L^2, every
+    clearance kept. A window changes the path only within itself, so the KCI and the clearances are judged on
+    its own samples (`anchor`: the orientation at t0, where the exact FK starts following the mode).
+    Each seed direction is tried; the best feasible result wins (else the one that misses least)."""
+    length = task.avoidance.window
+    weight = task.avoidance.deviation_weight
+    t = np.linspace(t0, t0 + length, _WINDOW_SAMPLES)
+    share = length / plan.law.duration  # the window's part of the path's mean KCI
+
+    def with_window(x: np.ndarray) -> Plan:
+        direction = x[:3] / max(np.linalg.norm(x[:3]), 1e-12)
+        window = Window(t0, length, direction, float(x[3]))
+        return Plan(plan.theta_init, plan.theta_final, plan.law, plan.windows + (window,))
+
+    cache: dict[bytes, tuple[float, dict]] = {}
+
+    def score(x: np.ndarray):
+        key = x.tobytes()
+        if key not in cache:
+            cache[key] = _score(with_window(x), t, estimate, anchor, task)
+        return cache[key]
+
+    constraints = [{"type": "eq", "fun": lambda x: x[:3] @ x[:3] - 1.0}]
+    for name in margins(task):
+        constraints.append({"type": "ineq", "fun": lambda x, n=name: score(x)[1][n] - _SAFETY})
+    best = None
+    for seed in seeds:
+        result = minimize(lambda x: -share * score(x)[0] + weight * x[3] ** 2, np.array([*seed, 0.2]), method="SLSQP",
+                          bounds=[(-1, 1)] * 3 + [(0, _MAX_AMPLITUDE)], constraints=constraints,
+                          options={"maxiter": 40, "ftol": 1e-6})
+        slack = min(score(result.x)[1].values()) - _SAFETY
+        # Feasible candidates rank by their objective, the others by how far they miss.
+        rank = (True, -result.fun) if slack >= -1e-6 else (False, slack)
+        if best is None or rank > best[0]:
+            best = (rank, result.x)
+    return with_window(best[1]).windows[-1], best[0][0]
+
+
+def optimise(task: Task, law: TimeLaw) -> tuple[Plan, list[dict]]:
+    """The plain path, then one window per violation until none is left or max_windows is reached.
+
+    Violations are found with the exact FK. Each window is optimised with the chosen estimator: the network
+    where the window's stretch of path lies in its training workspace (elsewhere its estimates mean nothing),
+    then checked with the exact FK and optimised again with it where the check fails. Returns the plan and what
+    each window did, estimator included.
+    """
+    start_rot = task.start.matrix()
+    theta_init = agile_eye.ik(start_rot, task.working_mode)[0]
+    theta_goal = agile_eye.ik(task.goal.matrix(), task.working_mode)[0]
+    theta_final = theta_init + np.angle(np.exp(1j * (theta_goal - theta_init)))  # the shorter way round
+    plan = Plan(theta_init, theta_final, law)
+    if not task.avoidance.enabled:
+        return plan, []
+    t = np.linspace(0.0, law.duration, _COARSE)
+    exact = _Estimator("exact", task.working_mode)
+    estimate = _Estimator(task.avoidance.estimator, task.working_mode)
+    length = task.avoidance.window
+    steps = []
+    for _ in range(task.avoidance.max_windows):
+        need = margins(task)
+        theta = plan.theta(t)
+        rot = exact(theta, start_rot)
+        slack = {name: c - need[name] for name, c in clearances(task, theta, rot).items()}
+        worst_name = min(slack, key=lambda n: slack[n].min())
+        if slack[worst_name].min() >= 0:
+            break
+        k = int(np.argmin(slack[worst_name]))
+        t_worst = float(t[k])
+        t0 = float(np.clip(t_worst - length / 2, 0.0, law.duration - length))
+        before = np.append(t[t < t0], t0)
+        anchor = exact(plan.theta(before), start_rot)[-1]
+        span = np.linspace(t0, t0 + length, _WINDOW_SAMPLES)
+        chosen, used = estimate, estimate.kind
+        if chosen.kind == "network" and not learnt_fk.in_workspace(exact(plan.theta(span), anchor)).all():
+            chosen, used = exact, "exact (the window leaves the network's training workspace)"
+        window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, chosen, rot[k]),
+                                            task, chosen, anchor)
+        candidate = Plan(plan.theta_init, plan.theta_final, plan.law, plan.windows + (window,))
+        if chosen.kind == "network" and min(_score(candidate, span, exact, anchor, task)[1].values()) < 0:
+            window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, exact, rot[k]),
+                                                task, exact, anchor)
+            used = "exact (the network's window failed the exact check)"
+        plan = Plan(plan.theta_init, plan.theta_final, plan.law, plan.windows + (window,))
+        steps.append({"avoiding": worst_name, "t_worst": t_worst, "t0": t0, "length": length,
+                      "alpha": float(window.direction[0]), "beta": float(window.direction[1]),
+                      "gamma": float(window.direction[2]), "L": window.amplitude, "estimator": used,
+                      "feasible": feasible})
+    return plan, steps
+
+
+def _summary(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict:
+    """KCI and clearances of a path, exact orientations given."""
+    kci = agile_eye.kci(theta, rot)
+    clear = {name: float(c.min()) for name, c in clearances(task, theta, rot).items()}
+    gaps = agile_eye.axis_gaps(rot).min(axis=0)
+    return {"kci": {"mean": float(kci.mean()), "min": float(kci.min())}, "clearance": clear,
+            "singular_curves": {f"v{i + 1} = +-u{i + 1}": float(g) for i, g in enumerate(gaps)}}
+
+
+def plan(scenario, robot, dt: float) -> JointTrajectory:
+    """Plan, bend and time the path; the exact FK gives the platform orientations the report checks."""
+    task = scenario.task
+    law = scenario.timing.law_fn()
+    result, steps = optimise(task, law)
+    t = control_grid(law.duration, scenario.timing.hold, dt)
+    theta = result.theta(t)
+    start_rot = task.start.matrix()
+    rot = agile_eye.fk_track(theta, start_rot)
+    plain = Plan(result.theta_init, result.theta_final, law)
+    plain_theta = plain.theta(t)
+    exact = _summary(task, theta, rot)
+    need = margins(task)
+    warnings = [f"{name}: clearance {np.rad2deg(c):.2f} deg is below its margin {np.rad2deg(need[name]):.2f} deg"
+                for name, c in exact["clearance"].items() if c < need[name] - 1e-9]
+    det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0])
+    crossings = t[1:][np.sign(det_a[1:]) * np.sign(det_a[:-1]) < 0]
+    goal_error = float(agile_eye.rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
+    if crossings.size:
+        warnings.append(f"the path crosses the type 2 singular surface at t = {crossings[0]:.3f} s (det A changes "
+                        f"sign): the platform changes assembly mode and ends {np.rad2deg(goal_error):.1f} deg "
+                        "from the goal orientation")
+    info = {
+        "method": "paper 003: 4-5-6-7 joint path with smooth avoidance windows found by SLSQP",
+        "working_mode": task.working_mode,
+        "theta_init": result.theta_init.tolist(),
+        "theta_final": result.theta_final.tolist(),
+        "estimator": task.avoidance.estimator if task.avoidance.enabled else None,
+        "windows": steps,
+        "margins": need,
+        "goal_error": goal_error,
+        "singular_crossings": crossings.tolist(),
+        **exact,
+        "plain_path": _summary(task, plain_theta, agile_eye.fk_track(plain_theta, start_rot)),
+    }
+    if task.avoidance.enabled and task.avoidance.estimator == "network":
+        estimated = clearances(task, theta, learnt_fk.load()(theta, task.working_mode))
+        info["clearance_estimated"] = {name: float(c.min()) for name, c in estimated.items()}
+    quat = agile_eye.matrix_to_quat(rot)
+    aim = rot @ agile_eye.LINE_OF_SIGHT * agile_eye.AIM
+    waypoints = tuple({"s": s, "X": aim[k].tolist(), "q": theta[k].tolist(), "quat": quat[k].tolist()}
+                      for s, k in ((0.0, 0), (1.0, -1)))
+    return JointTrajectory(t=t, s=law(t, order=0)[0], q_ref=theta, qd_ref=result.theta(t, order=1), tool_ref=aim,
+                           waypoints=waypoints, info=info, warnings=tuple(warnings),
+                           series={"platform_quat_ref": quat})
+
+
+def check(scenario, robot) -> tuple[str, str] | None:
+    """T* must fit in T, and the start and goal must not lie on a singular curve (their IK is undefined there)."""
+    task = scenario.task
+    if task.avoidance.window > scenario.timing.duration:
+        return ("task.avoidance.window", f"T* = {task.avoidance.window:g} s is longer than the motion "
+                                         f"(timing.duration = {scenario.timing.duration:g} s)")
+    for field in ("start", "goal"):
+        gap = agile_eye.axis_gaps(getattr(task, field).matrix()).min()
+        if gap < 1e-6:
+            return f"task.{field}", "lies on a singular curve (some v_i = +-u_i): its base angles are undefined"
+    return None
+
+
+def decorations(scenario) -> list[dict]:
+    """The obstacles as the cones of lines of sight they contain, for the video."""
+    out = []
+    for obstacle in scenario.task.obstacles:
+        axis = obstacle.center.matrix() @ agile_eye.LINE_OF_SIGHT
+        out.append({"kind": "cone", "axis": axis.tolist(), "half_angle": obstacle.radius,
+                    "length": agile_eye.AIM, "rgba": [0.6, 0.25, 0.95, 0.35]})
+    return out
+
+
+PLANNER = Planner(
+    name="avoidance_4567",
+    description="paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)",
+    task=Task,
+    plan=plan,
+    robots=("agile_eye",),
+    check=check,
+    decorations=decorations,
+)
