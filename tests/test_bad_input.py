@@ -142,6 +142,31 @@ CASES += [
 ]
 
 
+RSMG = {
+    "robot": "rsmg",
+    "planner": "round_robin",
+    "units": {"angle": "deg", "length": "m"},
+    "task": {"motion": {"kind": "turns", "axis": [0.3, 0.2, 0.93], "turns": 1}},
+    "timing": {"law": "quintic", "duration": 5.0},
+}
+
+
+def rsmg(**task):
+    doc = yaml.safe_load(yaml.safe_dump(RSMG))
+    doc["task"].update(task)
+    return yaml.safe_dump(doc)
+
+
+CASES += [
+    ("rsmg: unknown motion", rsmg(motion={"kind": "wobble"}), "task.motion.kind", "expected 'turns' or 'tumble'"),
+    ("rsmg: zero rotation axis", rsmg(motion={"kind": "turns", "axis": [0, 0, 0]}), "task.motion.axis",
+     "zero vector"),
+    ("rsmg: negative swing time", rsmg(swing_time=-0.5), "task.swing_time", "greater than 0"),
+    ("rsmg: turns as text", rsmg(motion={"kind": "turns", "turns": "three"}), "task.motion.turns",
+     "valid number"),
+]
+
+
 def run_cli(args, capsys):
     code = main(args)
     captured = capsys.readouterr()

@@ -102,7 +102,10 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
     with _staging(out) as tmp:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz"}
         with watch.stage("plots"):
-            outputs["plots"] = [f"plots/{name}" for name in write_plots(robot, traj, rec, result, tmp / "plots")]
+            names = write_plots(robot, traj, rec, result, tmp / "plots")
+            if robot.plots is not None:
+                names += robot.plots(traj, rec, result, tmp / "plots")
+            outputs["plots"] = [f"plots/{name}" for name in names]
         if video:
             r = scenario.render
             planner = scenario.planner_def
@@ -111,7 +114,8 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
                 outputs["video"] = "video.mp4"
                 outputs["video_info"] = render_video(robot.scene, rec, traj.tool_ref, tmp / "video.mp4",
                                                      width=r.width, height=r.height, fps=r.fps, camera=r.camera,
-                                                     quality=r.quality, trace=r.trace, decorations=decorations)
+                                                     quality=r.quality, trace=r.trace, decorations=decorations,
+                                                     paint=robot.paint)
         with watch.stage("write"):
             write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
         wall = {k: round(v, 4) for k, v in watch.times.items()}

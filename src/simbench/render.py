@@ -107,9 +107,10 @@ def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str)
 
 def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *, width: int = 640,
                  height: int = 480, fps: int = 30, camera: str | None = None, quality: str = "fast",
-                 trace: bool = True, decorations: list[dict] = ()) -> dict:
+                 trace: bool = True, decorations: list[dict] = (), paint=None) -> dict:
     """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
-    shapes to draw in every frame (`{"kind": "cone", "axis", "half_angle", "length", "rgba"}`)."""
+    shapes to draw in every frame (`{"kind": "cone", "axis", "half_angle", "length", "rgba"}`); `paint(model,
+    rec, row)` may recolour the model for each frame (an electromagnet by whether it grips)."""
     model = mujoco.MjModel.from_xml_path(str(scene))
     data = mujoco.MjData(model)
     camera = camera or model.camera(0).name
@@ -127,6 +128,8 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
         for row in rows:
             data.qpos[:] = rec.qpos[row]
             mujoco.mj_forward(model, data)
+            if paint is not None:
+                paint(model, rec, row)
             renderer.update_scene(data, camera=camera)
             for item in decorations:
                 add_cone(renderer.scene, item["axis"], item["half_angle"], item["length"], item["rgba"])

@@ -8,11 +8,13 @@ controller with friction compensation is. Commands are clamped to the
 actuators' control ranges (the joint ranges), as the servo's own limits would.
 
 The steps run in C through `mujoco.rollout` with the controls computed beforehand, in chunks; a chunk stops at
-the first MuJoCo warning, which is recorded, and a warning that means the state blew up ends the run.
+the first MuJoCo warning, which is recorded, and a warning that means the state blew up ends the run. Planned
+switches (an electromagnet's weld going on or off) split the run into segments, and are applied between them.
 """
 
 from __future__ import annotations
 
+import copy
 import sys
 from dataclasses import dataclass, field
 
@@ -23,10 +25,11 @@ from tqdm import tqdm
 
 from simbench.errors import RunError
 from simbench.robots import Robot
-from simbench.trajectory import JointTrajectory
+from simbench.trajectory import JointTrajectory, Switch
 
 _CHUNK = 5000
-_FATAL = {mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL}
+_FATAL = {mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+          mujoco.mjtWarning.mjWARN_BADCTRL}
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,7 @@ class Recording:
     timestep: float
     warnings: tuple[dict, ...] = ()
     sensors: dict = field(default_factory=dict)
+    eq_active: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -114,13 +118,16 @@ def _warnings(data: mujoco.MjData) -> list[int]:
     return [i for i in range(len(data.warning)) if data.warning[i].number > 0]
 
 
-def _roll(model, data, state0, controls, state_out, sensor_out, warmstart, t0: float, progress=None) -> list[dict]:
-    """Step through `controls`, chunk by chunk, from state0; returns the warnings met. Fills the outputs."""
+def _roll(model, data, controls, state_out, sensor_out, t0: float, progress=None) -> list[dict]:
+    """Step through `controls`, chunk by chunk, from data's current state; returns the warnings met. Fills the
+    outputs; data is left at the last state."""
     found, k, n = [], 0, controls.shape[0]
     spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
     ctrl_spec = int(mujoco.mjtState.mjSTATE_CTRL)
-    state = state0
+    state = np.empty(mujoco.mj_stateSize(model, spec))
     while k < n:
+        mujoco.mj_getState(model, data, state, spec)
+        warmstart = data.qacc_warmstart.copy()
         stop = min(k + _CHUNK, n)
         rollout.rollout(model, data, state[None], controls[None, k:stop], control_spec=ctrl_spec,
                         initial_warmstart=warmstart[None], state=state_out[None, k:stop],
@@ -141,16 +148,40 @@ def _roll(model, data, state0, controls, state_out, sensor_out, warmstart, t0: f
             if progress is not None:
                 progress.update(stop - k)
             k = stop
-        state = np.empty(mujoco.mj_stateSize(model, spec))
-        mujoco.mj_getState(model, data, state, spec)
-        warmstart = data.qacc_warmstart.copy()
     return found
+
+
+def relative_pose(model: mujoco.MjModel, data: mujoco.MjData, eq: int) -> np.ndarray:
+    """A weld's reference (relpos, relquat) putting body2 where it is now in body1's frame."""
+    b1, b2 = model.eq_obj1id[eq], model.eq_obj2id[eq]
+    r1 = data.xmat[b1].reshape(3, 3)
+    pos = r1.T @ (data.xpos[b2] - data.xpos[b1])
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, (r1.T @ data.xmat[b2].reshape(3, 3)).ravel())
+    return np.concatenate([pos, quat])
+
+
+def apply_switch(model: mujoco.MjModel, data: mujoco.MjData, switch: Switch) -> None:
+    """Turn an equality on (first setting a weld's reference to the current relative pose, so nothing snaps) or
+    off, and the released part's holding servos the other way. rollout() starts each call from eq_active0."""
+    eq = model.equality(switch.equality).id
+    if switch.active:
+        mujoco.mj_kinematics(model, data)
+        if model.eq_type[eq] == mujoco.mjtEq.mjEQ_WELD:
+            model.eq_data[eq, 3:10] = relative_pose(model, data, eq)
+    model.eq_active0[eq] = switch.active
+    data.eq_active[eq] = switch.active
+    if switch.servo_group is not None:
+        bit = 1 << switch.servo_group
+        model.opt.disableactuator = (model.opt.disableactuator | bit) if switch.active else \
+            (model.opt.disableactuator & ~bit)
 
 
 def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforward: bool = True,
              progress: bool = False) -> Recording:
-    """Settle at traj's first reference, then track it; one recorded row per control sample."""
-    model = plant.model
+    """Settle at traj's first reference, then track it, applying the planned switches at their steps; one
+    recorded row per control sample. The plant's model is copied, since switching edits it."""
+    model = copy.copy(plant.model)
     if not np.isclose(model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {model.opt.timestep}")
     data = mujoco.MjData(model)
@@ -158,12 +189,21 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
     nstate = mujoco.mj_stateSize(model, spec)
     sl = _state_slices(model)
     ctrl = plant.commands(traj.q_ref, traj.qd_ref, feedforward)
+    bad = ~np.isfinite(ctrl).all(axis=1)
+    if bad.any():
+        raise RunError(f"the plan has no finite reference at t = {traj.t[np.argmax(bad)]:.4f} s")
 
     data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
+    for name, value in traj.initial.items():
+        adr = model.joint(name).qposadr[0]
+        data.qpos[adr:adr + len(value)] = value
     data.ctrl[:] = ctrl[0]
+    steps = np.rint(np.array([w.t for w in traj.switches]) / model.opt.timestep).astype(int)
+    for switch in (w for w, k in zip(traj.switches, steps) if k == 0):
+        apply_switch(model, data, switch)
     mujoco.mj_forward(model, data)
-    state0 = np.empty(nstate)
-    mujoco.mj_getState(model, data, state0, spec)
+    first_state = np.empty(nstate)
+    mujoco.mj_getState(model, data, first_state, spec)
 
     n_settle = int(round(settle / model.opt.timestep))
     n_track = traj.t.size - 1
@@ -171,12 +211,24 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
     sensors = np.empty((n_settle + n_track, model.nsensordata))
     controls = np.concatenate([np.repeat(ctrl[:1], n_settle, axis=0), ctrl[:-1]])
     t0 = n_settle * model.opt.timestep
-    with tqdm(total=controls.shape[0], desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()), leave=False) as bar:
-        warnings = _roll(model, data, state0, controls, states, sensors, np.zeros(model.nv), t0, bar)
+    # eq_active[r]: the constraints in force from row r's time on (after the switches at that step).
+    eq_active = np.empty((traj.t.size, model.neq), bool)
+    bounds = sorted({int(k) + n_settle for k in steps if 0 < k < n_track}) + [n_settle + n_track]
+    warnings, done = [], 0
+    with tqdm(total=controls.shape[0], desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
+              leave=False) as bar:
+        for stop in bounds:
+            eq_active[max(done - n_settle, 0):stop - n_settle] = data.eq_active
+            warnings += _roll(model, data, controls[done:stop], states[done:stop], sensors[done:stop], t0, bar)
+            for switch in (w for w, k in zip(traj.switches, steps) if 0 < k and k + n_settle == stop):
+                apply_switch(model, data, switch)
+            done = stop
+    eq_active[-1] = data.eq_active
+    if n_settle:
+        first_state = states[n_settle - 1]
 
     # Row 0 is the state at the end of settling (the start state itself when there is no settling). MuJoCo
     # computes sensors before it integrates, so the sensor row of step k belongs to the state before it.
-    first_state = states[n_settle - 1] if n_settle else state0
     track = np.concatenate([first_state[None], states[n_settle:]])
     mujoco.mj_forward(model, data)
     readings = np.concatenate([sensors[n_settle:], data.sensordata[None]])
@@ -185,4 +237,5 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
     qvel = track[:, sl["mjSTATE_QVEL"]]
     return Recording(t=traj.t.copy(), qpos=qpos, q=qpos[:, plant.qpos_adr], qd=qvel[:, plant.dof_adr],
                      ctrl=ctrl, tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
-                     warnings=tuple(warnings), sensors=recorded)
+                     warnings=tuple(warnings), sensors=recorded,
+                     eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)})

@@ -8,13 +8,28 @@ import numpy as np
 
 
 @dataclass(frozen=True)
+class Switch:
+    """At time t, turn the equality constraint `equality` on or off. Turning one on first sets its reference to
+    the bodies' current relative pose (so they do not snap together). `servo_group`: the actuator group that holds
+    the released part, on while the constraint is off and off while it is on. `detail` goes to the report."""
+
+    t: float
+    equality: str
+    active: bool
+    servo_group: int | None = None
+    detail: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class JointTrajectory:
     """Joint references sampled at every control step, t = 0, dt, ..., T + hold.
 
     `s` is the path parameter behind each sample, `tool_ref` the tool point the plan means to be at (on the
     commanded path), `waypoints` the method's own points (paper 000's nd points, say), `info` the choices the
     planner made, for the report, and `series` any further per-sample references (the platform orientation a
-    parallel mechanism should reach, say), written to timeseries.npz.
+    parallel mechanism should reach, say), written to timeseries.npz. `switches` are the equality constraints the
+    plan turns on and off (an electromagnet's grip), and `initial` the qpos of joints the robot cannot assemble
+    from its actuated joints alone (a free rotor), by joint name.
     """
 
     t: np.ndarray
@@ -26,6 +41,8 @@ class JointTrajectory:
     info: dict = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     series: dict = field(default_factory=dict)
+    switches: tuple[Switch, ...] = ()
+    initial: dict = field(default_factory=dict)
 
     @property
     def dt(self) -> float:

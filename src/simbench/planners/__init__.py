@@ -49,7 +49,7 @@ def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: 
 
 def registry() -> dict[str, Planner]:
     """All planners by name."""
-    from simbench.planners import avoidance_4567, decoupled_path, joint_move, safe_straight_path
+    from simbench.planners import avoidance_4567, decoupled_path, joint_move, round_robin, safe_straight_path
 
     return {p.name: p for p in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
-                                joint_move.PLANNER)}
+                                round_robin.PLANNER, joint_move.PLANNER)}

@@ -5,7 +5,8 @@ its joints in the planner's order, their limits and speed limits, the tool site,
 point, the per-sample singularity measures and the singular sets of its paper. Measures and singular sets are
 computed from a whole Recording, since a closed chain's state is more than its actuated joints; `of_joints`
 adapts functions of the joint values alone. A closed chain also names the sensors it needs recorded, assembles
-its passive joints from the actuated ones, and may add its own entries to the report (`summary`).
+its passive joints from the actuated ones, and may add its own entries to the report (`summary`), colour its
+parts by their state in the video (`paint`) and draw its own plots (`plots`).
 """
 
 from __future__ import annotations
@@ -70,6 +71,8 @@ class Robot:
     sensors: tuple[str, ...] = ()
     assemble: Callable[[np.ndarray], dict[str, float]] | None = None
     summary: Callable[..., tuple[dict, list[dict], dict[str, np.ndarray]]] | None = None
+    paint: Callable[..., None] | None = None
+    plots: Callable[..., list[str]] | None = None
 
     @property
     def dof(self) -> int:
@@ -114,9 +117,9 @@ def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dic
 
 def registry() -> dict[str, Robot]:
     """All robots by name."""
-    from simbench.robots import agile_eye, puma600, spherical_arm
+    from simbench.robots import agile_eye, puma600, rsmg, spherical_arm
 
-    return {r.name: r for r in (spherical_arm.ROBOT, puma600.ROBOT, agile_eye.ROBOT)}
+    return {r.name: r for r in (spherical_arm.ROBOT, puma600.ROBOT, agile_eye.ROBOT, rsmg.ROBOT)}
 
 
 def get(name: str) -> Robot:

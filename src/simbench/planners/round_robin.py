@@ -1,0 +1,230 @@
+"""Paper 001's "Round Robin" operation of the RSMG (section 4, Fig. 10): unlimited rotor motion by re-gripping.
+
+The rotor's commanded orientation R(t) is given: turns about a fixed axis, or a tumble (a spin about a rotor
+axis while that axis precesses), on a time law. Each arm holds one of its three candidate contact points; while
+it does, its base angle and gamma follow from the IK of the point's current direction (eqs. 12-23). An arm must
+let go before its gamma leaves (10, 170) deg (eq. 45) or the gripping arms' Jacobian A loses rank
+(|det A1|, |det A2| < 0.01, eq. 46). Its next point is the next candidate in round-robin order (a -> b -> c ->
+a) whose gamma is inside the band when the arm gets there; while it swings (a quintic in theta and gamma,
+matching position, speed and acceleration at both ends) the other three arms hold the rotor, and only one arm
+swings at a time, so at least three always grip.
+
+Switches are planned ahead: with the gripping arms' exits e_1 <= e_2 <= ... (the times their gammas leave the
+band less a margin), the first arm lets go by min_k (e_k - k T_swing), so that every arm can swing in turn
+before its exit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+from scipy.spatial.transform import Rotation
+
+from simbench.errors import RunError
+from simbench.planners import Planner
+from simbench.robots import rsmg
+from simbench.schema import Direction, NonNegativeAngle, Positive, SimbenchModel
+from simbench.trajectory import JointTrajectory, Switch, control_grid
+
+_STEP = 0.005  # s: the schedule's time step
+_MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
+
+
+class Motion(SimbenchModel):
+    """The rotor's commanded motion. `turns`: `turns` turns about `axis`. `tumble`: `spin_turns` about the
+    rotor's `spin_axis` while that axis turns `precession_turns` about `precession_axis`."""
+
+    kind: Literal["turns", "tumble"]
+    axis: Direction = [0.0, 0.0, 1.0]
+    turns: float = Field(1.0, allow_inf_nan=False)
+    spin_axis: Direction = [0.0, 0.0, 1.0]
+    spin_turns: float = Field(1.0, allow_inf_nan=False)
+    precession_axis: Direction = [1.0, 0.0, 0.0]
+    precession_turns: float = Field(1.0, allow_inf_nan=False)
+
+    def orientation(self, s: np.ndarray) -> np.ndarray:
+        """R (N, 3, 3) at path parameters s in [0, 1]."""
+        s = np.asarray(s, float)[:, None]
+        if self.kind == "turns":
+            return Rotation.from_rotvec(2 * np.pi * self.turns * s * np.array(self.axis)).as_matrix()
+        precess = Rotation.from_rotvec(2 * np.pi * self.precession_turns * s * np.array(self.precession_axis))
+        spin = Rotation.from_rotvec(2 * np.pi * self.spin_turns * s * np.array(self.spin_axis))
+        return (precess * spin).as_matrix()
+
+
+class Task(SimbenchModel):
+    """`task:` of the round-robin scheme."""
+
+    motion: Motion
+    swing_time: Positive = 0.5
+    gamma_margin: NonNegativeAngle = float(np.deg2rad(12.0))
+
+
+@dataclass(frozen=True)
+class Hold:
+    """Arm `arm` grips candidate `point` from step `start` to step `end` (exclusive)."""
+
+    arm: int
+    point: int
+    start: int
+    end: int
+
+
+def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """theta and gamma (4, 3, N) of every arm holding every candidate along orientations (N, 3, 3)."""
+    theta = np.empty((rsmg.ARMS, rsmg.CANDIDATES, len(rot)))
+    gamma = np.empty_like(theta)
+    for i in range(rsmg.ARMS):
+        for k in range(rsmg.CANDIDATES):
+            theta[i, k], gamma[i, k] = rsmg.ik(i, rot @ rsmg.POINTS[i, k])
+    return theta, gamma
+
+
+def schedule(gamma: np.ndarray, task: Task, n_swing: int) -> list[Hold]:
+    """Which point each arm holds when, on the schedule grid (section 4.1-4.3); RunError where no round-robin
+    choice keeps three arms gripping inside the band."""
+    lo, hi = rsmg.GAMMA_BAND[0] + task.gamma_margin, rsmg.GAMMA_BAND[1] - task.gamma_margin
+    good = (gamma > lo) & (gamma < hi)  # NaN (out of reach) is never good
+    n = gamma.shape[2]
+
+    def exit_step(arm: int, point: int, step: int) -> int:
+        """First step at or after `step` where the arm's gamma on that point leaves the band (n if never)."""
+        bad = np.flatnonzero(~good[arm, point, step:])
+        return step + int(bad[0]) if bad.size else n
+
+    current = {}
+    for arm in range(rsmg.ARMS):
+        point = max(range(rsmg.CANDIDATES), key=lambda k: exit_step(arm, k, 0))
+        if exit_step(arm, point, 0) == 0:
+            raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
+        current[arm] = (point, 0)
+    holds: list[Hold] = []
+    step = 0
+    while step < n:
+        swinging = [since for _, since in current.values() if since > step]
+        if swinging:  # one arm swings at a time; the others were checked to hold until it grips
+            step = max(swinging)
+            continue
+        exits = sorted((exit_step(a, p, step), a) for a, (p, _) in current.items())
+        deadline = min(e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n) if exits[0][0] < n \
+            else n
+        if deadline > step:
+            step = min(deadline, n)
+            continue
+        _, arm = exits[0]
+        point, since = current.pop(arm)
+        if any(e < step + n_swing for e, a in exits[1:]):
+            raise RunError(f"round robin: at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm "
+                           "leaves the gamma band before it can grip again")
+        grip = step + n_swing
+        for k in (1, 2):  # round-robin order: the next candidates after the current one
+            nxt = (point + k) % rsmg.CANDIDATES
+            if grip < n and good[arm, nxt, grip] and exit_step(arm, nxt, grip) > grip + n_swing:
+                break
+        else:
+            raise RunError(f"round robin: at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point "
+                           "inside the gamma band (eq. 45)")
+        holds.append(Hold(arm, point, since, step))
+        current[arm] = (nxt, grip)
+        step += 1
+    holds += [Hold(a, p, since, n) for a, (p, since) in current.items()]
+    return sorted(holds, key=lambda h: (h.arm, h.start))
+
+
+def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Quintic in t on [t0, t1] meeting (value, rate, acceleration) `start` at t0 and `end` at t1."""
+    h = t1 - t0
+    a = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 2, 0, 0, 0],
+                  [1, h, h**2, h**3, h**4, h**5], [0, 1, 2 * h, 3 * h**2, 4 * h**3, 5 * h**4],
+                  [0, 0, 2, 6 * h, 12 * h**2, 20 * h**3]], float)
+    coef = np.linalg.solve(a, np.concatenate([start, end]))
+    return np.polynomial.polynomial.polyval(t - t0, coef)
+
+
+def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], theta: np.ndarray, gamma: np.ndarray,
+              grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """theta and gamma (N,) of one arm on the control grid t: the IK of its held points, quintic swings between."""
+    mine = [h for h in holds if h.arm == arm]
+    out_theta, out_gamma = np.full(t.size, np.nan), np.full(t.size, np.nan)
+    last_theta = None
+    for h in mine:
+        stop = min(h.end, grid.size - 1)
+        span = grid[h.start:stop + 1]
+        inside = (t >= span[0]) & (t <= span[-1]) if h.end >= grid.size else (t >= span[0]) & (t < grid[h.end])
+        th = np.unwrap(theta[arm, h.point, h.start:stop + 1])
+        if last_theta is not None:  # keep theta on the turn nearest where the swing began
+            th += 2 * np.pi * np.round((last_theta - th[0]) / (2 * np.pi))
+        out_theta[inside] = np.interp(t[inside], span, th)
+        out_gamma[inside] = np.interp(t[inside], span, gamma[arm, h.point, h.start:stop + 1])
+        last_theta = out_theta[inside][-1]
+    for a, b in zip(mine[:-1], mine[1:]):
+        t0, t1 = grid[a.end], grid[b.start]
+        swing = (t >= t0) & (t < t1)
+        before = (t > t0 - 4 * _STEP) & (t < t0)
+        after = (t >= t1) & (t < t1 + 4 * _STEP)
+        for series in (out_theta, out_gamma):
+            start = _state(t[before], series[before], t0)
+            end = _state(t[after], series[after], t1)
+            series[swing] = _quintic(t[swing], t0, t1, start, end)
+    return out_theta, out_gamma
+
+
+def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
+    """Value, rate and acceleration at time `at`, from a quadratic fitted to the samples."""
+    c = np.polynomial.polynomial.polyfit(t - at, y, 2)
+    return np.array([c[0], c[1], 2 * c[2]])
+
+
+def plan(scenario, robot, dt: float) -> JointTrajectory:
+    """Schedule the grips and solve every arm at every control sample."""
+    task = scenario.task
+    law = scenario.timing.law_fn()
+    grid = np.arange(int(np.ceil((law.duration + scenario.timing.hold) / _STEP)) + 1) * _STEP
+    rot_grid = task.motion.orientation(law(grid, order=0)[0])
+    theta, gamma = _gammas(rot_grid)
+    holds = schedule(gamma, task, max(1, int(round(task.swing_time / _STEP))))
+    t = control_grid(law.duration, scenario.timing.hold, dt)
+    s = law(t, order=0)[0]
+    q_ref = np.empty((t.size, 2 * rsmg.ARMS))
+    for arm in range(rsmg.ARMS):
+        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, holds, theta, gamma, grid)
+    qd_ref = np.gradient(q_ref, t, axis=0)
+    rot = task.motion.orientation(s)
+    switches = []
+    for h in holds:
+        previous = [p for p in holds if p.arm == h.arm and p.end <= h.start]
+        switches.append(Switch(t=float(grid[h.start]), equality=f"grip{h.arm + 1}", active=True,
+                               servo_group=h.arm + 1, detail={
+                                   "arm": h.arm + 1, "from_point": "abc"[previous[-1].point] if previous else None,
+                                   "to_point": "abc"[h.point]}))
+        if h.end < grid.size:
+            switches.append(Switch(t=float(grid[h.end]), equality=f"grip{h.arm + 1}", active=False,
+                                   servo_group=h.arm + 1, detail={"arm": h.arm + 1, "from_point": "abc"[h.point]}))
+    engaged = np.zeros((t.size, rsmg.ARMS), bool)
+    for h in holds:
+        stop = grid[h.end] if h.end < grid.size else np.inf
+        engaged[(t >= grid[h.start]) & (t < stop), h.arm] = True
+    quat = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]
+    info = {
+        "method": "paper 001: round-robin re-gripping (section 4)",
+        "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": rsmg.CANDIDATES},
+        "grips": len(holds) - rsmg.ARMS,
+        "fewest_gripping": int(engaged.sum(axis=1).min()),
+    }
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=qd_ref, tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS),
+                           info=info, switches=tuple(sorted(switches, key=lambda w: w.t)),
+                           series={"rotor_quat_ref": quat * np.where(quat[:, :1] < 0, -1.0, 1.0),
+                                   "engaged_ref": engaged},
+                           initial={"rotor": quat[0].tolist()})
+
+
+PLANNER = Planner(
+    name="round_robin",
+    description="paper 001: RSMG rotor motion by round-robin re-gripping of four electromagnet arms",
+    task=Task,
+    plan=plan,
+    robots=("rsmg",),
+)
