@@ -1,7 +1,10 @@
-"""Path points solved per second by each planner's vectorised method, on one core.
+"""Path points solved per second by each planner, on one core.
 
-Paper 002's method is also set against Craig's analytic IK called point by point (the way the paper says IK
-would otherwise be used), in the same run. Target (issue 3): at least 1e6 points per second on one core.
+Two measures: the vectorised kernels of papers 000 and 002 on 200,000 points a call (paper 002's also set
+against Craig's analytic IK called point by point, the way the paper says IK would otherwise be used, in the
+same run; target, issue 3: at least 1e6 points per second), and every planner's whole `plan` on a shipped
+scenario, in control samples planned per second: everything the planner does for a run, paper 003's SLSQP
+optimisation and paper 001's switch schedule included.
 """
 
 from __future__ import annotations
@@ -15,11 +18,17 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+import simbench  # noqa: E402
 from simbench.paths import Arc  # noqa: E402
 from simbench.planners import decoupled_path, safe_straight_path  # noqa: E402
+from simbench.resources import scenarios_dir  # noqa: E402
 from simbench.robots import puma600  # noqa: E402
+from simbench.sim import Plant  # noqa: E402
 
 REPEATS = 5
+PLANS = (("safe_straight_path", "spherical_arm/case1"), ("joint_move", "spherical_arm/case1_joint_move"),
+         ("decoupled_path", "puma600/weld_seam"), ("avoidance_4567", "agile_eye/avoidance"),
+         ("round_robin", "rsmg/three_turns"))
 
 
 def _best(fn, repeats: int = REPEATS) -> float:
@@ -58,7 +67,16 @@ def measure(n: int = 200_000, n_loop: int = 2_000) -> dict:
 
     t002, t_ik, t000 = _best(paper002), _best(craig_per_point, 3), _best(paper000)
     return {"n": n, "paper002_points_per_s": n / t002, "ik_per_point_points_per_s": n_loop / t_ik,
-            "paper000_points_per_s": n / t000}
+            "paper000_points_per_s": n / t000, "plans": [_whole_plan(*case) for case in PLANS]}
+
+
+def _whole_plan(planner: str, scenario: str) -> dict:
+    """Control samples a planner's whole `plan` call turns out per second (best of 3)."""
+    sc = simbench.load_scenario(scenarios_dir() / f"{scenario}.yaml")
+    dt = float(Plant.load(sc.robot_def, sc.sim.timestep).model.opt.timestep)
+    samples = sc.planner_def.plan(sc, sc.robot_def, dt).t.size
+    seconds = _best(lambda: sc.planner_def.plan(sc, sc.robot_def, dt), 3)
+    return {"planner": planner, "scenario": scenario, "samples": samples, "seconds": seconds}
 
 
 def markdown(r: dict) -> str:
@@ -74,6 +92,13 @@ def markdown(r: dict) -> str:
         f"| paper 000, vectorised (spherical arm, Table 2 case 3 line) | {r['paper000_points_per_s']:,.0f} |",
         "",
         f"Paper 002 vectorised / per-point IK: {ratio:,.0f}x. Target: at least 1e6 points/s for paper 002.",
+        "",
+        "Whole plans (best of 3), control samples planned per second:",
+        "",
+        "| planner | scenario | samples | seconds | samples/s |",
+        "|---|---|---|---|---|",
+        *[f"| `{p['planner']}` | `{p['scenario']}` | {p['samples']:,} | {p['seconds']:.4f} | "
+          f"{p['samples'] / p['seconds']:,.0f} |" for p in r["plans"]],
     ])
 
 

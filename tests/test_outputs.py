@@ -6,11 +6,10 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 import pytest
+from conftest import scenario_file
 
 from simbench.cli import main
 from simbench.resources import scenarios_dir
-
-from conftest import scenario_file
 
 SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
 

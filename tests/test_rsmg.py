@@ -5,8 +5,10 @@ import copy
 import mujoco
 import numpy as np
 import pytest
+from conftest import scenario_file
 from scipy.spatial.transform import Rotation
 
+import simbench
 from simbench.errors import RunError
 from simbench.planners import round_robin
 from simbench.robots import rsmg as S
@@ -103,6 +105,24 @@ def test_schedule_keeps_three_gripping_in_round_robin_order(evaluated):
     assert gamma[engaged].max() < S.GAMMA_BAND[1] - margin + 1e-9
     # Swings are smooth: no reference steps between samples.
     assert np.abs(np.diff(ev.trajectory.q_ref, axis=0)).max() < 0.02
+
+
+def test_three_turns_are_scheduled_at_every_speed_the_swings_allow():
+    """From 5 to 15 s for three turns (the sweep sweeps/rsmg_speed.yaml, without physics): three arms grip at
+    every instant, each on a point inside the band. In 4 s the band's stretches on arm 2's points are shorter than
+    a swing allows: a RunError naming the time and the arm."""
+    base = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
+    for duration in range(5, 16):
+        sc = base.model_copy(update={"timing": base.timing.model_copy(update={"duration": float(duration)})})
+        traj = round_robin.plan(sc, S.ROBOT, 0.001)
+        engaged = traj.series["engaged_ref"]
+        assert engaged.sum(axis=1).min() >= 3, duration
+        gamma = traj.q_ref[:, S.ARMS:][engaged]
+        margin = sc.task.gamma_margin
+        assert S.GAMMA_BAND[0] + margin - 1e-9 < gamma.min() and gamma.max() < S.GAMMA_BAND[1] - margin + 1e-9
+    fast = base.model_copy(update={"timing": base.timing.model_copy(update={"duration": 4.0})})
+    with pytest.raises(RunError, match=r"at t = 1\.\d+ s arm 2 has no next contact point"):
+        round_robin.plan(fast, S.ROBOT, 0.001)
 
 
 def test_impossible_band_is_a_run_error():

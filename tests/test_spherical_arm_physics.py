@@ -41,7 +41,8 @@ def test_case2_jump_is_named_with_its_time_step_and_cost(evaluated):
 def test_case2_twin_starts_at_the_same_tool_point(evaluated):
     s2, _ = evaluated("spherical_arm", "case2")
     twin, ev = evaluated("spherical_arm", "case2_forward_twin")
-    assert np.allclose(spherical_arm.fk(np.array(s2.task.start)), spherical_arm.fk(np.array(twin.task.start)), atol=1e-12)
+    assert np.allclose(spherical_arm.fk(np.array(s2.task.start)), spherical_arm.fk(np.array(twin.task.start)),
+                       atol=1e-12)
     assert not [e for e in ev.analysis.limit_events if e["kind"] == "reference_jump"]
 
 

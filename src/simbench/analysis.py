@@ -65,16 +65,26 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     best, _ = tree.query(points)
     half = 0.5 * np.linalg.norm(np.diff(vertices, axis=0), axis=1).max()
     close = np.flatnonzero(best <= 100 * half)
+    if close.size == 0:
+        return best
     near = tree.query_ball_point(points[close], best[close] + half + 1e-12)
-    owner = np.repeat(close, [len(n) for n in near])
-    vertex = np.concatenate(near).astype(int) if len(near) else np.zeros(0, int)
-    owner = np.concatenate([owner, owner])
-    seg = np.clip(np.concatenate([vertex - 1, vertex]), 0, len(vertices) - 2)
-    a, ab = vertices[seg], vertices[seg + 1] - vertices[seg]
-    rel = points[owner] - a
-    u = np.clip(np.einsum("ij,ij->i", rel, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-    np.minimum.at(best, owner, np.linalg.norm(rel - u[:, None] * ab, axis=1))
+    counts = np.fromiter(map(len, near), int, len(near))  # >= 1: each point's nearest vertex is in its ball
+    vertex = np.concatenate(near).astype(int)
+    owner = np.repeat(close, counts)
+    last = len(vertices) - 2
+    distance = np.minimum(_segment_distance(vertices, np.clip(vertex - 1, 0, last), points[owner]),
+                          _segment_distance(vertices, np.minimum(vertex, last), points[owner]))
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    best[close] = np.minimum(best[close], np.minimum.reduceat(distance, first))
     return best
+
+
+def _segment_distance(vertices: np.ndarray, seg: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance of each point from the segment vertices[seg] -> vertices[seg + 1]."""
+    a, ab = vertices[seg], vertices[seg + 1] - vertices[seg]
+    rel = points - a
+    u = np.clip(np.einsum("ij,ij->i", rel, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+    return np.linalg.norm(rel - u[:, None] * ab, axis=1)
 
 
 def _rms(x: np.ndarray, axis=0) -> np.ndarray:

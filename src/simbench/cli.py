@@ -1,4 +1,4 @@
-"""Command line: `simbench run | validate | list`.
+"""Command line: `simbench run | sweep | validate | list | train-fk`.
 
 Exit codes: 0 done; 2 bad input (one line naming the file, the field and what is expected); 1 the run itself
 failed (an unreachable path, diverged physics), with the reason.
@@ -12,7 +12,7 @@ from pathlib import Path
 
 from simbench import planners, robots
 from simbench.errors import RunError, ScenarioError
-from simbench.resources import scenarios_dir
+from simbench.resources import scenarios_dir, sweeps_dir
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -23,6 +23,16 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=None, help="output folder (default renders/<name>/)")
     run.add_argument("--no-video", action="store_true", help="skip the MP4")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    sweep = sub.add_parser("sweep", help="run a scenario over parameter grids or random samples, into one table")
+    sweep.add_argument("sweep", type=Path)
+    sweep.add_argument("--out", type=Path, default=None, help="output folder (default renders/sweeps/<name>/)")
+    sweep.add_argument("--workers", type=int, default=None, help="runs at once (default: one per CPU)")
+    sweep.add_argument("--ray", metavar="ADDRESS", default=None,
+                       help="run on a Ray cluster: 'local' starts one here, or give a running cluster's address")
+    sweep.add_argument("--force", action="store_true",
+                       help="start over: replace whatever the output folder holds (default: resume)")
+    sweep.add_argument("--dry-run", action="store_true", help="check the sweep and list its runs; run nothing")
+    sweep.add_argument("--quiet", action="store_true", help="print nothing but errors")
     validate = sub.add_parser("validate", help="check scenarios without simulating")
     validate.add_argument("scenarios", type=Path, nargs="+")
     sub.add_parser("list", help="list robots, planners and shipped scenarios")
@@ -47,15 +57,56 @@ def _summary(result) -> str:
     return "\n".join(lines)
 
 
+def _sweep(args) -> None:
+    """The sweep command: run (or with --dry-run, list) the sweep's runs."""
+    from simbench.sweep import load_sweep, run_sweep
+
+    if args.workers is not None and args.workers < 1:
+        raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {args.workers}")
+    if args.ray is not None:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
+    sweep = load_sweep(args.sweep)
+    if args.dry_run:
+        print(_dry_run(sweep))
+        return
+    result = run_sweep(sweep, args.out, workers=args.workers, ray=args.ray, force=args.force,
+                       progress=not args.quiet)
+    if not args.quiet:
+        counts = ", ".join(f"{n} {status}" for status, n in result.summary["status"].items() if n)
+        print(f"{sweep.name}: {result.summary['runs']} runs ({counts}"
+              f"{f'; {result.resumed} from an earlier start' if result.resumed else ''}) in "
+              f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
+        for note in result.summary["notes"]:
+            print(f"  note: {note}")
+
+
+def _dry_run(sweep) -> str:
+    """What a sweep would run: each run's parameters, and which runs the scenario schema already refuses."""
+    from simbench.scenario import parse_scenario
+
+    lines = [f"{sweep.name}: {len(sweep.variants)} runs of {sweep.base}"]
+    for v in sweep.variants:
+        try:
+            parse_scenario(v.document, v.id)
+            verdict = ""
+        except ScenarioError as err:
+            verdict = f"  -> bad_input: {err.field}: {err.message}"
+        lines.append(f"  {v.id} " + ", ".join(f"{name}={value!r}" for name, value in v.params.items()) + verdict)
+    return "\n".join(lines)
+
+
 def _list() -> str:
     lines = ["robots:"]
     lines += [f"  {r.name:16s} {r.description}" for r in robots.registry().values()]
     lines.append("planners:")
     for p in planners.registry().values():
         lines.append(f"  {p.name:20s} {p.description} [{', '.join(p.robots) if p.robots else 'any robot'}]")
-    lines.append("scenarios:")
-    root = scenarios_dir()
-    lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]
+    for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):
+        lines.append(f"{title}:")
+        lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]
     return "\n".join(lines)
 
 
@@ -71,6 +122,8 @@ def main(argv: list[str] | None = None) -> int:
             from simbench import learnt_fk
 
             learnt_fk.train(args.samples, tuple(args.hidden), args.seed, args.out or learnt_fk.WEIGHTS)
+        elif args.command == "sweep":
+            _sweep(args)
         elif args.command == "validate":
             for path in args.scenarios:
                 sc = scenario.load_scenario(path)
@@ -87,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" else ""
+        print(f"interrupted{resume}", file=sys.stderr)
         return 130
     return 0

@@ -6,14 +6,13 @@ that fails leaves the previous complete output (or none), never a half-written o
 
 from __future__ import annotations
 
-import os
-import shutil
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 from simbench.analysis import Analysis, analyse
+from simbench.atomic import staged_folder
 from simbench.plots import write_plots
 from simbench.render import render_video
 from simbench.report import build_report, write_report, write_timeseries
@@ -55,24 +54,11 @@ class _Stopwatch:
         finally:
             self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
 
-
-@contextmanager
-def _staging(out: Path):
-    """A fresh hidden folder beside `out`, moved onto `out` if the block succeeds, removed if it fails."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    try:
-        yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    old = out.parent / f".{out.name}.old-{os.getpid()}"
-    if out.exists():
-        out.rename(old)
-    tmp.rename(out)
-    shutil.rmtree(old, ignore_errors=True)
+    def summary(self) -> dict[str, float]:
+        """Seconds per stage and their total, as report.json gives them."""
+        wall = {k: round(v, 4) for k, v in self.times.items()}
+        wall["total"] = round(sum(self.times.values()), 4)
+        return wall
 
 
 def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | None = None) -> Evaluation:
@@ -93,13 +79,20 @@ def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | Non
     return Evaluation(traj, rec, result)
 
 
+def evaluate_report(scenario: Scenario) -> dict:
+    """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps of a run)."""
+    watch = _Stopwatch()
+    ev = evaluate(scenario, watch=watch)
+    return build_report(scenario, ev.trajectory, ev.recording, ev.analysis, watch.summary(), {}, scenario.source)
+
+
 def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, progress: bool = False) -> Result:
     """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4."""
     watch = _Stopwatch()
     ev = evaluate(scenario, progress, watch)
     robot, traj, rec, result = scenario.robot_def, ev.trajectory, ev.recording, ev.analysis
     out = Path(out) if out is not None else Path("renders") / scenario.name
-    with _staging(out) as tmp:
+    with staged_folder(out) as tmp:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz"}
         with watch.stage("plots"):
             names = write_plots(robot, traj, rec, result, tmp / "plots")
@@ -118,8 +111,6 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
                                                      paint=robot.paint)
         with watch.stage("write"):
             write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
-        wall = {k: round(v, 4) for k, v in watch.times.items()}
-        wall["total"] = round(sum(watch.times.values()), 4)
-        report = build_report(scenario, traj, rec, result, wall, outputs, scenario.source)
+        report = build_report(scenario, traj, rec, result, watch.summary(), outputs, scenario.source)
         write_report(report, tmp / "report.json")
     return Result(out=out, report=report, evaluation=ev)

@@ -15,14 +15,14 @@ from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
 
-def _plain(value):
+def plain(value):
     """JSON-ready copy: NumPy scalars and arrays to Python, NaN and infinities to null."""
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
+        return plain(value.tolist())
     if isinstance(value, (np.floating, float)):
         return float(value) if math.isfinite(value) else None
     if isinstance(value, np.integer):
@@ -44,7 +44,7 @@ def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analys
                  outputs: dict, source: str | None) -> dict:
     """The report.json document."""
     timing = scenario.timing
-    return _plain({
+    return plain({
         "scenario": {"name": scenario.name, "file": source, "description": scenario.description},
         "robot": scenario.robot,
         "planner": scenario.planner,

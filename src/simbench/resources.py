@@ -1,4 +1,4 @@
-"""Where the shipped models and scenarios live: inside the wheel, or at the root of a source checkout."""
+"""Where the shipped models, scenarios and sweeps live: inside the wheel, or at the root of a source checkout."""
 
 from __future__ import annotations
 
@@ -22,3 +22,8 @@ def models_dir() -> Path:
 def scenarios_dir() -> Path:
     """scenarios/: the shipped YAML scenarios, one folder per robot."""
     return _find("scenarios")
+
+
+def sweeps_dir() -> Path:
+    """sweeps/: the shipped sweep files."""
+    return _find("sweeps")

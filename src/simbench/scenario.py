@@ -26,15 +26,13 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, Field, PrivateAttr, ValidationError, create_model
+from pydantic import Field, PrivateAttr, ValidationError, create_model
 
 from simbench import planners, robots
 from simbench.errors import ScenarioError
 from simbench.schema import Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
 from simbench.timing import TimeLaw
-
-_MAX_BYTES = 1 << 20
+from simbench.validation import describe, kind_of, read_yaml
 
 
 class Timing(SimbenchModel):
@@ -108,8 +106,6 @@ class Scenario(SimbenchModel):
         return planners.registry()[self.planner]
 
 
-
-
 @cache
 def _scenario_class(planner_name: str) -> type[Scenario]:
     task = planners.registry()[planner_name].task
@@ -119,7 +115,7 @@ def _scenario_class(planner_name: str) -> type[Scenario]:
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; ScenarioError names the field at fault."""
     path = Path(path)
-    scenario = parse_scenario(_read_yaml(path), str(path), default_name=path.stem)
+    scenario = parse_scenario(read_yaml(path), str(path), default_name=path.stem)
     scenario._source = str(path)
     return scenario
 
@@ -127,7 +123,7 @@ def load_scenario(path: str | Path) -> Scenario:
 def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Scenario:
     """Validate a scenario already read into Python objects."""
     if not isinstance(raw, dict):
-        raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {_kind(raw)}")
+        raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {kind_of(raw)}")
     robot = robots.registry().get(_name_field(raw, "robot", robots.registry(), source))
     planner = planners.registry()[_name_field(raw, "planner", planners.registry(), source)]
     if not planner.supports(robot.name):
@@ -136,12 +132,12 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     try:
         units = Units.model_validate(raw.get("units", {}))
     except ValidationError as err:
-        raise ScenarioError(source, *_describe(err, Units, prefix=("units",))) from None
+        raise ScenarioError(source, *describe(err, Units, prefix=("units",))) from None
     cls = _scenario_class(planner.name)
     try:
         scenario = cls.model_validate(raw, context={"robot": robot, "units": units})
     except ValidationError as err:
-        raise ScenarioError(source, *_describe(err, cls)) from None
+        raise ScenarioError(source, *describe(err, cls)) from None
     if scenario.name is None:
         scenario = scenario.model_copy(update={"name": default_name})
     cameras = robot.cameras()
@@ -154,31 +150,6 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     return scenario
 
 
-def _read_yaml(path: Path) -> Any:
-    source = str(path)
-    if not path.exists():
-        raise ScenarioError(source, None, "no such file")
-    if not path.is_file():
-        raise ScenarioError(source, None, "not a file (expected a YAML scenario)")
-    size = path.stat().st_size
-    if size > _MAX_BYTES:
-        raise ScenarioError(source, None, f"file too large ({size} bytes; a scenario is at most {_MAX_BYTES})")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError:
-        raise ScenarioError(source, None, "not a text file (expected UTF-8 YAML)") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
-        raise ScenarioError(source, None, f"not valid YAML{where}: {problem}") from None
-    if data is None:
-        raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
-    return data
-
-
 def _name_field(raw: dict, field: str, known: dict, source: str) -> str:
     value = raw.get(field)
     options = ", ".join(sorted(known))
@@ -189,53 +160,3 @@ def _name_field(raw: dict, field: str, known: dict, source: str) -> str:
         suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
         raise ScenarioError(source, field, f"unknown {field} {value!r} (expected one of: {options}){suggestion}")
     return value
-
-
-def _kind(value: Any) -> str:
-    return {list: "a list", str: "a string", int: "a number", float: "a number", bool: "a boolean"}.get(
-        type(value), f"a {type(value).__name__}")
-
-
-def _format_loc(loc: tuple) -> str:
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out
-
-
-def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
-    """Field names of the model found by following loc from cls (for 'did you mean')."""
-    model = cls
-    for part in loc:
-        field = model.model_fields.get(part) if isinstance(part, str) else None
-        annotation = getattr(field, "annotation", None)
-        if not (isinstance(annotation, type) and issubclass(annotation, BaseModel)):
-            return []
-        model = annotation
-    return list(model.model_fields)
-
-
-def _describe(err: ValidationError, cls: type[BaseModel], prefix: tuple = ()) -> tuple[str, str]:
-    """The first validation error as (field path, message in the user's terms).
-
-    An unknown field goes first: a misspelt name also makes the field it meant go missing.
-    """
-    errors = err.errors(include_url=False)
-    first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
-    loc = prefix + tuple(first["loc"])
-    kind, msg, given = first["type"], first["msg"], first.get("input")
-    if kind == "missing":
-        return _format_loc(loc), "missing: this field is required"
-    if kind == "extra_forbidden":
-        fields = _fields_at(cls, tuple(first["loc"])[:-1])
-        hint = difflib.get_close_matches(str(loc[-1]), fields, n=1)
-        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
-        return _format_loc(loc), f"unknown field (expected one of: {', '.join(fields)}){suggestion}"
-    if msg.startswith("Value error, "):
-        return _format_loc(loc), msg.removeprefix("Value error, ")
-    msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
-    if isinstance(given, (str, int, float, bool)) or given is None:
-        msg += f", got {given!r}"
-    elif isinstance(given, (list, dict)):
-        msg += f", got {_kind(given)}"
-    return _format_loc(loc), msg

@@ -17,6 +17,7 @@ from __future__ import annotations
 import copy
 import sys
 from dataclasses import dataclass, field
+from functools import cache
 
 import mujoco
 import numpy as np
@@ -61,8 +62,9 @@ class Plant:
 
     @classmethod
     def load(cls, robot: Robot, timestep: float | None = None) -> "Plant":
-        """Compile the robot's scene; actuators are named after the joints they drive."""
-        model = mujoco.MjModel.from_xml_path(str(robot.scene))
+        """The robot's compiled scene (a fresh copy: a run changes its model); actuators are named after the joints
+        they drive."""
+        model = copy.copy(_compiled(str(robot.scene)))
         if timestep is not None:
             model.opt.timestep = timestep
         joints = [model.joint(name) for name in robot.joints]
@@ -99,6 +101,12 @@ class Plant:
         lo, hi = m.actuator_ctrlrange.T
         ctrl[:, limited] = np.clip(ctrl[:, limited], lo[limited], hi[limited])
         return ctrl
+
+
+@cache
+def _compiled(scene: str) -> mujoco.MjModel:
+    """A scene compiled once per process (compiling costs about as much as simulating a short scenario)."""
+    return mujoco.MjModel.from_xml_path(scene)
 
 
 def _state_slices(model: mujoco.MjModel) -> dict[str, slice]:

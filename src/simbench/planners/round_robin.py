@@ -30,6 +30,8 @@ from simbench.schema import Direction, NonNegativeAngle, Positive, SimbenchModel
 from simbench.trajectory import JointTrajectory, Switch, control_grid
 
 _STEP = 0.005  # s: the schedule's time step
+_FIT = 4  # schedule steps on each side of a swing from which its end states are fitted; a hold is longer
+_SEARCH = 2000  # most choices the schedule's search tries
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 
 
@@ -85,7 +87,14 @@ def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def schedule(gamma: np.ndarray, task: Task, n_swing: int) -> list[Hold]:
     """Which point each arm holds when, on the schedule grid (section 4.1-4.3); RunError where no round-robin
-    choice keeps three arms gripping inside the band."""
+    choice keeps three arms gripping inside the band.
+
+    Time advances until an arm must let go (its deadline, see the module's docstring). Its choices, in order of
+    preference: the next candidate in round-robin order, then the one after (the paper's order of trial), each
+    let go as late as it can be and still be inside the band when the arm gets there and for long enough after
+    (first: for the other three arms to take a swing each; then: for one swing). If a choice leads to an arm
+    with no choice later, the search backs up and takes the next one (depth first, at most _SEARCH nodes).
+    """
     lo, hi = rsmg.GAMMA_BAND[0] + task.gamma_margin, rsmg.GAMMA_BAND[1] - task.gamma_margin
     good = (gamma > lo) & (gamma < hi)  # NaN (out of reach) is never good
     n = gamma.shape[2]
@@ -95,42 +104,65 @@ def schedule(gamma: np.ndarray, task: Task, n_swing: int) -> list[Hold]:
         bad = np.flatnonzero(~good[arm, point, step:])
         return step + int(bad[0]) if bad.size else n
 
+    def choices(arm: int, point: int, earliest: int, latest: int) -> list[tuple[int, int]]:
+        """(release step, next point) in order of preference."""
+        found = []
+        for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
+            for k in ((point + 1) % rsmg.CANDIDATES, (point + 2) % rsmg.CANDIDATES):
+                release = next((r for r in range(latest, earliest - 1, -1) if r + n_swing < n and
+                                good[arm, k, r + n_swing] and exit_step(arm, k, r + n_swing) > min(
+                                    r + n_swing + hold, n - 1)), None)
+                if release is not None and (release, k) not in found:
+                    found.append((release, k))
+        return found
+
     current = {}
     for arm in range(rsmg.ARMS):
         point = max(range(rsmg.CANDIDATES), key=lambda k: exit_step(arm, k, 0))
         if exit_step(arm, point, 0) == 0:
             raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
         current[arm] = (point, 0)
-    holds: list[Hold] = []
-    step = 0
-    while step < n:
-        swinging = [since for _, since in current.values() if since > step]
-        if swinging:  # one arm swings at a time; the others were checked to hold until it grips
-            step = max(swinging)
-            continue
-        exits = sorted((exit_step(a, p, step), a) for a, (p, _) in current.items())
-        deadline = min(e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n) if exits[0][0] < n \
-            else n
-        if deadline > step:
-            step = min(deadline, n)
-            continue
-        _, arm = exits[0]
-        point, since = current.pop(arm)
-        if any(e < step + n_swing for e, a in exits[1:]):
-            raise RunError(f"round robin: at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm "
-                           "leaves the gamma band before it can grip again")
-        grip = step + n_swing
-        for k in (1, 2):  # round-robin order: the next candidates after the current one
-            nxt = (point + k) % rsmg.CANDIDATES
-            if grip < n and good[arm, nxt, grip] and exit_step(arm, nxt, grip) > grip + n_swing:
+    budget = [_SEARCH]
+    stuck: list[str] = []
+
+    def extend(current: dict[int, tuple[int, int]], step: int) -> list[Hold] | None:
+        """The holds from `step` on, given what each arm holds since when; None if none work."""
+        while True:
+            swinging = [since for _, since in current.values() if since > step]
+            if swinging:  # one arm swings at a time; the others were checked to hold until it grips
+                step = max(swinging)
+                continue
+            exits = sorted((exit_step(a, p, step), a) for a, (p, _) in current.items())
+            if exits[0][0] >= n:
+                return [Hold(a, p, since, n) for a, (p, since) in current.items()]
+            deadline = min(e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n)
+            if deadline <= step:
                 break
-        else:
-            raise RunError(f"round robin: at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point "
-                           "inside the gamma band (eq. 45)")
-        holds.append(Hold(arm, point, since, step))
-        current[arm] = (nxt, grip)
-        step += 1
-    holds += [Hold(a, p, since, n) for a, (p, since) in current.items()]
+            step = deadline
+        _, arm = exits[0]
+        point, since = current[arm]
+        if any(e < step + n_swing for e, _ in exits[1:]):
+            stuck.append(f"at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm leaves the gamma "
+                         "band before it can grip again")
+            return None
+        earliest = max([since + _FIT + 1] + [s for a, (_, s) in current.items() if a != arm])
+        options = choices(arm, point, earliest, step)
+        if not options:
+            stuck.append(f"at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point inside the gamma "
+                         "band (eq. 45)")
+        for release, nxt in options:
+            budget[0] -= 1
+            if budget[0] < 0:
+                return None
+            rest = extend({**current, arm: (nxt, release + n_swing)}, release + 1)
+            if rest is not None:
+                return [Hold(arm, point, since, release)] + rest
+        return None
+
+    holds = extend(current, 0)
+    if holds is None:
+        furthest = max(stuck, key=lambda m: float(m.split("t = ")[1].split(" s")[0])) if stuck else "no schedule"
+        raise RunError(f"round robin: {furthest}" + (" (search budget spent)" if budget[0] < 0 else ""))
     return sorted(holds, key=lambda h: (h.arm, h.start))
 
 
@@ -163,8 +195,8 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], theta: np.ndarray, gam
     for a, b in zip(mine[:-1], mine[1:]):
         t0, t1 = grid[a.end], grid[b.start]
         swing = (t >= t0) & (t < t1)
-        before = (t > t0 - 4 * _STEP) & (t < t0)
-        after = (t >= t1) & (t < t1 + 4 * _STEP)
+        before = (t > t0 - _FIT * _STEP) & (t < t0)
+        after = (t >= t1) & (t < t1 + _FIT * _STEP)
         for series in (out_theta, out_gamma):
             start = _state(t[before], series[before], t0)
             end = _state(t[after], series[after], t1)

@@ -1,0 +1,80 @@
+"""Sweeps: a base scenario run over parameter grids and seeded random samples, on every core of this machine or
+on a Ray cluster, into one table of results.
+
+    sweep = load_sweep("sweeps/case1_timestep.yaml")
+    result = run_sweep(sweep, workers=2)            # or ray="local", ray="HOST:PORT"
+    result.table["tool_rms"]
+
+The sweep file is described in `simbench.sweep.spec`, the output folder in `simbench.sweep.store`, the table in
+`simbench.sweep.table`.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm import tqdm
+
+from simbench.atomic import write_text
+from simbench.sweep import execute, table
+from simbench.sweep.spec import Sweep, load_sweep
+from simbench.sweep.store import Store
+
+__all__ = ["Sweep", "SweepResult", "load_sweep", "run_sweep"]
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """A finished sweep: where its outputs are, its table as columns, and its summary."""
+
+    out: Path
+    table: dict[str, list]
+    summary: dict
+    resumed: int
+
+
+def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
+              force: bool = False, progress: bool = False) -> SweepResult:
+    """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
+    summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another);
+    `ray`: 'local' or a cluster's address to run on Ray instead."""
+    out = Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name
+    with Store(out, sweep, force=force) as store:
+        rows = store.finished()
+        todo = [v for v in sweep.variants if v.index not in rows]
+        workers = max(1, min(workers or execute.cpu_count(), len(todo) or 1))
+        start = time.perf_counter()
+        outcomes, backend = _backend(sweep, todo, out, workers, ray)
+        tqdm.monitor_interval = 0  # no monitor thread: the worker processes are forked from this one
+        with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,
+                  leave=False) as bar:
+            for index, outcome in outcomes:
+                rows[index] = store.record(sweep.variants[index], outcome)
+                bar.update()
+        columns = table.columns(list(rows.values()), sweep.params)
+        table.write_csv(columns, out / "results.csv")
+        table.write_parquet(columns, out / "results.parquet")
+        plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots,
+                                         out / "plots")
+        summary = {**table.summary(columns, sweep.spec.plots), "resumed": len(sweep.variants) - len(todo),
+                   "backend": backend, "wall_time": round(time.perf_counter() - start, 3),
+                   "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots]},
+                   "notes": notes}
+        write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    return SweepResult(out, columns, summary, summary["resumed"])
+
+
+def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None):
+    """The outcomes of the runs still to do, as they finish, and a description of where they run."""
+    kept = sweep.spec.outputs
+    tasks = [(v.index, {"document": v.document, "source": f"{sweep.source} {v.id}", "outputs": kept,
+                        "out": execute.out_of(out, v.id) if kept == "full" else None, "video": sweep.spec.video})
+             for v in todo]
+    if ray is not None:
+        return execute.on_ray(tasks, ray, workers), f"ray ({ray})"
+    if workers == 1:
+        return execute.in_this_process(tasks), "this process"
+    return execute.in_processes(tasks, workers), f"{workers} processes"

@@ -1,0 +1,198 @@
+"""Running a sweep's variants: one function per run, and three ways to call it (in this process, in worker
+processes on this machine, on a Ray cluster) that all yield the same outcomes.
+
+A run never raises: bad input, a failed run and an unexpected exception each become an outcome with a status
+and a one-line error, so a sweep's table has a row for every run. On this machine the runs go to worker
+processes forked from this one (nothing to import again); a run that kills its worker (a crash in native code,
+the kernel's OOM killer) is a `crashed` row, the worker is replaced, and the other runs go on.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import time
+from collections.abc import Iterable, Iterator
+from multiprocessing import connection
+from pathlib import Path
+from typing import Any
+
+from simbench.errors import RunError, ScenarioError
+
+# Report keys that describe the run rather than measure it.
+_NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duration", "hold", "settle", "time_law",
+                "samples", "plan", "waypoints", "wall_time", "outputs", "config"}
+
+Task = tuple[int, dict]  # (run index, keyword arguments of run_variant)
+
+
+def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
+                video: bool = False) -> dict:
+    """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | bad_input |
+    run_failed | crashed), `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`.
+    With outputs='full' every output of `simbench run` is written into `out`."""
+    from simbench import pipeline
+    from simbench.scenario import parse_scenario
+
+    start = time.perf_counter()
+    report, status, error = None, "ok", ""
+    try:
+        scenario = parse_scenario(document, source)
+        if outputs == "full":
+            report = pipeline.run(scenario, out=out, video=video).report
+        else:
+            report = pipeline.evaluate_report(scenario)
+    except ScenarioError as err:
+        status, error = "bad_input", f"{err.field}: {err.message}" if err.field else err.message
+    except RunError as err:
+        status, error = "run_failed", str(err)
+    except Exception as err:  # any other failure is this run's row, not the end of the sweep
+        status, error = "crashed", f"{type(err).__name__}: {err}"
+    return {"status": status, "error": error, "metrics": metrics(report) if report else {},
+            "wall_time": time.perf_counter() - start, "report": report if outputs == "report" else None}
+
+
+def metrics(report: dict) -> dict[str, Any]:
+    """The report's measurements as flat columns: tracking's entries by their own names (`tool_rms`,
+    `joint_rms.q1`), other numbers by theirs (`kci.mean`, `rotor_error_max`), and for each list of events its
+    count and its kinds (`singularity_events`, `singularity_events.kinds`)."""
+    flat: dict[str, Any] = {}
+    for key, value in report.items():
+        if key in _NOT_METRICS:
+            continue
+        if isinstance(value, list):
+            flat[key] = len(value)
+            flat[f"{key}.kinds"] = ",".join(sorted({str(e["kind"]) for e in value if isinstance(e, dict)
+                                                    and "kind" in e}))
+        else:
+            _flatten("" if key == "tracking" else key, value, flat)
+    return flat
+
+
+def _flatten(prefix: str, value: Any, into: dict) -> None:
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _flatten(f"{prefix}.{k}" if prefix else str(k), v, into)
+    elif isinstance(value, (bool, int, float)) or value is None:
+        into[prefix] = value
+
+
+def crashed(reason: str) -> dict:
+    """The outcome of a run whose process or worker died before it could answer."""
+    return {"status": "crashed", "error": reason, "metrics": {}, "wall_time": None, "report": None}
+
+
+def in_this_process(tasks: Iterable[Task]) -> Iterator[tuple[int, dict]]:
+    """Each run in turn, here."""
+    for index, kwargs in tasks:
+        yield index, run_variant(**kwargs)
+
+
+def in_processes(tasks: Iterable[Task], workers: int) -> Iterator[tuple[int, dict]]:
+    """Up to `workers` runs at a time in worker processes forked from this one; outcomes as they finish. A worker
+    that dies takes only its own run with it (a `crashed` outcome) and is replaced. On an interrupt the workers
+    are stopped and no outcome is made up for their runs."""
+    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+    todo = list(tasks)
+    idle = [_Worker(ctx) for _ in range(min(workers, len(todo)))]
+    busy: dict[Any, _Worker] = {}
+    try:
+        while todo or busy:
+            while todo and idle:
+                worker = idle.pop()
+                worker.give(*todo.pop(0))
+                busy[worker.conn] = worker
+            for conn in connection.wait(list(busy)):
+                worker = busy.pop(conn)
+                try:
+                    outcome = conn.recv()
+                    idle.append(worker)
+                except EOFError:  # the worker died in the middle of its run
+                    outcome = crashed(f"its worker process died (exit code {worker.stop()})")
+                    idle.append(_Worker(ctx))
+                yield worker.index, outcome
+    finally:
+        for worker in idle + list(busy.values()):
+            worker.stop()
+
+
+class _Worker:
+    """A process that runs one variant at a time, sent over a pipe."""
+
+    def __init__(self, ctx):
+        self.conn, theirs = ctx.Pipe()
+        self.process = ctx.Process(target=_serve, args=(theirs,), name="simbench-sweep-worker", daemon=True)
+        self.process.start()
+        theirs.close()
+        self.index = -1
+
+    def give(self, index: int, kwargs: dict) -> None:
+        """Start a run."""
+        self.index = index
+        self.conn.send(kwargs)
+
+    def stop(self) -> int | None:
+        """End the process (at once, mid-run or not); its exit code."""
+        self.conn.close()
+        if self.process.is_alive():
+            self.process.terminate()
+        self.process.join()
+        return self.process.exitcode
+
+
+def _serve(conn) -> None:
+    """A worker's loop: run each variant received until the pipe closes. The parent alone answers Ctrl-C."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    while True:
+        try:
+            kwargs = conn.recv()
+        except EOFError:
+            return
+        conn.send(run_variant(**kwargs))
+
+
+def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[int, dict]]:
+    """Every run as a Ray task; `address` 'local' starts a cluster on this machine with `workers` CPUs and
+    stops it afterwards. simbench must be installed on every node, and with outputs: full the output folder must
+    be on a filesystem every node sees."""
+    import ray
+    import ray.exceptions
+
+    started = not ray.is_initialized()
+    if started:
+        options = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+        if address == "local":
+            ray.init(num_cpus=workers, **options)
+        else:
+            ray.init(address=address, **options)
+    remote = ray.remote(num_cpus=1, max_retries=0)(run_variant)
+    pending = {remote.remote(**kwargs): index for index, kwargs in tasks}
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                index = pending.pop(ref)
+                try:
+                    outcome = ray.get(ref)
+                except ray.exceptions.RayError as err:
+                    outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
+                yield index, outcome
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()
+
+
+def cpu_count() -> int:
+    """CPUs this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def out_of(folder: Path, run_id: str) -> str:
+    """Where a run's own outputs go."""
+    return str(folder / "runs" / run_id)

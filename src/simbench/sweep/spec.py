@@ -1,0 +1,279 @@
+"""Sweep files: a base scenario and the parameters to vary, expanded into one scenario document per run.
+
+    name: case1_gains                  # optional: the file's stem; names the output folder
+    base: ../scenarios/spherical_arm/case1.yaml   # relative to this file, or a shipped one: spherical_arm/case1
+    grid:                              # every combination of these values (the last one varies fastest)
+      sim.timestep: [0.0005, 0.001, 0.002]
+      timing.law: [cubic, quintic]
+    random:                            # seeded samples, drawn once and crossed with every grid point
+      samples: 20
+      seed: 0
+      params:
+        task.goal[1]: {uniform: [30, 80]}          # values in the base file's units
+        task.start: {uniform: [[100, 5, 100, 0], [140, 20, 140, 10]]}   # a vector: one draw per item
+        timing.duration: {loguniform: [1, 8]}
+        timing.law: {choice: [cubic, quintic]}
+    outputs: report                    # kept per run: none | report (report.json) | full (every output)
+    video: false                       # with outputs: full
+    plots: [tool_rms, tool_max]        # metrics plotted against each parameter
+
+A parameter is a field path into the scenario: names joined by '.', list items as [i] (`task.goal[1]`). The
+values are set in the base's YAML document before it is validated, so they take the base file's units and a
+value the scenario schema refuses makes that run a `bad_input` row, not a failed sweep.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import Field, ValidationError, model_validator
+
+from simbench.errors import ScenarioError
+from simbench.resources import scenarios_dir
+from simbench.scenario import parse_scenario
+from simbench.schema import SimbenchModel
+from simbench.validation import describe, kind_of, read_yaml
+
+MAX_RUNS = 100_000
+_PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
+_PART = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
+_KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
+
+Bound = float | list[float]
+Pair = Annotated[list[Bound], Field(min_length=2, max_length=2)]
+
+
+class Distribution(SimbenchModel):
+    """How a random parameter is drawn: exactly one of the fields. Bounds may be vectors, drawn item by item."""
+
+    uniform: Pair | None = None
+    loguniform: Pair | None = None
+    normal: Pair | None = None
+    integers: Annotated[list[int], Field(min_length=2, max_length=2)] | None = None
+    choice: Annotated[list[Any], Field(min_length=1)] | None = None
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        given = [k for k in _KINDS if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"expected exactly one of {', '.join(_KINDS)}, got {len(given)}")
+        kind = given[0]
+        if kind in ("uniform", "loguniform", "normal"):
+            a, b = (np.atleast_1d(np.asarray(v, float)) for v in getattr(self, kind))
+            if a.shape != b.shape:
+                raise ValueError(f"{kind}: its two bounds must be the same length, got {a.size} and {b.size}")
+            if kind == "normal" and (b < 0).any():
+                raise ValueError("normal: [mean, standard deviation] with the deviation >= 0")
+            if kind != "normal" and (a > b).any():
+                raise ValueError(f"{kind}: [low, high] with low <= high")
+            if kind == "loguniform" and (a <= 0).any():
+                raise ValueError("loguniform: bounds must be > 0")
+        if kind == "integers" and self.integers[0] > self.integers[1]:
+            raise ValueError("integers: [low, high] with low <= high (both included)")
+        return self
+
+    def draw(self, rng: np.random.Generator) -> Any:
+        """One value: a float, an int, a list of floats for vector bounds, or one of the choices."""
+        if self.choice is not None:
+            return copy.deepcopy(self.choice[int(rng.integers(len(self.choice)))])
+        if self.integers is not None:
+            return int(rng.integers(self.integers[0], self.integers[1] + 1))
+        kind = next(k for k in ("uniform", "loguniform", "normal") if getattr(self, k) is not None)
+        a_raw, b_raw = getattr(self, kind)
+        a, b = np.asarray(a_raw, float), np.asarray(b_raw, float)
+        if kind == "uniform":
+            value = rng.uniform(a, b)
+        elif kind == "loguniform":
+            value = np.exp(rng.uniform(np.log(a), np.log(b)))
+        else:
+            value = rng.normal(a, b)
+        return value.tolist() if isinstance(a_raw, list) else float(value)
+
+
+class RandomSpec(SimbenchModel):
+    """Seeded random samples of some parameters."""
+
+    samples: Annotated[int, Field(ge=1, le=MAX_RUNS)]
+    seed: int = 0
+    params: Annotated[dict[str, Distribution], Field(min_length=1)]
+
+
+class SweepSpec(SimbenchModel):
+    """A sweep file as written."""
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", max_length=100)] | None = None
+    description: str = ""
+    base: Annotated[str, Field(min_length=1)]
+    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] = {}
+    random: RandomSpec | None = None
+    outputs: Literal["none", "report", "full"] = "report"
+    video: bool = False
+    plots: list[str] = ["tool_rms", "tool_max"]
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if not self.grid and self.random is None:
+            raise ValueError("nothing to vary: give a grid, random samples, or both")
+        if self.video and self.outputs != "full":
+            raise ValueError("video: true needs outputs: full (a video is kept only with every other output)")
+        return self
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One run of a sweep: its parameters as written and the scenario document they make."""
+
+    index: int
+    id: str
+    params: dict[str, Any]
+    document: dict
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A validated sweep file and every run it makes."""
+
+    name: str
+    source: str
+    spec: SweepSpec
+    base: Path
+    variants: tuple[Variant, ...]
+
+    @property
+    def params(self) -> list[str]:
+        """The swept field paths: grid first, then random, as written."""
+        return list(self.spec.grid) + (list(self.spec.random.params) if self.spec.random else [])
+
+    def fingerprint(self) -> str:
+        """A hash of everything that decides the results: a sweep resumes only into a folder with the same one."""
+        from simbench import __version__
+
+        blob = json.dumps({"simbench": __version__, "spec": self.spec.model_dump(mode="json"),
+                           "runs": [v.document for v in self.variants]}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def parse_path(text: str) -> tuple[str | int, ...]:
+    """'task.goal[1]' -> ('task', 'goal', 1); ValueError if it is not a field path."""
+    if not _PATH.fullmatch(text):
+        raise ValueError(f"'{text}' is not a field path (expected names joined by '.', list items as [i], "
+                         "e.g. task.goal[1])")
+    return tuple(name if name else int(index) for name, index in _PART.findall(text))
+
+
+def assign(document: dict, path: tuple[str | int, ...], value: Any) -> None:
+    """Set the field at `path`, creating missing mappings; a list item must already exist in the base."""
+    node: Any = document
+    for depth, part in enumerate(path):
+        where = ".".join(str(p) for p in path[:depth]) or "the document"
+        last = depth == len(path) - 1
+        if isinstance(part, int):
+            if not isinstance(node, list):
+                raise ValueError(f"the base's {where} is {kind_of(node)}, not a list to index with [{part}]")
+            if part >= len(node):
+                raise ValueError(f"the base's {where} has {len(node)} items, no item [{part}]")
+        elif not isinstance(node, dict):
+            raise ValueError(f"the base's {where} is {kind_of(node)}, not a mapping with a field '{part}'")
+        if last:
+            node[part] = copy.deepcopy(value)
+        else:
+            if isinstance(part, str) and part not in node:
+                node[part] = {}
+            node = node[part]
+
+
+def load_sweep(path: str | Path) -> Sweep:
+    """Read and validate a sweep file and expand it into its runs; ScenarioError names the field at fault."""
+    path = Path(path)
+    source = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise ScenarioError(source, None, f"expected a mapping of sweep fields, got {kind_of(raw)}")
+    try:
+        spec = SweepSpec.model_validate(raw)
+    except ValidationError as err:
+        raise ScenarioError(source, *describe(err, SweepSpec)) from None
+    base = _find_base(spec.base, path.parent, source)
+    document = read_yaml(base)
+    parse_scenario(document, str(base), default_name=base.stem)  # the base alone must be a valid scenario
+    paths = _paths(spec, source)
+    variants = _expand(spec, document, paths, base.stem, source)
+    _check_fields(variants[0], paths, spec.grid, source)
+    return Sweep(spec.name or path.stem, source, spec, base, tuple(variants))
+
+
+def _find_base(text: str, folder: Path, source: str) -> Path:
+    """The base scenario: a path relative to the sweep file, or a shipped scenario named robot/name."""
+    for candidate in (folder / text, scenarios_dir() / text, scenarios_dir() / f"{text}.yaml"):
+        if candidate.is_file():
+            return candidate
+    raise ScenarioError(source, "base", f"no scenario file '{text}' (expected a path relative to the sweep file "
+                                        "or a shipped scenario such as spherical_arm/case1)")
+
+
+def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str | int, ...]]:
+    """Every swept field path, parsed; a path may be swept once."""
+    found = {}
+    sections = [("grid", spec.grid)] + ([("random.params", spec.random.params)] if spec.random else [])
+    for section, fields in sections:
+        for text in fields:
+            try:
+                found_path = parse_path(text)
+            except ValueError as err:
+                raise ScenarioError(source, f"{section}.{text}", str(err)) from None
+            if text in found:
+                raise ScenarioError(source, f"{section}.{text}", "swept twice: in grid and in random.params")
+            found[text] = found_path
+    return found
+
+
+def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, source: str) -> list[Variant]:
+    """Every grid point crossed with every random sample, numbered in that order."""
+    grid_points = list(itertools.product(*spec.grid.values()))
+    samples: list[dict[str, Any]] = [{}]
+    if spec.random:
+        rng = np.random.default_rng(spec.random.seed)
+        samples = [{name: dist.draw(rng) for name, dist in spec.random.params.items()}
+                   for _ in range(spec.random.samples)]
+    count = len(grid_points) * len(samples)
+    if count > MAX_RUNS:
+        raise ScenarioError(source, "grid" if spec.grid else "random.samples",
+                            f"{count} runs (expected at most {MAX_RUNS})")
+    width = max(4, len(str(count - 1)))
+    variants = []
+    for point, sample in itertools.product(grid_points, samples):
+        params = {**dict(zip(spec.grid, point)), **sample}
+        doc = copy.deepcopy(document)
+        for name, value in params.items():
+            try:
+                assign(doc, paths[name], value)
+            except ValueError as err:
+                section = "grid" if name in spec.grid else "random.params"
+                raise ScenarioError(source, f"{section}.{name}", str(err)) from None
+        index = len(variants)
+        run_id = f"r{index:0{width}d}"
+        doc["name"] = f"{doc.get('name') or base_name}-{run_id}"
+        variants.append(Variant(index, run_id, params, doc))
+    return variants
+
+
+def _check_fields(first: Variant, paths: dict, grid: dict, source: str) -> None:
+    """A swept field the scenario does not have is the sweep file's error, not every run's."""
+    try:
+        parse_scenario(first.document, source)
+    except ScenarioError as err:
+        field = err.field or ""
+        for name in paths:
+            if err.message.startswith("unknown field") and (name == field or name.startswith((field + ".",
+                                                                                              field + "["))):
+                section = "grid" if name in grid else "random.params"
+                message = err.message if name == field else f"'{field}' is an {err.message}"
+                raise ScenarioError(source, f"{section}.{name}", message) from None

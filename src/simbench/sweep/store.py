@@ -1,0 +1,97 @@
+"""A sweep's output folder, kept so that an interrupted sweep resumes where it stopped.
+
+    sweep.json            the sweep's fingerprint and its runs' parameters
+    rows/<id>.json        one per finished run, written atomically as each run ends
+    runs/<id>/            the run's own outputs (report.json, or everything with outputs: full)
+    results.csv, results.parquet, summary.json, plots/   written when every run has a row
+
+Running the same sweep into the same folder again skips every run that has a row (rows are trusted: after
+changing simbench itself, start over); `force` starts over. A folder that holds anything else is replaced only
+with `force`. One sweep at a time may write into a folder: a lock file beside it (`.<name>.lock`) keeps a second
+one out.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import shutil
+from pathlib import Path
+
+from simbench.atomic import write_text
+from simbench.errors import ScenarioError
+from simbench.report import plain
+from simbench.sweep.spec import Sweep, Variant
+
+
+class Store:
+    """The rows of a sweep's finished runs, on disk."""
+
+    def __init__(self, out: Path, sweep: Sweep, force: bool = False):
+        self.out = out
+        self.sweep = sweep
+        out.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = open(out.parent / f".{out.name}.lock", "w")  # held until close()
+        try:
+            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._lock.close()
+            raise ScenarioError(str(out), None, "another sweep is writing into this folder; wait for it to end "
+                                                "or pass --out to write elsewhere") from None
+        manifest = out / "sweep.json"
+        fingerprint = sweep.fingerprint()
+        if out.exists() and any(out.iterdir()):
+            if force:
+                shutil.rmtree(out)
+            elif _fingerprint_in(manifest) != fingerprint:
+                raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or "
+                                                    "files that are not a sweep's); pass --force to replace them, "
+                                                    "or --out to write elsewhere")
+        (out / "rows").mkdir(parents=True, exist_ok=True)
+        if not manifest.exists():
+            write_text(manifest, json.dumps({
+                "name": sweep.name, "source": sweep.source, "base": str(sweep.base), "fingerprint": fingerprint,
+                "spec": sweep.spec.model_dump(mode="json"),
+                "runs": [{"run": v.index, "id": v.id, "params": v.params} for v in sweep.variants],
+            }, indent=1) + "\n")
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Let another sweep write into the folder."""
+        self._lock.close()
+
+    def finished(self) -> dict[int, dict]:
+        """Rows already on disk, by run index (a row that cannot be read is run again)."""
+        rows = {}
+        for variant in self.sweep.variants:
+            path = self.out / "rows" / f"{variant.id}.json"
+            try:
+                row = json.loads(path.read_text())
+            except (OSError, ValueError):
+                continue
+            if row.get("id") == variant.id:
+                rows[variant.index] = row
+        return rows
+
+    def record(self, variant: Variant, outcome: dict) -> dict:
+        """Write a finished run's row (and its report, if kept) and return the row."""
+        if outcome.get("report") is not None:
+            folder = self.out / "runs" / variant.id
+            folder.mkdir(parents=True, exist_ok=True)
+            write_text(folder / "report.json", json.dumps(outcome["report"], indent=2, allow_nan=False) + "\n")
+        row = plain({"run": variant.index, "id": variant.id, "params": variant.params, "status": outcome["status"],
+                      "error": outcome["error"], "metrics": outcome["metrics"], "wall_time": outcome["wall_time"]})
+        write_text(self.out / "rows" / f"{variant.id}.json", json.dumps(row, allow_nan=False) + "\n")
+        return row
+
+
+def _fingerprint_in(manifest: Path) -> str | None:
+    try:
+        return json.loads(manifest.read_text()).get("fingerprint")
+    except (OSError, ValueError, AttributeError):
+        return None

@@ -1,0 +1,194 @@
+"""A sweep's results: one table (CSV and Parquet) with a row per run, a summary, and plots of metrics against
+parameters.
+
+Columns: `run`, `id`, one per swept parameter (named by its field path, in the sweep file's units), `status`,
+`error`, then the metrics in the order the first finished run gives them, and `wall_time` (s) last: the only
+column that depends on the machine rather than the scenario. Rows are in run order, whatever order the runs
+finished in, so the same sweep gives the same table serially, in parallel or on a cluster.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pyarrow as pa  # noqa: E402
+import pyarrow.parquet as pq  # noqa: E402
+
+from simbench.atomic import staged_file, staged_folder, write_text  # noqa: E402
+
+STATUSES = ("ok", "bad_input", "run_failed", "crashed")
+_MAX_CATEGORIES = 20
+_MAX_PARAM_PANELS = 6
+
+
+def columns(rows: list[dict], params: list[str]) -> dict[str, list]:
+    """The table as columns, rows in run order."""
+    rows = sorted(rows, key=lambda r: r["run"])
+    metric_names: dict[str, None] = {}
+    for row in rows:
+        metric_names.update(dict.fromkeys(row["metrics"]))
+    table: dict[str, list] = {"run": [r["run"] for r in rows], "id": [r["id"] for r in rows]}
+    for name in params:
+        table[name] = [r["params"].get(name) for r in rows]
+    table["status"] = [r["status"] for r in rows]
+    table["error"] = [r["error"] for r in rows]
+    for name in metric_names:
+        table[name] = [r["metrics"].get(name) for r in rows]
+    table["wall_time"] = [r["wall_time"] for r in rows]
+    return table
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, dict)):
+        return json.dumps(value)
+    return str(value)
+
+
+def write_csv(table: dict[str, list], path: Path) -> None:
+    """results.csv: empty cells where a run has no value; lists as JSON."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(table)
+    writer.writerows(zip(*(map(_cell, column) for column in table.values())))
+    write_text(path, buffer.getvalue())
+
+
+def _arrow_column(values: list) -> pa.Array:
+    """A typed column where the values share a type; JSON text where they do not (lists, mixed kinds)."""
+    if not any(isinstance(v, (list, dict)) for v in values):
+        try:
+            return pa.array(values)
+        except (pa.ArrowInvalid, pa.ArrowTypeError):
+            pass
+    return pa.array([None if v is None else json.dumps(v) for v in values], pa.string())
+
+
+def write_parquet(table: dict[str, list], path: Path) -> None:
+    """results.parquet, the same table with typed columns."""
+    arrow = pa.table({name: _arrow_column(values) for name, values in table.items()})
+    with staged_file(path) as tmp:
+        pq.write_table(arrow, tmp)
+
+
+def summary(table: dict[str, list], metrics: list[str]) -> dict:
+    """Counts by status, and for each plotted metric its range over the runs that finished, with their ids."""
+    status = table["status"]
+    out: dict[str, Any] = {"runs": len(status), "status": {s: status.count(s) for s in STATUSES}, "metrics": {}}
+    for name in metrics:
+        values = [(v, i) for v, i, s in zip(table.get(name, []), table["id"], status)
+                  if s == "ok" and isinstance(v, (int, float)) and math.isfinite(v)]
+        if values:
+            lo, hi = min(values), max(values)
+            out["metrics"][name] = {"min": lo[0], "min_run": lo[1], "median": float(np.median([v for v, _ in values])),
+                                    "max": hi[0], "max_run": hi[1]}
+    return out
+
+
+def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
+    """Positions for a parameter on an x axis, with tick labels if it is categorical; None if it cannot go on
+    one (vectors, or too many distinct labels)."""
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return np.asarray(values, float), None
+    if any(isinstance(v, (list, dict)) for v in values):
+        return None
+    labels = sorted({str(v) for v in values})
+    if len(labels) > _MAX_CATEGORIES:
+        return None
+    return np.array([labels.index(str(v)) for v in values], float), labels
+
+
+def write_plots(table: dict[str, list], params: list[str], grid: list[str], metrics: list[str],
+                folder: Path) -> tuple[list[str], list[str]]:
+    """One figure per metric (a panel per parameter: finished runs as dots, failed ones as crosses along the
+    bottom), and a heat map over the first two numeric grid parameters. Returns (files written, notes on what
+    could not be plotted)."""
+    written, notes = [], []
+    ok = np.array([s == "ok" for s in table["status"]])
+    axes = {p: _axis(table[p]) for p in params}
+    plotted = [p for p in params if axes[p] is not None][:_MAX_PARAM_PANELS]
+    notes += [f"parameter {p} is not plotted (vector values or too many categories)" for p in params
+              if axes[p] is None]
+    with staged_folder(folder) as tmp:
+        for metric in metrics:
+            if metric not in table:
+                notes.append(f"no metric '{metric}' in the results (plots: expects a column of results.csv)")
+                continue
+            y = np.array([v if isinstance(v, (int, float)) and v is not None else np.nan for v in table[metric]],
+                         float)
+            if plotted:
+                written.append(_scatter(metric, y, ok, plotted, axes, tmp))
+            numeric_grid = [p for p in grid if axes[p] is not None and axes[p][1] is None]
+            if len(numeric_grid) >= 2:
+                written.append(_heatmap(metric, y, ok, numeric_grid[:2], table, tmp))
+    return written, notes
+
+
+def _scatter(metric: str, y: np.ndarray, ok: np.ndarray, params: list[str], axes: dict, folder: Path) -> str:
+    fig, panels = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.6), squeeze=False, sharey=True)
+    finite = ok & np.isfinite(y)
+    floor = np.nanmin(y[finite]) if finite.any() else 0.0
+    log_y = finite.any() and (y[finite] > 0).all() and y[finite].max() > 100 * y[finite].min()
+    for ax, name in zip(panels[0], params):
+        x, labels = axes[name]
+        ax.plot(x[finite], y[finite], "o", ms=4, color="tab:blue", alpha=0.7, label="finished")
+        if (~ok).any():
+            ax.plot(x[~ok], np.full((~ok).sum(), floor), "x", ms=7, color="tab:red", label=f"failed ({(~ok).sum()})")
+        if labels is not None:
+            ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right")
+        elif (x > 0).all() and x.max() > 100 * x.min():
+            ax.set_xscale("log")
+        ax.set_xlabel(name)
+        ax.grid(alpha=0.3)
+    if log_y:
+        panels[0][0].set_yscale("log")
+    panels[0][0].set_ylabel(metric)
+    panels[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    name = f"{_safe(metric)}.png"
+    fig.savefig(folder / name, dpi=100)
+    plt.close(fig)
+    return name
+
+
+def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table: dict, folder: Path) -> str:
+    """The median of the metric over the runs at each grid cell (failed runs left out; a cell with none blank)."""
+    xs, ys = (sorted(set(table[p])) for p in pair)
+    cells = np.full((len(ys), len(xs)), np.nan)
+    for j, yv in enumerate(ys):
+        for i, xv in enumerate(xs):
+            here = [k for k, (a, b) in enumerate(zip(table[pair[0]], table[pair[1]]))
+                    if a == xv and b == yv and ok[k] and np.isfinite(y[k])]
+            if here:
+                cells[j, i] = np.median(y[here])
+    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    image = ax.imshow(cells, origin="lower", aspect="auto", cmap="viridis")
+    ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs])
+    ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys])
+    ax.set_xlabel(pair[0])
+    ax.set_ylabel(pair[1])
+    fig.colorbar(image, ax=ax, label=f"{metric} (median)")
+    fig.tight_layout()
+    name = f"{_safe(metric)}_grid.png"
+    fig.savefig(folder / name, dpi=100)
+    plt.close(fig)
+    return name
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "._-" else "_" for c in name)
