@@ -92,12 +92,18 @@ def test_same_run_twice_gives_identical_timeseries(tmp_path):
     assert not (tmp_path / "a" / "video.mp4").exists()
 
 
-def test_rerun_replaces_the_output_folder_whole(tmp_path):
+def test_existing_output_is_replaced_whole_and_only_with_force(tmp_path, capsys):
     out = tmp_path / "out"
     path = str(scenario_file("spherical_arm", "case1"))
     assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 0
     (out / "stale.txt").write_text("from an older run")
-    assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 0
+    before = (out / "report.json").read_bytes()
+    capsys.readouterr()
+    assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: {out}: the output folder exists; pass --force to replace it, or --out to write elsewhere"]
+    assert (out / "stale.txt").exists() and (out / "report.json").read_bytes() == before
+    assert main(["run", path, "--out", str(out), "--no-video", "--quiet", "--force"]) == 0
     assert not (out / "stale.txt").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 

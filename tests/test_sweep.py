@@ -199,8 +199,8 @@ BAD_SWEEPS = [
     ("bad path", {"base": CASE1, "grid": {"timing..duration": [2]}}, "grid.timing..duration: 'timing..duration' is "
                                                                        "not a field path"),
     ("unknown field", {"base": CASE1, "grid": {"sim.timestpe": [0.001]}},
-     "grid.sim.timestpe: unknown field (expected one of: timestep, settle, velocity_feedforward); did you mean "
-     "'timestep'?"),
+     "grid.sim.timestpe: unknown field (expected one of: timestep, settle, velocity_feedforward, kp, kv, "
+     "force_limits); did you mean 'timestep'?"),
     ("unknown section", {"base": CASE1, "grid": {"simulation.timestep": [0.001]}},
      "grid.simulation.timestep: 'simulation' is an unknown field"),
     ("index beyond the list", {"base": CASE1, "grid": {"task.goal[4]": [1]}},

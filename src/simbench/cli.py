@@ -1,18 +1,21 @@
 """Command line: `simbench run | sweep | validate | list | train-fk`.
 
 Exit codes: 0 done; 2 bad input (one line naming the file, the field and what is expected); 1 the run itself
-failed (an unreachable path, diverged physics), with the reason.
+failed (an unreachable path, diverged physics), with the reason, or simbench hit a bug (one line; SIMBENCH_DEBUG=1
+for the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from simbench import planners, robots
 from simbench.errors import RunError, ScenarioError
 from simbench.resources import scenarios_dir, sweeps_dir
+from simbench.sim import PhysicsError
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -22,6 +25,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", type=Path)
     run.add_argument("--out", type=Path, default=None, help="output folder (default renders/<name>/)")
     run.add_argument("--no-video", action="store_true", help="skip the MP4")
+    run.add_argument("--force", action="store_true", help="replace the output folder if it exists")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
     sweep = sub.add_parser("sweep", help="run a scenario over parameter grids or random samples, into one table")
     sweep.add_argument("sweep", type=Path)
@@ -130,17 +134,30 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{path}: ok ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
         else:
             sc = scenario.load_scenario(args.scenario)
-            result = pipeline.run(sc, out=args.out, video=not args.no_video, progress=not args.quiet)
+            result = pipeline.run(sc, out=args.out, video=not args.no_video, progress=not args.quiet,
+                                  force=args.force)
             if not args.quiet:
                 print(_summary(result))
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except PhysicsError as err:
+        out = args.out or Path("renders") / sc.name
+        kept = "the report and the timeseries up to then" if err.recording is not None else "the report"
+        print(f"run failed: {err}; {kept} are in {out}", file=sys.stderr)
+        return 1
     except RunError as err:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" else ""
+        resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" \
+            else ""
         print(f"interrupted{resume}", file=sys.stderr)
         return 130
+    except Exception as err:  # a bug: one line, unless asked for the traceback
+        if os.environ.get("SIMBENCH_DEBUG"):
+            raise
+        print(f"internal error: {type(err).__name__}: {err} (a bug in simbench: please report it with the input; "
+              "SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return 1
     return 0

@@ -1,7 +1,9 @@
 """One run, end to end: plan, simulate, analyse, then write every output into a folder at once.
 
 Outputs are written into a hidden sibling folder and moved into place only when all of them exist, so a run
-that fails leaves the previous complete output (or none), never a half-written one.
+that fails or is interrupted leaves the previous complete output (or none), never a half-written one. A run
+whose physics fails writes what it has, complete in itself: the report of the failure and the timeseries up to
+it.
 """
 
 from __future__ import annotations
@@ -13,12 +15,13 @@ from pathlib import Path
 
 from simbench.analysis import Analysis, analyse
 from simbench.atomic import staged_folder
+from simbench.errors import ScenarioError
 from simbench.plots import write_plots
 from simbench.render import render_video
-from simbench.report import build_report, write_report, write_timeseries
+from simbench.report import build_failure_report, build_report, write_report, write_timeseries
 from simbench.robots import Tolerance
 from simbench.scenario import Scenario
-from simbench.sim import Plant, Recording, simulate
+from simbench.sim import PhysicsError, Plant, Recording, simulate
 from simbench.trajectory import JointTrajectory
 
 
@@ -66,7 +69,8 @@ def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | Non
     watch = watch or _Stopwatch()
     robot = scenario.robot_def
     with watch.stage("load"):
-        plant = Plant.load(robot, scenario.sim.timestep)
+        sim = scenario.sim
+        plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     with watch.stage("simulate"):
@@ -86,12 +90,23 @@ def evaluate_report(scenario: Scenario) -> dict:
     return build_report(scenario, ev.trajectory, ev.recording, ev.analysis, watch.summary(), {}, scenario.source)
 
 
-def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, progress: bool = False) -> Result:
-    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4."""
-    watch = _Stopwatch()
-    ev = evaluate(scenario, progress, watch)
-    robot, traj, rec, result = scenario.robot_def, ev.trajectory, ev.recording, ev.analysis
+def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, progress: bool = False,
+        force: bool = False) -> Result:
+    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
+    into `out` (default renders/<name>/), which must not hold anything yet unless `force`. If the physics fails,
+    the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
+    raised after they are written."""
     out = Path(out) if out is not None else Path("renders") / scenario.name
+    if not force and out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ScenarioError(str(out), None, "the output folder exists; pass --force to replace it, or --out to "
+                                            "write elsewhere")
+    watch = _Stopwatch()
+    try:
+        ev = evaluate(scenario, progress, watch)
+    except PhysicsError as err:
+        _write_failure(scenario, err, out, watch)
+        raise
+    robot, traj, rec, result = scenario.robot_def, ev.trajectory, ev.recording, ev.analysis
     with staged_folder(out) as tmp:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz"}
         with watch.stage("plots"):
@@ -114,3 +129,14 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
         report = build_report(scenario, traj, rec, result, watch.summary(), outputs, scenario.source)
         write_report(report, tmp / "report.json")
     return Result(out=out, report=report, evaluation=ev)
+
+
+def _write_failure(scenario: Scenario, err: PhysicsError, out: Path, watch: _Stopwatch) -> None:
+    """The outputs of a run whose physics failed: report.json with the failure, and the timeseries up to it."""
+    with staged_folder(out) as tmp:
+        outputs = {"report": "report.json"}
+        if err.recording is not None:
+            outputs["timeseries"] = "timeseries.npz"
+            write_timeseries(scenario.robot_def, err.trajectory, err.recording, None, tmp / "timeseries.npz")
+        write_report(build_failure_report(scenario, err, watch.summary(), outputs, scenario.source),
+                     tmp / "report.json")

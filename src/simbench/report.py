@@ -40,20 +40,44 @@ def versions() -> dict:
             "python": platform.python_version()}
 
 
-def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analysis, wall_time: dict,
-                 outputs: dict, source: str | None) -> dict:
-    """The report.json document."""
+def _head(scenario, timestep: float, source: str | None) -> dict:
+    """What every report starts with: which scenario, what ran it, with what time settings."""
     timing = scenario.timing
-    return plain({
+    return {
         "scenario": {"name": scenario.name, "file": source, "description": scenario.description},
         "robot": scenario.robot,
         "planner": scenario.planner,
         "versions": versions(),
-        "timestep": rec.timestep,
+        "timestep": timestep,
         "duration": timing.duration,
         "hold": timing.hold,
         "settle": scenario.sim.settle,
         "time_law": timing.law,
+    }
+
+
+def build_failure_report(scenario, err, wall_time: dict, outputs: dict, source: str | None) -> dict:
+    """report.json of a run whose physics failed (a PhysicsError): when and why, and how much was recorded."""
+    rec, traj = err.recording, err.trajectory
+    return plain({
+        **_head(scenario, float(traj.dt), source),
+        "status": "failed",
+        "failure": {"stage": "simulate", "t": err.t, "cause": err.cause},
+        "samples": 0 if rec is None else int(rec.t.size),
+        "warnings": [] if rec is None else list(rec.warnings),
+        "plan": {**traj.info, "warnings": list(traj.warnings)},
+        "wall_time": wall_time,
+        "outputs": outputs,
+        "config": scenario.model_dump(mode="json"),
+    })
+
+
+def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analysis, wall_time: dict,
+                 outputs: dict, source: str | None) -> dict:
+    """The report.json document."""
+    return plain({
+        **_head(scenario, rec.timestep, source),
+        "status": "ok",
         "samples": int(rec.t.size),
         "tracking": result.tracking,
         "singularity_events": result.singularity_events,
@@ -73,13 +97,16 @@ def write_report(report: dict, path: Path) -> None:
     path.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
 
 
-def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
-    """Write timeseries.npz: one row per control sample, SI units, radians."""
+def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis | None, path: Path) -> None:
+    """Write timeseries.npz: one row per control sample, SI units, radians. A run that failed (no analysis) has
+    the rows recorded up to the failure, and the plan's over the same times."""
+    rows = rec.t.size
     arrays = {
-        "t": rec.t, "s": traj.s, "joints": np.array(robot.joints),
-        "q_ref": traj.q_ref, "qd_ref": traj.qd_ref, "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
-        "ctrl": rec.ctrl, "tool_ref": traj.tool_ref, "tool": rec.tool,
+        "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),
+        "q_ref": traj.q_ref[:rows], "qd_ref": traj.qd_ref[:rows], "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
+        "ctrl": rec.ctrl, "tool_ref": traj.tool_ref[:rows], "tool": rec.tool,
     }
-    arrays.update(traj.series)
-    arrays.update(result.series)
+    arrays.update({name: series[:rows] for name, series in traj.series.items()})
+    if result is not None:
+        arrays.update(result.series)
     np.savez_compressed(path, **arrays)

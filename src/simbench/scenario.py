@@ -11,7 +11,7 @@ A scenario is a YAML mapping:
       start: [120, 10, 120, 5]       # joint values, one per joint
       goal: [120, 75, 5, 90]
     timing: {law: quintic, duration: 4.0, hold: 0.5}
-    sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}
+    sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}   # also kp, kv: servo gains (SI)
     analysis: {near_angle: 2, near_length: 2}
     render: {width: 640, height: 480, fps: 30, camera: front, quality: fast, trace: true}
 
@@ -30,7 +30,7 @@ from pydantic import Field, PrivateAttr, ValidationError, create_model
 
 from simbench import planners, robots
 from simbench.errors import ScenarioError
-from simbench.schema import Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
+from simbench.schema import Gains, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
 from simbench.timing import TimeLaw
 from simbench.validation import describe, kind_of, read_yaml
 
@@ -49,11 +49,17 @@ class Timing(SimbenchModel):
 
 
 class Sim(SimbenchModel):
-    """Physics settings; the timestep is also the control period."""
+    """Physics settings; the timestep is also the control period. `kp` and `kv` replace the model's servo gains
+    (one number for every servo, or one per joint; SI: N/m or N m/rad, and N s/m or N m s/rad, whatever the
+    file's units). `force_limits: false` lifts the servos' force limits (ideal actuators), to tell what the plan
+    asks from what the motors can give; stiff gains without limits can make the integration diverge."""
 
     timestep: Annotated[float, Field(gt=0, le=0.01)] | None = None
     settle: Annotated[float, Field(ge=0, le=10)] = 0.2
     velocity_feedforward: bool = True
+    kp: Gains | None = None
+    kv: Gains | None = None
+    force_limits: bool = True
 
 
 class Analysis(SimbenchModel):

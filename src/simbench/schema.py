@@ -92,6 +92,17 @@ def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
     return q
 
 
+def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:
+    robot: Robot = info.context["robot"]
+    values = [value] * robot.dof if isinstance(value, (int, float)) else value
+    if len(values) != robot.dof:
+        raise ValueError(f"expected one gain for every servo or {robot.dof} values, one per joint "
+                         f"({', '.join(robot.joints)}), got {len(values)}")
+    if any(v < 0 for v in values):
+        raise ValueError("expected gains >= 0")
+    return [float(v) for v in values]
+
+
 Number = float
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -103,6 +114,7 @@ PositiveLength = Annotated[float, Field(gt=0), AfterValidator(_to_length)]
 Position = Annotated[list[float], AfterValidator(_to_position)]
 Direction = Annotated[list[float], AfterValidator(_to_direction)]
 JointVector = Annotated[list[float], AfterValidator(_to_joints)]
+Gains = Annotated[float | list[float], AfterValidator(_to_gains)]  # SI, whatever the file's units
 
 
 class Orientation(SimbenchModel):

@@ -7,15 +7,21 @@ joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd
 controller with friction compensation is. Commands are clamped to the
 actuators' control ranges (the joint ranges), as the servo's own limits would.
 
-The steps run in C through `mujoco.rollout` with the controls computed beforehand, in chunks; a chunk stops at
-the first MuJoCo warning, which is recorded, and a warning that means the state blew up ends the run. Planned
-switches (an electromagnet's weld going on or off) split the run into segments, and are applied between them.
+The steps run in C through `mujoco.rollout` with the controls computed beforehand, in chunks. Planned switches
+(an electromagnet's weld going on or off) split the run into segments, and are applied between them. After each
+chunk the run is checked: MuJoCo's warnings that the state blew up (NaN, infinite or huge position, velocity,
+acceleration or control), that its constraint or contact buffer overflowed, and any speed above _MAX_SPEED
+(no joint of a manipulator turns at 1000 rad/s: the integration is diverging, long before MuJoCo's own 1e10
+bound) end the run. The chunk is then replayed step by step to find the first step at fault, and the run stops
+there with a PhysicsError that carries the recording up to the last sound state. MuJoCo's own printing of
+warnings (and its MUJOCO_LOG.TXT) is silenced while simbench steps: they are read from the data and reported.
 """
 
 from __future__ import annotations
 
 import copy
 import sys
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import cache
 
@@ -29,8 +35,31 @@ from simbench.robots import Robot
 from simbench.trajectory import JointTrajectory, Switch
 
 _CHUNK = 5000
-_FATAL = {mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
-          mujoco.mjtWarning.mjWARN_BADCTRL}
+_W = mujoco.mjtWarning
+_FATAL = {int(w) for w in (_W.mjWARN_BADQACC, _W.mjWARN_BADQPOS, _W.mjWARN_BADQVEL, _W.mjWARN_BADCTRL,
+                           _W.mjWARN_CNSTRFULL, _W.mjWARN_CONTACTFULL)}
+_MAX_SPEED = 1e3  # rad/s or m/s, any DOF
+
+
+class PhysicsError(RunError):
+    """The simulation failed mid-run (diverged, overflowed): when, why, the trajectory it was tracking and the
+    recording up to then (None if it failed while settling, before the first tracked sample)."""
+
+    def __init__(self, t: float, cause: str, trajectory: JointTrajectory, recording: Recording | None):
+        self.t = t
+        self.cause = cause
+        self.trajectory = trajectory
+        self.recording = recording
+        when = f"at t = {t:.4f} s" if t >= 0 else f"while settling at the start pose ({-t:.4f} s before the start)"
+        super().__init__(f"physics failed {when}: {cause}")
+
+
+class _Fault(Exception):
+    """Raised inside the stepping loop at the first step at fault: its index among the steps, and why."""
+
+    def __init__(self, step: int, cause: str):
+        self.step = step
+        self.cause = cause
 
 
 @dataclass(frozen=True)
@@ -61,12 +90,23 @@ class Plant:
     sensors: dict[str, slice]
 
     @classmethod
-    def load(cls, robot: Robot, timestep: float | None = None) -> "Plant":
-        """The robot's compiled scene (a fresh copy: a run changes its model); actuators are named after the joints
-        they drive."""
+    def load(cls, robot: Robot, timestep: float | None = None, kp: list[float] | None = None,
+             kv: list[float] | None = None, force_limits: bool = True) -> "Plant":
+        """The robot's compiled scene (a fresh copy: a run changes its model), with the timestep and the position
+        servos' gains (one per joint) where given, and without force limits if asked; actuators are named after
+        the joints they drive."""
         model = copy.copy(_compiled(str(robot.scene)))
         if timestep is not None:
             model.opt.timestep = timestep
+        act = np.array([model.actuator(name).id for name in robot.joints])
+        if kp is not None:  # a position servo: force = kp ctrl - kp q - kv qd
+            model.actuator_gainprm[act, 0] = kp
+            model.actuator_biasprm[act, 1] = -np.asarray(kp)
+        if kv is not None:
+            model.actuator_biasprm[act, 2] = -np.asarray(kv)
+        if not force_limits:
+            model.actuator_forcelimited[:] = 0
+            model.jnt_actfrclimited[:] = 0
         joints = [model.joint(name) for name in robot.joints]
         sensors = {}
         for name in (robot.tool_sensor, *robot.sensors):
@@ -75,7 +115,7 @@ class Plant:
         return cls(model=model, robot=robot,
                    qpos_adr=np.array([j.qposadr[0] for j in joints]),
                    dof_adr=np.array([j.dofadr[0] for j in joints]),
-                   actuators=np.array([model.actuator(name).id for name in robot.joints]),
+                   actuators=act,
                    sensors=sensors)
 
     def initial_qpos(self, q: np.ndarray) -> np.ndarray:
@@ -126,9 +166,84 @@ def _warnings(data: mujoco.MjData) -> list[int]:
     return [i for i in range(len(data.warning)) if data.warning[i].number > 0]
 
 
-def _roll(model, data, controls, state_out, sensor_out, t0: float, progress=None) -> list[dict]:
+@contextmanager
+def _quiet_mujoco():
+    """MuJoCo prints warnings and appends them to MUJOCO_LOG.TXT in the working folder; simbench reads them from
+    the data and reports them itself."""
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda message: None)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def _dof(model: mujoco.MjModel, dof: int) -> str:
+    return f"DOF {dof} (joint '{model.joint(int(model.dof_jntid[dof])).name}')"
+
+
+def _warning_cause(model: mujoco.MjModel, code: int, info: int) -> str:
+    """What a fatal MuJoCo warning means, naming the joint or actuator."""
+    code = _W(code)
+    if code in (_W.mjWARN_BADQACC, _W.mjWARN_BADQVEL):
+        quantity = "acceleration" if code == _W.mjWARN_BADQACC else "velocity"
+        where = f" at {_dof(model, info)}" if 0 <= info < model.nv else ""
+        what = f"{quantity} NaN, infinite or huge{where}"
+    elif code == _W.mjWARN_BADQPOS:
+        what = f"position NaN, infinite or huge at qpos[{info}]"
+    elif code == _W.mjWARN_BADCTRL:
+        where = f" at actuator '{model.actuator(info).name}'" if 0 <= info < model.nu else ""
+        what = f"control NaN, infinite or huge{where}"
+    else:
+        buffer = "constraint" if code == _W.mjWARN_CNSTRFULL else "contact"
+        what = f"the {buffer} buffer is full (the model's <size memory> is too small)"
+    return f"{what} ({code.name})"
+
+
+def _unsound(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray) -> str | None:
+    """Why a state (or the last of several) cannot be trusted, or None."""
+    if not (np.isfinite(qpos).all() and np.isfinite(qvel).all()):
+        return "the state became NaN or infinite"
+    fast = np.abs(qvel) > _MAX_SPEED
+    if fast.any():
+        dof = int(np.flatnonzero(fast.reshape(-1, model.nv).any(axis=0))[0])
+        return (f"the speed of {_dof(model, dof)} passed {_MAX_SPEED:g} rad/s or m/s: the integration is "
+                "diverging")
+    return None
+
+
+def _fatal_cause(err: mujoco.FatalError) -> str:
+    """MuJoCo's fatal error, on one line."""
+    first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+    hint = " (the model's <size memory> is too small)" if "out of memory" in first else ""
+    return f"MuJoCo stopped: {first}{hint}"
+
+
+def _locate(model, data, state: np.ndarray, warmstart: np.ndarray, controls: np.ndarray) -> tuple[int, str]:
+    """Replay a chunk that went wrong one step at a time, from its first state; the first step at fault and why.
+    Leaves data where that step left it."""
+    mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    data.qacc_warmstart[:] = warmstart
+    for w in data.warning:
+        w.number = 0
+    for j, u in enumerate(controls):
+        data.ctrl[:] = u
+        try:
+            mujoco.mj_step(model, data)
+        except mujoco.FatalError as err:
+            return j, _fatal_cause(err)
+        fatal = [c for c in _warnings(data) if c in _FATAL]
+        if fatal:
+            return j, _warning_cause(model, fatal[0], int(data.warning[fatal[0]].lastinfo))
+        cause = _unsound(model, data.qpos, data.qvel)
+        if cause:
+            return j, cause
+    return len(controls) - 1, "the chunk failed, but not when replayed step by step"
+
+
+def _roll(model, data, controls, state_out, sensor_out, t0: float, slices: dict, progress=None) -> list[dict]:
     """Step through `controls`, chunk by chunk, from data's current state; returns the warnings met. Fills the
-    outputs; data is left at the last state."""
+    outputs; data is left at the last state. Raises _Fault at the first step at fault."""
     found, k, n = [], 0, controls.shape[0]
     spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
     ctrl_spec = int(mujoco.mjtState.mjSTATE_CTRL)
@@ -137,25 +252,25 @@ def _roll(model, data, controls, state_out, sensor_out, t0: float, progress=None
         mujoco.mj_getState(model, data, state, spec)
         warmstart = data.qacc_warmstart.copy()
         stop = min(k + _CHUNK, n)
-        rollout.rollout(model, data, state[None], controls[None, k:stop], control_spec=ctrl_spec,
-                        initial_warmstart=warmstart[None], state=state_out[None, k:stop],
-                        sensordata=sensor_out[None, k:stop])
+        try:
+            rollout.rollout(model, data, state[None], controls[None, k:stop], control_spec=ctrl_spec,
+                            initial_warmstart=warmstart[None], state=state_out[None, k:stop],
+                            sensordata=sensor_out[None, k:stop])
+            stopped = False
+        except mujoco.FatalError:  # MuJoCo gave up (out of arena memory): found again when replayed
+            stopped = True
         codes = _warnings(data)
-        if codes:
-            time_now = data.time
-            done = k + int(round((time_now - state[0]) / model.opt.timestep))
-            for code in codes:
-                found.append({"t": float(time_now - t0), "kind": mujoco.mjtWarning(code).name,
-                              "count": int(data.warning[code].number)})
-                data.warning[code].number = 0
-            if set(codes) & {int(c) for c in _FATAL}:
-                raise RunError(f"physics diverged at t = {time_now - t0:.4f} s: "
-                               + ", ".join(mujoco.mjtWarning(c).name for c in codes))
-            k = max(done, k + 1)
-        else:
-            if progress is not None:
-                progress.update(stop - k)
-            k = stop
+        chunk = state_out[k:stop]
+        if stopped or set(codes) & _FATAL or _unsound(model, chunk[:, slices["mjSTATE_QPOS"]],
+                                                      chunk[:, slices["mjSTATE_QVEL"]]):
+            step, cause = _locate(model, data, state, warmstart, controls[k:stop])
+            raise _Fault(k + step, cause)
+        for code in codes:
+            found.append({"t": float(data.time - t0), "kind": _W(code).name, "count": int(data.warning[code].number)})
+            data.warning[code].number = 0
+        if progress is not None:
+            progress.update(stop - k)
+        k = stop
     return found
 
 
@@ -188,7 +303,13 @@ def apply_switch(model: mujoco.MjModel, data: mujoco.MjData, switch: Switch) -> 
 def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforward: bool = True,
              progress: bool = False) -> Recording:
     """Settle at traj's first reference, then track it, applying the planned switches at their steps; one
-    recorded row per control sample. The plant's model is copied, since switching edits it."""
+    recorded row per control sample. The plant's model is copied, since switching edits it. PhysicsError if the
+    physics fails on the way."""
+    with _quiet_mujoco():
+        return _simulate(plant, traj, settle, feedforward, progress)
+
+
+def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: bool, progress: bool) -> Recording:
     model = copy.copy(plant.model)
     if not np.isclose(model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {model.opt.timestep}")
@@ -207,9 +328,12 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
         data.qpos[adr:adr + len(value)] = value
     data.ctrl[:] = ctrl[0]
     steps = np.rint(np.array([w.t for w in traj.switches]) / model.opt.timestep).astype(int)
-    for switch in (w for w, k in zip(traj.switches, steps) if k == 0):
-        apply_switch(model, data, switch)
-    mujoco.mj_forward(model, data)
+    try:
+        for switch in (w for w, k in zip(traj.switches, steps) if k == 0):
+            apply_switch(model, data, switch)
+        mujoco.mj_forward(model, data)
+    except mujoco.FatalError as err:
+        raise PhysicsError(-settle, _fatal_cause(err), traj, None) from None
     first_state = np.empty(nstate)
     mujoco.mj_getState(model, data, first_state, spec)
 
@@ -223,27 +347,45 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
     eq_active = np.empty((traj.t.size, model.neq), bool)
     bounds = sorted({int(k) + n_settle for k in steps if 0 < k < n_track}) + [n_settle + n_track]
     warnings, done = [], 0
+    dt = model.opt.timestep
     with tqdm(total=controls.shape[0], desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
               leave=False) as bar:
-        for stop in bounds:
-            eq_active[max(done - n_settle, 0):stop - n_settle] = data.eq_active
-            warnings += _roll(model, data, controls[done:stop], states[done:stop], sensors[done:stop], t0, bar)
-            for switch in (w for w, k in zip(traj.switches, steps) if 0 < k and k + n_settle == stop):
-                apply_switch(model, data, switch)
-            done = stop
-    eq_active[-1] = data.eq_active
-    if n_settle:
-        first_state = states[n_settle - 1]
-
-    # Row 0 is the state at the end of settling (the start state itself when there is no settling). MuJoCo
-    # computes sensors before it integrates, so the sensor row of step k belongs to the state before it.
-    track = np.concatenate([first_state[None], states[n_settle:]])
-    mujoco.mj_forward(model, data)
+        try:
+            for stop in bounds:
+                eq_active[max(done - n_settle, 0):stop - n_settle] = data.eq_active
+                warnings += _roll(model, data, controls[done:stop], states[done:stop], sensors[done:stop], t0, sl,
+                                  bar)
+                for switch in (w for w, k in zip(traj.switches, steps) if 0 < k and k + n_settle == stop):
+                    apply_switch(model, data, switch)
+                done = stop
+        except _Fault as fault:
+            fault.step += done
+            if fault.step < n_settle:
+                raise PhysicsError((fault.step + 1 - n_settle) * dt, fault.cause, traj, None) from None
+            rows = fault.step - n_settle + 1  # rows 0..m are sound; the step from row m failed
+            start = states[n_settle - 1] if n_settle else first_state
+            partial = _record(plant, traj, model, start, states[n_settle:], sensors[n_settle:n_settle + rows],
+                              eq_active[:rows], ctrl, warnings)
+            raise PhysicsError(float(traj.t[rows - 1] + dt), fault.cause, traj, partial) from None
+        eq_active[-1] = data.eq_active
+        mujoco.mj_forward(model, data)
+    start = states[n_settle - 1] if n_settle else first_state
     readings = np.concatenate([sensors[n_settle:], data.sensordata[None]])
+    return _record(plant, traj, model, start, states[n_settle:], readings, eq_active, ctrl, warnings)
+
+
+def _record(plant: Plant, traj: JointTrajectory, model: mujoco.MjModel, start: np.ndarray, states: np.ndarray,
+            readings: np.ndarray, eq_active: np.ndarray, ctrl: np.ndarray, warnings: list) -> Recording:
+    """The Recording of the first len(readings) samples. Row 0 is `start`, the state at the end of settling (the
+    start state itself when there is no settling); row r > 0 is states[r - 1]. MuJoCo computes sensors before it
+    integrates, so readings[r] is the sensor row of step r, taken at row r's state."""
+    rows = len(readings)
+    sl = _state_slices(model)
+    track = np.concatenate([start[None], states[:rows - 1]])
     recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
     qpos = track[:, sl["mjSTATE_QPOS"]]
     qvel = track[:, sl["mjSTATE_QVEL"]]
-    return Recording(t=traj.t.copy(), qpos=qpos, q=qpos[:, plant.qpos_adr], qd=qvel[:, plant.dof_adr],
-                     ctrl=ctrl, tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
+    return Recording(t=traj.t[:rows].copy(), qpos=qpos, q=qpos[:, plant.qpos_adr], qd=qvel[:, plant.dof_adr],
+                     ctrl=ctrl[:rows], tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
                      warnings=tuple(warnings), sensors=recorded,
                      eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)})

@@ -68,6 +68,21 @@ def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
     return list(model.model_fields)
 
 
+def _field_loc(loc) -> tuple:
+    """A pydantic error location without the names it gives the members of a union (float, list[float],
+    function-after[...], a model's class name): only the field names and list indices the user wrote."""
+    return tuple(p for p in loc if not (isinstance(p, str) and (p in ("float", "int", "str", "bool") or "[" in p
+                                                                 or p[:1].isupper())))
+
+
+def _reads_as_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def describe(err: ValidationError, cls: type[BaseModel], prefix: tuple = ()) -> tuple[str, str]:
     """The first validation error as (field path, message in the user's terms).
 
@@ -75,8 +90,13 @@ def describe(err: ValidationError, cls: type[BaseModel], prefix: tuple = ()) -> 
     """
     errors = err.errors(include_url=False)
     first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
-    loc = prefix + tuple(first["loc"])
+    loc = prefix + _field_loc(first["loc"])
     kind, msg, given = first["type"], first["msg"], first.get("input")
+    # A value that fits no member of a union (a number or a list) fails once per member: say what each expects.
+    alike = [e["msg"] for e in errors if _field_loc(e["loc"]) == _field_loc(first["loc"])
+             and e["msg"].startswith("Input should be") and e is not first]
+    if alike and msg.startswith("Input should be"):
+        msg = " or ".join([msg] + [m.removeprefix("Input should be ") for m in alike])
     if kind == "missing":
         return format_loc(loc), "missing: this field is required"
     if kind == "extra_forbidden":
@@ -89,6 +109,8 @@ def describe(err: ValidationError, cls: type[BaseModel], prefix: tuple = ()) -> 
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
     if isinstance(given, (str, int, float, bool)) or given is None:
         msg += f", got {given!r}"
+        if isinstance(given, str) and _reads_as_number(given):
+            msg += f" (YAML reads {given} as text: write it with a decimal point, e.g. {float(given):.1e})"
     elif isinstance(given, (list, dict)):
         msg += f", got {kind_of(given)}"
     return format_loc(loc), msg

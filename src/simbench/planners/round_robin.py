@@ -178,28 +178,28 @@ def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.nda
 
 def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], theta: np.ndarray, gamma: np.ndarray,
               grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """theta and gamma (N,) of one arm on the control grid t: the IK of its held points, quintic swings between."""
+    """theta and gamma (N,) of one arm on the control grid t: the IK of its held points, quintic swings between.
+    A swing's end states are fitted on the schedule grid (_FIT steps of each hold), whatever the control step."""
     mine = [h for h in holds if h.arm == arm]
     out_theta, out_gamma = np.full(t.size, np.nan), np.full(t.size, np.nan)
-    last_theta = None
+    held = []  # per hold: grid times and its theta, gamma there
     for h in mine:
         stop = min(h.end, grid.size - 1)
         span = grid[h.start:stop + 1]
         inside = (t >= span[0]) & (t <= span[-1]) if h.end >= grid.size else (t >= span[0]) & (t < grid[h.end])
         th = np.unwrap(theta[arm, h.point, h.start:stop + 1])
-        if last_theta is not None:  # keep theta on the turn nearest where the swing began
-            th += 2 * np.pi * np.round((last_theta - th[0]) / (2 * np.pi))
+        if held:  # keep theta on the turn nearest where the swing began
+            th += 2 * np.pi * np.round((held[-1][1][-1] - th[0]) / (2 * np.pi))
+        ga = gamma[arm, h.point, h.start:stop + 1]
         out_theta[inside] = np.interp(t[inside], span, th)
-        out_gamma[inside] = np.interp(t[inside], span, gamma[arm, h.point, h.start:stop + 1])
-        last_theta = out_theta[inside][-1]
-    for a, b in zip(mine[:-1], mine[1:]):
+        out_gamma[inside] = np.interp(t[inside], span, ga)
+        held.append((span, th, ga))
+    for (a, (span_a, th_a, ga_a)), (b, (span_b, th_b, ga_b)) in zip(zip(mine, held), zip(mine[1:], held[1:])):
         t0, t1 = grid[a.end], grid[b.start]
         swing = (t >= t0) & (t < t1)
-        before = (t > t0 - _FIT * _STEP) & (t < t0)
-        after = (t >= t1) & (t < t1 + _FIT * _STEP)
-        for series in (out_theta, out_gamma):
-            start = _state(t[before], series[before], t0)
-            end = _state(t[after], series[after], t1)
+        for series, before, after in ((out_theta, th_a, th_b), (out_gamma, ga_a, ga_b)):
+            start = _state(span_a[-_FIT - 1:], before[-_FIT - 1:], t0)
+            end = _state(span_b[:_FIT + 1], after[:_FIT + 1], t1)
             series[swing] = _quintic(t[swing], t0, t1, start, end)
     return out_theta, out_gamma
 
