@@ -3,8 +3,12 @@
     scenario = simbench.load_scenario("scenarios/spherical_arm/case1.yaml")
     result = simbench.run(scenario, out="renders/case1", video=False)
     result.report["tracking"]["tool_rms"]
+
+The pipeline (MuJoCo, SciPy, Matplotlib) is imported on first use, so that `python -m simbench` answers Ctrl-C
+cleanly from its first moment.
 """
 
+import importlib
 import os
 
 # Headless rendering: EGL works without a display (Mesa's llvmpipe on a CPU). It must be chosen before MuJoCo
@@ -13,9 +17,17 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.1.0"
 
-from simbench.errors import RunError, ScenarioError  # noqa: E402
-from simbench.pipeline import Evaluation, Result, evaluate, run  # noqa: E402
-from simbench.scenario import Scenario, load_scenario  # noqa: E402
+from simbench.errors import PhysicsError, RunError, ScenarioError  # noqa: E402
 
-__all__ = ["Evaluation", "Result", "RunError", "Scenario", "ScenarioError", "evaluate", "load_scenario", "run",
-           "__version__"]
+_LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "evaluate": "simbench.pipeline",
+         "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario"}
+
+__all__ = ["Evaluation", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__", "evaluate",
+           "load_scenario", "run"]
+
+
+def __getattr__(name: str):
+    """The pipeline's public names, imported when first asked for."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'simbench' has no attribute {name!r}")

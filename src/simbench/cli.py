@@ -12,10 +12,8 @@ import os
 import sys
 from pathlib import Path
 
-from simbench import planners, robots
-from simbench.errors import RunError, ScenarioError
+from simbench.errors import PhysicsError, RunError, ScenarioError
 from simbench.resources import scenarios_dir, sweeps_dir
-from simbench.sim import PhysicsError
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -103,6 +101,8 @@ def _dry_run(sweep) -> str:
 
 
 def _list() -> str:
+    from simbench import planners, robots
+
     lines = ["robots:"]
     lines += [f"  {r.name:16s} {r.description}" for r in robots.registry().values()]
     lines.append("planners:")
@@ -114,12 +114,28 @@ def _list() -> str:
     return "\n".join(lines)
 
 
+def _interrupted(args) -> int:
+    resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" else ""
+    print(f"interrupted{resume}", file=sys.stderr)
+    return 130
+
+
+def _caused_by_interrupt(err: BaseException) -> bool:
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return True
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     args = _parser().parse_args(argv)
-    from simbench import pipeline, scenario
-
     try:
+        from simbench import pipeline, scenario
+
         if args.command == "list":
             print(_list())
         elif args.command == "train-fk":
@@ -150,11 +166,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" \
-            else ""
-        print(f"interrupted{resume}", file=sys.stderr)
-        return 130
+        return _interrupted(args)
     except Exception as err:  # a bug: one line, unless asked for the traceback
+        if _caused_by_interrupt(err):  # Ctrl-C inside an extension module's import surfaces as ImportError
+            return _interrupted(args)
         if os.environ.get("SIMBENCH_DEBUG"):
             raise
         print(f"internal error: {type(err).__name__}: {err} (a bug in simbench: please report it with the input; "

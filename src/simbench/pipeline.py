@@ -15,13 +15,13 @@ from pathlib import Path
 
 from simbench.analysis import Analysis, analyse
 from simbench.atomic import staged_folder
-from simbench.errors import ScenarioError
+from simbench.errors import PhysicsError, ScenarioError
 from simbench.plots import write_plots
 from simbench.render import render_video
 from simbench.report import build_failure_report, build_report, write_report, write_timeseries
 from simbench.robots import Tolerance
 from simbench.scenario import Scenario
-from simbench.sim import PhysicsError, Plant, Recording, simulate
+from simbench.sim import Plant, Recording, simulate
 from simbench.trajectory import JointTrajectory
 
 

@@ -63,6 +63,22 @@ class _Encoder:
             raise self._error
         self._frames.put(frame)
 
+    def abort(self) -> None:
+        """Stop at once after a failure elsewhere (the half-made file is discarded with its staging folder):
+        drop the queued frames, end ffmpeg, and keep its complaints (a broken pipe, say) from masking the
+        failure."""
+        try:
+            while True:
+                self._frames.get_nowait()
+        except queue.Empty:
+            pass
+        self._frames.put(None)
+        self._thread.join()
+        try:
+            self._writer.close()
+        except (OSError, RuntimeError):  # ffmpeg already gone: nothing left to save
+            pass
+
     def close(self) -> None:
         """Encode what is queued and finish the file; raises the encoder's error if it had one."""
         self._frames.put(None)
@@ -186,8 +202,12 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
                 add_polyline(renderer.scene, np.vstack([rec.tool[upto], rec.tool[row:row + 1]]), _TRACE_RGBA,
                              _TRACE_RADIUS, mujoco.mjtGeom.mjGEOM_CAPSULE)
             encoder.put(renderer.render())
-    finally:
+    except BaseException:
+        encoder.abort()
+        raise
+    else:
         encoder.close()
+    finally:
         renderer.close()
     return {"frames": int(len(rows)), "fps": fps, "width": width, "height": height, "camera": camera,
             "quality": quality}

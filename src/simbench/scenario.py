@@ -30,7 +30,7 @@ from pydantic import Field, PrivateAttr, ValidationError, create_model
 
 from simbench import planners, robots
 from simbench.errors import ScenarioError
-from simbench.schema import Gains, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
+from simbench.schema import Gains, Name, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
 from simbench.timing import TimeLaw
 from simbench.validation import describe, kind_of, read_yaml
 
@@ -85,7 +85,7 @@ class Render(SimbenchModel):
 class Scenario(SimbenchModel):
     """Fields every scenario has; `task` is added per planner."""
 
-    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", max_length=100)] | None = None
+    name: Name | None = None
     description: str = ""
     robot: str
     planner: str
@@ -138,12 +138,12 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     try:
         units = Units.model_validate(raw.get("units", {}))
     except ValidationError as err:
-        raise ScenarioError(source, *describe(err, Units, prefix=("units",))) from None
+        raise ScenarioError(source, *describe(err, Units, raw.get("units"), prefix=("units",))) from None
     cls = _scenario_class(planner.name)
     try:
         scenario = cls.model_validate(raw, context={"robot": robot, "units": units})
     except ValidationError as err:
-        raise ScenarioError(source, *describe(err, cls)) from None
+        raise ScenarioError(source, *describe(err, cls, raw)) from None
     if scenario.name is None:
         scenario = scenario.model_copy(update={"name": default_name})
     cameras = robot.cameras()

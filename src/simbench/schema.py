@@ -7,6 +7,7 @@ against the robot's joint count and limits, and an error quotes the value in the
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Literal
 
 import numpy as np
@@ -76,6 +77,15 @@ def _to_direction(value: list[float]) -> list[float]:
     return [v / norm for v in value]
 
 
+def _other_unit_hint(value: float, kind: str, lo: float, hi: float, units: Units) -> str:
+    """A hint when the value fits the range in the other unit: degrees read as radians, or mm as m."""
+    if kind == REVOLUTE and units.angle == "rad" and lo <= value * _DEG <= hi:
+        return " (written in degrees? say so with units: {angle: deg})"
+    if kind != REVOLUTE and units.length == "m" and lo <= value * 1e-3 <= hi:
+        return " (written in millimetres? say so with units: {length: mm})"
+    return ""
+
+
 def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
     robot: Robot = info.context["robot"]
     units = _units(info)
@@ -87,9 +97,17 @@ def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
         si = v * k
         if not lo - 1e-12 <= si <= hi + 1e-12:
             unit = units.name(kind)
-            raise ValueError(f"{name} = {v:g} {unit} is outside the joint range [{lo / k:g}, {hi / k:g}] {unit}")
+            raise ValueError(f"{name} = {v:g} {unit} is outside the joint range [{lo / k:g}, {hi / k:g}] {unit}"
+                             + _other_unit_hint(v, kind, lo, hi, units))
         q.append(si)
     return q
+
+
+def _check_name(value: str) -> str:
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", value):
+        raise ValueError(f"expected letters, digits, '_', '.' or '-', starting with a letter or digit (it names "
+                         f"the output folder), got {value!r}")
+    return value
 
 
 def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:
@@ -99,7 +117,7 @@ def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:
         raise ValueError(f"expected one gain for every servo or {robot.dof} values, one per joint "
                          f"({', '.join(robot.joints)}), got {len(values)}")
     if any(v < 0 for v in values):
-        raise ValueError("expected gains >= 0")
+        raise ValueError(f"expected gains >= 0, got {min(values):g}")
     return [float(v) for v in values]
 
 
@@ -115,6 +133,7 @@ Position = Annotated[list[float], AfterValidator(_to_position)]
 Direction = Annotated[list[float], AfterValidator(_to_direction)]
 JointVector = Annotated[list[float], AfterValidator(_to_joints)]
 Gains = Annotated[float | list[float], AfterValidator(_to_gains)]  # SI, whatever the file's units
+Name = Annotated[str, Field(max_length=100), AfterValidator(_check_name)]
 
 
 class Orientation(SimbenchModel):

@@ -30,7 +30,7 @@ import numpy as np
 from mujoco import rollout
 from tqdm import tqdm
 
-from simbench.errors import RunError
+from simbench.errors import PhysicsError, RunError
 from simbench.robots import Robot
 from simbench.trajectory import JointTrajectory, Switch
 
@@ -39,19 +39,6 @@ _W = mujoco.mjtWarning
 _FATAL = {int(w) for w in (_W.mjWARN_BADQACC, _W.mjWARN_BADQPOS, _W.mjWARN_BADQVEL, _W.mjWARN_BADCTRL,
                            _W.mjWARN_CNSTRFULL, _W.mjWARN_CONTACTFULL)}
 _MAX_SPEED = 1e3  # rad/s or m/s, any DOF
-
-
-class PhysicsError(RunError):
-    """The simulation failed mid-run (diverged, overflowed): when, why, the trajectory it was tracking and the
-    recording up to then (None if it failed while settling, before the first tracked sample)."""
-
-    def __init__(self, t: float, cause: str, trajectory: JointTrajectory, recording: Recording | None):
-        self.t = t
-        self.cause = cause
-        self.trajectory = trajectory
-        self.recording = recording
-        when = f"at t = {t:.4f} s" if t >= 0 else f"while settling at the start pose ({-t:.4f} s before the start)"
-        super().__init__(f"physics failed {when}: {cause}")
 
 
 class _Fault(Exception):

@@ -16,10 +16,27 @@ from pydantic import BaseModel, ValidationError
 from simbench.errors import ScenarioError
 
 _MAX_BYTES = 1 << 20
+_MAX_VALUES = 100_000  # a scenario has hundreds; an alias bomb has billions once expanded
+_MAX_DEPTH = 32
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a key given twice in one mapping (YAML keeps the last, silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if isinstance(key, (str, int, float, bool)) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key '{key}' (first at line {seen[key] + 1})", key_node.start_mark)
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
 
 
 def read_yaml(path: Path) -> Any:
-    """The YAML document in `path`; ScenarioError if it is missing, too large, not text, not YAML or empty."""
+    """The YAML document in `path`; ScenarioError if it is missing, too large, not text, not YAML (a key given
+    twice included), nested too deeply, too large once its aliases are expanded, or empty."""
     source = str(path)
     if not path.exists():
         raise ScenarioError(source, None, "no such file")
@@ -33,15 +50,36 @@ def read_yaml(path: Path) -> Any:
     except UnicodeDecodeError:
         raise ScenarioError(source, None, "not a text file (expected UTF-8 YAML)") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader: builds plain data, never objects
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(err, "problem", None) or str(err).splitlines()[0]
         raise ScenarioError(source, None, f"not valid YAML{where}: {problem}") from None
+    except RecursionError:
+        raise ScenarioError(source, None, f"nested too deeply (at most {_MAX_DEPTH} levels)") from None
     if data is None:
         raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
+    _check_shape(data, source)
     return data
+
+
+def _check_shape(data: Any, source: str) -> None:
+    """Refuse a document nested more than _MAX_DEPTH deep, or holding more than _MAX_VALUES values once YAML's
+    aliases are expanded (which is what validating it would walk through: a billion-laughs file is 2 KB)."""
+    count, stack = 0, [(data, 0)]
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        if count > _MAX_VALUES:
+            raise ScenarioError(source, None, f"too large once its YAML aliases are expanded (more than "
+                                              f"{_MAX_VALUES} values)")
+        if depth > _MAX_DEPTH:
+            raise ScenarioError(source, None, f"nested too deeply (at most {_MAX_DEPTH} levels)")
+        if isinstance(node, dict):
+            stack.extend((v, depth + 1) for v in node.values())
+        elif isinstance(node, list):
+            stack.extend((v, depth + 1) for v in node)
 
 
 def kind_of(value: Any) -> str:
@@ -68,11 +106,21 @@ def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
     return list(model.model_fields)
 
 
-def _field_loc(loc) -> tuple:
-    """A pydantic error location without the names it gives the members of a union (float, list[float],
-    function-after[...], a model's class name): only the field names and list indices the user wrote."""
-    return tuple(p for p in loc if not (isinstance(p, str) and (p in ("float", "int", "str", "bool") or "[" in p
-                                                                 or p[:1].isupper())))
+def _field_loc(loc, document: Any) -> tuple:
+    """A pydantic error location as the user wrote it: the keys and list indices found in `document`, without
+    the names pydantic gives the members of a union it tried (float, list[float], function-after[...])."""
+    out, node = [], document
+    for part in loc:
+        if isinstance(node, dict) and part in node or isinstance(node, list) and isinstance(part, int) \
+                and 0 <= part < len(node):
+            out.append(part)
+            node = node[part]
+        elif isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part):
+            continue
+        else:  # a field the document lacks: missing, or the path ends here
+            out.append(part)
+            node = None
+    return tuple(out)
 
 
 def _reads_as_number(text: str) -> bool:
@@ -83,17 +131,18 @@ def _reads_as_number(text: str) -> bool:
     return True
 
 
-def describe(err: ValidationError, cls: type[BaseModel], prefix: tuple = ()) -> tuple[str, str]:
-    """The first validation error as (field path, message in the user's terms).
+def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: tuple = ()) -> tuple[str, str]:
+    """The first validation error of `document` as (field path, message in the user's terms).
 
     An unknown field goes first: a misspelt name also makes the field it meant go missing.
     """
     errors = err.errors(include_url=False)
     first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
-    loc = prefix + _field_loc(first["loc"])
+    where = _field_loc(first["loc"], document)
+    loc = prefix + where
     kind, msg, given = first["type"], first["msg"], first.get("input")
     # A value that fits no member of a union (a number or a list) fails once per member: say what each expects.
-    alike = [e["msg"] for e in errors if _field_loc(e["loc"]) == _field_loc(first["loc"])
+    alike = [e["msg"] for e in errors if _field_loc(e["loc"], document) == where
              and e["msg"].startswith("Input should be") and e is not first]
     if alike and msg.startswith("Input should be"):
         msg = " or ".join([msg] + [m.removeprefix("Input should be ") for m in alike])

@@ -141,8 +141,8 @@ def q3_from_distance(k: np.ndarray, h_sign: np.ndarray) -> np.ndarray:
     """
     a = COEF_C - COEF_A - k
     c = COEF_A + COEF_C - k
-    disc = COEF_B**2 - a * c
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # far points overflow: out of reach
+        disc = COEF_B**2 - a * c
         big = -(COEF_B + np.sign(COEF_B) * np.sqrt(disc))
         q3a, q3b = 2 * np.arctan(big / a), 2 * np.arctan(c / big)  # eq. 19
     h_a = A3 * np.sin(q3a) + D4 * np.cos(q3a)

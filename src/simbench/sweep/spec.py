@@ -39,7 +39,7 @@ from pydantic import Field, ValidationError, model_validator
 from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
 from simbench.scenario import parse_scenario
-from simbench.schema import SimbenchModel
+from simbench.schema import Name, SimbenchModel
 from simbench.validation import describe, kind_of, read_yaml
 
 MAX_RUNS = 100_000
@@ -109,7 +109,7 @@ class RandomSpec(SimbenchModel):
 class SweepSpec(SimbenchModel):
     """A sweep file as written."""
 
-    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", max_length=100)] | None = None
+    name: Name | None = None
     description: str = ""
     base: Annotated[str, Field(min_length=1)]
     grid: dict[str, Annotated[list[Any], Field(min_length=1)]] = {}
@@ -200,7 +200,7 @@ def load_sweep(path: str | Path) -> Sweep:
     try:
         spec = SweepSpec.model_validate(raw)
     except ValidationError as err:
-        raise ScenarioError(source, *describe(err, SweepSpec)) from None
+        raise ScenarioError(source, *describe(err, SweepSpec, raw)) from None
     base = _find_base(spec.base, path.parent, source)
     document = read_yaml(base)
     parse_scenario(document, str(base), default_name=base.stem)  # the base alone must be a valid scenario

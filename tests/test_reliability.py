@@ -1,0 +1,167 @@
+"""Faults and interruptions: a run whose physics fails stops at the first sign, says when and why, exits 1 and
+keeps what it recorded; Ctrl-C leaves the previous complete output or none; every shipped scenario is
+bit-for-bit deterministic."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+from conftest import scenario_file
+
+import simbench
+from simbench import sim
+from simbench.cli import main
+from simbench.errors import PhysicsError
+from simbench.report import write_timeseries
+from simbench.resources import scenarios_dir
+
+
+def stiff_puma(tmp_path) -> Path:
+    """The PUMA's line with q3's servo 1000 times stiffer and no force limits: explicit integration of a spring
+    that stiff at 1 ms diverges."""
+    doc = yaml.safe_load(scenario_file("puma600", "line").read_text())
+    doc["sim"] = {"force_limits": False, "kp": [8000, 12000, 5.0e6, 800, 800, 600]}
+    path = tmp_path / "stiff.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_diverging_run_stops_at_the_first_sign_and_keeps_its_timeseries(tmp_path, capsys):
+    path, out = stiff_puma(tmp_path), tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    report = json.loads((out / "report.json").read_text())
+    failure = report["failure"]
+    assert report["status"] == "failed" and failure["stage"] == "simulate"
+    assert err == [f"run failed: physics failed at t = {failure['t']:.4f} s: {failure['cause']}; the report and "
+                   f"the timeseries up to then are in {out}"]
+    assert "joint 'q3'" in failure["cause"] and "diverging" in failure["cause"]
+    assert sorted(p.name for p in out.iterdir()) == ["report.json", "timeseries.npz"]  # no video of a failure
+    ts = np.load(out / "timeseries.npz")
+    n = ts["t"].size
+    assert n == report["samples"] > 10 and np.isclose(ts["t"][-1] + report["timestep"], failure["t"])
+    assert ts["q_ref"].shape[0] == ts["q"].shape[0] == n
+    # Every kept sample is sound, and one plain mj_step from the last of them is not: the run stopped at the
+    # first sign, neither before nor after.
+    assert np.isfinite(ts["qpos"]).all() and np.abs(ts["qd"]).max() <= sim._MAX_SPEED
+    sc = simbench.load_scenario(path)
+    plant = sim.Plant.load(sc.robot_def, sc.sim.timestep, sc.sim.kp, sc.sim.kv, sc.sim.force_limits)
+    data = mujoco.MjData(plant.model)
+    data.qpos[:] = ts["qpos"][-1]
+    data.qvel[plant.dof_adr] = ts["qd"][-1]
+    data.ctrl[:] = ts["ctrl"][-1]
+    mujoco.mj_step(plant.model, data)
+    assert np.abs(data.qvel).max() > sim._MAX_SPEED
+
+
+def test_nan_state_mid_run_is_named_and_the_run_kept_up_to_it(monkeypatch):
+    """NaN speeds injected into the RSMG at its third switch: MuJoCo's bad-velocity warning names the time of
+    that switch, and the recording stops there."""
+    scenario = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
+    calls = []
+    real = sim.apply_switch
+
+    def poisoned(model, data, switch):
+        real(model, data, switch)
+        calls.append(switch.t)
+        if len(calls) == 3 + 4:  # the four grips at t = 0 come first
+            data.qvel[:] = np.nan
+
+    monkeypatch.setattr(sim, "apply_switch", poisoned)
+    with pytest.raises(PhysicsError) as caught:
+        simbench.evaluate(scenario)
+    err, t_switch = caught.value, calls[-1]
+    assert "velocity NaN, infinite or huge" in err.cause and "mjWARN_BADQVEL" in err.cause
+    dt = err.recording.timestep
+    assert np.isclose(err.t, t_switch + dt) and np.isclose(err.recording.t[-1], t_switch)
+    assert np.isfinite(err.recording.qpos).all()
+
+
+def _scene_with_memory(monkeypatch, memory: int) -> None:
+    """Compile every scene with an arena of `memory` bytes (MuJoCo's <size memory>), to overflow it."""
+    def compiled(scene: str) -> mujoco.MjModel:
+        spec = mujoco.MjSpec.from_file(scene)
+        spec.memory = memory
+        return spec.compile()
+
+    monkeypatch.setattr(sim, "_compiled", compiled)
+
+
+@pytest.mark.parametrize("memory, expected", [(3000, "the constraint buffer is full (the model's <size memory> is "
+                                                      "too small) (mjWARN_CNSTRFULL)"),
+                                              (12000, "MuJoCo stopped: mj_stackAlloc: out of memory")])
+def test_overflowing_mujocos_memory_is_reported(monkeypatch, memory, expected):
+    _scene_with_memory(monkeypatch, memory)
+    with pytest.raises(PhysicsError, match="physics failed while settling") as caught:
+        simbench.evaluate(simbench.load_scenario(scenario_file("rsmg", "three_turns")))
+    assert expected in caught.value.cause and caught.value.recording is None
+
+
+def test_a_fault_prints_one_line_and_leaves_no_mujoco_log(tmp_path):
+    """MuJoCo would print its warning and append it to MUJOCO_LOG.TXT in the working folder."""
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "simbench", "run", str(stiff_puma(tmp_path)), "--out", str(out)],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1 and proc.stderr.startswith("run failed: ")
+    assert "Traceback" not in proc.stderr and "WARNING" not in proc.stdout + proc.stderr
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def _interrupt(command: list[str], ready, cwd: Path) -> subprocess.CompletedProcess:
+    """Run a command, send it Ctrl-C (SIGINT) once ready() is true, and wait for it."""
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
+    deadline = time.monotonic() + 120
+    while not ready():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(command, proc.returncode, stdout, stderr)
+
+
+def test_ctrl_c_leaves_the_previous_output_or_none(tmp_path):
+    out = tmp_path / "demo"
+    command = [sys.executable, "-m", "simbench", "run", str(scenario_file("spherical_arm", "demo")), "--out",
+               str(out), "--quiet"]
+    staging = lambda: list(tmp_path.glob(".demo.partial-*"))  # noqa: E731 - the outputs are being written
+    # Interrupted while its outputs are being written, into a fresh folder: nothing is left.
+    done = _interrupt(command, staging, tmp_path)
+    assert (done.returncode, done.stderr) == (130, "interrupted\n")
+    assert list(tmp_path.iterdir()) == []
+    # A complete run, then a forced rerun interrupted mid-video: the complete output is untouched.
+    assert subprocess.run(command, cwd=tmp_path).returncode == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    done = _interrupt(command + ["--force"], lambda: any(p.glob("video.mp4") for p in staging()), tmp_path)
+    assert (done.returncode, done.stderr) == (130, "interrupted\n")
+    assert [p.name for p in tmp_path.iterdir()] == ["demo"]
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+    # Interrupted while it starts (importing MuJoCo and the rest): no traceback either.
+    start = time.monotonic()
+    done = _interrupt(command + ["--force"], lambda: time.monotonic() > start + 0.3, tmp_path)
+    assert (done.returncode, done.stderr) == (130, "interrupted\n")
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+
+
+SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
+def test_every_shipped_scenario_is_bit_for_bit_deterministic(path, tmp_path, evaluated):
+    """The session's first evaluation of the scenario (made earlier, among other runs in this process) and a
+    fresh one write the same timeseries, byte for byte."""
+    scenario, first = evaluated(path.parent.name, path.stem)
+    second = simbench.evaluate(scenario)
+    for name, ev in (("a", first), ("b", second)):
+        write_timeseries(scenario.robot_def, ev.trajectory, ev.recording, ev.analysis, tmp_path / f"{name}.npz")
+    a, b = np.load(tmp_path / "a.npz"), np.load(tmp_path / "b.npz")
+    assert a.files == b.files and len(a.files) > 10
+    for name in a.files:
+        assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name
