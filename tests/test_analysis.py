@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simbench.analysis import along_path, path_deviation, spans
+from simbench.analysis import along_path, deviation_near_reference, path_deviation, spans
 from simbench.render import simplify
 
 coords = st.floats(-1.0, 1.0, allow_nan=False)
@@ -32,6 +32,26 @@ def test_distance_from_a_circle():
     probe = np.array([[0.25 * np.cos(0.7), 0.25 * np.sin(0.7), 0.03]])
     dist = path_deviation(circle, probe)
     assert abs(dist[0] - np.hypot(0.05, 0.03)) < 1e-6
+
+
+def test_a_path_that_comes_back_does_not_hide_a_point_off_its_own_stretch():
+    """A circle traced twice, 1000 samples a turn; the points follow it 0.01 off the plane, except that during
+    the first turn they sit where the second turn will be a quarter turn later. Near the reference the distance
+    is the true one; against the whole path the first turn's points would look on it."""
+    theta = np.linspace(0, 4 * np.pi, 2001)
+    path = np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
+    points = path + [0.0, 0.0, 0.01]
+    early = slice(200, 300)
+    points[early] = path[np.arange(200, 300) + 1250]
+    near = deviation_near_reference(path, points, window=100)
+    whole = path_deviation(path, points)
+    assert np.allclose(near[300:], 0.01, atol=1e-9) and np.allclose(whole[300:], 0.01, atol=1e-9)
+    # Their block (samples 200-299) is searched on samples 100-399: each point, at angle phi past that stretch's
+    # end, is a chord 2 sin((phi - end) / 2) from it.
+    step = 2 * np.pi / 1000
+    phi = np.mod((np.arange(200, 300) + 1250) * step, 2 * np.pi)
+    assert np.allclose(near[early], 2 * np.sin((phi - 399 * step) / 2), atol=1e-9)
+    assert np.all(whole[early] < 1e-9)
 
 
 def test_lag_is_the_error_along_the_tangent_even_where_the_path_closes():

@@ -22,6 +22,7 @@ from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
 _JUMP_FACTOR = 10.0
+_NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within this time of its reference
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
 
 
@@ -79,6 +80,19 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     return best
 
 
+def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) -> np.ndarray:
+    """Distance of each points[k] from the stretch of the sampled path within about `window` samples of path[k]
+    (from `window` to twice that: the path is cut into blocks of `window` samples, each searched with its
+    neighbours). A path that comes back to the same place later, a rotor turning many times say, then does not
+    hide a point that is off its own stretch, and the search stays as cheap as on a path that never returns."""
+    out = np.empty(len(points))
+    for start in range(0, len(points), window):
+        stop = min(start + window, len(points))
+        stretch = path[max(start - window, 0):stop + window]
+        out[start:stop] = path_deviation(stretch, points[start:stop])
+    return out
+
+
 def _segment_distance(vertices: np.ndarray, seg: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Distance of each point from the segment vertices[seg] -> vertices[seg + 1]."""
     a, ab = vertices[seg], vertices[seg + 1] - vertices[seg]
@@ -106,12 +120,12 @@ def along_path(points: np.ndarray) -> np.ndarray:
 def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict, dict[str, np.ndarray]]:
     """Tracking summary (SI units) and the per-sample series it summarises.
 
-    The tool's error against the planned path splits into its distance from the path (`path_deviation`,
-    reported as tool_rms and tool_max) and its lag: the error's component along the path's tangent at the
-    reference point, positive when the tool trails.
+    The tool's error against the planned path splits into its distance from the path near its reference (the
+    stretch within _NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and tool_max) and its
+    lag: the error's component along the path's tangent at the reference point, positive when the tool trails.
     """
     joint_error = rec.q - traj.q_ref
-    deviation = path_deviation(traj.tool_ref, rec.tool)
+    deviation = deviation_near_reference(traj.tool_ref, rec.tool, max(1, int(round(_NEAR_REFERENCE / traj.dt))))
     lag = np.einsum("ij,ij->i", traj.tool_ref - rec.tool, along_path(traj.tool_ref))
     arc_ref = np.sum(np.linalg.norm(np.diff(traj.tool_ref, axis=0), axis=1))
     tool_error = np.linalg.norm(rec.tool - traj.tool_ref, axis=1)

@@ -63,6 +63,8 @@ class Recording:
     warnings: tuple[dict, ...] = ()
     sensors: dict = field(default_factory=dict)
     eq_active: dict = field(default_factory=dict)
+    q_ref: np.ndarray | None = None  # the references as commanded, where the plan's feedback revised them
+    qd_ref: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -335,6 +337,7 @@ def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: b
     bounds = sorted({int(k) + n_settle for k in steps if 0 < k < n_track}) + [n_settle + n_track]
     warnings, done = [], 0
     dt = model.opt.timestep
+    revised = None  # (q_ref, qd_ref) once the plan's feedback has changed them
     with tqdm(total=controls.shape[0], desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
               leave=False) as bar:
         try:
@@ -344,6 +347,9 @@ def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: b
                                   bar)
                 for switch in (w for w, k in zip(traj.switches, steps) if 0 < k and k + n_settle == stop):
                     apply_switch(model, data, switch)
+                    if traj.feedback is not None:
+                        change = traj.feedback(switch, model, data, stop - n_settle)
+                        revised = _revise(plant, traj, feedforward, revised, change, ctrl, controls[n_settle:])
                 done = stop
         except _Fault as fault:
             fault.step += done
@@ -352,17 +358,36 @@ def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: b
             rows = fault.step - n_settle + 1  # rows 0..m are sound; the step from row m failed
             start = states[n_settle - 1] if n_settle else first_state
             partial = _record(plant, traj, model, start, states[n_settle:], sensors[n_settle:n_settle + rows],
-                              eq_active[:rows], ctrl, warnings)
+                              eq_active[:rows], ctrl, warnings, revised)
             raise PhysicsError(float(traj.t[rows - 1] + dt), fault.cause, traj, partial) from None
         eq_active[-1] = data.eq_active
         mujoco.mj_forward(model, data)
     start = states[n_settle - 1] if n_settle else first_state
     readings = np.concatenate([sensors[n_settle:], data.sensordata[None]])
-    return _record(plant, traj, model, start, states[n_settle:], readings, eq_active, ctrl, warnings)
+    return _record(plant, traj, model, start, states[n_settle:], readings, eq_active, ctrl, warnings, revised)
+
+
+def _revise(plant: Plant, traj: JointTrajectory, feedforward: bool, revised: tuple | None, change: tuple | None,
+            ctrl: np.ndarray, upcoming: np.ndarray) -> tuple | None:
+    """Apply a feedback change (k0, columns, q) to the references (q_ref, qd_ref: copies of the plan's at the
+    first change) and to the controls from row k0 on: ctrl, one row a sample, and `upcoming`, the controls the
+    remaining rollouts read (row k drives the step from sample k). Returns the references as they now are."""
+    if change is None:
+        return revised
+    k0, columns, q = change
+    q_ref, qd_ref = revised if revised is not None else (traj.q_ref.copy(), traj.qd_ref.copy())
+    k1 = k0 + len(q)
+    q_ref[k0:k1, columns] = q
+    hi = min(k1 + 1, len(q_ref))  # the rate just after the change moves too; rows before k0 have been used
+    qd_ref[k0:hi, columns] = np.gradient(q_ref[k0:hi, columns], traj.dt, axis=0)
+    ctrl[k0:hi] = plant.commands(q_ref[k0:hi], qd_ref[k0:hi], feedforward)
+    upcoming[k0:min(hi, len(upcoming))] = ctrl[k0:min(hi, len(upcoming))]
+    return q_ref, qd_ref
 
 
 def _record(plant: Plant, traj: JointTrajectory, model: mujoco.MjModel, start: np.ndarray, states: np.ndarray,
-            readings: np.ndarray, eq_active: np.ndarray, ctrl: np.ndarray, warnings: list) -> Recording:
+            readings: np.ndarray, eq_active: np.ndarray, ctrl: np.ndarray, warnings: list,
+            revised: tuple | None) -> Recording:
     """The Recording of the first len(readings) samples. Row 0 is `start`, the state at the end of settling (the
     start state itself when there is no settling); row r > 0 is states[r - 1]. MuJoCo computes sensors before it
     integrates, so readings[r] is the sensor row of step r, taken at row r's state."""
@@ -375,4 +400,5 @@ def _record(plant: Plant, traj: JointTrajectory, model: mujoco.MjModel, start: n
     return Recording(t=traj.t[:rows].copy(), qpos=qpos, q=qpos[:, plant.qpos_adr], qd=qvel[:, plant.dof_adr],
                      ctrl=ctrl[:rows], tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
                      warnings=tuple(warnings), sensors=recorded,
-                     eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)})
+                     eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)},
+                     **({} if revised is None else {"q_ref": revised[0], "qd_ref": revised[1]}))

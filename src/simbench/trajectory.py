@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,7 +30,10 @@ class JointTrajectory:
     planner made, for the report, and `series` any further per-sample references (the platform orientation a
     parallel mechanism should reach, say), written to timeseries.npz. `switches` are the equality constraints the
     plan turns on and off (an electromagnet's grip), and `initial` the qpos of joints the robot cannot assemble
-    from its actuated joints alone (a free rotor), by joint name.
+    from its actuated joints alone (a free rotor), by joint name. `feedback`, where the method closes a loop, is
+    called by the simulator after each switch it applies during the run, as feedback(switch, model, data, k) at
+    row k; it returns None, or (k0, columns, q): new references q for those joints from row k0 on (an RSMG arm
+    re-solving its hold for the point it really gripped).
     """
 
     t: np.ndarray
@@ -43,6 +47,7 @@ class JointTrajectory:
     series: dict = field(default_factory=dict)
     switches: tuple[Switch, ...] = ()
     initial: dict = field(default_factory=dict)
+    feedback: Callable | None = None
 
     @property
     def dt(self) -> float:

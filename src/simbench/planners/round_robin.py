@@ -3,11 +3,25 @@
 The rotor's commanded orientation R(t) is given: turns about a fixed axis, or a tumble (a spin about a rotor
 axis while that axis precesses), on a time law. Each arm holds one of its three candidate contact points; while
 it does, its base angle and gamma follow from the IK of the point's current direction (eqs. 12-23). An arm must
-let go before its gamma leaves (10, 170) deg (eq. 45) or the gripping arms' Jacobian A loses rank
-(|det A1|, |det A2| < 0.01, eq. 46). Its next point is the next candidate in round-robin order (a -> b -> c ->
-a) whose gamma is inside the band when the arm gets there; while it swings (a quintic in theta and gamma,
-matching position, speed and acceleration at both ends) the other three arms hold the rotor, and only one arm
-swings at a time, so at least three always grip.
+let go before its gamma leaves (10, 170) deg (eq. 45), and while it swings the three arms holding the rotor
+keep their Jacobian A far from losing rank (eq. 46 puts rank loss at |det A| < 0.01; the schedule keeps
+|det A| >= `det_a_min`, ours, since near 0.01 the rotor is held so loosely that it drifts by degrees). Its
+next point is the next candidate in round-robin order (a -> b -> c -> a) whose gamma is inside the band when
+the arm gets there; while it swings (a quintic in theta and gamma, matching position, speed and acceleration
+at both ends) the other three arms hold the rotor, and only one arm swings at a time, so at least three always
+grip. A swing ends `approach_time` before the grip: the arm then
+follows its next point, not yet gripping, so that its servos settle and the weld goes on where the plan has the
+point (ours: the paper switches the electromagnet on when the arm arrives; without the approach a long fast
+swing ends a millimetre or two off, and the gripping arms then fight over the rotor).
+
+Closing the loop at each grip (ours; `regrip_feedback`, on by default): a weld holds the EM wherever it touches,
+so an arm that grips while the rotor is off its command grips a point off the candidate, and its planned hold
+(the IK of the candidate) then pulls against the other arms. Open loop, the paper's way, these offsets add up
+grip after grip: in ten minutes of tumbling the rotor drifted by degrees, then tens of degrees, then was lost.
+With feedback, when an arm grips, its hold is re-solved for the point it really holds, found from the rotor's
+orientation (which a controller has from the gripping arms' encoders by the direct kinematics, eq. 32), so
+that every gripping arm pulls the rotor towards its command; the change is eased in over _EASE and out over
+the next swing.
 
 Switches are planned ahead: with the gripping arms' exits e_1 <= e_2 <= ... (the times their gammas leave the
 band less a margin), the first arm lets go by min_k (e_k - k T_swing), so that every arm can swing in turn
@@ -26,12 +40,14 @@ from scipy.spatial.transform import Rotation
 from simbench.errors import RunError
 from simbench.planners import Planner
 from simbench.robots import rsmg
-from simbench.schema import Direction, NonNegativeAngle, Positive, SimbenchModel
+from simbench.schema import Direction, NonNegative, NonNegativeAngle, Positive, SimbenchModel
 from simbench.trajectory import JointTrajectory, Switch, control_grid
 
 _STEP = 0.005  # s: the schedule's time step
 _FIT = 4  # schedule steps on each side of a swing from which its end states are fitted; a hold is longer
 _SEARCH = 2000  # most choices the schedule's search tries
+_EARLIER = 2  # earlier releases a swing apart that the search may try after the latest one, per next point
+_EASE = 0.1  # s: a grip's revised hold blends in from the old one over this time
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 
 
@@ -62,6 +78,9 @@ class Task(SimbenchModel):
 
     motion: Motion
     swing_time: Positive = 0.5
+    approach_time: NonNegative = 0.1
+    det_a_min: Positive = 0.15
+    regrip_feedback: bool = True
     gamma_margin: NonNegativeAngle = float(np.deg2rad(12.0))
 
 
@@ -75,6 +94,19 @@ class Hold:
     end: int
 
 
+@dataclass
+class _Choice:
+    """A moment where `arm` must let go of `point` (held since step `since`): the (release step, next point)
+    options not yet tried, in order of preference, and the release taken."""
+
+    current: dict[int, tuple[int, int]]
+    arm: int
+    point: int
+    since: int
+    options: list[tuple[int, int]]
+    release: int = -1
+
+
 def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """theta and gamma (4, 3, N) of every arm holding every candidate along orientations (N, 3, 3)."""
     theta = np.empty((rsmg.ARMS, rsmg.CANDIDATES, len(rot)))
@@ -85,35 +117,62 @@ def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return theta, gamma
 
 
-def schedule(gamma: np.ndarray, task: Task, n_swing: int) -> list[Hold]:
+def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_approach: int = 0) -> list[Hold]:
     """Which point each arm holds when, on the schedule grid (section 4.1-4.3); RunError where no round-robin
     choice keeps three arms gripping inside the band.
 
     Time advances until an arm must let go (its deadline, see the module's docstring). Its choices, in order of
     preference: the next candidate in round-robin order, then the one after (the paper's order of trial), each
     let go as late as it can be and still be inside the band when the arm gets there and for long enough after
-    (first: for the other three arms to take a swing each; then: for one swing). If a choice leads to an arm
-    with no choice later, the search backs up and takes the next one (depth first, at most _SEARCH nodes).
+    (first: for the other three arms to take a swing each; then: for one swing), then a little earlier. If a
+    choice leads to an arm with no choice later, the search backs up and takes the next one (depth first, at
+    most _SEARCH tries).
+    A swing takes n_swing steps, the last n_approach of them following the next point, inside the band too;
+    throughout it the other three arms' rows of A (`rows`, (4, 3, N, 3): every arm on every point) keep
+    |det A| >= task.det_a_min.
     """
     lo, hi = rsmg.GAMMA_BAND[0] + task.gamma_margin, rsmg.GAMMA_BAND[1] - task.gamma_margin
     good = (gamma > lo) & (gamma < hi)  # NaN (out of reach) is never good
     n = gamma.shape[2]
 
+    step_of = np.arange(n)
+    next_bad = np.minimum.accumulate(np.where(good, n, step_of)[..., ::-1], axis=-1)[..., ::-1]
+
     def exit_step(arm: int, point: int, step: int) -> int:
         """First step at or after `step` where the arm's gamma on that point leaves the band (n if never)."""
-        bad = np.flatnonzero(~good[arm, point, step:])
-        return step + int(bad[0]) if bad.size else n
+        return int(next_bad[arm, point, step]) if step < n else n
 
-    def choices(arm: int, point: int, earliest: int, latest: int) -> list[tuple[int, int]]:
-        """(release step, next point) in order of preference."""
+    def holding_firmly(current: dict[int, tuple[int, int]], arm: int, earliest: int, latest: int) -> np.ndarray:
+        """Whether the other arms, on their current points, keep |det A| >= det_a_min throughout a swing of
+        `arm` released at each step from earliest to latest."""
+        stop = min(latest + n_swing + 1, n)
+        a = np.stack([rows[i, p, earliest:stop] for i, (p, _) in sorted(current.items()) if i != arm], axis=1)
+        firm = np.abs(np.linalg.det(a)) >= task.det_a_min  # NaN rows (out of reach) are never firm
+        weak = np.concatenate([[0], np.cumsum(~firm)])
+        release = np.arange(latest - earliest + 1)
+        end = np.minimum(release + n_swing + 1, firm.size)
+        return weak[end] - weak[release] == 0
+
+    def choices(current: dict[int, tuple[int, int]], arm: int, earliest: int, latest: int) -> list[tuple[int, int]]:
+        """(release step, next point) in order of preference: for each hold wanted after the grip and each next
+        point, the latest release that works, then up to _EARLIER earlier ones a swing apart."""
+        point = current[arm][0]
+        release = np.arange(latest, earliest - 1, -1)
+        release = release[release + n_swing < n]
+        grip = release + n_swing
+        firm = holding_firmly(current, arm, earliest, latest)[release - earliest]
         found = []
         for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
             for k in ((point + 1) % rsmg.CANDIDATES, (point + 2) % rsmg.CANDIDATES):
-                release = next((r for r in range(latest, earliest - 1, -1) if r + n_swing < n and
-                                good[arm, k, r + n_swing] and exit_step(arm, k, r + n_swing) > min(
-                                    r + n_swing + hold, n - 1)), None)
-                if release is not None and (release, k) not in found:
-                    found.append((release, k))
+                ready = next_bad[arm, k, grip - n_approach] > grip  # inside the band from the approach on
+                lasts = next_bad[arm, k, grip] > np.minimum(grip + hold, n - 1)
+                works = release[firm & ready & lasts]
+                picked = [works[0]] if works.size else []
+                for r in works[1:]:
+                    if len(picked) > _EARLIER or picked[-1] - r < n_swing:
+                        continue
+                    picked.append(r)
+                found += [(int(r), k) for r in picked if (int(r), k) not in found]
         return found
 
     current = {}
@@ -122,11 +181,9 @@ def schedule(gamma: np.ndarray, task: Task, n_swing: int) -> list[Hold]:
         if exit_step(arm, point, 0) == 0:
             raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
         current[arm] = (point, 0)
-    budget = [_SEARCH]
-    stuck: list[str] = []
-
-    def extend(current: dict[int, tuple[int, int]], step: int) -> list[Hold] | None:
-        """The holds from `step` on, given what each arm holds since when; None if none work."""
+    def next_choice(current: dict[int, tuple[int, int]], step: int) -> _Choice | list[Hold] | tuple[int, str]:
+        """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
+        need let go again, or (step, why) if the schedule is stuck."""
         while True:
             swinging = [since for _, since in current.values() if since > step]
             if swinging:  # one arm swings at a time; the others were checked to hold until it grips
@@ -142,27 +199,34 @@ def schedule(gamma: np.ndarray, task: Task, n_swing: int) -> list[Hold]:
         _, arm = exits[0]
         point, since = current[arm]
         if any(e < step + n_swing for e, _ in exits[1:]):
-            stuck.append(f"at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm leaves the gamma "
-                         "band before it can grip again")
-            return None
+            return step, (f"at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm leaves the "
+                          "gamma band before it can grip again")
         earliest = max([since + _FIT + 1] + [s for a, (_, s) in current.items() if a != arm])
-        options = choices(arm, point, earliest, step)
+        options = choices(current, arm, earliest, step)
         if not options:
-            stuck.append(f"at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point inside the gamma "
-                         "band (eq. 45)")
-        for release, nxt in options:
-            budget[0] -= 1
-            if budget[0] < 0:
-                return None
-            rest = extend({**current, arm: (nxt, release + n_swing)}, release + 1)
-            if rest is not None:
-                return [Hold(arm, point, since, release)] + rest
-        return None
+            return step, (f"at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point inside the gamma band "
+                          f"(eq. 45) to swing to while the others hold the rotor with |det A| >= {task.det_a_min:g}")
+        return _Choice(current, arm, point, since, options)
 
-    holds = extend(current, 0)
-    if holds is None:
-        furthest = max(stuck, key=lambda m: float(m.split("t = ")[1].split(" s")[0])) if stuck else "no schedule"
-        raise RunError(f"round robin: {furthest}" + (" (search budget spent)" if budget[0] < 0 else ""))
+    taken: list[_Choice] = []  # the choices on the way so far, depth first
+    stuck: list[tuple[int, str]] = []
+    tries = 0
+    found = next_choice(current, 0)
+    while not isinstance(found, list):
+        if isinstance(found, _Choice):
+            taken.append(found)
+        else:
+            stuck.append(found)
+        while taken and not taken[-1].options:  # back up to the latest choice with an option left
+            taken.pop()
+        if not taken or tries >= _SEARCH:
+            why = max(stuck)[1] if stuck else "no schedule"
+            raise RunError(f"round robin: {why}" + (" (search budget spent)" if tries >= _SEARCH else ""))
+        choice = taken[-1]
+        choice.release, nxt = choice.options.pop(0)
+        tries += 1
+        found = next_choice({**choice.current, choice.arm: (nxt, choice.release + n_swing)}, choice.release + 1)
+    holds = [Hold(c.arm, c.point, c.since, c.release) for c in taken] + found
     return sorted(holds, key=lambda h: (h.arm, h.start))
 
 
@@ -177,25 +241,26 @@ def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.nda
 
 
 def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], theta: np.ndarray, gamma: np.ndarray,
-              grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """theta and gamma (N,) of one arm on the control grid t: the IK of its held points, quintic swings between.
-    A swing's end states are fitted on the schedule grid (_FIT steps of each hold), whatever the control step."""
+              grid: np.ndarray, n_approach: int) -> tuple[np.ndarray, np.ndarray]:
+    """theta and gamma (N,) of one arm on the control grid t: the IK of its held points (from n_approach steps
+    before each grip), quintic swings between. A swing's end states are fitted on the schedule grid (_FIT steps
+    of each hold), whatever the control step."""
     mine = [h for h in holds if h.arm == arm]
     out_theta, out_gamma = np.full(t.size, np.nan), np.full(t.size, np.nan)
     held = []  # per hold: grid times and its theta, gamma there
     for h in mine:
-        stop = min(h.end, grid.size - 1)
-        span = grid[h.start:stop + 1]
+        start, stop = max(h.start - n_approach, 0), min(h.end, grid.size - 1)
+        span = grid[start:stop + 1]
         inside = (t >= span[0]) & (t <= span[-1]) if h.end >= grid.size else (t >= span[0]) & (t < grid[h.end])
-        th = np.unwrap(theta[arm, h.point, h.start:stop + 1])
+        th = np.unwrap(theta[arm, h.point, start:stop + 1])
         if held:  # keep theta on the turn nearest where the swing began
             th += 2 * np.pi * np.round((held[-1][1][-1] - th[0]) / (2 * np.pi))
-        ga = gamma[arm, h.point, h.start:stop + 1]
+        ga = gamma[arm, h.point, start:stop + 1]
         out_theta[inside] = np.interp(t[inside], span, th)
         out_gamma[inside] = np.interp(t[inside], span, ga)
         held.append((span, th, ga))
     for (a, (span_a, th_a, ga_a)), (b, (span_b, th_b, ga_b)) in zip(zip(mine, held), zip(mine[1:], held[1:])):
-        t0, t1 = grid[a.end], grid[b.start]
+        t0, t1 = grid[a.end], grid[b.start - n_approach]
         swing = (t >= t0) & (t < t1)
         for series, before, after in ((out_theta, th_a, th_b), (out_gamma, ga_a, ga_b)):
             start = _state(span_a[-_FIT - 1:], before[-_FIT - 1:], t0)
@@ -217,12 +282,15 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     grid = np.arange(int(np.ceil((law.duration + scenario.timing.hold) / _STEP)) + 1) * _STEP
     rot_grid = task.motion.orientation(law(grid, order=0)[0])
     theta, gamma = _gammas(rot_grid)
-    holds = schedule(gamma, task, max(1, int(round(task.swing_time / _STEP))))
+    rows = np.stack([np.stack([rsmg.jacobian_rows(i, theta[i, k], gamma[i, k])[0] for k in range(rsmg.CANDIDATES)])
+                     for i in range(rsmg.ARMS)])
+    n_approach = int(round(task.approach_time / _STEP))
+    holds = schedule(gamma, rows, task, max(1, int(round(task.swing_time / _STEP))) + n_approach, n_approach)
     t = control_grid(law.duration, scenario.timing.hold, dt)
     s = law(t, order=0)[0]
     q_ref = np.empty((t.size, 2 * rsmg.ARMS))
     for arm in range(rsmg.ARMS):
-        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, holds, theta, gamma, grid)
+        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, holds, theta, gamma, grid, n_approach)
     qd_ref = np.gradient(q_ref, t, axis=0)
     rot = task.motion.orientation(s)
     switches = []
@@ -239,6 +307,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     for h in holds:
         stop = grid[h.end] if h.end < grid.size else np.inf
         engaged[(t >= grid[h.start]) & (t < stop), h.arm] = True
+    feedback = _RegripFeedback(rot, q_ref, switches, round(task.swing_time / dt)) if task.regrip_feedback else None
     quat = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
@@ -250,7 +319,51 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
                            info=info, switches=tuple(sorted(switches, key=lambda w: w.t)),
                            series={"rotor_quat_ref": quat * np.where(quat[:, :1] < 0, -1.0, 1.0),
                                    "engaged_ref": engaged},
-                           initial={"rotor": quat[0].tolist()})
+                           initial={"rotor": quat[0].tolist()}, feedback=feedback)
+
+
+class _RegripFeedback:
+    """At a grip during the run, the gripping arm's references from then until its release and over the swing
+    after it, re-solved for the point it really gripped (see the module's docstring)."""
+
+    def __init__(self, rot: np.ndarray, q_ref: np.ndarray, switches: list[Switch], n_swing: int):
+        self.rot, self.q_ref, self.n_swing = rot, q_ref, n_swing
+        self.release = {}  # (arm, grip time) -> release time (inf if never)
+        for w in switches:
+            if w.active and w.t > 0:
+                arm = w.detail["arm"] - 1
+                later = [v.t for v in switches if not v.active and v.detail["arm"] == arm + 1 and v.t > w.t]
+                self.release[arm, w.t] = min(later, default=np.inf)
+
+    def __call__(self, switch: Switch, model, data, k: int):
+        if not switch.active or switch.equality not in {f"grip{i + 1}" for i in range(rsmg.ARMS)}:
+            return None
+        arm = switch.detail["arm"] - 1
+        dt = model.opt.timestep
+        n = len(self.q_ref)
+        k_release = min(int(np.rint(self.release[arm, switch.t] / dt)), n) if np.isfinite(
+            self.release[arm, switch.t]) else n
+        tip = data.site(f"em{arm + 1}_tip").xpos
+        point = data.body("rotor").xmat.reshape(3, 3).T @ (tip / np.linalg.norm(tip))  # in the rotor's frame
+        theta, gamma = rsmg.ik(arm, self.rot[k:k_release] @ point)
+        if not (np.isfinite(theta).all() and np.isfinite(gamma).all()):
+            return None  # the point leaves the arm's reach before its release: keep the plan
+        columns = [arm, rsmg.ARMS + arm]
+        old = self.q_ref[k:k_release][:, columns]
+        theta = np.unwrap(theta)
+        theta += 2 * np.pi * np.round((old[0, 0] - theta[0]) / (2 * np.pi))
+        change = np.stack([theta, gamma], axis=1) - old
+        ease = _smoothstep(np.arange(k_release - k) * dt / _EASE)
+        swing = self.q_ref[k_release:k_release + self.n_swing][:, columns]
+        out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
+        q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
+        return k, columns, q
+
+
+def _smoothstep(u: np.ndarray) -> np.ndarray:
+    """0 before u = 0, 1 after u = 1, a quintic with zero rate and acceleration at both ends between."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10 - 15 * u + 6 * u**2)
 
 
 PLANNER = Planner(

@@ -193,15 +193,30 @@ def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     ref = _quat_to_matrix(traj.series["rotor_quat_ref"])
     error = np.arccos(np.clip((np.einsum("nij,nij->n", ref, rot) - 1) / 2, -1.0, 1.0))
     held = gamma[engaged]
+    closure = _closure_error(rec, rot, engaged)
     report = {
         "rotor_error_max": float(error.max()),
+        "closure_error_max": float(closure.max()),
         "fewest_gripping": int(engaged.sum(axis=1).min()),
         "gripping_gamma": {"min": float(held.min()), "max": float(held.max())},
         "switch_events": _switch_events(traj, rec),
     }
     extra = {"gamma": gamma.copy(), "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"].copy(),
-             "rotor_error": error}
+             "rotor_error": error, "closure_error": closure}
     return report, [], extra
+
+
+def _closure_error(rec, rot: np.ndarray, engaged: np.ndarray) -> np.ndarray:
+    """How far each gripping EM's tip has moved on the rotor since it gripped (the weld's violation: the loop
+    through the arm and the rotor failing to close), the largest over the arms (N,), in m."""
+    closure = np.zeros(rec.t.size)
+    for arm in range(ARMS):
+        on_rotor = np.einsum("nji,nj->ni", rot, rec.sensors[f"em{arm + 1}_tip"])  # R^T tip, in the rotor's frame
+        grips = np.flatnonzero(np.diff(np.concatenate([[False], engaged[:, arm]]).astype(int)) == 1)
+        since = np.maximum.accumulate(np.where(np.isin(np.arange(rec.t.size), grips), np.arange(rec.t.size), 0))
+        drift = np.linalg.norm(on_rotor - on_rotor[since], axis=1)
+        closure = np.maximum(closure, np.where(engaged[:, arm], drift, 0.0))
+    return closure
 
 
 def _switch_events(traj, rec) -> list[dict]:
