@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 from simbench.analysis import Analysis, analyse
@@ -21,7 +21,7 @@ from simbench.render import render_video
 from simbench.report import build_failure_report, build_report, write_report, write_timeseries
 from simbench.robots import Tolerance
 from simbench.scenario import Scenario
-from simbench.sim import Plant, Recording, simulate
+from simbench.sim import Plant, Recording, commanded, simulate
 from simbench.trajectory import JointTrajectory
 
 
@@ -76,8 +76,7 @@ def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | Non
     with watch.stage("simulate"):
         rec = simulate(plant, traj, settle=scenario.sim.settle, feedforward=scenario.sim.velocity_feedforward,
                        progress=progress)
-        if rec.q_ref is not None:  # the plan's feedback revised its references during the run
-            traj = replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref)
+        traj = commanded(traj, rec)
     with watch.stage("analyse"):
         a = scenario.analysis
         result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),

@@ -103,10 +103,8 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
     rows = rec.t.size
     arrays = {
         "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),
-        "q_ref": (traj.q_ref if rec.q_ref is None else rec.q_ref)[:rows],
-        "qd_ref": (traj.qd_ref if rec.qd_ref is None else rec.qd_ref)[:rows],
-        "q": rec.q, "qd": rec.qd, "qpos": rec.qpos, "ctrl": rec.ctrl,
-        "tool_ref": traj.tool_ref[:rows], "tool": rec.tool,
+        "q_ref": traj.q_ref[:rows], "qd_ref": traj.qd_ref[:rows], "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
+        "ctrl": rec.ctrl, "tool_ref": traj.tool_ref[:rows], "tool": rec.tool,
     }
     arrays.update({name: series[:rows] for name, series in traj.series.items()})
     if result is not None:

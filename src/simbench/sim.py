@@ -22,7 +22,7 @@ from __future__ import annotations
 import copy
 import sys
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 
 import mujoco
@@ -359,12 +359,17 @@ def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: b
             start = states[n_settle - 1] if n_settle else first_state
             partial = _record(plant, traj, model, start, states[n_settle:], sensors[n_settle:n_settle + rows],
                               eq_active[:rows], ctrl, warnings, revised)
-            raise PhysicsError(float(traj.t[rows - 1] + dt), fault.cause, traj, partial) from None
+            raise PhysicsError(float(traj.t[rows - 1] + dt), fault.cause, commanded(traj, partial), partial) from None
         eq_active[-1] = data.eq_active
         mujoco.mj_forward(model, data)
     start = states[n_settle - 1] if n_settle else first_state
     readings = np.concatenate([sensors[n_settle:], data.sensordata[None]])
     return _record(plant, traj, model, start, states[n_settle:], readings, eq_active, ctrl, warnings, revised)
+
+
+def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
+    """The plan with the references the run really commanded: its own, or those its feedback revised."""
+    return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref)
 
 
 def _revise(plant: Plant, traj: JointTrajectory, feedforward: bool, revised: tuple | None, change: tuple | None,

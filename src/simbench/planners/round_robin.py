@@ -135,8 +135,7 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
     good = (gamma > lo) & (gamma < hi)  # NaN (out of reach) is never good
     n = gamma.shape[2]
 
-    step_of = np.arange(n)
-    next_bad = np.minimum.accumulate(np.where(good, n, step_of)[..., ::-1], axis=-1)[..., ::-1]
+    next_bad = np.minimum.accumulate(np.where(good, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
 
     def exit_step(arm: int, point: int, step: int) -> int:
         """First step at or after `step` where the arm's gamma on that point leaves the band (n if never)."""
@@ -169,9 +168,10 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
                 works = release[firm & ready & lasts]
                 picked = [works[0]] if works.size else []
                 for r in works[1:]:
-                    if len(picked) > _EARLIER or picked[-1] - r < n_swing:
-                        continue
-                    picked.append(r)
+                    if len(picked) > _EARLIER:
+                        break
+                    if picked[-1] - r >= n_swing:
+                        picked.append(r)
                 found += [(int(r), k) for r in picked if (int(r), k) not in found]
         return found
 
@@ -307,7 +307,8 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     for h in holds:
         stop = grid[h.end] if h.end < grid.size else np.inf
         engaged[(t >= grid[h.start]) & (t < stop), h.arm] = True
-    feedback = _RegripFeedback(rot, q_ref, switches, round(task.swing_time / dt)) if task.regrip_feedback else None
+    feedback = _RegripFeedback(rot, q_ref, holds, grid, dt, round(task.swing_time / dt)) if task.regrip_feedback \
+        else None
     quat = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
@@ -326,23 +327,18 @@ class _RegripFeedback:
     """At a grip during the run, the gripping arm's references from then until its release and over the swing
     after it, re-solved for the point it really gripped (see the module's docstring)."""
 
-    def __init__(self, rot: np.ndarray, q_ref: np.ndarray, switches: list[Switch], n_swing: int):
-        self.rot, self.q_ref, self.n_swing = rot, q_ref, n_swing
-        self.release = {}  # (arm, grip time) -> release time (inf if never)
-        for w in switches:
-            if w.active and w.t > 0:
-                arm = w.detail["arm"] - 1
-                later = [v.t for v in switches if not v.active and v.detail["arm"] == arm + 1 and v.t > w.t]
-                self.release[arm, w.t] = min(later, default=np.inf)
+    def __init__(self, rot: np.ndarray, q_ref: np.ndarray, holds: list[Hold], grid: np.ndarray, dt: float,
+                 n_swing: int):
+        self.rot, self.q_ref, self.dt, self.n_swing = rot, q_ref, dt, n_swing
+        # (arm, grip row) -> its release row (the end of the reference if it never lets go)
+        self.release = {(h.arm, int(round(grid[h.start] / dt))): min(int(round(grid[h.end] / dt)), len(q_ref))
+                        if h.end < grid.size else len(q_ref) for h in holds if h.start > 0}
 
     def __call__(self, switch: Switch, model, data, k: int):
-        if not switch.active or switch.equality not in {f"grip{i + 1}" for i in range(rsmg.ARMS)}:
+        if not switch.active:
             return None
         arm = switch.detail["arm"] - 1
-        dt = model.opt.timestep
-        n = len(self.q_ref)
-        k_release = min(int(np.rint(self.release[arm, switch.t] / dt)), n) if np.isfinite(
-            self.release[arm, switch.t]) else n
+        k_release = self.release[arm, k]
         tip = data.site(f"em{arm + 1}_tip").xpos
         point = data.body("rotor").xmat.reshape(3, 3).T @ (tip / np.linalg.norm(tip))  # in the rotor's frame
         theta, gamma = rsmg.ik(arm, self.rot[k:k_release] @ point)
@@ -353,7 +349,7 @@ class _RegripFeedback:
         theta = np.unwrap(theta)
         theta += 2 * np.pi * np.round((old[0, 0] - theta[0]) / (2 * np.pi))
         change = np.stack([theta, gamma], axis=1) - old
-        ease = _smoothstep(np.arange(k_release - k) * dt / _EASE)
+        ease = _smoothstep(np.arange(k_release - k) * self.dt / _EASE)
         swing = self.q_ref[k_release:k_release + self.n_swing][:, columns]
         out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
         q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
