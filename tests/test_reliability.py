@@ -150,6 +150,40 @@ def test_ctrl_c_leaves_the_previous_output_or_none(tmp_path):
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
 
 
+
+CTRL_C_PROBE = """
+import os, signal, time
+from simbench import interrupts
+
+def ctrl_c():
+    os.kill(os.getpid(), signal.SIGINT)
+
+with interrupts.raising_interrupted() as seen:
+    try:
+        with interrupts.held_back():
+            ctrl_c()
+            time.sleep(0.2)
+            inside = "not raised inside"
+    except interrupts.Interrupted:
+        after = "raised after"
+    try:
+        exec("ctrl_c()\\ntime.sleep(5)")  # as scipy does while it is imported
+    except KeyboardInterrupt as err:
+        kind = type(err).__name__
+print(inside, after, kind, seen.pressed)
+raise SystemExit(130)
+"""
+
+
+def test_ctrl_c_is_held_back_on_request_and_survives_an_exec(tmp_path):
+    """Ctrl-C inside held_back() is delivered when the block ends; one that leaves an exec() of a string and is
+    caught still gives exit 130 (CPython 3.11 would kill the process with SIGINT after a plain KeyboardInterrupt)."""
+    (tmp_path / "probe.py").write_text(CTRL_C_PROBE)
+    done = subprocess.run([sys.executable, "-m", "probe"], capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    assert (done.returncode, done.stdout, done.stderr) == (130, "not raised inside raised after Interrupted True\n",
+                                                           "")
+
+
 SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
 
 

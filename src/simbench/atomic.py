@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from simbench.interrupts import held_back
 
 
 def write_text(path: Path, text: str) -> None:
@@ -50,22 +50,9 @@ def staged_folder(out: Path) -> Iterator[Path]:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     old = out.parent / f".{out.name}.old-{os.getpid()}"
-    with _no_interrupt():  # Ctrl-C between the two renames would leave neither folder in place
+    with held_back():  # Ctrl-C between the two renames would leave neither folder in place
         if out.exists():
             out.rename(old)
         tmp.rename(out)
     shutil.rmtree(old, ignore_errors=True)
 
-
-@contextmanager
-def _no_interrupt() -> Iterator[None]:
-    """Hold SIGINT (Ctrl-C) back until the block is done; it is delivered then. Elsewhere than the main thread
-    of a POSIX process, where Python handles no signals, a no-op."""
-    held = hasattr(signal, "pthread_sigmask") and threading.current_thread() is threading.main_thread()
-    if held:
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        if held:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})

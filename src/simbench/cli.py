@@ -12,6 +12,7 @@ import os
 import sys
 from pathlib import Path
 
+from simbench import interrupts
 from simbench.errors import PhysicsError, RunError, ScenarioError
 from simbench.resources import scenarios_dir, sweeps_dir
 
@@ -120,21 +121,20 @@ def _interrupted(args) -> int:
     return 130
 
 
-def _caused_by_interrupt(err: BaseException) -> bool:
-    seen = set()
-    while err is not None and id(err) not in seen:
-        if isinstance(err, KeyboardInterrupt):
-            return True
-        seen.add(id(err))
-        err = err.__cause__ or err.__context__
-    return False
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     args = _parser().parse_args(argv)
+    with interrupts.raising_interrupted() as ctrl_c:
+        return _command(args, ctrl_c)
+
+
+def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
     try:
-        from simbench import pipeline, scenario
+        with interrupts.held_back():  # the extension modules, imported here, would convert or swallow Ctrl-C
+            from simbench import pipeline, planners, robots, scenario
+
+            robots.registry()
+            planners.registry()
 
         if args.command == "list":
             print(_list())
@@ -168,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return _interrupted(args)
     except Exception as err:  # a bug: one line, unless asked for the traceback
-        if _caused_by_interrupt(err):  # Ctrl-C inside an extension module's import surfaces as ImportError
+        if ctrl_c.pressed:  # an extension module imported later turned Ctrl-C into this
             return _interrupted(args)
         if os.environ.get("SIMBENCH_DEBUG"):
             raise
