@@ -42,7 +42,7 @@ def _handles_signals() -> bool:
 @contextmanager
 def raising_interrupted() -> Iterator[CtrlC]:
     """Have Ctrl-C raise Interrupted for the duration. Left alone where SIGINT is ignored (a background job) or
-    handled by someone else, and where no handler can be set; the CtrlC then never reads pressed."""
+    handled by someone else, and where no handler can be set; `pressed` then stays False."""
     ctrl_c = CtrlC()
     if not _handles_signals() or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield ctrl_c
