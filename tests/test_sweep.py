@@ -160,6 +160,21 @@ def test_interrupted_sweep_resumes_where_it_stopped(tmp_path):
         read_csv(tmp_path / "reference" / "results.csv"))
 
 
+def test_a_full_output_run_without_its_row_is_run_again(tmp_path):
+    """With outputs: full, a sweep stopped after a run wrote its folder but before its row was recorded finds
+    that folder on resuming: the run is redone into it, not refused as an existing output."""
+    spec = {"base": CASE1, "outputs": "full", "grid": {"timing.duration": [2, 3]}}
+    sweep = load_sweep(write(tmp_path, spec))
+    out = tmp_path / "out"
+    first = run_sweep(sweep, out, workers=1)
+    row = out / "rows" / f"{sweep.variants[1].id}.json"
+    row.unlink()
+    resumed = run_sweep(sweep, out, workers=1)
+    assert resumed.resumed == 1 and resumed.table["status"] == ["ok", "ok"]
+    assert resumed.table["tool_rms"] == first.table["tool_rms"]
+    assert (out / "runs" / sweep.variants[1].id / "report.json").exists()
+
+
 def test_a_run_that_kills_its_worker_is_a_crashed_row(tmp_path, monkeypatch):
     """Worker processes are forked, so they run this patched run_variant: the run whose document asks for it
     dies mid-run (as in a segfault); its row says so, the worker is replaced and the other runs finish."""

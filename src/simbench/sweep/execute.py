@@ -31,7 +31,8 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
                 video: bool = False) -> dict:
     """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | bad_input |
     run_failed | crashed), `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`.
-    With outputs='full' every output of `simbench run` is written into `out`."""
+    With outputs='full' every output of `simbench run` is written into `out`, replacing whatever a run stopped
+    before its row was recorded left there."""
     from simbench import pipeline
     from simbench.scenario import parse_scenario
 
@@ -40,7 +41,7 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
     try:
         scenario = parse_scenario(document, source)
         if outputs == "full":
-            report = pipeline.run(scenario, out=out, video=video).report
+            report = pipeline.run(scenario, out=out, video=video, force=True).report
         else:
             report = pipeline.evaluate_report(scenario)
     except ScenarioError as err:
