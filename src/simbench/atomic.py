@@ -16,20 +16,21 @@ from pathlib import Path
 from simbench.interrupts import held_back
 
 
+def _beside(path: Path, tag: str) -> Path:
+    """The hidden name under which this process writes or sets aside `path`."""
+    return path.parent / f".{path.name}.{tag}-{os.getpid()}"
+
+
 def write_text(path: Path, text: str) -> None:
     """Replace `path` with `text` in one step."""
-    tmp = path.parent / f".{path.name}.partial-{os.getpid()}"
-    try:
+    with staged_file(path) as tmp:
         tmp.write_text(text)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 @contextmanager
 def staged_file(path: Path) -> Iterator[Path]:
     """A hidden path beside `path` to write to; moved onto `path` if the block succeeds, removed if it fails."""
-    tmp = path.parent / f".{path.name}.partial-{os.getpid()}"
+    tmp = _beside(path, "partial")
     try:
         yield tmp
         os.replace(tmp, path)
@@ -41,7 +42,7 @@ def staged_file(path: Path) -> Iterator[Path]:
 def staged_folder(out: Path) -> Iterator[Path]:
     """A fresh hidden folder beside `out`, moved onto `out` if the block succeeds, removed if it fails."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
+    tmp = _beside(out, "partial")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
@@ -49,7 +50,7 @@ def staged_folder(out: Path) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    old = out.parent / f".{out.name}.old-{os.getpid()}"
+    old = _beside(out, "old")
     with held_back():  # Ctrl-C between the two renames would leave neither folder in place
         if out.exists():
             out.rename(old)

@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from simbench.analysis import Analysis
+from simbench.atomic import write_text
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
@@ -93,8 +94,8 @@ def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analys
 
 
 def write_report(report: dict, path: Path) -> None:
-    """Write report.json (strict JSON: no NaN)."""
-    path.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
+    """Write report.json (strict JSON: no NaN), in one step."""
+    write_text(path, json.dumps(report, indent=2, allow_nan=False) + "\n")
 
 
 def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis | None, path: Path) -> None:

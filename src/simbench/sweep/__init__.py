@@ -11,17 +11,16 @@ The sweep file is described in `simbench.sweep.spec`, the output folder in `simb
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from tqdm import tqdm
 
-from simbench.atomic import write_text
+from simbench.report import write_report
 from simbench.sweep import execute, table
 from simbench.sweep.spec import Sweep, load_sweep
-from simbench.sweep.store import Store
+from simbench.sweep.store import Store, run_folder
 
 __all__ = ["Sweep", "SweepResult", "load_sweep", "run_sweep"]
 
@@ -63,7 +62,7 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
                    "backend": backend, "wall_time": round(time.perf_counter() - start, 3),
                    "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots]},
                    "notes": notes}
-        write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        write_report(summary, out / "summary.json")
     return SweepResult(out, columns, summary, summary["resumed"])
 
 
@@ -71,7 +70,7 @@ def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None)
     """The outcomes of the runs still to do, as they finish, and a description of where they run."""
     kept = sweep.spec.outputs
     tasks = [(v.index, {"document": v.document, "source": f"{sweep.source} {v.id}", "outputs": kept,
-                        "out": execute.out_of(out, v.id) if kept == "full" else None, "video": sweep.spec.video})
+                        "out": str(run_folder(out, v.id)) if kept == "full" else None, "video": sweep.spec.video})
              for v in todo]
     if ray is not None:
         return execute.on_ray(tasks, ray, workers), f"ray ({ray})"

@@ -15,7 +15,6 @@ import signal
 import time
 from collections.abc import Iterable, Iterator
 from multiprocessing import connection
-from pathlib import Path
 from typing import Any
 
 from simbench.errors import RunError, ScenarioError
@@ -192,8 +191,3 @@ def cpu_count() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         return os.cpu_count() or 1
-
-
-def out_of(folder: Path, run_id: str) -> str:
-    """Where a run's own outputs go."""
-    return str(folder / "runs" / run_id)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from simbench.atomic import write_text
 from simbench.errors import ScenarioError
-from simbench.report import plain
+from simbench.report import plain, write_report
 from simbench.sweep.spec import Sweep, Variant
 
 
@@ -81,13 +81,18 @@ class Store:
     def record(self, variant: Variant, outcome: dict) -> dict:
         """Write a finished run's row (and its report, if kept) and return the row."""
         if outcome.get("report") is not None:
-            folder = self.out / "runs" / variant.id
+            folder = run_folder(self.out, variant.id)
             folder.mkdir(parents=True, exist_ok=True)
-            write_text(folder / "report.json", json.dumps(outcome["report"], indent=2, allow_nan=False) + "\n")
+            write_report(outcome["report"], folder / "report.json")
         row = plain({"run": variant.index, "id": variant.id, "params": variant.params, "status": outcome["status"],
                       "error": outcome["error"], "metrics": outcome["metrics"], "wall_time": outcome["wall_time"]})
         write_text(self.out / "rows" / f"{variant.id}.json", json.dumps(row, allow_nan=False) + "\n")
         return row
+
+
+def run_folder(out: Path, run_id: str) -> Path:
+    """Where a run's own outputs go."""
+    return out / "runs" / run_id
 
 
 def _fingerprint_in(manifest: Path) -> str | None:

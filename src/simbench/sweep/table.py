@@ -124,16 +124,15 @@ def write_plots(table: dict[str, list], params: list[str], grid: list[str], metr
     plotted = [p for p in params if axes[p] is not None][:_MAX_PARAM_PANELS]
     notes += [f"parameter {p} is not plotted (vector values or too many categories)" for p in params
               if axes[p] is None]
+    numeric_grid = [p for p in grid if axes[p] is not None and axes[p][1] is None]
     with staged_folder(folder) as tmp:
         for metric in metrics:
             if metric not in table:
                 notes.append(f"no metric '{metric}' in the results (plots: expects a column of results.csv)")
                 continue
-            y = np.array([v if isinstance(v, (int, float)) and v is not None else np.nan for v in table[metric]],
-                         float)
+            y = np.array([v if isinstance(v, (int, float)) else np.nan for v in table[metric]], float)
             if plotted:
                 written.append(_scatter(metric, y, ok, plotted, axes, tmp))
-            numeric_grid = [p for p in grid if axes[p] is not None and axes[p][1] is None]
             if len(numeric_grid) >= 2:
                 written.append(_heatmap(metric, y, ok, numeric_grid[:2], table, tmp))
     return written, notes
@@ -169,13 +168,13 @@ def _scatter(metric: str, y: np.ndarray, ok: np.ndarray, params: list[str], axes
 def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table: dict, folder: Path) -> str:
     """The median of the metric over the runs at each grid cell (failed runs left out; a cell with none blank)."""
     xs, ys = (sorted(set(table[p])) for p in pair)
+    by_cell: dict[tuple, list[float]] = {}
+    for k, cell in enumerate(zip(table[pair[0]], table[pair[1]])):
+        if ok[k] and np.isfinite(y[k]):
+            by_cell.setdefault(cell, []).append(y[k])
     cells = np.full((len(ys), len(xs)), np.nan)
-    for j, yv in enumerate(ys):
-        for i, xv in enumerate(xs):
-            here = [k for k, (a, b) in enumerate(zip(table[pair[0]], table[pair[1]]))
-                    if a == xv and b == yv and ok[k] and np.isfinite(y[k])]
-            if here:
-                cells[j, i] = np.median(y[here])
+    for (xv, yv), values in by_cell.items():
+        cells[ys.index(yv), xs.index(xv)] = np.median(values)
     fig, ax = plt.subplots(figsize=(5.5, 4.2))
     image = ax.imshow(cells, origin="lower", aspect="auto", cmap="viridis")
     ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs])
