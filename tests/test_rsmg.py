@@ -18,6 +18,11 @@ from simbench.trajectory import Switch
 V = Rotation.random(3000, random_state=0).as_matrix()[:, :, 0]  # unit vectors all over the sphere
 
 
+def matrices(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices of MuJoCo's w x y z quaternions, by SciPy (not simbench's own conversion)."""
+    return Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
+
+
 @pytest.mark.parametrize("arm", range(S.ARMS))
 def test_ik_reaches_the_em_axis_within_the_link_constraints(arm):
     theta, gamma = S.ik(arm, V)
@@ -172,18 +177,13 @@ def test_dk_of_the_simulated_joints_is_the_simulated_rotor(evaluated):
     holds = {w.detail["arm"] - 1: "abc".index(w.detail["to_point"]) for w in ev.trajectory.switches if w.t == 0}
     arms = sorted(holds)
     points = np.array([S.POINTS[i, holds[i]] for i in arms])
-    rot = Rotation.from_quat(ev.recording.sensors["rotor_quat"][:, [1, 2, 3, 0]]).as_matrix()
+    rot = matrices(ev.recording.sensors["rotor_quat"])
     for k in np.flatnonzero(ev.recording.t < first)[::200]:
         q = ev.recording.q[k]
         solved = S.dk(arms, q[arms], q[[S.ARMS + i for i in arms]], points)
         u, _, vt = np.linalg.svd(solved)
         angle = np.arccos(np.clip((np.trace((u @ vt).T @ rot[k]) - 1) / 2, -1, 1))
         assert np.rad2deg(angle) < 0.05
-
-
-def rotor_state(model, data):
-    adr = model.joint("rotor").dofadr[0]
-    return data.qvel[adr:adr + 3].copy()
 
 
 def test_with_every_weld_off_the_rotor_coasts_freely():
@@ -240,8 +240,8 @@ def test_grip_feedback_re_solves_each_hold_for_the_point_really_gripped(evaluate
     ends with the grips' offsets held in: the rotor stays off by more."""
     scenario, ev = evaluated("rsmg", "tumble")
     traj, rec = ev.trajectory, ev.recording
-    rot = S._quat_to_matrix(rec.sensors["rotor_quat"])
-    ref = S._quat_to_matrix(traj.series["rotor_quat_ref"])
+    rot = matrices(rec.sensors["rotor_quat"])
+    ref = matrices(traj.series["rotor_quat_ref"])
     ease = int(round(round_robin._EASE / traj.dt))
     grips = [w for w in traj.switches if w.active and w.t > 0]
     assert grips

@@ -32,10 +32,13 @@ import numpy as np
 
 from simbench.errors import RunError
 from simbench.robots import agile_eye
+from simbench.rotations import axis_rotation, rotation_angle
 
 WEIGHTS = Path(__file__).resolve().parent / "data" / "agile_eye_fk.npz"
 CONE = np.deg2rad(75.0)
 TORSION = np.deg2rad(45.0)
+_E1 = np.cross(agile_eye.LINE_OF_SIGHT, [0.0, 0.0, 1.0])  # across the line of sight: tilt azimuths start here
+_E1 /= np.linalg.norm(_E1)
 
 
 def sample_workspace(n: int, rng: np.random.Generator) -> np.ndarray:
@@ -43,12 +46,10 @@ def sample_workspace(n: int, rng: np.random.Generator) -> np.ndarray:
     los = agile_eye.LINE_OF_SIGHT
     cos_tilt = rng.uniform(np.cos(CONE), 1.0, n)
     tilt, azimuth = np.arccos(cos_tilt), rng.uniform(0.0, 2 * np.pi, n)
-    e1 = np.cross(los, [0.0, 0.0, 1.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(los, e1)
-    axis = np.cos(azimuth)[:, None] * e1 + np.sin(azimuth)[:, None] * e2  # tilt axes, perpendicular to los
-    tilt_rot = _rodrigues(axis, tilt)
-    twist = _rodrigues(np.broadcast_to(los, (n, 3)), rng.uniform(-TORSION, TORSION, n))
+    e2 = np.cross(los, _E1)
+    axis = np.cos(azimuth)[:, None] * _E1 + np.sin(azimuth)[:, None] * e2  # tilt axes, perpendicular to los
+    tilt_rot = axis_rotation(axis, tilt)
+    twist = axis_rotation(np.broadcast_to(los, (n, 3)), rng.uniform(-TORSION, TORSION, n))
     return tilt_rot @ twist
 
 
@@ -60,25 +61,15 @@ def workspace_coordinates(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     sine = np.linalg.norm(axis, axis=1)
     tilt = np.arctan2(sine, sight @ los)
     axis = np.where(sine[:, None] > 1e-12, axis / np.maximum(sine, 1e-12)[:, None], [1.0, 0.0, 0.0])
-    untilted = np.einsum("nji,njk->nik", _rodrigues(axis, tilt), np.reshape(rot, (-1, 3, 3)))
-    e1 = np.cross(los, [0.0, 0.0, 1.0])
-    e1 /= np.linalg.norm(e1)
-    turned = untilted @ e1
-    return tilt, np.arctan2(np.cross(e1, turned) @ los, turned @ e1)
+    untilted = np.einsum("nji,njk->nik", axis_rotation(axis, tilt), np.reshape(rot, (-1, 3, 3)))
+    turned = untilted @ _E1
+    return tilt, np.arctan2(np.cross(_E1, turned) @ los, turned @ _E1)
 
 
 def in_workspace(rot: np.ndarray, slack: float = np.deg2rad(2.0)) -> np.ndarray:
     """Whether orientations lie in the training workspace (within `slack` of its edge)."""
     tilt, torsion = workspace_coordinates(rot)
     return (tilt <= CONE + slack) & (np.abs(torsion) <= TORSION + slack)
-
-
-def _rodrigues(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    k = np.zeros((len(axis), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-    k -= k.transpose(0, 2, 1)
-    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    return np.eye(3) + s * k + (1 - c) * k @ k
 
 
 def features(theta: np.ndarray) -> np.ndarray:
@@ -163,7 +154,8 @@ def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 
     except ImportError as err:
         raise RunError("training needs scikit-learn: pip install -e '.[train]'") from err
     split = int(0.75 * samples)
-    theta, rot = training_set(0, samples, seed)
+    mode_0 = training_set(0, samples, seed)
+    theta, rot = mode_0
     model = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="lbfgs", max_iter=4000, tol=1e-10,
                          random_state=seed)
     model.fit(features(theta[:split]), targets(rot[:split]))
@@ -172,8 +164,8 @@ def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 
     stats = {"median": [], "p95": [], "max": []}
     for m in range(8):
         net = for_mode(base, m)
-        theta, rot = training_set(m, samples, seed)
-        error = np.rad2deg(agile_eye.rotation_angle(to_rotation(net(features(theta[split:]))), rot[split:]))
+        theta, rot = mode_0 if m == 0 else training_set(m, samples, seed)
+        error = np.rad2deg(rotation_angle(to_rotation(net(features(theta[split:]))), rot[split:]))
         for key, value in (("median", np.median(error)), ("p95", np.percentile(error, 95)), ("max", error.max())):
             stats[key].append(float(value))
         log(f"mode {m}: held-out error median {stats['median'][-1]:.3f} deg, 95th percentile "

@@ -94,10 +94,15 @@ class Composite:
         """Arc length (m)."""
         return float(sum(seg.length for seg in self.segments))
 
+    @property
+    def bounds(self) -> np.ndarray:
+        """The global s at which each segment starts, and 1 (len(segments) + 1,)."""
+        lengths = np.array([seg.length for seg in self.segments])
+        return np.concatenate([[0.0], np.cumsum(lengths)]) / lengths.sum()
+
     def _locate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Segment index and local parameter of each global s."""
-        lengths = np.array([seg.length for seg in self.segments])
-        bounds = np.concatenate([[0.0], np.cumsum(lengths)]) / lengths.sum()
+        bounds = self.bounds
         s = np.clip(np.asarray(s, float), 0.0, 1.0)
         index = np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, len(self.segments) - 1)
         local = (s - bounds[index]) / (bounds[index + 1] - bounds[index])

@@ -29,6 +29,7 @@ from scipy.optimize import minimize
 from simbench import learnt_fk
 from simbench.planners import Planner
 from simbench.robots import agile_eye
+from simbench.rotations import matrix_to_quat, rotation_angle
 from simbench.schema import NonNegative, NonNegativeAngle, Orientation, Positive, PositiveAngle, SimbenchModel
 from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, control_grid
@@ -120,7 +121,7 @@ def clearances(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict[str, np.n
         out["kci"] = agile_eye.kci(theta, rot)
     for k, obstacle in enumerate(task.obstacles):
         center = np.broadcast_to(obstacle.center.matrix(), rot.shape)
-        out[obstacle.name or f"obstacle{k + 1}"] = agile_eye.rotation_angle(center, rot) - obstacle.radius
+        out[obstacle.name or f"obstacle{k + 1}"] = rotation_angle(center, rot) - obstacle.radius
     out["type2"] = agile_eye.axis_gaps(rot).min(axis=1)
     return out
 
@@ -289,7 +290,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
                 for name, c in exact["clearance"].items() if c < need[name] - 1e-9]
     det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0])
     crossings = t[1:][np.sign(det_a[1:]) * np.sign(det_a[:-1]) < 0]
-    goal_error = float(agile_eye.rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
+    goal_error = float(rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
     if crossings.size:
         warnings.append(f"the path crosses the type 2 singular surface at t = {crossings[0]:.3f} s (det A changes "
                         f"sign): the platform changes assembly mode and ends {np.rad2deg(goal_error):.1f} deg "
@@ -310,7 +311,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     if task.avoidance.enabled and task.avoidance.estimator == "network":
         estimated = clearances(task, theta, learnt_fk.load()(theta, task.working_mode))
         info["clearance_estimated"] = {name: float(c.min()) for name, c in estimated.items()}
-    quat = agile_eye.matrix_to_quat(rot)
+    quat = matrix_to_quat(rot)
     aim = rot @ agile_eye.LINE_OF_SIGHT * agile_eye.AIM
     waypoints = tuple({"s": s, "X": aim[k].tolist(), "q": theta[k].tolist(), "quat": quat[k].tolist()}
                       for s, k in ((0.0, 0), (1.0, -1)))

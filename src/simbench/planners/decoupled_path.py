@@ -198,10 +198,9 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     q_ref = continuous(raw)
     qd_ref = rate(evaluate, s, np.ones(6, bool)) * ds[:, None]
     tool_ref = path.point(s)
-    bounds = np.concatenate([[0.0], np.cumsum([seg.length for seg in path.segments]) / path.length])
+    bounds = path.bounds
     grid = np.union1d(np.linspace(0.0, 1.0, 2001), bounds)
-    wp_q = continuous(evaluate(grid))[np.searchsorted(grid, bounds)]
-    wp_q += 2 * np.pi * np.round((q_ref[0] - wp_q[0]) / (2 * np.pi))
+    wp_q = continuous(evaluate(grid))[np.searchsorted(grid, bounds)]  # from s = 0, as q_ref: the same turns
     waypoints = tuple({"s": float(b), "X": x.tolist(), "q": qq.tolist()}
                       for b, x, qq in zip(bounds, path.point(bounds), wp_q))
     speed = np.linalg.norm(np.gradient(tool_ref, t, axis=0), axis=1)

@@ -40,7 +40,9 @@ from scipy.spatial.transform import Rotation
 from simbench.errors import RunError
 from simbench.planners import Planner
 from simbench.robots import rsmg
+from simbench.rotations import matrix_to_quat
 from simbench.schema import Direction, NonNegative, NonNegativeAngle, Positive, SimbenchModel
+from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, Switch, control_grid
 
 _STEP = 0.005  # s: the schedule's time step
@@ -48,6 +50,7 @@ _FIT = 4  # schedule steps on each side of a swing from which its end states are
 _SEARCH = 2000  # most choices the schedule's search tries
 _EARLIER = 2  # earlier releases a swing apart that the search may try after the latest one, per next point
 _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this time
+_QUINTIC = TimeLaw("quintic", 1.0)
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 
 
@@ -96,13 +99,11 @@ class Hold:
 
 @dataclass
 class _Choice:
-    """A moment where `arm` must let go of `point` (held since step `since`): the (release step, next point)
-    options not yet tried, in order of preference, and the release taken."""
+    """A moment where `arm` must let go of the point it holds (current: each arm's (point, held since step)): the
+    (release step, next point) options not yet tried, in order of preference, and the release taken."""
 
     current: dict[int, tuple[int, int]]
     arm: int
-    point: int
-    since: int
     options: list[tuple[int, int]]
     release: int = -1
 
@@ -197,7 +198,7 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
                 break
             step = deadline
         _, arm = exits[0]
-        point, since = current[arm]
+        since = current[arm][1]
         if any(e < step + n_swing for e, _ in exits[1:]):
             return step, (f"at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm leaves the "
                           "gamma band before it can grip again")
@@ -206,7 +207,7 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
         if not options:
             return step, (f"at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point inside the gamma band "
                           f"(eq. 45) to swing to while the others hold the rotor with |det A| >= {task.det_a_min:g}")
-        return _Choice(current, arm, point, since, options)
+        return _Choice(current, arm, options)
 
     taken: list[_Choice] = []  # the choices on the way so far, depth first
     stuck: list[tuple[int, str]] = []
@@ -226,7 +227,7 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
         choice.release, nxt = choice.options.pop(0)
         tries += 1
         found = next_choice({**choice.current, choice.arm: (nxt, choice.release + n_swing)}, choice.release + 1)
-    holds = [Hold(c.arm, c.point, c.since, c.release) for c in taken] + found
+    holds = [Hold(c.arm, *c.current[c.arm], c.release) for c in taken] + found
     return sorted(holds, key=lambda h: (h.arm, h.start))
 
 
@@ -309,7 +310,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
         engaged[(t >= grid[h.start]) & (t < stop), h.arm] = True
     feedback = _RegripFeedback(rot, q_ref, holds, grid, dt, round(task.swing_time / dt)) if task.regrip_feedback \
         else None
-    quat = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]
+    quat = matrix_to_quat(rot)
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
         "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": rsmg.CANDIDATES},
@@ -318,8 +319,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     }
     return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=qd_ref, tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS),
                            info=info, switches=tuple(sorted(switches, key=lambda w: w.t)),
-                           series={"rotor_quat_ref": quat * np.where(quat[:, :1] < 0, -1.0, 1.0),
-                                   "engaged_ref": engaged},
+                           series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                            initial={"rotor": quat[0].tolist()}, feedback=feedback)
 
 
@@ -357,9 +357,8 @@ class _RegripFeedback:
 
 
 def _smoothstep(u: np.ndarray) -> np.ndarray:
-    """0 before u = 0, 1 after u = 1, a quintic with zero rate and acceleration at both ends between."""
-    u = np.clip(u, 0.0, 1.0)
-    return u**3 * (10 - 15 * u + 6 * u**2)
+    """0 before u = 0, 1 after u = 1, the quintic time law between (zero rate and acceleration at both ends)."""
+    return _QUINTIC(u, order=0)[0]
 
 
 PLANNER = Planner(

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance
+from simbench.rotations import axis_rotation, canonical, quat_to_matrix, rotation_angle
 
 U = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # rows: u1, u2, u3
 LINE_OF_SIGHT = np.ones(3) / np.sqrt(3.0)
@@ -143,46 +144,17 @@ def assemble(theta: np.ndarray, rot: np.ndarray | None = None) -> dict[str, floa
     out = {}
     distal_1 = None
     for i in range(3):
-        proximal = _axis_rotation(U[i], theta[i])
+        proximal = axis_rotation(U[i][None], theta[i:i + 1])[0]
         w0 = home_axes[i]
         target = proximal.T @ rot[:, i]
         e = np.eye(3)[i]
         phi = np.arctan2(np.cross(e, target) @ w0, e @ target)
         out[PASSIVE[i]] = float(phi)
         if i == 0:
-            distal_1 = proximal @ _axis_rotation(w0, phi)
+            distal_1 = proximal @ axis_rotation(w0[None], np.array([phi]))[0]
     m = distal_1.T @ rot
     out[PASSIVE[3]] = float(np.arctan2(m[2, 1], m[1, 1]))
     return out
-
-
-def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rodrigues' rotation matrix about a unit axis."""
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
-
-
-def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
-    """Rotation matrices (N, 3, 3) of unit quaternions (N, 4), w x y z."""
-    w, x, y, z = np.reshape(quat, (-1, 4)).T
-    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
-def matrix_to_quat(rot: np.ndarray) -> np.ndarray:
-    """Unit quaternions (N, 4), w x y z with w >= 0, of rotation matrices (N, 3, 3)."""
-    from scipy.spatial.transform import Rotation
-
-    xyzw = Rotation.from_matrix(np.reshape(rot, (-1, 3, 3))).as_quat()
-    wxyz = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
-    return wxyz * np.where(wxyz[:, :1] < 0, -1.0, 1.0)
-
-
-def rotation_angle(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
-    """Geodesic angle (N,) between rotations r1 and r2 (N, 3, 3)."""
-    cos = (np.einsum("nij,nij->n", r1, r2) - 1) / 2
-    return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
 def _platform(rec) -> np.ndarray:
@@ -213,7 +185,7 @@ def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     rot = _platform(rec)
     report = {"closure_error_max": float(series["closure_error"].max()),
               "kci": {"mean": float(series["kci"].mean()), "min": float(series["kci"].min())}}
-    extra = {"platform_quat": matrix_to_quat(rot), "base_angles": rec.q.copy()}
+    extra = {"platform_quat": canonical(rec.sensors["platform_quat"]), "base_angles": rec.q.copy()}
     if "platform_quat_ref" in traj.series:
         error = rotation_angle(quat_to_matrix(traj.series["platform_quat_ref"]), rot)
         extra["orientation_error"] = error

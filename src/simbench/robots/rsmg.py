@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance
+from simbench.rotations import quat_to_matrix, rotation_angle
 
 ALPHA = np.deg2rad(70.0)
 BETA = np.deg2rad(70.0)
@@ -179,19 +180,12 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
                         type_b / GAMMA_BAND[0], {"gamma": type_b})]
 
 
-def _quat_to_matrix(quat: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
-
-
 def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped."""
     engaged = _engaged(rec)
     gamma = rec.q[:, ARMS:]
-    rot = _quat_to_matrix(rec.sensors["rotor_quat"])
-    ref = _quat_to_matrix(traj.series["rotor_quat_ref"])
-    error = np.arccos(np.clip((np.einsum("nij,nij->n", ref, rot) - 1) / 2, -1.0, 1.0))
+    rot = quat_to_matrix(rec.sensors["rotor_quat"])
+    error = rotation_angle(quat_to_matrix(traj.series["rotor_quat_ref"]), rot)
     held = gamma[engaged]
     closure = _closure_error(rec, rot, engaged)
     report = {
@@ -199,7 +193,7 @@ def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
         "closure_error_max": float(closure.max()),
         "fewest_gripping": int(engaged.sum(axis=1).min()),
         "gripping_gamma": {"min": float(held.min()), "max": float(held.max())},
-        "switch_events": _switch_events(traj, rec),
+        "switch_events": _switch_events(traj, rec, rot),
     }
     extra = {"gamma": gamma.copy(), "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"].copy(),
              "rotor_error": error, "closure_error": closure}
@@ -212,21 +206,20 @@ def _closure_error(rec, rot: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     closure = np.zeros(rec.t.size)
     for arm in range(ARMS):
         on_rotor = np.einsum("nji,nj->ni", rot, rec.sensors[f"em{arm + 1}_tip"])  # R^T tip, in the rotor's frame
-        grips = np.flatnonzero(np.diff(np.concatenate([[False], engaged[:, arm]]).astype(int)) == 1)
-        since = np.maximum.accumulate(np.where(np.isin(np.arange(rec.t.size), grips), np.arange(rec.t.size), 0))
+        grip = engaged[:, arm] & ~np.concatenate([[False], engaged[:-1, arm]])  # the rows where it grips
+        since = np.maximum.accumulate(np.where(grip, np.arange(rec.t.size), 0))
         drift = np.linalg.norm(on_rotor - on_rotor[since], axis=1)
         closure = np.maximum(closure, np.where(engaged[:, arm], drift, 0.0))
     return closure
 
 
-def _switch_events(traj, rec) -> list[dict]:
+def _switch_events(traj, rec, rot: np.ndarray) -> list[dict]:
     """One event a re-grip: release to grip, the arm, the points; the grip's snap (the EM tip's jump in the step
     after the weld goes on, beyond what its motion before carried it: the second difference of its position); and
     the grip's offset (how far the EM tip is from the planned contact point when it grips, which the weld then
-    keeps)."""
+    keeps). `rot`: the recorded rotor orientations."""
     events = []
     releases = {}
-    rot = _quat_to_matrix(rec.sensors["rotor_quat"])
     for sw in traj.switches:
         arm = sw.detail["arm"]
         if not sw.active:
