@@ -1,6 +1,9 @@
-"""Shared fixtures: shipped scenarios, and their simulations cached for the session."""
+"""Shared fixtures: shipped scenarios, their simulations cached for the session, and Ctrl-C sent to a command."""
 
 import os
+import signal
+import subprocess
+import time
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -13,6 +16,22 @@ from simbench.resources import scenarios_dir  # noqa: E402
 def scenario_file(robot: str, name: str):
     """Path of a shipped scenario."""
     return scenarios_dir() / robot / f"{name}.yaml"
+
+
+SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
+
+
+def interrupt(command: list[str], ready, cwd, timeout: float = 120) -> subprocess.CompletedProcess:
+    """Run a command, send it Ctrl-C (SIGINT) once ready() is true, and wait for it (each within `timeout` s)."""
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
+    deadline = time.monotonic() + timeout
+    while not ready():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=timeout)
+    return subprocess.CompletedProcess(command, proc.returncode, stdout, stderr)
 
 
 @pytest.fixture(scope="session")

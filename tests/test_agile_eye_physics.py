@@ -36,9 +36,10 @@ def test_driving_through_a_singularity_is_caught(evaluated):
     _, ev = evaluated("agile_eye", "through_singularity")
     kinds = [e["kind"] for e in ev.analysis.singularity_events]
     assert "type2" in kinds
-    type2 = [e for e in ev.analysis.singularity_events if e["kind"] == "type2"][0]
+    type2 = [e for e in ev.analysis.singularity_events if e["kind"] == "type2"]
     gap = E.axis_gaps(E.quat_to_matrix(ev.recording.sensors["platform_quat"])).min(axis=1)
-    assert type2["t_start"] <= ev.recording.t[np.argmin(gap)] <= type2["t_end"] or len(kinds) > 1
+    closest = ev.recording.t[np.argmin(gap)]
+    assert any(e["t_start"] <= closest <= e["t_end"] for e in type2)
     # The simulated platform changes assembly mode (det A changes sign), and the report counts each change.
     changes = [e for e in ev.analysis.singularity_events if e["kind"] == "assembly_mode_change"]
     det = ev.analysis.series["det_a"]

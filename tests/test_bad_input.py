@@ -14,11 +14,12 @@ from pathlib import Path
 
 import pytest
 import yaml
+from conftest import SHIPPED
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from simbench.cli import main
-from simbench.resources import scenarios_dir, sweeps_dir
+from simbench.resources import sweeps_dir
 
 CORPUS = Path(__file__).parent / "bad_scenarios"
 EXPECTED = dict(line.split(": ", 1) for line in (CORPUS / "EXPECTED.txt").read_text().splitlines()
@@ -119,7 +120,6 @@ def test_corpus_file_gives_its_one_line_and_exit_2(name, tmp_path, capsys):
         assert not (tmp_path / "out").exists()
 
 
-SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
 _leaf = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True),
                   st.text(max_size=12), st.sampled_from(["deg", "mm", "zyx", "quat", "line", "arc", "1e5", ".nan"]))
 _value = st.recursive(_leaf, lambda inner: st.one_of(st.lists(inner, max_size=5),
@@ -144,9 +144,8 @@ def _validate_text(text: str, capsys, command=("validate",)) -> tuple[int, list[
         path.write_text(text)
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # a warning would be a second line on stderr
-            code = main([command[0], str(path), *command[1:]])
-        captured = capsys.readouterr()
-        return code, captured.err.strip().splitlines(), str(path)
+            code, lines = run_cli([command[0], str(path), *command[1:]], capsys)
+        return code, lines, str(path)
 
 
 def _assert_clean(code: int, lines: list[str], path: str) -> None:

@@ -6,12 +6,10 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 import pytest
-from conftest import scenario_file
+from conftest import SHIPPED, scenario_file
 
 from simbench.cli import main
-from simbench.resources import scenarios_dir
-
-SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
+from simbench.report import write_timeseries
 
 
 @pytest.fixture(scope="module")
@@ -122,11 +120,19 @@ def test_list_names_robots_planners_and_scenarios(capsys):
         assert path.name in text
 
 
-@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
-def test_every_shipped_scenario_runs_to_complete_outputs(path, tmp_path):
+@pytest.mark.parametrize("path", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
+def test_every_shipped_scenario_runs_to_complete_and_bit_for_bit_repeatable_outputs(path, tmp_path, evaluated):
+    """The run's outputs are all there, and its timeseries equals, byte for byte, the one written from the
+    session's own evaluation of the scenario (made separately, among other runs in this process)."""
     out = tmp_path / path.stem
     assert main(["run", str(path), "--out", str(out), "--no-video", "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["scenario"]["name"] == path.stem
-    assert np.load(out / "timeseries.npz")["t"].size == report["samples"]
     assert all((out / name).is_file() for name in report["outputs"]["plots"])
+    scenario, other = evaluated(path.parent.name, path.stem)
+    write_timeseries(scenario.robot_def, other.trajectory, other.recording, other.analysis, tmp_path / "other.npz")
+    a, b = np.load(out / "timeseries.npz"), np.load(tmp_path / "other.npz")
+    assert a["t"].size == report["samples"]
+    assert a.files == b.files and len(a.files) > 10
+    for name in a.files:
+        assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name

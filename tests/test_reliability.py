@@ -3,7 +3,6 @@ keeps what it recorded; Ctrl-C leaves the previous complete output or none; ever
 bit-for-bit deterministic."""
 
 import json
-import signal
 import subprocess
 import sys
 import time
@@ -13,14 +12,12 @@ import mujoco
 import numpy as np
 import pytest
 import yaml
-from conftest import scenario_file
+from conftest import interrupt, scenario_file
 
 import simbench
 from simbench import sim
 from simbench.cli import main
 from simbench.errors import PhysicsError
-from simbench.report import write_timeseries
-from simbench.resources import scenarios_dir
 
 
 def stiff_puma(tmp_path) -> Path:
@@ -114,38 +111,25 @@ def test_a_fault_prints_one_line_and_leaves_no_mujoco_log(tmp_path):
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
 
 
-def _interrupt(command: list[str], ready, cwd: Path) -> subprocess.CompletedProcess:
-    """Run a command, send it Ctrl-C (SIGINT) once ready() is true, and wait for it."""
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
-    deadline = time.monotonic() + 120
-    while not ready():
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
-    proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=120)
-    return subprocess.CompletedProcess(command, proc.returncode, stdout, stderr)
-
-
 def test_ctrl_c_leaves_the_previous_output_or_none(tmp_path):
     out = tmp_path / "demo"
     command = [sys.executable, "-m", "simbench", "run", str(scenario_file("spherical_arm", "demo")), "--out",
                str(out), "--quiet"]
     staging = lambda: list(tmp_path.glob(".demo.partial-*"))  # noqa: E731 - the outputs are being written
     # Interrupted while its outputs are being written, into a fresh folder: nothing is left.
-    done = _interrupt(command, staging, tmp_path)
+    done = interrupt(command, staging, tmp_path)
     assert (done.returncode, done.stderr) == (130, "interrupted\n")
     assert list(tmp_path.iterdir()) == []
     # A complete run, then a forced rerun interrupted mid-video: the complete output is untouched.
     assert subprocess.run(command, cwd=tmp_path).returncode == 0
     before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
-    done = _interrupt(command + ["--force"], lambda: any(p.glob("video.mp4") for p in staging()), tmp_path)
+    done = interrupt(command + ["--force"], lambda: any(p.glob("video.mp4") for p in staging()), tmp_path)
     assert (done.returncode, done.stderr) == (130, "interrupted\n")
     assert [p.name for p in tmp_path.iterdir()] == ["demo"]
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
     # Interrupted while it starts (importing MuJoCo and the rest): no traceback either.
     start = time.monotonic()
-    done = _interrupt(command + ["--force"], lambda: time.monotonic() > start + 0.3, tmp_path)
+    done = interrupt(command + ["--force"], lambda: time.monotonic() > start + 0.3, tmp_path)
     assert (done.returncode, done.stderr) == (130, "interrupted\n")
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
 
@@ -182,20 +166,3 @@ def test_ctrl_c_is_held_back_on_request_and_survives_an_exec(tmp_path):
     done = subprocess.run([sys.executable, "-m", "probe"], capture_output=True, text=True, cwd=tmp_path, timeout=60)
     assert (done.returncode, done.stdout, done.stderr) == (130, "not raised inside raised after Interrupted True\n",
                                                            "")
-
-
-SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
-
-
-@pytest.mark.parametrize("path", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
-def test_every_shipped_scenario_is_bit_for_bit_deterministic(path, tmp_path, evaluated):
-    """The session's first evaluation of the scenario (made earlier, among other runs in this process) and a
-    fresh one write the same timeseries, byte for byte."""
-    scenario, first = evaluated(path.parent.name, path.stem)
-    second = simbench.evaluate(scenario)
-    for name, ev in (("a", first), ("b", second)):
-        write_timeseries(scenario.robot_def, ev.trajectory, ev.recording, ev.analysis, tmp_path / f"{name}.npz")
-    a, b = np.load(tmp_path / "a.npz"), np.load(tmp_path / "b.npz")
-    assert a.files == b.files and len(a.files) > 10
-    for name in a.files:
-        assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name

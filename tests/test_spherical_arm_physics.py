@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-import simbench
 from simbench.analysis import path_deviation
 from simbench.robots import spherical_arm
 from simbench.sim import Plant, simulate
@@ -111,13 +110,6 @@ def test_velocity_feedforward_reduces_lag(evaluated):
     lag_without = np.abs(without.q - with_ff.trajectory.q_ref).max(axis=0)
     lag_with = np.abs(with_ff.recording.q - with_ff.trajectory.q_ref).max(axis=0)
     assert np.all(lag_with[1:] < 0.5 * lag_without[1:])
-
-
-def test_same_scenario_twice_gives_identical_arrays(evaluated):
-    scenario, first = evaluated("spherical_arm", "case3")
-    second = simbench.evaluate(scenario)
-    for name in ("qpos", "q", "qd", "ctrl", "tool"):
-        assert np.array_equal(getattr(first.recording, name), getattr(second.recording, name)), name
 
 
 def test_joint_move_interpolates_joints_and_leaves_the_straight_line(evaluated):

@@ -5,20 +5,19 @@ import csv
 import itertools
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
+from conftest import interrupt, scenario_file
 
 import simbench
 from simbench.cli import main
 from simbench.errors import ScenarioError
-from simbench.resources import scenarios_dir, sweeps_dir
+from simbench.resources import sweeps_dir
 from simbench.sweep import execute, load_sweep, run_sweep
 from simbench.sweep.spec import assign, parse_path
 from simbench.sweep.store import Store
@@ -87,7 +86,7 @@ def test_table_metrics_are_the_runs_own_numbers(tmp_path):
     """A row's metrics equal those of the same scenario evaluated on its own; its report is kept."""
     spec = {"base": CASE1, "grid": {"timing.duration": [3, 5]}}
     result = run_sweep(load_sweep(write(tmp_path, spec)), tmp_path / "out", workers=1)
-    scenario = simbench.load_scenario(scenarios_dir() / f"{CASE1}.yaml")
+    scenario = simbench.load_scenario(scenario_file(*CASE1.split("/")))
     alone = simbench.evaluate(scenario.model_copy(update={"timing": scenario.timing.model_copy(
         update={"duration": 5.0})}))
     row = read_csv(tmp_path / "out" / "results.csv")[1]
@@ -141,14 +140,9 @@ def test_interrupted_sweep_resumes_where_it_stopped(tmp_path):
     path = write(tmp_path, spec)
     out = tmp_path / "out"
     command = [sys.executable, "-m", "simbench", "sweep", path, "--out", str(out), "--workers", "2", "--quiet"]
-    proc = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while len(list((out / "rows").glob("*.json"))) < 3 if (out / "rows").exists() else True:
-        assert time.monotonic() < deadline and proc.poll() is None
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and "run the same command again to resume" in err and "Traceback" not in err
+    stopped = interrupt(command, lambda: len(list((out / "rows").glob("*.json"))) >= 3, None, timeout=60)
+    err = stopped.stderr
+    assert stopped.returncode == 130 and "run the same command again to resume" in err and "Traceback" not in err
     done = len(list((out / "rows").glob("*.json")))
     assert 3 <= done < 24
     assert not (out / "results.csv").exists()
