@@ -19,7 +19,7 @@ type 2 singularities by smooth bumps whose parameters SLSQP finds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Annotated, Literal
 
 import numpy as np
@@ -112,6 +112,15 @@ class Plan:
             out = out + w.offset(t, order)
         return out
 
+    def with_window(self, window: Window) -> Plan:
+        """This plan with one more window."""
+        return replace(self, windows=self.windows + (window,))
+
+
+def _obstacle_names(task: Task) -> list[str]:
+    """Each obstacle's name in the clearances and margins: its own, or obstacle<k> counting from 1."""
+    return [obstacle.name or f"obstacle{k + 1}" for k, obstacle in enumerate(task.obstacles)]
+
 
 def clearances(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict[str, np.ndarray]:
     """Clearance (rad) of each obstacle and of the singular curves along orientations (N, 3, 3), positive
@@ -119,16 +128,16 @@ def clearances(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict[str, np.n
     out = {}
     if task.kci_min > 0:
         out["kci"] = agile_eye.kci(theta, rot)
-    for k, obstacle in enumerate(task.obstacles):
+    for name, obstacle in zip(_obstacle_names(task), task.obstacles):
         center = np.broadcast_to(obstacle.center.matrix(), rot.shape)
-        out[obstacle.name or f"obstacle{k + 1}"] = rotation_angle(center, rot) - obstacle.radius
+        out[name] = rotation_angle(center, rot) - obstacle.radius
     out["type2"] = agile_eye.axis_gaps(rot).min(axis=1)
     return out
 
 
 def margins(task: Task) -> dict[str, float]:
     """The clearance each constraint must keep."""
-    out = {obstacle.name or f"obstacle{k + 1}": task.obstacle_clearance for k, obstacle in enumerate(task.obstacles)}
+    out = dict.fromkeys(_obstacle_names(task), task.obstacle_clearance)
     out["type2"] = task.singularity_clearance
     if task.kci_min > 0:
         out["kci"] = task.kci_min
@@ -155,8 +164,10 @@ def _score(plan: Plan, t: np.ndarray, estimate: _Estimator, anchor: np.ndarray,
     theta = plan.theta(t)
     rot = estimate(theta, anchor)
     need = margins(task)
-    slack = {name: float(c.min() - need[name]) for name, c in clearances(task, theta, rot).items()}
-    return float(agile_eye.kci(theta, rot).mean()), slack
+    clear = clearances(task, theta, rot)
+    slack = {name: float(c.min() - need[name]) for name, c in clear.items()}
+    kci = clear["kci"] if "kci" in clear else agile_eye.kci(theta, rot)
+    return float(kci.mean()), slack
 
 
 def _seeds(plan: Plan, t_worst: float, name: str, task: Task, estimate: _Estimator,
@@ -185,8 +196,7 @@ def _optimise_window(plan: Plan, t0: float, seeds: list[np.ndarray], task: Task,
 
     def with_window(x: np.ndarray) -> Plan:
         direction = x[:3] / max(np.linalg.norm(x[:3]), 1e-12)
-        window = Window(t0, length, direction, float(x[3]))
-        return Plan(plan.theta_init, plan.theta_final, plan.law, plan.windows + (window,))
+        return plan.with_window(Window(t0, length, direction, float(x[3])))
 
     cache: dict[bytes, tuple[float, dict]] = {}
 
@@ -232,8 +242,8 @@ def optimise(task: Task, law: TimeLaw) -> tuple[Plan, list[dict]]:
     estimate = _Estimator(task.avoidance.estimator, task.working_mode)
     length = task.avoidance.window
     steps = []
+    need = margins(task)
     for _ in range(task.avoidance.max_windows):
-        need = margins(task)
         theta = plan.theta(t)
         rot = exact(theta, start_rot)
         slack = {name: c - need[name] for name, c in clearances(task, theta, rot).items()}
@@ -251,12 +261,13 @@ def optimise(task: Task, law: TimeLaw) -> tuple[Plan, list[dict]]:
             chosen, used = exact, "exact (the window leaves the network's training workspace)"
         window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, chosen, rot[k]),
                                             task, chosen, anchor)
-        candidate = Plan(plan.theta_init, plan.theta_final, plan.law, plan.windows + (window,))
+        candidate = plan.with_window(window)
         if chosen.kind == "network" and min(_score(candidate, span, exact, anchor, task)[1].values()) < 0:
             window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, exact, rot[k]),
                                                 task, exact, anchor)
             used = "exact (the network's window failed the exact check)"
-        plan = Plan(plan.theta_init, plan.theta_final, plan.law, plan.windows + (window,))
+            candidate = plan.with_window(window)
+        plan = candidate
         steps.append({"avoiding": worst_name, "t_worst": t_worst, "t0": t0, "length": length,
                       "alpha": float(window.direction[0]), "beta": float(window.direction[1]),
                       "gamma": float(window.direction[2]), "L": window.amplitude, "estimator": used,
