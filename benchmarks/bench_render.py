@@ -16,9 +16,8 @@ import mujoco
 import numpy as np
 
 import simbench
-from benchmarks.common import interleaved
+from benchmarks.common import interleaved, shipped
 from simbench.render import render_video
-from simbench.resources import scenarios_dir
 
 REPEATS = 3
 CASES = (("spherical_arm", "demo"), ("puma600", "weld_seam"), ("rsmg", "three_turns"))
@@ -42,7 +41,7 @@ def _raw(scene: Path, qpos: np.ndarray, camera: str, width: int, height: int) ->
 
 def measure_case(robot_name: str, scenario: str) -> dict:
     """Frames per second of simbench's video and of raw frames, and the median pairwise ratio."""
-    sc = simbench.load_scenario(scenarios_dir() / robot_name / f"{scenario}.yaml")
+    sc = shipped(f"{robot_name}/{scenario}")
     ev = simbench.evaluate(sc)
     rec, traj, r = ev.recording, ev.trajectory, sc.render
     robot = sc.robot_def

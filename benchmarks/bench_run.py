@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 
 import simbench
-from simbench.resources import scenarios_dir
+from benchmarks.common import shipped
 
 REPEATS = 3
 
 
 def measure(robot_name: str = "spherical_arm", scenario: str = "demo") -> dict:
     """Median seconds per stage over REPEATS runs of the scenario with video."""
-    sc = simbench.load_scenario(scenarios_dir() / robot_name / f"{scenario}.yaml")
+    sc = shipped(f"{robot_name}/{scenario}")
     stages: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(REPEATS):

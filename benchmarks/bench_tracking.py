@@ -12,42 +12,32 @@ Target (issues 2 and 6): at least 0.9 of raw stepping.
 
 from __future__ import annotations
 
-import copy
-
 import mujoco
 import numpy as np
 from mujoco import rollout
 
-import simbench
-from benchmarks.common import interleaved
-from simbench.resources import scenarios_dir
-from simbench.sim import Plant, apply_switch, simulate
+from benchmarks.common import interleaved, shipped
+from simbench.sim import Plant, apply_switch, at_start, simulate
 
 REPEATS = 15
 CASES = (("spherical_arm", "demo"), ("rsmg", "three_turns"))
 
 
 def _start(plant: Plant, traj) -> tuple[mujoco.MjModel, mujoco.MjData, dict[int, list]]:
-    """A model and data at the plan's start, as `simulate` sets them (switches at step 0 applied), and the
-    other switches by step: the baselines do the same physics as the tracking loop, only without recording."""
-    model = copy.copy(plant.model)
-    data = mujoco.MjData(model)
-    data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
-    for name, value in traj.initial.items():
-        adr = model.joint(name).qposadr[0]
-        data.qpos[adr:adr + len(value)] = value
-    by_step: dict[int, list] = {}
-    for switch in traj.switches:
-        by_step.setdefault(int(np.rint(switch.t / model.opt.timestep)), []).append(switch)
-    for switch in by_step.pop(0, []):
-        apply_switch(model, data, switch)
+    """A model and data at the plan's start, as `simulate` sets them (`sim.at_start`), and the later switches
+    by step: the baselines do the same physics as the tracking loop, only without recording."""
+    model, data, steps = at_start(plant, traj)
     mujoco.mj_forward(model, data)
+    by_step: dict[int, list] = {}
+    for switch, k in zip(traj.switches, steps):
+        if k > 0:
+            by_step.setdefault(int(k), []).append(switch)
     return model, data, by_step
 
 
 def measure_case(robot_name: str, scenario: str) -> dict:
     """Median steps/s of each loop and the median pairwise ratios."""
-    sc = simbench.load_scenario(scenarios_dir() / robot_name / f"{scenario}.yaml")
+    sc = shipped(f"{robot_name}/{scenario}")
     plant = Plant.load(sc.robot_def, sc.sim.timestep)
     traj = sc.planner_def.plan(sc, sc.robot_def, float(plant.model.opt.timestep))
     steps = traj.t.size - 1

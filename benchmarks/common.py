@@ -1,4 +1,5 @@
-"""Helpers shared by the benchmarks: the machine's description and paired, interleaved timing."""
+"""Helpers shared by the benchmarks: shipped scenarios, the machine's description and paired, interleaved
+timing."""
 
 from __future__ import annotations
 
@@ -8,6 +9,14 @@ import time
 from datetime import date
 
 import numpy as np
+
+import simbench
+from simbench.resources import scenarios_dir
+
+
+def shipped(name: str) -> simbench.Scenario:
+    """A shipped scenario by its path under scenarios/ without the suffix ('spherical_arm/demo')."""
+    return simbench.load_scenario(scenarios_dir() / f"{name}.yaml")
 
 
 def machine() -> str:

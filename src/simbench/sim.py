@@ -298,31 +298,38 @@ def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforwa
         return _simulate(plant, traj, settle, feedforward, progress)
 
 
-def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: bool, progress: bool) -> Recording:
+def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
+    """A copy of the plant's model (switching edits it) and data posed at the plan's first reference (passive
+    joints assembled, the plan's `initial` joints set, the switches at step 0 applied), and each switch's step."""
     model = copy.copy(plant.model)
-    if not np.isclose(model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
-        raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {model.opt.timestep}")
     data = mujoco.MjData(model)
-    spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    nstate = mujoco.mj_stateSize(model, spec)
-    sl = _state_slices(model)
+    data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
+    for name, value in traj.initial.items():
+        adr = model.joint(name).qposadr[0]
+        data.qpos[adr:adr + len(value)] = value
+    steps = np.rint(np.array([w.t for w in traj.switches]) / model.opt.timestep).astype(int)
+    for switch in (w for w, k in zip(traj.switches, steps) if k == 0):
+        apply_switch(model, data, switch)
+    return model, data, steps
+
+
+def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: bool, progress: bool) -> Recording:
+    if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
+        raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {plant.model.opt.timestep}")
     ctrl = plant.commands(traj.q_ref, traj.qd_ref, feedforward)
     bad = ~np.isfinite(ctrl).all(axis=1)
     if bad.any():
         raise RunError(f"the plan has no finite reference at t = {traj.t[np.argmax(bad)]:.4f} s")
 
-    data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
-    for name, value in traj.initial.items():
-        adr = model.joint(name).qposadr[0]
-        data.qpos[adr:adr + len(value)] = value
-    data.ctrl[:] = ctrl[0]
-    steps = np.rint(np.array([w.t for w in traj.switches]) / model.opt.timestep).astype(int)
     try:
-        for switch in (w for w, k in zip(traj.switches, steps) if k == 0):
-            apply_switch(model, data, switch)
+        model, data, steps = at_start(plant, traj)
+        data.ctrl[:] = ctrl[0]
         mujoco.mj_forward(model, data)
     except mujoco.FatalError as err:
         raise PhysicsError(-settle, _fatal_cause(err), traj, None) from None
+    spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    nstate = mujoco.mj_stateSize(model, spec)
+    sl = _state_slices(model)
     first_state = np.empty(nstate)
     mujoco.mj_getState(model, data, first_state, spec)
 
