@@ -88,7 +88,7 @@ def _scene_with_memory(monkeypatch, memory: int) -> None:
         spec.memory = memory
         return spec.compile()
 
-    monkeypatch.setattr(sim, "_compiled", compiled)
+    monkeypatch.setattr(sim, "compiled_scene", compiled)
 
 
 @pytest.mark.parametrize("memory, expected", [(3000, "the constraint buffer is full (the model's <size memory> is "

@@ -96,7 +96,7 @@ def _dry_run(sweep) -> str:
             parse_scenario(v.document, v.id)
             verdict = ""
         except ScenarioError as err:
-            verdict = f"  -> bad_input: {err.field}: {err.message}"
+            verdict = f"  -> bad_input: {err.detail}"
         lines.append(f"  {v.id} " + ", ".join(f"{name}={value!r}" for name, value in v.params.items()) + verdict)
     return "\n".join(lines)
 

@@ -16,8 +16,12 @@ class ScenarioError(Exception):
         self.source = source
         self.field = None if field is None else printable(field)
         self.message = printable(message)
-        where = f"{source}: {self.field}" if field else source
-        super().__init__(f"{where}: {self.message}")
+        super().__init__(f"{source}: {self.detail}")
+
+    @property
+    def detail(self) -> str:
+        """The field and what is expected, without the file: what a sweep's row says of a variant."""
+        return f"{self.field}: {self.message}" if self.field else self.message
 
 
 def printable(text: str) -> str:

@@ -16,6 +16,7 @@ whatever the rasteriser leaves of the CPU.
 
 from __future__ import annotations
 
+import copy
 import queue
 import threading
 from pathlib import Path
@@ -25,7 +26,7 @@ import mujoco
 import numpy as np
 
 from simbench.errors import RunError
-from simbench.sim import Recording
+from simbench.sim import Recording, compiled_scene
 
 _PLAN_RGBA = np.array([0.1, 0.45, 1.0, 1.0], np.float32)
 _PLAN_PAST_RGBA = np.array([0.1, 0.45, 1.0, 0.2], np.float32)
@@ -171,7 +172,7 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
     """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
     shapes to draw in every frame (`{"kind": "cone", "axis", "half_angle", "length", "rgba"}`); `paint(model,
     rec, row)` may recolour the model for each frame (an electromagnet by whether it grips)."""
-    model = mujoco.MjModel.from_xml_path(str(scene))
+    model = copy.copy(compiled_scene(str(scene)))  # the run's own compilation; the copy's sizes are set below
     data = mujoco.MjData(model)
     camera = camera or model.camera(0).name
     frame_t = np.arange(0.0, rec.t[-1] + 1e-9, 1.0 / fps)

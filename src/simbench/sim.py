@@ -84,7 +84,7 @@ class Plant:
         """The robot's compiled scene (a fresh copy: a run changes its model), with the timestep and the position
         servos' gains (one per joint) where given, and without force limits if asked; actuators are named after
         the joints they drive."""
-        model = copy.copy(_compiled(str(robot.scene)))
+        model = copy.copy(compiled_scene(str(robot.scene)))
         if timestep is not None:
             model.opt.timestep = timestep
         act = np.array([model.actuator(name).id for name in robot.joints])
@@ -133,7 +133,7 @@ class Plant:
 
 
 @cache
-def _compiled(scene: str) -> mujoco.MjModel:
+def compiled_scene(scene: str) -> mujoco.MjModel:
     """A scene compiled once per process (compiling costs about as much as simulating a short scenario)."""
     return mujoco.MjModel.from_xml_path(scene)
 

@@ -119,7 +119,11 @@ def jacobians(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def kci(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """Kinematic conditioning index 1 / cond(A^-1 B) (N,): 1 isotropic, 0 singular."""
-    a, b = jacobians(theta, rot)
+    return kci_of(*jacobians(theta, rot))
+
+
+def kci_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The KCI of Jacobians A and B already at hand (N, 3, 3 each)."""
     sa = np.linalg.svd(a, compute_uv=False)
     ok = sa[:, -1] > 1e-12 * sa[:, 0]
     j = np.linalg.solve(np.where(ok[:, None, None], a, np.eye(3)), b)
@@ -164,10 +168,10 @@ def _platform(rec) -> np.ndarray:
 def measures(rec) -> dict[str, np.ndarray]:
     """KCI, the angle to the nearest singular curve, det A and the loop-closure error along a recording."""
     rot = _platform(rec)
-    a, _ = jacobians(rec.q, rot)
+    a, b = jacobians(rec.q, rot)
     closure = np.maximum(np.linalg.norm(rec.sensors["tip2"] - rec.sensors["mount2"], axis=1),
                          np.linalg.norm(rec.sensors["tip3"] - rec.sensors["mount3"], axis=1))
-    return {"kci": kci(rec.q, rot), "singular_gap": axis_gaps(rot).min(axis=1), "det_a": np.linalg.det(a),
+    return {"kci": kci_of(a, b), "singular_gap": axis_gaps(rot).min(axis=1), "det_a": np.linalg.det(a),
             "closure_error": closure}
 
 

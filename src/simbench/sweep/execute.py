@@ -44,7 +44,7 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
         else:
             report = pipeline.evaluate_report(scenario)
     except ScenarioError as err:
-        status, error = "bad_input", f"{err.field}: {err.message}" if err.field else err.message
+        status, error = "bad_input", err.detail
     except RunError as err:
         status, error = "run_failed", str(err)
     except Exception as err:  # any other failure is this run's row, not the end of the sweep
