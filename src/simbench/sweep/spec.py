@@ -60,12 +60,17 @@ class Distribution(SimbenchModel):
     integers: Annotated[list[int], Field(min_length=2, max_length=2)] | None = None
     choice: Annotated[list[Any], Field(min_length=1)] | None = None
 
+    @property
+    def kind(self) -> str:
+        """The one field given."""
+        return next(k for k in _KINDS if getattr(self, k) is not None)
+
     @model_validator(mode="after")
     def _one_kind(self):
-        given = [k for k in _KINDS if getattr(self, k) is not None]
-        if len(given) != 1:
-            raise ValueError(f"expected exactly one of {', '.join(_KINDS)}, got {len(given)}")
-        kind = given[0]
+        given = sum(getattr(self, k) is not None for k in _KINDS)
+        if given != 1:
+            raise ValueError(f"expected exactly one of {', '.join(_KINDS)}, got {given}")
+        kind = self.kind
         if kind in ("uniform", "loguniform", "normal"):
             a, b = (np.atleast_1d(np.asarray(v, float)) for v in getattr(self, kind))
             if a.shape != b.shape:
@@ -82,11 +87,11 @@ class Distribution(SimbenchModel):
 
     def draw(self, rng: np.random.Generator) -> Any:
         """One value: a float, an int, a list of floats for vector bounds, or one of the choices."""
-        if self.choice is not None:
+        kind = self.kind
+        if kind == "choice":
             return copy.deepcopy(self.choice[int(rng.integers(len(self.choice)))])
-        if self.integers is not None:
+        if kind == "integers":
             return int(rng.integers(self.integers[0], self.integers[1] + 1))
-        kind = next(k for k in ("uniform", "loguniform", "normal") if getattr(self, k) is not None)
         a_raw, b_raw = getattr(self, kind)
         a, b = np.asarray(a_raw, float), np.asarray(b_raw, float)
         if kind == "uniform":
@@ -206,7 +211,7 @@ def load_sweep(path: str | Path) -> Sweep:
     parse_scenario(document, str(base), default_name=base.stem)  # the base alone must be a valid scenario
     paths = _paths(spec, source)
     variants = _expand(spec, document, paths, base.stem, source)
-    _check_fields(variants[0], paths, spec.grid, source)
+    _check_fields(variants[0], paths, source)
     return Sweep(spec.name or path.stem, source, spec, base, tuple(variants))
 
 
@@ -219,8 +224,9 @@ def _find_base(text: str, folder: Path, source: str) -> Path:
                                         "or a shipped scenario such as spherical_arm/case1)")
 
 
-def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str | int, ...]]:
-    """Every swept field path, parsed; a path may be swept once."""
+def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str, tuple[str | int, ...]]]:
+    """Every swept field path: the sweep file's section that sweeps it (grid or random.params) and the path
+    parsed; a path may be swept once."""
     found = {}
     sections = [("grid", spec.grid)] + ([("random.params", spec.random.params)] if spec.random else [])
     for section, fields in sections:
@@ -231,7 +237,7 @@ def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str | int, ...]]:
                 raise ScenarioError(source, f"{section}.{text}", str(err)) from None
             if text in found:
                 raise ScenarioError(source, f"{section}.{text}", "swept twice: in grid and in random.params")
-            found[text] = found_path
+            found[text] = (section, found_path)
     return found
 
 
@@ -253,10 +259,10 @@ def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, source
         params = {**dict(zip(spec.grid, point)), **sample}
         doc = copy.deepcopy(document)
         for name, value in params.items():
+            section, path = paths[name]
             try:
-                assign(doc, paths[name], value)
+                assign(doc, path, value)
             except ValueError as err:
-                section = "grid" if name in spec.grid else "random.params"
                 raise ScenarioError(source, f"{section}.{name}", str(err)) from None
         index = len(variants)
         run_id = f"r{index:0{width}d}"
@@ -265,15 +271,14 @@ def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, source
     return variants
 
 
-def _check_fields(first: Variant, paths: dict, grid: dict, source: str) -> None:
+def _check_fields(first: Variant, paths: dict, source: str) -> None:
     """A swept field the scenario does not have is the sweep file's error, not every run's."""
     try:
         parse_scenario(first.document, source)
     except ScenarioError as err:
         field = err.field or ""
-        for name in paths:
+        for name, (section, _) in paths.items():
             if err.message.startswith("unknown field") and (name == field or name.startswith((field + ".",
                                                                                               field + "["))):
-                section = "grid" if name in grid else "random.params"
                 message = err.message if name == field else f"'{field}' is an {err.message}"
                 raise ScenarioError(source, f"{section}.{name}", message) from None
