@@ -138,7 +138,7 @@ def _paths(node, here=()):
             yield from _paths(v, here + (i,))
 
 
-def _validate_text(text: str, capsys, command=("validate",)) -> tuple[int, list[str], str]:
+def _validate_text(text: str, capsys, command=("validate", "--no-plan")) -> tuple[int, list[str], str]:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "fuzz.yaml"
         path.write_text(text)

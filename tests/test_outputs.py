@@ -6,6 +6,7 @@ import imageio.v2 as imageio
 import mujoco
 import numpy as np
 import pytest
+import yaml
 from conftest import SHIPPED, scenario_file
 
 from simbench.cli import main
@@ -109,7 +110,7 @@ def test_existing_output_is_replaced_whole_and_only_with_force(tmp_path, capsys)
 @pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
 def test_shipped_scenarios_validate(path, capsys):
     assert main(["validate", str(path)]) == 0
-    assert capsys.readouterr().out.startswith(f"{path}: ok")
+    assert capsys.readouterr().out.startswith(f"{path}: valid")
 
 
 def test_list_names_robots_planners_and_scenarios(capsys):
@@ -122,12 +123,16 @@ def test_list_names_robots_planners_and_scenarios(capsys):
 
 @pytest.mark.parametrize("path", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
 def test_every_shipped_scenario_runs_to_complete_and_bit_for_bit_repeatable_outputs(path, tmp_path, evaluated):
-    """The run's outputs are all there, and its timeseries equals, byte for byte, the one written from the
+    """The run's outputs are all there, it ends `ok` unless its scenario says it shows a failure, and then with
+    exactly the violations it names; and its timeseries equals, byte for byte, the one written from the
     session's own evaluation of the scenario (made separately, among other runs in this process)."""
     out = tmp_path / path.stem
     assert main(["run", str(path), "--out", str(out), "--no-video", "--quiet"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["scenario"]["name"] == path.stem
+    expect = yaml.safe_load(path.read_text()).get("expect")
+    assert report["status"] == (expect["status"] if expect else "ok")
+    assert sorted({v["kind"] for v in report["violations"]}) == sorted(expect["violations"] if expect else [])
     assert all((out / name).is_file() for name in report["outputs"]["plots"])
     scenario, other = evaluated(path.parent.name, path.stem)
     write_timeseries(scenario.robot_def, other.trajectory, other.recording, other.analysis, tmp_path / "other.npz")

@@ -84,7 +84,7 @@ def test_nan_state_mid_run_is_named_and_the_run_kept_up_to_it(monkeypatch):
 def _scene_with_memory(monkeypatch, memory: int) -> None:
     """Compile every scene with an arena of `memory` bytes (MuJoCo's <size memory>), to overflow it."""
     def compiled(scene: str) -> mujoco.MjModel:
-        spec = mujoco.MjSpec.from_file(scene)
+        spec = sim.scene_spec(scene)
         spec.memory = memory
         return spec.compile()
 

@@ -96,7 +96,7 @@ def test_table_metrics_are_the_runs_own_numbers(tmp_path):
     assert int(row["singularity_events"]) == len(alone.analysis.singularity_events)
     report = json.loads((tmp_path / "out" / "runs" / "r0001" / "report.json").read_text())
     assert report["tracking"]["tool_rms"] == float(row["tool_rms"])
-    assert result.summary["status"] == {"ok": 2, "bad_input": 0, "run_failed": 0, "crashed": 0}
+    assert result.summary["status"] == {"ok": 2, "limits": 0, "bad_input": 0, "run_failed": 0, "crashed": 0}
 
 
 def test_failed_runs_are_rows_not_crashes(tmp_path):
@@ -209,7 +209,7 @@ BAD_SWEEPS = [
                                                                        "not a field path"),
     ("unknown field", {"base": CASE1, "grid": {"sim.timestpe": [0.001]}},
      "grid.sim.timestpe: unknown field (expected one of: timestep, settle, velocity_feedforward, kp, kv, "
-     "force_limits); did you mean 'timestep'?"),
+     "force_limits, gravity_compensation); did you mean 'timestep'?"),
     ("unknown section", {"base": CASE1, "grid": {"simulation.timestep": [0.001]}},
      "grid.simulation.timestep: 'simulation' is an unknown field"),
     ("index beyond the list", {"base": CASE1, "grid": {"task.goal[4]": [1]}},

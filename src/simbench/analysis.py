@@ -6,8 +6,9 @@ its lag along the path, and its error against the time-indexed reference. Events
   singularity_events  spans where the recorded configuration lies near one of the robot's singular sets;
   limit_events        `joint_limit` (the plan asks for a value beyond a joint's range), `at_limit` (the joint
                       sits at a limit), `reference_jump` (the plan steps farther in one sample than the joint's
-                      speed limit allows in ten: a discontinuity) and `velocity_limit` (the plan is faster than
-                      the joint can go).
+                      speed limit allows in ten: a discontinuity), `velocity_limit` (the plan is faster than
+                      the joint can go) and `actuator_saturation` (a joint's actuator at its force bound: the
+                      motor cannot give what tracking the plan takes).
 """
 
 from __future__ import annotations
@@ -169,11 +170,17 @@ def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int]
     return [i + 1, j + 1]
 
 
-def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: Tolerance,
-                 deviation: np.ndarray) -> list[dict]:
-    """Joint-limit, at-limit, reference-jump and velocity-limit events."""
+def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
+    """The limits the plan itself breaks, found without simulating: `joint_limit` (a reference beyond a joint's
+    range), `velocity_limit` (a reference rate beyond its speed limit) and `reference_jump` (without its cost in
+    physics)."""
+    return sorted(_joint_limit_events(robot, traj) + _velocity_events(robot, traj)
+                  + _jump_events(robot, traj, None), key=lambda e: (e["t_start"], e["kind"]))
+
+
+def _joint_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     t, events = traj.t, []
-    for j, (name, kind) in enumerate(zip(robot.joints, robot.kinds)):
+    for j, name in enumerate(robot.joints):
         lo, hi = robot.lower[j], robot.upper[j]
         for bound, limit, beyond in (("lower", lo, traj.q_ref[:, j] < lo - 1e-9),
                                      ("upper", hi, traj.q_ref[:, j] > hi + 1e-9)):
@@ -183,6 +190,64 @@ def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: To
                 events.append(_event(t, span, "joint_limit", {
                     "joint": name, "bound": bound, "limit": float(limit), "worst": worst,
                     "excess": abs(worst - float(limit)), "source": "reference"}))
+    return events
+
+
+def _velocity_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
+    t, events = traj.t, []
+    too_fast = np.abs(traj.qd_ref) > robot.qd_max
+    for j, name in enumerate(robot.joints):
+        for span in spans(too_fast[:, j]):
+            seg = np.abs(traj.qd_ref[span[0]:span[1] + 1, j])
+            events.append(_event(t, span, "velocity_limit", {
+                "joint": name, "limit": float(robot.qd_max[j]), "worst": float(seg.max())}))
+    return events
+
+
+def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | None) -> list[dict]:
+    """Steps of the plan farther than ten samples at the speed limit; with the recorded path deviation, what each
+    cost: how far and how long the tool left the path."""
+    t, events = traj.t, []
+    step = np.diff(traj.q_ref, axis=0)
+    jump = np.abs(step) > _JUMP_FACTOR * robot.qd_max * traj.dt
+    for k in np.flatnonzero(jump.any(axis=1)):
+        detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[k])],
+                  "step": step[k].tolist(),
+                  "s": [float(traj.s[k]), float(traj.s[k + 1])],
+                  "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1])}
+        if deviation is not None:
+            after = deviation[k + 1:]
+            peak = int(np.argmax(after))
+            back = np.flatnonzero(after[peak:] < _BACK_ON_PATH)
+            back_at = k + 1 + peak + int(back[0]) if back.size else len(t) - 1
+            detail["cost"] = {"tool_off_path_max": float(after.max()),
+                              "time_off_path": float(t[back_at] - t[k + 1]),
+                              "back_on_path": bool(back.size)}
+        events.append(_event(t, (k, k + 1), "reference_jump", detail))
+    return events
+
+
+def _saturation_events(robot: Robot, rec: Recording) -> list[dict]:
+    """Spans where a joint's actuator force sits at its bound (within a part in a million)."""
+    if rec.force is None:
+        return []
+    events = []
+    at_bound = np.abs(rec.force) >= rec.force_limit * (1 - 1e-6)
+    for j, name in enumerate(robot.joints):
+        for span in spans(at_bound[:, j]):
+            events.append(_event(rec.t, span, "actuator_saturation", {
+                "joint": name, "limit": float(rec.force_limit[j]),
+                "force": float(rec.force[span[0], j]),
+                "duration": float(rec.t[span[1]] - rec.t[span[0]] + rec.timestep)}))
+    return events
+
+
+def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: Tolerance,
+                 deviation: np.ndarray) -> list[dict]:
+    """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
+    t, events = traj.t, _joint_limit_events(robot, traj)
+    for j, (name, kind) in enumerate(zip(robot.joints, robot.kinds)):
+        lo, hi = robot.lower[j], robot.upper[j]
         tol = margin.of(kind)
         for bound, limit, near in (("lower", lo, rec.q[:, j] < lo + tol), ("upper", hi, rec.q[:, j] > hi - tol)):
             for span in spans(near):
@@ -190,27 +255,7 @@ def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: To
                 extreme = float(seg.min() if bound == "lower" else seg.max())
                 events.append(_event(t, span, "at_limit", {
                     "joint": name, "bound": bound, "limit": float(limit), "extreme": extreme}))
-    step = np.diff(traj.q_ref, axis=0)
-    jump = np.abs(step) > _JUMP_FACTOR * robot.qd_max * traj.dt
-    for k in np.flatnonzero(jump.any(axis=1)):
-        after = deviation[k + 1:]
-        peak = int(np.argmax(after))
-        back = np.flatnonzero(after[peak:] < _BACK_ON_PATH)
-        back_at = k + 1 + peak + int(back[0]) if back.size else len(t) - 1
-        events.append(_event(t, (k, k + 1), "reference_jump", {
-            "joints": [robot.joints[j] for j in np.flatnonzero(jump[k])],
-            "step": step[k].tolist(),
-            "s": [float(traj.s[k]), float(traj.s[k + 1])],
-            "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1]),
-            "cost": {"tool_off_path_max": float(after.max()),
-                     "time_off_path": float(t[back_at] - t[k + 1]),
-                     "back_on_path": bool(back.size)}}))
-    too_fast = np.abs(traj.qd_ref) > robot.qd_max
-    for j, name in enumerate(robot.joints):
-        for span in spans(too_fast[:, j]):
-            seg = np.abs(traj.qd_ref[span[0]:span[1] + 1, j])
-            events.append(_event(t, span, "velocity_limit", {
-                "joint": name, "limit": float(robot.qd_max[j]), "worst": float(seg.max())}))
+    events += _jump_events(robot, traj, deviation) + _velocity_events(robot, traj) + _saturation_events(robot, rec)
     return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
 
 
@@ -225,6 +270,10 @@ def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance
         extra, events, more = robot.summary(traj, rec, series)
         series.update(more)
         singular = sorted(singular + events, key=lambda e: (e["t_start"], e["kind"]))
+    if robot.orientation_error in series:  # a task that is an orientation: its error beside the tool point's
+        error = series[robot.orientation_error]
+        summary.update(orientation_rms=float(_rms(error)), orientation_max=float(error.max()),
+                       orientation_final=float(error[-1]))
     return Analysis(tracking=summary, singularity_events=singular,
                     limit_events=limit_events(robot, traj, rec, margin, series["path_deviation"]),
                     series=series, measures=tuple(measures), extra=extra)

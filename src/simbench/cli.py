@@ -1,13 +1,16 @@
 """Command line: `simbench run | sweep | validate | list | train-fk`.
 
-Exit codes: 0 done; 2 bad input (one line naming the file, the field and what is expected); 1 the run itself
-failed (an unreachable path, diverged physics), with the reason, or simbench hit a bug (one line; SIMBENCH_DEBUG=1
-for the traceback); 130 interrupted.
+Exit codes: 0 done, every promise kept (or the failure the scenario expects); 3 done, but the run broke a
+promise (status `limits`: a joint limit, a speed limit, a motor at its force limit, the path or goal missed, a
+singular crossing), each printed on its own line; 2 bad input (one line naming the file, the field and what is
+expected); 1 the run itself failed (an unreachable path, diverged physics), with the reason, or simbench hit a
+bug (one line; SIMBENCH_DEBUG=1 for the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from pathlib import Path
@@ -36,8 +39,9 @@ def _parser() -> argparse.ArgumentParser:
                        help="start over: replace whatever the output folder holds (default: resume)")
     sweep.add_argument("--dry-run", action="store_true", help="check the sweep and list its runs; run nothing")
     sweep.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    validate = sub.add_parser("validate", help="check scenarios without simulating")
+    validate = sub.add_parser("validate", help="check scenarios and their plans without simulating")
     validate.add_argument("scenarios", type=Path, nargs="+")
+    validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
     sub.add_parser("list", help="list robots, planners and shipped scenarios")
     train = sub.add_parser("train-fk", help="retrain the Agile Eye's learnt forward kinematics (needs scikit-learn)")
     train.add_argument("--samples", type=int, default=20000, help="poses per working mode (75 %% train)")
@@ -47,17 +51,45 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+EXIT_LIMITS = 3
+
+
 def _summary(result) -> str:
     r = result.report
     tr = r["tracking"]
-    lines = [f"{r['scenario']['name']}: {r['robot']} / {r['planner']} -> {result.out}",
-             f"  tool vs planned path: RMS {tr['tool_rms'] * 1e3:.3f} mm, max {tr['tool_max'] * 1e3:.3f} mm; "
-             f"lag RMS {tr['tool_lag_rms'] * 1e3:.3f} mm",
-             f"  events: {len(r['singularity_events'])} singularity, {len(r['limit_events'])} limit; "
-             f"MuJoCo warnings: {len(r['warnings'])}"]
+    lines = [f"{r['scenario']['name']}: {r['robot']} / {r['planner']} -> {result.out}"]
+    if "orientation_max" in tr:  # the task is an orientation: its error first, in degrees
+        lines.append(f"  orientation vs plan: RMS {math.degrees(tr['orientation_rms']):.3f} deg, max "
+                     f"{math.degrees(tr['orientation_max']):.3f} deg")
+    lines += [f"  tool vs planned path: RMS {tr['tool_rms'] * 1e3:.3f} mm, max {tr['tool_max'] * 1e3:.3f} mm; "
+              f"lag RMS {tr['tool_lag_rms'] * 1e3:.3f} mm",
+              f"  events: {len(r['singularity_events'])} singularity, {len(r['limit_events'])} limit; "
+              f"MuJoCo warnings: {len(r['warnings'])}"]
     for w in r["plan"]["warnings"]:
         lines.append(f"  plan warning: {w}")
+    lines += _status_lines(r["status"], r["violations"], r.get("expected"))
     return "\n".join(lines)
+
+
+def _status_lines(status: str, violations: list[dict], expected: dict | None) -> list[str]:
+    """The status, each violation on its line, and whether the scenario expected it."""
+    lines = [f"  status: {status}" + (f" ({len(violations)} promise{'s' * (len(violations) > 1)} broken)"
+                                      if violations else "")]
+    lines += [f"    {v['kind']}: {v['message']}" for v in violations]
+    if expected is not None:
+        if expected["met"]:
+            lines.append(f"  as the scenario expects ({expected['status']}: {', '.join(expected['violations'])})")
+        else:
+            lines.append(f"  NOT as the scenario expects ({expected['status']}: "
+                         f"{', '.join(expected['violations']) or 'none'}); unexpected: "
+                         f"{', '.join(expected['unexpected']) or 'none'}; missing: "
+                         f"{', '.join(expected['missing']) or 'none'}")
+    return lines
+
+
+def _exit_code(verdict) -> int:
+    """0 when the run ended as its scenario expects (ok, unless it expects a failure), else EXIT_LIMITS."""
+    return 0 if verdict.as_expected else EXIT_LIMITS
 
 
 def _sweep(args) -> None:
@@ -99,6 +131,26 @@ def _dry_run(sweep) -> str:
             verdict = f"  -> bad_input: {err.detail}"
         lines.append(f"  {v.id} " + ", ".join(f"{name}={value!r}" for name, value in v.params.items()) + verdict)
     return "\n".join(lines)
+
+
+def _validate(paths: list[Path], plan: bool) -> int:
+    """Check each scenario and, unless `plan` is false, plan it (no physics); the limits its plan breaks, as
+    `run` would report them. Exit 2 at the first bad file, EXIT_LIMITS if a plan breaks a promise its scenario
+    does not expect."""
+    from simbench import pipeline, scenario
+
+    code = 0
+    for path in paths:
+        sc = scenario.load_scenario(path)
+        if not plan:
+            print(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
+            continue
+        _, verdict = pipeline.check_plan(sc)
+        print(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
+        if verdict.violations or verdict.expected is not None:
+            print("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
+        code = max(code, _exit_code(verdict))
+    return code
 
 
 def _list() -> str:
@@ -145,15 +197,17 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         elif args.command == "sweep":
             _sweep(args)
         elif args.command == "validate":
-            for path in args.scenarios:
-                sc = scenario.load_scenario(path)
-                print(f"{path}: ok ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
+            return _validate(args.scenarios, plan=not args.no_plan)
         else:
             sc = scenario.load_scenario(args.scenario)
             result = pipeline.run(sc, out=args.out, video=not args.no_video, progress=not args.quiet,
                                   force=args.force)
             if not args.quiet:
                 print(_summary(result))
+            elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
+                print("\n".join(_status_lines(result.report["status"], result.report["violations"],
+                                              result.report.get("expected"))), file=sys.stderr)
+            return _exit_code(result.evaluation.verdict)
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

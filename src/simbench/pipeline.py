@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from simbench.analysis import Analysis, analyse
+from simbench.analysis import Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
 from simbench.plots import write_plots
@@ -23,15 +23,18 @@ from simbench.robots import Tolerance
 from simbench.scenario import Scenario
 from simbench.sim import Plant, Recording, commanded, simulate
 from simbench.trajectory import JointTrajectory
+from simbench.verdict import Verdict, plan_verdict, run_verdict
 
 
 @dataclass(frozen=True)
 class Evaluation:
-    """A scenario planned, simulated and analysed, with nothing written yet."""
+    """A scenario planned, simulated and analysed, with nothing written yet, and the verdict: whether the run
+    kept every promise (simbench.verdict)."""
 
     trajectory: JointTrajectory
     recording: Recording
     analysis: Analysis
+    verdict: Verdict
 
 
 @dataclass(frozen=True)
@@ -70,7 +73,7 @@ def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | Non
     robot = scenario.robot_def
     with watch.stage("load"):
         sim = scenario.sim
-        plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits)
+        plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     with watch.stage("simulate"):
@@ -81,20 +84,31 @@ def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | Non
         a = scenario.analysis
         result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
                          margin=Tolerance(a.limit_angle, a.limit_length))
-    return Evaluation(traj, rec, result)
+        found = run_verdict(robot, traj, result, a, scenario.expect)
+    return Evaluation(traj, rec, result, found)
+
+
+def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
+    """Plan without simulating, and what the plan alone shows it breaks (its joint ranges, speed limits, jumps,
+    and what the planner reports): `simbench validate`."""
+    robot = scenario.robot_def
+    plant = Plant.load(robot, scenario.sim.timestep)
+    traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
+    return traj, plan_verdict(robot, traj, plan_limit_events(robot, traj), scenario.expect)
 
 
 def evaluate_report(scenario: Scenario) -> dict:
     """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps of a run)."""
     watch = _Stopwatch()
     ev = evaluate(scenario, watch=watch)
-    return build_report(scenario, ev.trajectory, ev.recording, ev.analysis, watch.summary(), {}, scenario.source)
+    return build_report(scenario, ev, watch.summary(), {}, scenario.source)
 
 
 def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, progress: bool = False,
         force: bool = False) -> Result:
     """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
-    into `out` (default renders/<name>/), which must not hold anything yet unless `force`. If the physics fails,
+    into `out` (default renders/<name>/), which must not hold anything yet unless `force`. A run that breaks a
+    promise (status `limits`) writes everything as any other and returns normally. If the physics fails,
     the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
     raised after they are written."""
     out = Path(out) if out is not None else Path("renders") / scenario.name
@@ -127,7 +141,7 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
                                                      paint=robot.paint)
         with watch.stage("write"):
             write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
-        report = build_report(scenario, traj, rec, result, watch.summary(), outputs, scenario.source)
+        report = build_report(scenario, ev, watch.summary(), outputs, scenario.source)
         write_report(report, tmp / "report.json")
     return Result(out=out, report=report, evaluation=ev)
 

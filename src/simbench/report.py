@@ -73,12 +73,13 @@ def build_failure_report(scenario, err, wall_time: dict, outputs: dict, source: 
     })
 
 
-def build_report(scenario, traj: JointTrajectory, rec: Recording, result: Analysis, wall_time: dict,
-                 outputs: dict, source: str | None) -> dict:
-    """The report.json document."""
+def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | None) -> dict:
+    """The report.json document of an Evaluation (pipeline.Evaluation): status `ok` or `limits` with the
+    violations (simbench.verdict), and what the scenario expected if it expects a failure."""
+    traj, rec, result = ev.trajectory, ev.recording, ev.analysis
     return plain({
         **_head(scenario, rec.timestep, source),
-        "status": "ok",
+        **ev.verdict.to_report(),
         "samples": int(rec.t.size),
         "tracking": result.tracking,
         "singularity_events": result.singularity_events,
@@ -107,6 +108,8 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
         "q_ref": traj.q_ref[:rows], "qd_ref": traj.qd_ref[:rows], "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
         "ctrl": rec.ctrl, "tool_ref": traj.tool_ref[:rows], "tool": rec.tool,
     }
+    if rec.force is not None:
+        arrays["actuator_force"] = rec.force
     arrays.update({name: series[:rows] for name, series in traj.series.items()})
     if result is not None:
         arrays.update(result.series)

@@ -14,6 +14,7 @@ A scenario is a YAML mapping:
     sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}   # also kp, kv: servo gains (SI)
     analysis: {near_angle: 2, near_length: 2}
     render: {width: 640, height: 480, fps: 30, camera: front, quality: fast, trace: true}
+    expect: {status: limits, violations: [joint_limit], reason: ...}   # only where the run is meant to fail
 
 Everything is converted to SI (radians, metres) while it is validated.
 """
@@ -26,9 +27,10 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, PrivateAttr, ValidationError, create_model
+from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, create_model, field_validator,
+                      model_validator)
 
-from simbench import planners, robots
+from simbench import planners, robots, verdict
 from simbench.errors import ScenarioError
 from simbench.schema import Gains, Name, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
 from simbench.timing import TimeLaw
@@ -52,7 +54,9 @@ class Sim(SimbenchModel):
     """Physics settings; the timestep is also the control period. `kp` and `kv` replace the model's servo gains
     (one number for every servo, or one per joint; SI: N/m or N m/rad, and N s/m or N m s/rad, whatever the
     file's units). `force_limits: false` lifts the servos' force limits (ideal actuators), to tell what the plan
-    asks from what the motors can give; stiff gains without limits can make the integration diverge."""
+    asks from what the motors can give; stiff gains without limits can make the integration diverge.
+    `gravity_compensation: false` removes the controller's gravity feed-forward (the models' body `gravcomp`), so
+    that the servos carry the arm's weight as a plain PD would."""
 
     timestep: Annotated[float, Field(gt=0, le=0.01)] | None = None
     settle: Annotated[float, Field(ge=0, le=10)] = 0.2
@@ -60,15 +64,22 @@ class Sim(SimbenchModel):
     kp: Gains | None = None
     kv: Gains | None = None
     force_limits: bool = True
+    gravity_compensation: bool = True
 
 
 class Analysis(SimbenchModel):
-    """How near a singular set or a joint limit counts as near (angles for revolute, lengths for prismatic)."""
+    """How near a singular set or a joint limit counts as near (angles for revolute, lengths for prismatic), and
+    the tolerances a run must keep to end `ok`: the tool's distance from the planned path, its distance from the
+    plan's end when the run ends, and for a robot whose task is an orientation, the same for the orientation."""
 
     near_angle: PositiveAngle = float(np.deg2rad(2.0))
     near_length: PositiveLength = 0.002
     limit_angle: PositiveAngle = float(np.deg2rad(0.5))
     limit_length: PositiveLength = 0.0005
+    path_tolerance: PositiveLength = 0.005
+    goal_tolerance: PositiveLength = 0.001
+    orientation_tolerance: PositiveAngle = float(np.deg2rad(2.0))
+    goal_orientation_tolerance: PositiveAngle = float(np.deg2rad(0.5))
 
 
 class Render(SimbenchModel):
@@ -80,6 +91,33 @@ class Render(SimbenchModel):
     camera: str | None = None
     quality: Literal["fast", "pretty"] = "fast"
     trace: bool = True
+
+
+class Expect(SimbenchModel):
+    """A scenario meant to show a failure says which: the status and the kinds of violation (simbench.verdict)
+    the run must end with, and why. The run's status stays what it is; the CLI exits 0 if it is as expected."""
+
+    status: Literal["ok", "limits"] = "limits"
+    violations: list[str] = []
+    reason: str = ""
+
+    @field_validator("violations")
+    @classmethod
+    def _known(cls, kinds: list[str], info: ValidationInfo) -> list[str]:
+        robot = (info.context or {}).get("robot")
+        known = list(verdict.KINDS) + list(robot.breaking if robot is not None else ())
+        for kind in kinds:
+            if kind not in known:
+                hint = difflib.get_close_matches(kind, known, n=1)
+                raise ValueError(f"unknown violation {kind!r} (expected one of: {', '.join(known)})"
+                                 f"{f'; did you mean {hint[0]!r}?' if hint else ''}")
+        return kinds
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Expect":
+        if (self.status == "ok") == bool(self.violations):
+            raise ValueError("status 'limits' needs the violations expected, and 'ok' none")
+        return self
 
 
 class Scenario(SimbenchModel):
@@ -94,6 +132,7 @@ class Scenario(SimbenchModel):
     sim: Sim = Sim()
     analysis: Analysis = Analysis()
     render: Render = Render()
+    expect: Expect | None = None
     _source: str | None = PrivateAttr(None)
 
     @property

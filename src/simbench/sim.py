@@ -39,6 +39,7 @@ _W = mujoco.mjtWarning
 _FATAL = {int(w) for w in (_W.mjWARN_BADQACC, _W.mjWARN_BADQPOS, _W.mjWARN_BADQVEL, _W.mjWARN_BADCTRL,
                            _W.mjWARN_CNSTRFULL, _W.mjWARN_CONTACTFULL)}
 _MAX_SPEED = 1e3  # rad/s or m/s, any DOF
+FORCE_SENSOR = "simbench/force/"  # prefix of the actuator-force sensors added to every scene (scene_spec)
 
 
 class _Fault(Exception):
@@ -65,6 +66,8 @@ class Recording:
     eq_active: dict = field(default_factory=dict)
     q_ref: np.ndarray | None = None  # the references as commanded, where the plan's feedback revised them
     qd_ref: np.ndarray | None = None
+    force: np.ndarray | None = None  # (N, dof): each joint's actuator force as MuJoCo applied it (after clamping)
+    force_limit: np.ndarray | None = None  # (dof,): each actuator's force bound, inf where unlimited
 
 
 @dataclass(frozen=True)
@@ -77,13 +80,16 @@ class Plant:
     dof_adr: np.ndarray
     actuators: np.ndarray
     sensors: dict[str, slice]
+    force_sensors: np.ndarray
 
     @classmethod
     def load(cls, robot: Robot, timestep: float | None = None, kp: list[float] | None = None,
-             kv: list[float] | None = None, force_limits: bool = True) -> "Plant":
+             kv: list[float] | None = None, force_limits: bool = True,
+             gravity_compensation: bool = True) -> "Plant":
         """The robot's compiled scene (a fresh copy: a run changes its model), with the timestep and the position
-        servos' gains (one per joint) where given, and without force limits if asked; actuators are named after
-        the joints they drive."""
+        servos' gains (one per joint) where given, without force limits if asked, and without the bodies' gravity
+        compensation (`gravcomp`: the controller's gravity feed-forward) if asked; actuators are named after the
+        joints they drive."""
         model = copy.copy(compiled_scene(str(robot.scene)))
         if timestep is not None:
             model.opt.timestep = timestep
@@ -96,6 +102,8 @@ class Plant:
         if not force_limits:
             model.actuator_forcelimited[:] = 0
             model.jnt_actfrclimited[:] = 0
+        if not gravity_compensation:
+            model.body_gravcomp[:] = 0
         joints = [model.joint(name) for name in robot.joints]
         sensors = {}
         for name in (robot.tool_sensor, *robot.sensors):
@@ -105,7 +113,19 @@ class Plant:
                    qpos_adr=np.array([j.qposadr[0] for j in joints]),
                    dof_adr=np.array([j.dofadr[0] for j in joints]),
                    actuators=act,
-                   sensors=sensors)
+                   sensors=sensors,
+                   force_sensors=np.array([model.sensor(FORCE_SENSOR + name).adr[0] for name in robot.joints]))
+
+    def force_limit(self) -> np.ndarray:
+        """Each joint's actuator force bound (dof,): the actuator's force range, and the joint's actuator force
+        range where that is tighter; inf where neither limits it."""
+        m = self.model
+        bound = np.where(m.actuator_forcelimited[self.actuators].astype(bool),
+                         np.abs(m.actuator_forcerange[self.actuators]).min(axis=1), np.inf)
+        jnt = m.actuator_trnid[self.actuators, 0]
+        joint_bound = np.where(m.jnt_actfrclimited[jnt].astype(bool), np.abs(m.jnt_actfrcrange[jnt]).min(axis=1),
+                               np.inf)
+        return np.minimum(bound, joint_bound)
 
     def initial_qpos(self, q: np.ndarray) -> np.ndarray:
         """Full qpos for actuated joints q: the model's reference pose, q, and any passive joints assembled."""
@@ -132,10 +152,20 @@ class Plant:
         return ctrl
 
 
+def scene_spec(scene: str) -> mujoco.MjSpec:
+    """A scene as simbench runs it: the MJCF, plus an actuator-force sensor (FORCE_SENSOR + name) on every
+    actuator, so that the recording holds the force MuJoCo really applied, force limits included."""
+    spec = mujoco.MjSpec.from_file(scene)
+    for actuator in spec.actuators:
+        spec.add_sensor(name=FORCE_SENSOR + actuator.name, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator.name)
+    return spec
+
+
 @cache
 def compiled_scene(scene: str) -> mujoco.MjModel:
     """A scene compiled once per process (compiling costs about as much as simulating a short scenario)."""
-    return mujoco.MjModel.from_xml_path(scene)
+    return scene_spec(scene).compile()
 
 
 def _state_slices(model: mujoco.MjModel) -> dict[str, slice]:
@@ -413,4 +443,5 @@ def _record(plant: Plant, traj: JointTrajectory, model: mujoco.MjModel, start: n
                      ctrl=ctrl[:rows], tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
                      warnings=tuple(warnings), sensors=recorded,
                      eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)},
+                     force=readings[:, plant.force_sensors], force_limit=plant.force_limit(),
                      **({} if revised is None else {"q_ref": revised[0], "qd_ref": revised[1]}))

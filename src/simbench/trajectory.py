@@ -33,7 +33,8 @@ class JointTrajectory:
     from its actuated joints alone (a free rotor), by joint name. `feedback`, where the method closes a loop, is
     called by the simulator after each switch it applies during the run, as feedback(switch, model, data, k) at
     row k; it returns None, or (k0, columns, q): new references q for those joints from row k0 on (an RSMG arm
-    re-solving its hold for the point it really gripped).
+    re-solving its hold for the point it really gripped). `violations` are the promises the planner knows its
+    plan breaks (it ends away from the task's goal, say), each {"kind", "message"}: the run cannot end `ok`.
     """
 
     t: np.ndarray
@@ -48,6 +49,7 @@ class JointTrajectory:
     switches: tuple[Switch, ...] = ()
     initial: dict = field(default_factory=dict)
     feedback: Callable | None = None
+    violations: tuple[dict, ...] = ()
 
     @property
     def dt(self) -> float:

@@ -6,7 +6,10 @@ point, the per-sample singularity measures and the singular sets of its paper. M
 computed from a whole Recording, since a closed chain's state is more than its actuated joints; `of_joints`
 adapts functions of the joint values alone. A closed chain also names the sensors it needs recorded, assembles
 its passive joints from the actuated ones, and may add its own entries to the report (`summary`), colour its
-parts by their state in the video (`paint`) and draw its own plots (`plots`).
+parts by their state in the video (`paint`) and draw its own plots (`plots`). A robot whose task is an
+orientation (a camera orienter, a rotor) names the analysis series of its orientation error
+(`orientation_error`), and any robot names the events that mean it did not do what was asked (`breaking`: a
+parallel mechanism changing assembly mode), so that such a run does not end `ok` (simbench.verdict).
 """
 
 from __future__ import annotations
@@ -73,6 +76,8 @@ class Robot:
     summary: Callable[..., tuple[dict, list[dict], dict[str, np.ndarray]]] | None = None
     paint: Callable[..., None] | None = None
     plots: Callable[..., list[str]] | None = None
+    orientation_error: str | None = None
+    breaking: tuple[str, ...] = ()
 
     @property
     def dof(self) -> int:

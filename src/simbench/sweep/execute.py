@@ -28,8 +28,9 @@ Task = tuple[int, dict]  # (run index, keyword arguments of run_variant)
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
                 video: bool = False) -> dict:
-    """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | bad_input |
-    run_failed | crashed), `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`.
+    """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | limits | bad_input |
+    run_failed | crashed), `error` (for `limits`, the promises broken), `metrics`, `wall_time` (s) and, with
+    outputs='report', the `report`.
     With outputs='full' every output of `simbench run` is written into `out`, replacing whatever a run stopped
     before its row was recorded left there."""
     from simbench import pipeline
@@ -43,6 +44,8 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
             report = pipeline.run(scenario, out=out, video=video, force=True).report
         else:
             report = pipeline.evaluate_report(scenario)
+        status = report["status"]
+        error = "; ".join(f"{v['kind']}: {v['message']}" for v in report["violations"])
     except ScenarioError as err:
         status, error = "bad_input", err.detail
     except RunError as err:

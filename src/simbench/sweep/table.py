@@ -26,7 +26,8 @@ import pyarrow.parquet as pq  # noqa: E402
 
 from simbench.atomic import staged_file, staged_folder, write_text  # noqa: E402
 
-STATUSES = ("ok", "bad_input", "run_failed", "crashed")
+STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
+FINISHED = ("ok", "limits")  # runs with metrics (`limits`: ran to the end, broke a promise: simbench.verdict)
 _MAX_CATEGORIES = 20
 _MAX_PARAM_PANELS = 6
 
@@ -92,7 +93,7 @@ def summary(table: dict[str, list], metrics: list[str]) -> dict:
     out: dict[str, Any] = {"runs": len(status), "status": {s: status.count(s) for s in STATUSES}, "metrics": {}}
     for name in metrics:
         values = [(v, i) for v, i, s in zip(table.get(name, []), table["id"], status)
-                  if s == "ok" and isinstance(v, (int, float)) and math.isfinite(v)]
+                  if s in FINISHED and isinstance(v, (int, float)) and math.isfinite(v)]
         if values:
             lo, hi = min(values), max(values)
             out["metrics"][name] = {"min": lo[0], "min_run": lo[1], "median": float(np.median([v for v, _ in values])),
@@ -115,11 +116,11 @@ def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
 
 def write_plots(table: dict[str, list], params: list[str], grid: list[str], metrics: list[str],
                 folder: Path) -> tuple[list[str], list[str]]:
-    """One figure per metric (a panel per parameter: finished runs as dots, failed ones as crosses along the
-    bottom), and a heat map over the first two numeric grid parameters. Returns (files written, notes on what
-    could not be plotted)."""
+    """One figure per metric (a panel per parameter: runs that kept every promise as dots, runs that broke one
+    as orange dots, failed ones as crosses along the bottom), and a heat map over the first two numeric grid
+    parameters. Returns (files written, notes on what could not be plotted)."""
     written, notes = [], []
-    ok = np.array([s == "ok" for s in table["status"]])
+    status = np.array(table["status"])
     axes = {p: _axis(table[p]) for p in params}
     plotted = [p for p in params if axes[p] is not None][:_MAX_PARAM_PANELS]
     notes += [f"parameter {p} is not plotted (vector values or too many categories)" for p in params
@@ -132,20 +133,25 @@ def write_plots(table: dict[str, list], params: list[str], grid: list[str], metr
                 continue
             y = np.array([v if isinstance(v, (int, float)) else np.nan for v in table[metric]], float)
             if plotted:
-                written.append(_scatter(metric, y, ok, plotted, axes, tmp))
+                written.append(_scatter(metric, y, status, plotted, axes, tmp))
             if len(numeric_grid) >= 2:
-                written.append(_heatmap(metric, y, ok, numeric_grid[:2], table, tmp))
+                written.append(_heatmap(metric, y, np.isin(status, FINISHED), numeric_grid[:2], table, tmp))
     return written, notes
 
 
-def _scatter(metric: str, y: np.ndarray, ok: np.ndarray, params: list[str], axes: dict, folder: Path) -> str:
+def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], axes: dict, folder: Path) -> str:
     fig, panels = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.6), squeeze=False, sharey=True)
+    ok = np.isin(status, FINISHED)
     finite = ok & np.isfinite(y)
+    broke = finite & (status == "limits")
     floor = np.nanmin(y[finite]) if finite.any() else 0.0
     log_y = finite.any() and (y[finite] > 0).all() and y[finite].max() > 100 * y[finite].min()
     for ax, name in zip(panels[0], params):
         x, labels = axes[name]
-        ax.plot(x[finite], y[finite], "o", ms=4, color="tab:blue", alpha=0.7, label="finished")
+        kept = finite & ~broke
+        ax.plot(x[kept], y[kept], "o", ms=4, color="tab:blue", alpha=0.7, label="ok")
+        if broke.any():
+            ax.plot(x[broke], y[broke], "o", ms=5, color="tab:orange", alpha=0.8, label=f"limits ({broke.sum()})")
         if (~ok).any():
             ax.plot(x[~ok], np.full((~ok).sum(), floor), "x", ms=7, color="tab:red", label=f"failed ({(~ok).sum()})")
         if labels is not None:
@@ -166,7 +172,8 @@ def _scatter(metric: str, y: np.ndarray, ok: np.ndarray, params: list[str], axes
 
 
 def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table: dict, folder: Path) -> str:
-    """The median of the metric over the runs at each grid cell (failed runs left out; a cell with none blank)."""
+    """The median of the metric over the runs at each grid cell (failed runs left out; a cell with none blank;
+    `ok` marks the runs that finished, with or without a broken promise)."""
     xs, ys = (sorted(set(table[p])) for p in pair)
     by_cell: dict[tuple, list[float]] = {}
     for k, cell in enumerate(zip(table[pair[0]], table[pair[1]])):

@@ -1,0 +1,189 @@
+"""Whether a run kept every promise its report makes: the status, and each promise broken, in one line.
+
+A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked.
+Otherwise its status is `limits`, with one violation per broken promise, `{kind, message, t, ...}`:
+
+  joint_limit          the plan asks a joint for a value beyond its range
+  velocity_limit       the plan asks a joint for more than its speed limit
+  reference_jump       the plan steps discontinuously (farther in one sample than ten at the speed limit)
+  actuator_saturation  an actuator sat at its force bound: the motor could not give what tracking took
+  off_path             the tool left the planned path by more than `analysis.path_tolerance`
+  orientation_error    (robots whose task is an orientation) the tool's orientation left the plan's by more
+                       than `analysis.orientation_tolerance`
+  goal_missed          the run ended farther from the plan's end than `analysis.goal_tolerance` (and, for an
+                       orientation, `analysis.goal_orientation_tolerance`), or the plan itself ends away from
+                       the task's goal (planner-reported)
+  singular_crossing    the plan crosses a singular set the mechanism cannot pass through (planner-reported)
+  <event kind>         an event the robot declares breaking (`Robot.breaking`: the Agile Eye's
+                       `assembly_mode_change`, the RSMG's type A and B singularities while gripping)
+
+A planner reports what it knows its plan breaks in `JointTrajectory.violations`, with kinds from KINDS.
+
+A scenario that demonstrates a failure says so (`expect: {status: limits, violations: [...]}`); the status
+stays what it is, and the verdict says whether it is the one expected: the same status and the same kinds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simbench.robots import REVOLUTE, Robot
+from simbench.trajectory import JointTrajectory
+
+OK, LIMITS = "ok", "limits"
+# Violation kinds every robot can have (besides its own `breaking` events and its planner's).
+KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
+         "goal_missed", "singular_crossing")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The status of a run (`ok` or `limits`), its violations, and whether it is what the scenario expected
+    (None when the scenario expects nothing: then only `ok` is as expected)."""
+
+    status: str
+    violations: tuple[dict, ...]
+    expected: dict | None = None
+
+    @property
+    def as_expected(self) -> bool:
+        """Whether the run ended as its scenario says it should (`ok` if it says nothing)."""
+        return self.status == OK if self.expected is None else self.expected["met"]
+
+    def to_report(self) -> dict:
+        """The report.json entries: status, violations and, if the scenario expects a failure, expected."""
+        out = {"status": self.status, "violations": list(self.violations)}
+        if self.expected is not None:
+            out["expected"] = self.expected
+        return out
+
+
+def _quantity(value: float, kind: str, rate: bool = False) -> str:
+    """A joint quantity in the units a reader thinks in: degrees (per second) or millimetres (per second)."""
+    per = "/s" if rate else ""
+    return f"{np.rad2deg(value):.2f} deg{per}" if kind == REVOLUTE else f"{value * 1e3:.2f} mm{per}"
+
+
+def _violation(kind: str, message: str, events: list[dict], **detail) -> dict:
+    return {"kind": kind, "message": message, "t": events[0]["t_start"] if events else detail.pop("t", None),
+            "events": len(events), **detail}
+
+
+def _by_joint(events: list[dict]) -> dict[str, list[dict]]:
+    out: dict[str, list[dict]] = {}
+    for e in events:
+        out.setdefault(e["detail"]["joint"], []).append(e)
+    return out
+
+
+def _limit_violations(robot: Robot, limit_events: list[dict]) -> list[dict]:
+    """One violation per kind and joint of the limit events that break a promise (not `at_limit`: a joint may
+    rest at its limit)."""
+    kind_of = dict(zip(robot.joints, robot.kinds))
+    out = []
+    for name, events in _by_joint([e for e in limit_events if e["kind"] == "joint_limit"]).items():
+        worst = max(events, key=lambda e: e["detail"]["excess"])["detail"]
+        out.append(_violation("joint_limit", f"{name} is asked for {_quantity(worst['worst'], kind_of[name])}, "
+                              f"{_quantity(worst['excess'], kind_of[name])} beyond its {worst['bound']} limit "
+                              f"{_quantity(worst['limit'], kind_of[name])}, from t = {events[0]['t_start']:.3f} s",
+                              events, joint=name, excess=worst["excess"]))
+    for name, events in _by_joint([e for e in limit_events if e["kind"] == "velocity_limit"]).items():
+        worst = max(events, key=lambda e: e["detail"]["worst"])["detail"]
+        out.append(_violation("velocity_limit", f"{name} is asked for {_quantity(worst['worst'], kind_of[name], True)}"
+                              f" against its speed limit {_quantity(worst['limit'], kind_of[name], True)}, from "
+                              f"t = {events[0]['t_start']:.3f} s", events, joint=name,
+                              ratio=worst["worst"] / worst["limit"]))
+    jumps = [e for e in limit_events if e["kind"] == "reference_jump"]
+    if jumps:
+        joints = sorted({j for e in jumps for j in e["detail"]["joints"]}, key=robot.joints.index)
+        cost = max((e["detail"].get("cost", {}).get("tool_off_path_max", 0.0) for e in jumps), default=0.0)
+        costly = f", the tool leaving the path by {cost * 1e3:.1f} mm" if "cost" in jumps[0]["detail"] else ""
+        out.append(_violation("reference_jump", f"the plan steps {', '.join(joints)} discontinuously at t = "
+                              f"{jumps[0]['t_start']:.3f} s ({len(jumps)} jump{'s' * (len(jumps) > 1)}){costly}",
+                              jumps, joints=joints))
+    for name, events in _by_joint([e for e in limit_events if e["kind"] == "actuator_saturation"]).items():
+        total = sum(e["detail"]["duration"] for e in events)
+        limit = events[0]["detail"]["limit"]
+        unit = "N m" if kind_of[name] == REVOLUTE else "N"
+        out.append(_violation("actuator_saturation", f"{name}'s actuator sits at its force limit {limit:g} {unit} for "
+                              f"{total:.3f} s from t = {events[0]['t_start']:.3f} s", events, joint=name,
+                              duration=total))
+    return out
+
+
+def _tolerance_violations(tracking: dict, series: dict, t: np.ndarray, robot: Robot, tol) -> list[dict]:
+    """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal."""
+    out = []
+    deviation = series["path_deviation"]
+    if tracking["tool_max"] > tol.path_tolerance:
+        k = int(np.argmax(deviation > tol.path_tolerance))
+        out.append(_violation("off_path", f"the tool leaves the planned path by up to {tracking['tool_max'] * 1e3:.2f} "
+                              f"mm (tolerance {tol.path_tolerance * 1e3:g} mm), from t = {t[k]:.3f} s", [],
+                              t=float(t[k]), worst=tracking["tool_max"]))
+    if tracking["tool_error_final"] > tol.goal_tolerance:
+        out.append(_violation("goal_missed", f"the tool ends {tracking['tool_error_final'] * 1e3:.2f} mm from the "
+                              f"plan's end (tolerance {tol.goal_tolerance * 1e3:g} mm)", [],
+                              t=float(t[-1]), error=tracking["tool_error_final"]))
+    if robot.orientation_error is not None and robot.orientation_error in series:
+        error = series[robot.orientation_error]
+        if error.max() > tol.orientation_tolerance:
+            k = int(np.argmax(error > tol.orientation_tolerance))
+            out.append(_violation("orientation_error", f"the orientation leaves the plan's by up to "
+                                  f"{np.rad2deg(error.max()):.2f} deg (tolerance "
+                                  f"{np.rad2deg(tol.orientation_tolerance):g} deg), from t = {t[k]:.3f} s",
+                                  [], t=float(t[k]), worst=float(error.max())))
+        if error[-1] > tol.goal_orientation_tolerance and not any(v["kind"] == "goal_missed" for v in out):
+            out.append(_violation("goal_missed", f"the orientation ends {np.rad2deg(error[-1]):.2f} deg from the "
+                                  f"plan's end (tolerance {np.rad2deg(tol.goal_orientation_tolerance):g} deg)", [],
+                                  t=float(t[-1]), error=float(error[-1])))
+    return out
+
+
+def _breaking_violations(robot: Robot, events: list[dict]) -> list[dict]:
+    """The robot's breaking events (an assembly-mode change, say), one violation per kind."""
+    out = []
+    for kind in robot.breaking:
+        found = [e for e in events if e["kind"] == kind]
+        if found:
+            times = ", ".join(f"{e['t_start']:.3f}" for e in found[:3]) + (", ..." if len(found) > 3 else "")
+            count = "once" if len(found) == 1 else f"{len(found)} times"
+            out.append(_violation(kind, f"{kind.replace('_', ' ')} {count}, at t = {times} s", found))
+    return out
+
+
+def _planner_violations(traj: JointTrajectory) -> list[dict]:
+    return [{"t": None, "events": 0, **v} for v in traj.violations]
+
+
+def plan_verdict(robot: Robot, traj: JointTrajectory, limit_events: list[dict], expect=None) -> Verdict:
+    """What can be known before simulating: the limits the plan breaks and what its planner reported."""
+    found = _limit_violations(robot, limit_events) + _planner_violations(traj)
+    return _verdict(found, expect, complete=False)
+
+
+def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expect=None) -> Verdict:
+    """The verdict on a simulated run: the plan's limits, the run's limit and breaking events, and its tracking
+    against the scenario's tolerances. `analysis` is an analysis.Analysis; `tolerances` the scenario's
+    `analysis` section; `expect` its `expect` section or None."""
+    found = (_limit_violations(robot, analysis.limit_events) + _planner_violations(traj)
+             + _breaking_violations(robot, analysis.singularity_events)
+             + _tolerance_violations(analysis.tracking, analysis.series, traj.t, robot, tolerances))
+    return _verdict(found, expect)
+
+
+def _verdict(found: list[dict], expect, complete: bool = True) -> Verdict:
+    """The status of the violations found, checked against the scenario's expectation. Before the physics
+    (`complete` false) only some kinds can show, so the plan meets the expectation if it breaks none other."""
+    status = LIMITS if found else OK
+    expected = None
+    if expect is not None:
+        kinds = sorted({v["kind"] for v in found})
+        wanted = sorted(set(expect.violations))
+        met = (status == expect.status and kinds == wanted) if complete else set(kinds) <= set(wanted)
+        expected = {"status": expect.status, "violations": wanted, "reason": expect.reason, "met": met}
+        if not met:
+            expected["unexpected"] = sorted(set(kinds) - set(wanted))
+            expected["missing"] = sorted(set(wanted) - set(kinds))
+    return Verdict(status, tuple(found), expected)
