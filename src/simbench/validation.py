@@ -7,6 +7,7 @@ Shared by scenario files and sweep files, so both fail the same way: the file, t
 from __future__ import annotations
 
 import difflib
+import re
 from pathlib import Path
 from typing import Any
 
@@ -115,8 +116,8 @@ def _field_loc(loc, document: Any) -> tuple:
                 and 0 <= part < len(node):
             out.append(part)
             node = node[part]
-        elif isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part):
-            continue
+        elif isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part or part[:1].isupper()):
+            continue  # a union member's name (a type, or a model's class name), not a key of the document
         else:  # a field the document lacks: missing, or the path ends here
             out.append(part)
             node = None
@@ -134,10 +135,19 @@ def _reads_as_number(text: str) -> bool:
 def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: tuple = ()) -> tuple[str, str]:
     """The first validation error of `document` as (field path, message in the user's terms).
 
-    An unknown field goes first: a misspelt name also makes the field it meant go missing.
+    An unknown field goes first: a misspelt name also makes the field it meant go missing. Of a union that a
+    mapping or list fails (`'auto'` or a mapping, say), the error inside the mapping goes before the member
+    that wanted no mapping at all.
     """
     errors = err.errors(include_url=False)
-    first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+    locs = [_field_loc(e["loc"], document) for e in errors]
+
+    def inside(i: int) -> bool:  # another error lies within this one's mapping or list
+        return isinstance(errors[i].get("input"), (dict, list)) and any(
+            len(other) > len(locs[i]) and other[:len(locs[i])] == locs[i] for other in locs)
+
+    first = next((e for e in errors if e["type"] == "extra_forbidden"),
+                 next((e for i, e in enumerate(errors) if not inside(i)), errors[0]))
     where = _field_loc(first["loc"], document)
     loc = prefix + where
     kind, msg, given = first["type"], first["msg"], first.get("input")
@@ -156,6 +166,7 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
     if msg.startswith("Value error, "):
         return format_loc(loc), msg.removeprefix("Value error, ")
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
+    msg = re.sub(r"a valid dictionary or instance of \w+", "a mapping of its fields", msg)
     if isinstance(given, (str, int, float, bool)) or given is None:
         msg += f", got {given!r}"
         if isinstance(given, str) and _reads_as_number(given):

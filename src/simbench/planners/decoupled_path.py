@@ -11,12 +11,19 @@ path offset by the tool: p_w = p - R TOOL. Its joints come from the paper's meth
     g = a3 c3 - d4 s3 + a2, h = a3 s3 + d4 c3;
   - q4, q5, q6 from the spherical wrist (Rx(90 deg) R_36 = Rz(q4) Ry(-q5) Rz(q6)).
 
-The configuration (arm, elbow, wrist) is chosen once and kept; every joint is made continuous along the path
-and put on the turn that lies within its range at the start. All samples are solved at once (vectorised).
+The configuration (arm, elbow, wrist: puma600's docstring defines each by the sign it picks) is named by the task
+or, with `configuration: auto` (the default), chosen among the 8 (ours, project issue 17): the one whose whole
+path keeps inside every joint range and under every speed limit with the most margin; if none does, the plan is
+refused, naming the joint, where and by how much. The arm and elbow are kept along the path; the wrist follows
+its branch continuously through q5 = 0 (ours, issue 19: a fixed wrist flag turns q4 and q6 by 180 deg in one
+sample there), each crossing recorded. Every joint is made continuous and the span of its path put by whole
+turns in the middle of its range. All samples are solved at once (vectorised).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from itertools import product
 from typing import Literal
 
 import numpy as np
@@ -27,7 +34,7 @@ from simbench.errors import RunError
 from simbench.paths import Arc, Composite, Line
 from simbench.planners import Planner, rate
 from simbench.robots import puma600
-from simbench.robots.puma600 import A2, A3, D3, D4, LOWER, TOOL, UPPER
+from simbench.robots.puma600 import A2, A3, D3, D4, JOINTS, LOWER, QD_MAX, TOOL, UPPER
 from simbench.schema import Angle, Direction, Orientation, Position, PositiveLength, SimbenchModel
 from simbench.trajectory import JointTrajectory, control_grid
 
@@ -100,7 +107,7 @@ class Segment(SimbenchModel):
 
 
 class Configuration(SimbenchModel):
-    """Which of the 8 inverse-kinematics solutions the arm keeps along the path (puma600 module docstring)."""
+    """Which of the 8 inverse-kinematics solutions the arm starts in (puma600 module docstring)."""
 
     arm: Literal["righty", "lefty"] = "righty"
     elbow: Literal["up", "down"] = "up"
@@ -110,6 +117,14 @@ class Configuration(SimbenchModel):
         """The (arm, elbow, wrist) signs."""
         return np.array([puma600.ARM[self.arm], puma600.ELBOW[self.elbow], puma600.WRIST[self.wrist]])
 
+    def label(self) -> str:
+        """arm/elbow/wrist, as the report and the CLI print it."""
+        return f"{self.arm}/{self.elbow}/{self.wrist}"
+
+
+CONFIGURATIONS = tuple(Configuration(arm=a, elbow=e, wrist=w)
+                       for a, e, w in product(puma600.ARM, puma600.ELBOW, puma600.WRIST))
+
 
 class Task(SimbenchModel):
     """`task:` of paper 002's method: the tool's path, its orientation, the arm's configuration."""
@@ -117,7 +132,9 @@ class Task(SimbenchModel):
     path: list[Segment] = Field(min_length=1)
     orientation: Orientation
     orientation_end: Orientation | None = None
-    configuration: Configuration = Configuration()
+    configuration: Literal["auto"] | Configuration = Field(
+        "auto", description="'auto': of the 8 IK solutions, the one that keeps the whole path inside the joint "
+                            "ranges and speed limits with the most margin; or {arm, elbow, wrist}")
 
     def build_path(self) -> Composite:
         """The tool's path as one composite, s shared by arc length."""
@@ -162,18 +179,150 @@ def arm_angles(p: np.ndarray, arm: float, elbow: float) -> np.ndarray:
 
 
 def solve(points: np.ndarray, rotations: np.ndarray, flags: np.ndarray) -> np.ndarray:
-    """Joints (N, 6) for tool points (N, 3) and orientations (N, 3, 3) in one configuration, not unwrapped."""
+    """Joints (N, 6) for tool points (N, 3) and orientations (N, 3, 3) in configuration flags (3,) or one per
+    sample (N, 3), not unwrapped."""
+    flags = np.broadcast_to(flags, (len(points), 3))
     wrist = points - rotations @ TOOL
-    q123 = arm_angles(wrist, flags[0], flags[1])
-    return np.concatenate([q123, puma600.wrist_angles(q123, rotations, flags[2])], axis=1)
+    q123 = arm_angles(wrist, flags[:, 0], flags[:, 1])
+    return np.concatenate([q123, puma600.wrist_angles(q123, rotations, flags[:, 2])], axis=1)
+
+
+def _wrapped(d: np.ndarray) -> np.ndarray:
+    return np.angle(np.exp(1j * d))
+
+
+def _bridge(values: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """values (N, m) with the rows where `bad` replaced by linear interpolation between the good rows."""
+    if not bad.any() or bad.all():
+        return values
+    good = np.flatnonzero(~bad)
+    out = values.copy()
+    for j in range(values.shape[1]):
+        out[bad, j] = np.interp(np.flatnonzero(bad), good, values[good, j])
+    return out
+
+
+def _singular_wrist(q: np.ndarray) -> np.ndarray:
+    """Samples (N,) where the wrist is exactly singular: q5 = 0, where wrist_angles sets q4 = 0 as it is undefined."""
+    return np.abs(np.sin(q[:, 4])) < 1e-12
+
+
+def _pin_wrist(q: np.ndarray) -> np.ndarray:
+    """q (N, 6) with q4 at exactly singular samples carried over from the sample before, q6 moved to keep q4 + q6
+    (all that is defined there): the wrist passes through q5 = 0 without a jump, and the branch after it is
+    judged against the branch before."""
+    bad = _singular_wrist(q)
+    if not bad.any():
+        return q
+    last = np.maximum.accumulate(np.where(~bad, np.arange(len(q)), 0))
+    out = q.copy()
+    out[bad, 3] = q[last[bad], 3]
+    out[bad, 5] = q[bad, 5] + q[bad, 3] - out[bad, 3]
+    return out
+
+
+def wrist_branch(q: np.ndarray) -> np.ndarray:
+    """The wrist sign (N,) relative to q's own (+1 keep, -1 take the other wrist solution) that keeps the wrist
+    continuous: sample by sample, the one of (q4, q5, q6) and (q4 + pi, -q5, q6 + pi) nearer the sample before.
+
+    Whether the other solution is nearer does not depend on which the sample before took (the swap is an
+    isometry of the wrapped angles), so the branch is the parity of the samples where it is: no loop."""
+    w = _pin_wrist(q)[:, 3:6]
+    other = w + np.stack([np.full(len(w), np.pi), -2 * w[:, 1], np.full(len(w), np.pi)], axis=1)
+    stay = np.sum(_wrapped(w[1:] - w[:-1]) ** 2, axis=1)
+    swap = np.sum(_wrapped(other[1:] - w[:-1]) ** 2, axis=1)
+    parity = np.concatenate([[0], np.cumsum(swap < stay)]) % 2
+    return 1.0 - 2.0 * parity
 
 
 def continuous(q: np.ndarray) -> np.ndarray:
-    """Every joint unwrapped along the samples, then moved by whole turns so the start lies in range if it can."""
+    """Every joint unwrapped along the samples, then moved by whole turns so that the middle of its path's span
+    lies as near the middle of its range as it can (the most room on both sides)."""
     q = np.unwrap(q, axis=0)
-    mid = 0.5 * (LOWER + UPPER)
-    turns = np.round((mid - q[0]) / (2 * np.pi))
-    return q + 2 * np.pi * turns
+    centre = 0.5 * (q.min(axis=0) + q.max(axis=0))
+    return q + 2 * np.pi * np.round((0.5 * (LOWER + UPPER) - centre) / (2 * np.pi))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One configuration's joint path on the control grid and its margins: `room` (6,) the least distance of each
+    joint inside its range along the path (rad, negative beyond it), `speed` (6,) the largest commanded speed
+    over the speed limit. `flags` (N, 3) per sample: the wrist's changes where it passes q5 = 0."""
+
+    configuration: Configuration
+    flags: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+
+    @property
+    def room(self) -> np.ndarray:
+        return np.minimum(self.q.min(axis=0) - LOWER, UPPER - self.q.max(axis=0))
+
+    @property
+    def speed(self) -> np.ndarray:
+        return np.abs(self.qd).max(axis=0) / QD_MAX
+
+    @property
+    def margin(self) -> float:
+        """The least margin, each as a share: of the joint's range, of its speed limit. >= 0 within limits."""
+        return float(min((self.room / (UPPER - LOWER)).min(), (1.0 - self.speed).min()))
+
+    def worst(self, t: np.ndarray, s: np.ndarray) -> str:
+        """Where and by how much the path breaks its worst limit (a candidate with margin < 0), in words."""
+        room_share, speed_share = self.room / (UPPER - LOWER), 1.0 - self.speed
+        if room_share.min() <= speed_share.min():
+            j = int(np.argmin(room_share))
+            low, high = LOWER[j] - self.q[:, j], self.q[:, j] - UPPER[j]
+            k = int(np.argmax(np.maximum(low, high)))
+            bound, limit = ("lower", LOWER[j]) if low[k] > high[k] else ("upper", UPPER[j])
+            return (f"{JOINTS[j]} is asked for {np.rad2deg(self.q[k, j]):.1f} deg at t = {t[k]:.3f} s (s = "
+                    f"{s[k]:.3f}), {np.rad2deg(-self.room[j]):.1f} deg beyond its {bound} limit "
+                    f"{np.rad2deg(limit):.0f} deg")
+        j = int(np.argmin(speed_share))
+        k = int(np.argmax(np.abs(self.qd[:, j])))
+        return (f"{JOINTS[j]} is asked for {np.rad2deg(abs(self.qd[k, j])):.0f} deg/s at t = {t[k]:.3f} s (s = "
+                f"{s[k]:.3f}), {self.speed[j]:.2f} times its speed limit {np.rad2deg(QD_MAX[j]):.0f} deg/s")
+
+    def summary(self) -> dict:
+        """The report's line on this candidate."""
+        return {"configuration": self.configuration.label(), "within_limits": self.margin >= 0,
+                "margin": self.margin, "range_room_min_deg": float(np.rad2deg(self.room.min())),
+                "speed_ratio_max": float(self.speed.max())}
+
+
+def candidate(task: Task, path: Composite, s: np.ndarray, ds: np.ndarray, configuration: Configuration) -> Candidate:
+    """The joint path of one configuration: solved, its wrist branch kept continuous, made continuous and
+    centred; the joint speeds from dq/ds at each sample's own branch (planners.rate; eqs. 38-40 differentiate
+    the same solution)."""
+    points, rotations = path.point(s), task.rotations(s)
+    start = configuration.flags()
+    flags = np.tile(start, (len(s), 1))
+    flags[:, 2] *= wrist_branch(solve(points, rotations, start))
+    q = _pin_wrist(solve(points, rotations, flags))
+    qd = rate(lambda x: solve(path.point(x), task.rotations(x), flags), s, np.ones(6, bool)) * ds[:, None]
+    # where the wrist changes branch or is exactly singular, the differences straddle two branches: bridged
+    change = np.diff(flags[:, 2]) != 0
+    unsure = _singular_wrist(q) | np.concatenate([change, [False]]) | np.concatenate([[False], change])
+    return Candidate(configuration, flags, continuous(q), _bridge(qd, unsure))
+
+
+def choose(task: Task, path: Composite, t: np.ndarray, s: np.ndarray, ds: np.ndarray) -> tuple[Candidate, dict]:
+    """The task's configuration, or with 'auto' the candidate with the most margin (RunError if none keeps
+    within the limits); and what the report says of the choice."""
+    if task.configuration != "auto":
+        chosen = candidate(task, path, s, ds, task.configuration)
+        return chosen, {"chosen": chosen.configuration.label(), "by": "the task"}
+    ranked = sorted((candidate(task, path, s, ds, c) for c in CONFIGURATIONS), key=lambda c: -c.margin)
+    best = ranked[0]
+    if best.margin < 0:
+        raise RunError(f"no configuration of the 8 keeps this path within the joint ranges and speed limits; in the "
+                       f"nearest, {best.configuration.label()}, {best.worst(t, s)}")
+    j, k = int(np.argmin(best.room)), int(np.argmax(best.speed))
+    why = (f"the most margin of the {sum(c.margin >= 0 for c in ranked)} of 8 that keep within the limits: every "
+           f"joint at least {np.rad2deg(best.room[j]):.1f} deg inside its range ({JOINTS[j]} the nearest), the "
+           f"fastest at {best.speed[k]:.2f} of its speed limit ({JOINTS[k]})")
+    return best, {"chosen": best.configuration.label(), "by": "auto", "why": why,
+                  "candidates": [c.summary() for c in ranked]}
 
 
 def plan(scenario, robot, dt: float) -> JointTrajectory:
@@ -183,36 +332,33 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     law = scenario.timing.law_fn()
     t = control_grid(law.duration, scenario.timing.hold, dt)
     s, ds = law(t, order=1)
-    flags = task.configuration.flags()
-
-    def evaluate(x: np.ndarray) -> np.ndarray:
-        return solve(path.point(x), task.rotations(x), flags)
-
-    raw = evaluate(s)
-    bad = np.isnan(raw).any(axis=1)
-    if bad.any():
+    bad = np.isnan(solve(path.point(s), task.rotations(s), CONFIGURATIONS[0].flags())).any(axis=1)
+    if bad.any():  # the reach is the wrist centre's distances alone: the same in every configuration
         k = int(np.argmax(bad))
         point = path.point(s[k:k + 1])[0]
         raise RunError(f"the path leaves the arm's reach at s = {s[k]:.4f} (t = {t[k]:.3f} s), tool point "
                        f"[{point[0]:.4f}, {point[1]:.4f}, {point[2]:.4f}] m: its wrist centre cannot be reached")
-    q_ref = continuous(raw)
-    qd_ref = rate(evaluate, s, np.ones(6, bool)) * ds[:, None]
+    chosen, choice = choose(task, path, t, s, ds)
+    q_ref = chosen.q
     tool_ref = path.point(s)
     bounds = path.bounds
-    grid = np.union1d(np.linspace(0.0, 1.0, 2001), bounds)
-    wp_q = continuous(evaluate(grid))[np.searchsorted(grid, bounds)]  # from s = 0, as q_ref: the same turns
+    wp_q = q_ref[np.minimum(np.searchsorted(s, bounds), len(s) - 1)]  # the control samples at or after each bound
     waypoints = tuple({"s": float(b), "X": x.tolist(), "q": qq.tolist()}
                       for b, x, qq in zip(bounds, path.point(bounds), wp_q))
     speed = np.linalg.norm(np.gradient(tool_ref, t, axis=0), axis=1)
+    flips = np.flatnonzero(np.diff(chosen.flags[:, 2])) + 1
     info = {
         "method": "paper 002: q3 from the wrist distance (eqs. 9-19, corrected), q1 and q2 closed form, "
                   "spherical wrist",
-        "configuration": task.configuration.model_dump(),
+        "configuration": choice,
+        "wrist_branch_changes": [{"t": float(t[k]), "s": float(s[k]),
+                                  "to": "noflip" if chosen.flags[k, 2] > 0 else "flip"} for k in flips],
         "segments": [("line" if seg.line else "arc") for seg in task.path],
         "path_length": path.length,
         "tool_speed_max": float(speed.max()),
     }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=qd_ref, tool_ref=tool_ref, waypoints=waypoints, info=info)
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=chosen.qd, tool_ref=tool_ref, waypoints=waypoints,
+                           info=info)
 
 
 def check(scenario, robot) -> tuple[str, str] | None:
@@ -223,10 +369,12 @@ def check(scenario, robot) -> tuple[str, str] | None:
         gap = np.linalg.norm(segments[i].point(np.array([0.0]))[0] - segments[i - 1].point(np.array([1.0]))[0])
         if gap > _JOIN_TOL:
             return f"task.path[{i}]", f"starts {gap * 1e3:.3f} mm from where task.path[{i - 1}] ends"
-    flags = task.configuration.flags()
+    bounds = task.build_path().bounds
     for i, seg in enumerate(segments):
         ends = np.array([0.0, 1.0])
-        q = solve(seg.point(ends), task.rotations(ends), flags)
+        # each end with the orientation the torch has there (s of the whole path), in any configuration: the
+        # reach is the wrist centre's distances alone
+        q = solve(seg.point(ends), task.rotations(bounds[i:i + 2]), CONFIGURATIONS[0].flags())
         for j, name in enumerate(("start", "end")):
             if np.isnan(q[j]).any():
                 point = seg.point(ends[j:j + 1])[0]
