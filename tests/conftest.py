@@ -21,15 +21,17 @@ def scenario_file(robot: str, name: str):
 SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
 
 
-def interrupt(command: list[str], ready, cwd, timeout: float = 120) -> subprocess.CompletedProcess:
-    """Run a command, send it Ctrl-C (SIGINT) once ready() is true, and wait for it (each within `timeout` s)."""
+def interrupt(command: list[str], ready, cwd, timeout: float = 120,
+              signum: int = signal.SIGINT) -> subprocess.CompletedProcess:
+    """Run a command, send it Ctrl-C (SIGINT, or `signum`) once ready() is true, and wait for it (each within
+    `timeout` s)."""
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
     deadline = time.monotonic() + timeout
     while not ready():
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline
         time.sleep(0.01)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signum)
     stdout, stderr = proc.communicate(timeout=timeout)
     return subprocess.CompletedProcess(command, proc.returncode, stdout, stderr)
 

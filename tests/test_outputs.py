@@ -91,19 +91,24 @@ def test_same_run_twice_gives_identical_timeseries(tmp_path):
     assert not (tmp_path / "a" / "video.mp4").exists()
 
 
-def test_existing_output_is_replaced_whole_and_only_with_force(tmp_path, capsys):
+def test_existing_output_is_replaced_whole_only_with_force_and_never_a_users_file(tmp_path, capsys):
     out = tmp_path / "out"
     path = str(scenario_file("spherical_arm", "case1"))
     assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 0
-    (out / "stale.txt").write_text("from an older run")
+    (out / "notes.txt").write_text("the user's own")
     before = (out / "report.json").read_bytes()
     capsys.readouterr()
     assert main(["run", path, "--out", str(out), "--no-video", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"error: {out}: the output folder exists; pass --force to replace it, or --out to write elsewhere"]
-    assert (out / "stale.txt").exists() and (out / "report.json").read_bytes() == before
+    assert main(["run", path, "--out", str(out), "--no-video", "--quiet", "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "simbench did not write (such as notes.txt)" in err[0]
+    assert (out / "notes.txt").exists() and (out / "report.json").read_bytes() == before
+    (out / "notes.txt").unlink()
+    (out / "plots" / "joints.png").write_bytes(b"an older run's plot")  # simbench's own: replaced
     assert main(["run", path, "--out", str(out), "--no-video", "--quiet", "--force"]) == 0
-    assert not (out / "stale.txt").exists()
+    assert (out / "plots" / "joints.png").read_bytes().startswith(b"\x89PNG")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 

@@ -195,7 +195,7 @@ def test_output_folder_is_guarded(tmp_path):
     with pytest.raises(ScenarioError, match="holds other results.*--force"):
         run_sweep(second, out, workers=1)
     assert run_sweep(second, out, workers=1, force=True).table["timing.duration"] == [3]
-    with Store(out, second), pytest.raises(ScenarioError, match="another sweep is writing into this folder"):
+    with Store(out, second), pytest.raises(ScenarioError, match="another simbench run or sweep is writing into this folder"):
         run_sweep(second, out, workers=1)
     assert run_sweep(second, out, workers=1).resumed == 1
 

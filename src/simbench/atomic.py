@@ -2,7 +2,8 @@
 previous complete output, or none.
 
 Everything is first written beside its destination under a hidden name, then moved into place with a rename,
-which POSIX makes atomic within one filesystem.
+which POSIX makes atomic within one filesystem. What a killed writer left under such a name is removed by the
+next writer of the same path (destination.sweep_leftovers).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from simbench.destination import mark, sweep_leftovers
 from simbench.interrupts import held_back
 
 
@@ -30,6 +32,7 @@ def write_text(path: Path, text: str) -> None:
 @contextmanager
 def staged_file(path: Path) -> Iterator[Path]:
     """A hidden path beside `path` to write to; moved onto `path` if the block succeeds, removed if it fails."""
+    sweep_leftovers(path)
     tmp = _beside(path, "partial")
     try:
         yield tmp
@@ -40,8 +43,10 @@ def staged_file(path: Path) -> Iterator[Path]:
 
 @contextmanager
 def staged_folder(out: Path) -> Iterator[Path]:
-    """A fresh hidden folder beside `out`, moved onto `out` if the block succeeds, removed if it fails."""
+    """A fresh hidden folder beside `out`, moved onto `out` (with its marker, destination.mark) if the block
+    succeeds, removed if it fails. The caller has checked that `out` may be replaced (destination.check)."""
     out.parent.mkdir(parents=True, exist_ok=True)
+    sweep_leftovers(out)
     tmp = _beside(out, "partial")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
@@ -50,6 +55,7 @@ def staged_folder(out: Path) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    mark(tmp)
     old = _beside(out, "old")
     with held_back():  # Ctrl-C between the two renames would leave neither folder in place
         if out.exists():

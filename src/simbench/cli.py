@@ -167,10 +167,10 @@ def _list() -> str:
     return "\n".join(lines)
 
 
-def _interrupted(args) -> int:
+def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
     resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" else ""
     print(f"interrupted{resume}", file=sys.stderr)
-    return 130
+    return ctrl_c.exit_code
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -220,10 +220,10 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        return _interrupted(args)
+        return _interrupted(args, ctrl_c)
     except Exception as err:  # a bug: one line, unless asked for the traceback
         if ctrl_c.pressed:  # an extension module imported later turned Ctrl-C into this
-            return _interrupted(args)
+            return _interrupted(args, ctrl_c)
         if os.environ.get("SIMBENCH_DEBUG"):
             raise
         print(f"internal error: {type(err).__name__}: {err} (a bug in simbench: please report it with the input; "

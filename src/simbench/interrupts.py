@@ -1,4 +1,5 @@
-"""Ctrl-C (SIGINT) during a simbench command: exit 130 with one line, whenever it comes.
+"""Ctrl-C (SIGINT) or SIGTERM during a simbench command: exit 130 (143 for SIGTERM) with one line, whenever it
+comes, after the same clean-up (staging folders removed, worker processes stopped).
 
 With CPython 3.11 and this project's dependencies, a plain KeyboardInterrupt does not always reach the command:
 - an extension module being imported turns it into an ImportError (numpy: "PyCapsule_Import could not import
@@ -23,15 +24,25 @@ class Interrupted(KeyboardInterrupt):
     """Ctrl-C during a simbench command."""
 
 
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 @dataclass
 class CtrlC:
-    """Whether Ctrl-C was pressed while the command ran."""
+    """Whether Ctrl-C was pressed (or SIGTERM came) while the command ran, and which."""
 
     pressed: bool = False
+    signum: int = signal.SIGINT
 
     def __call__(self, signum, frame) -> None:
         self.pressed = True
+        self.signum = signum
         raise Interrupted
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal's number, as a shell reports a command the signal ended."""
+        return 128 + int(self.signum)
 
 
 def _handles_signals() -> bool:
@@ -41,27 +52,31 @@ def _handles_signals() -> bool:
 
 @contextmanager
 def raising_interrupted() -> Iterator[CtrlC]:
-    """Have Ctrl-C raise Interrupted for the duration. Left alone where SIGINT is ignored (a background job) or
-    handled by someone else, and where no handler can be set; `pressed` then stays False."""
+    """Have Ctrl-C and SIGTERM raise Interrupted for the duration. Each is left alone where it is ignored (SIGINT
+    in a background job) or handled by someone else, and both where no handler can be set."""
     ctrl_c = CtrlC()
-    if not _handles_signals() or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+    if not _handles_signals():
         yield ctrl_c
         return
-    signal.signal(signal.SIGINT, ctrl_c)
+    defaults = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+    ours = [s for s in _SIGNALS if signal.getsignal(s) is defaults[s]]
+    for signum in ours:
+        signal.signal(signum, ctrl_c)
     try:
         yield ctrl_c
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        for signum in ours:
+            signal.signal(signum, defaults[signum])
 
 
 @contextmanager
 def held_back() -> Iterator[None]:
-    """Hold SIGINT (Ctrl-C) back until the block is done; it is delivered then. A no-op where Python handles no
-    signals."""
+    """Hold SIGINT (Ctrl-C) and SIGTERM back until the block is done; they are delivered then. A no-op where
+    Python handles no signals."""
     if not _handles_signals():
         yield
         return
-    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, set(_SIGNALS))
     try:
         yield
     finally:

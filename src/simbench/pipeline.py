@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from simbench import destination
 from simbench.analysis import Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
@@ -112,9 +113,14 @@ def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, p
     the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
     raised after they are written."""
     out = Path(out) if out is not None else Path("renders") / scenario.name
-    if not force and out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ScenarioError(str(out), None, "the output folder exists; pass --force to replace it, or --out to "
-                                            "write elsewhere")
+    inputs = [Path(scenario.source)] if scenario.source and Path(scenario.source).is_file() else []
+    with destination.locked(out):
+        destination.check(out, inputs, force)
+        return _run(scenario, out, video, progress)
+
+
+def _run(scenario: Scenario, out: Path, video: bool, progress: bool) -> Result:
+    """run() once `out` is locked and checked."""
     watch = _Stopwatch()
     try:
         ev = evaluate(scenario, progress, watch)

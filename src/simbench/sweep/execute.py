@@ -9,6 +9,7 @@ the kernel's OOM killer) is a `crashed` row, the worker is replaced, and the oth
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import signal
@@ -24,6 +25,7 @@ _NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duratio
                 "samples", "plan", "waypoints", "wall_time", "outputs", "config"}
 
 Task = tuple[int, dict]  # (run index, keyword arguments of run_variant)
+_PR_SET_PDEATHSIG = 1  # prctl option (linux/prctl.h)
 
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
@@ -125,7 +127,8 @@ class _Worker:
 
     def __init__(self, ctx):
         self.conn, theirs = ctx.Pipe()
-        self.process = ctx.Process(target=_serve, args=(theirs,), name="simbench-sweep-worker", daemon=True)
+        self.process = ctx.Process(target=_serve, args=(theirs, os.getpid()), name="simbench-sweep-worker",
+                                   daemon=True)
         self.process.start()
         theirs.close()
         self.index = -1
@@ -144,9 +147,25 @@ class _Worker:
         return self.process.exitcode
 
 
-def _serve(conn) -> None:
-    """A worker's loop: run each variant received until the pipe closes. The parent alone answers Ctrl-C."""
+def _die_with(parent: int) -> None:
+    """Have the kernel kill this process when its parent dies, however it dies (SIGKILL included: then no
+    clean-up of the parent's runs), so that no worker outlives its sweep holding the folder's lock
+    (Linux's PR_SET_PDEATHSIG; elsewhere the parent's own clean-up stops the workers)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent died before the request was made
+        os._exit(1)
+
+
+def _serve(conn, parent: int) -> None:
+    """A worker's loop: run each variant received until the pipe closes. The parent alone answers Ctrl-C and
+    SIGTERM; the worker dies with it."""
+    _die_with(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
         try:
             kwargs = conn.recv()

@@ -7,21 +7,27 @@
 
 Running the same sweep into the same folder again skips every run that has a row (rows are trusted: after
 changing simbench itself, start over); `force` starts over. A folder that holds anything else is replaced only
-with `force`. One sweep at a time may write into a folder: a lock file beside it (`.<name>.lock`) keeps a second
-one out.
+with `force`, and only if simbench wrote all of it; a folder that holds the sweep file, its base or the working
+folder never (simbench.destination). One sweep at a time may write into a folder: a lock file beside it
+(`.<name>.lock`) keeps a second one out.
 """
 
 from __future__ import annotations
 
-import fcntl
 import json
 import shutil
+from contextlib import ExitStack
 from pathlib import Path
 
+from simbench import destination
 from simbench.atomic import write_text
 from simbench.errors import ScenarioError
 from simbench.report import plain, write_report
 from simbench.sweep.spec import Sweep, Variant
+
+
+# What a sweep writes into its folder (the names its marker lists).
+LAYOUT = ("sweep.json", "rows", "runs", "results.csv", "results.parquet", "summary.json", "plots")
 
 
 class Store:
@@ -30,24 +36,30 @@ class Store:
     def __init__(self, out: Path, sweep: Sweep, force: bool = False):
         self.out = out
         self.sweep = sweep
-        out.parent.mkdir(parents=True, exist_ok=True)
-        self._lock = open(out.parent / f".{out.name}.lock", "w")  # held until close()
+        self._lock = ExitStack()
+        self._lock.enter_context(destination.locked(out))  # held until close()
         try:
-            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            self._lock.close()
-            raise ScenarioError(str(out), None, "another sweep is writing into this folder; wait for it to end "
-                                                "or pass --out to write elsewhere") from None
+            self._prepare(force)
+        except BaseException:
+            self.close()
+            raise
+
+    def _prepare(self, force: bool) -> None:
+        """Check the folder, clear it (force) or keep it to resume, and write the manifest and marker."""
+        out, sweep = self.out, self.sweep
+        destination.check_inputs(out, [p for p in (Path(sweep.source), Path(sweep.base)) if p.is_file()])
         manifest = out / "sweep.json"
         fingerprint = sweep.fingerprint()
         if out.exists() and any(out.iterdir()):
             if force:
+                destination.check_replace(out)
                 shutil.rmtree(out)
             elif _fingerprint_in(manifest) != fingerprint:
                 raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or "
                                                     "files that are not a sweep's); pass --force to replace them, "
                                                     "or --out to write elsewhere")
         (out / "rows").mkdir(parents=True, exist_ok=True)
+        destination.mark(out, LAYOUT)
         if not manifest.exists():
             write_text(manifest, json.dumps({
                 "name": sweep.name, "source": sweep.source, "base": str(sweep.base), "fingerprint": fingerprint,

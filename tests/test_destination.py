@@ -1,0 +1,130 @@
+"""No data loss (issue 11): simbench never writes over its input, the working folder or a file it did not write,
+whatever --force says; one writer at a time; nothing left behind by a writer stopped by a signal; sweep workers
+die with their parent."""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+from conftest import interrupt, scenario_file
+
+from simbench.cli import main
+from simbench.destination import locked
+
+
+def _workspace(tmp_path, monkeypatch):
+    """A user's folder: work/scenarios/case1.yaml, the working folder work/."""
+    work = tmp_path / "work"
+    (work / "scenarios").mkdir(parents=True)
+    scenario = work / "scenarios" / "case1.yaml"
+    shutil.copy(scenario_file("spherical_arm", "case1"), scenario)
+    monkeypatch.chdir(work)
+    return work, scenario
+
+
+@pytest.mark.parametrize("where", ["the scenario's folder", "the working folder", "an ancestor of both",
+                                   "the scenario file itself", "a file"])
+def test_force_never_replaces_the_input_the_working_folder_or_a_file(tmp_path, monkeypatch, capsys, where):
+    work, scenario = _workspace(tmp_path, monkeypatch)
+    (work / "data.csv").write_text("the user's data")
+    out = {"the scenario's folder": scenario.parent, "the working folder": work, "an ancestor of both": tmp_path,
+           "the scenario file itself": scenario, "a file": work / "data.csv"}[where]
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    assert main(["run", str(scenario), "--out", str(out), "--no-video", "--quiet", "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {out}: ") and "pick another --out" in err[0]
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before  # nothing touched
+
+
+def test_a_sweep_never_replaces_the_folder_holding_its_file(tmp_path, monkeypatch, capsys):
+    work, scenario = _workspace(tmp_path, monkeypatch)
+    sweep = work / "scenarios" / "sweep.yaml"
+    sweep.write_text(yaml.safe_dump({"base": "case1.yaml", "grid": {"timing.duration": [2, 3]}}))
+    assert main(["sweep", str(sweep), "--out", str(sweep.parent), "--force", "--quiet"]) == 2
+    assert "holds the input" in capsys.readouterr().err
+    assert sweep.exists() and scenario.exists()
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, capsys):
+    out = tmp_path / "out"
+    with locked(out):
+        assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
+                     "--quiet"]) == 2
+    assert "another simbench run or sweep is writing into this folder" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def test_leftovers_of_dead_writers_are_swept_and_a_live_ones_kept(tmp_path):
+    out = tmp_path / "out"
+    dead = tmp_path / f".out.partial-{_dead_pid()}"
+    (dead / "plots").mkdir(parents=True)
+    old = tmp_path / f".out.old-{_dead_pid()}"
+    old.mkdir()
+    with subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]) as alive:
+        live = tmp_path / f".out.partial-{alive.pid}"
+        live.mkdir()
+        assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
+                     "--quiet"]) == 0
+        alive.kill()
+    assert not dead.exists() and not old.exists() and live.exists()
+
+
+def test_sigterm_during_the_video_cleans_up_as_ctrl_c_does(tmp_path):
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "simbench", "run", str(scenario_file("spherical_arm", "case1")), "--out",
+               str(out), "--quiet"]
+    stopped = interrupt(command, lambda: any(tmp_path.glob(".out.partial-*/plots/*.png")), tmp_path,
+                        signum=signal.SIGTERM)
+    assert stopped.returncode == 128 + signal.SIGTERM and stopped.stderr.strip() == "interrupted"
+    assert list(tmp_path.iterdir()) == []  # no output, no staging folder, no lock
+
+
+@pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_a_killed_sweeps_workers_die_with_it_and_it_resumes_without_losing_a_row(tmp_path, signum):
+    spec = {"base": "spherical_arm/case1", "outputs": "none",
+            "random": {"samples": 12, "seed": 4, "params": {"timing.duration": {"uniform": [2, 4]}}}}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "simbench", "sweep", str(path), "--out", str(out), "--workers", "2", "--quiet"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while len(list((out / "rows").glob("*.json"))) < 2:
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.01)
+    workers = [int(p) for p in subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True,
+                                              text=True).stdout.split()]
+    assert workers
+    proc.send_signal(signum)
+    proc.communicate(timeout=60)
+    assert proc.returncode in (-signal.SIGKILL, 128 + signal.SIGTERM)
+    deadline = time.monotonic() + 5
+    while any(_running(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_running(pid) for pid in workers)  # no orphan after 5 s
+    done = {p.name for p in (out / "rows").glob("*.json")}
+    finished = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert finished.returncode == 0, finished.stderr
+    with open(out / "results.csv") as f:
+        ids = [line.split(",")[1] for line in f.read().splitlines()[1:]]
+    assert len(ids) == len(set(ids)) == 12 and done <= {p.name for p in (out / "rows").glob("*.json")}
+
+
+def _running(pid: int) -> bool:
+    """Whether the process exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
