@@ -3,9 +3,12 @@
 The rotor's commanded orientation R(t) is given: turns about a fixed axis, or a tumble (a spin about a rotor
 axis while that axis precesses), on a time law. Each arm holds one of its three candidate contact points; while
 it does, its base angle and gamma follow from the IK of the point's current direction (eqs. 12-23). An arm must
-let go before its gamma leaves (10, 170) deg (eq. 45), and while it swings the three arms holding the rotor
-keep their Jacobian A far from losing rank (eq. 46 puts rank loss at |det A| < 0.01; the schedule keeps
-|det A| >= `det_a_min`, ours, since near 0.01 the rotor is held so loosely that it drifts by degrees). Its
+let go before its gamma leaves (10, 170) deg (eq. 45, less `gamma_margin`), and the arms gripping the rotor
+keep their Jacobian A far from losing rank over the whole schedule: while one arm swings (|det A| of the three
+holding), and while all four grip (the largest 3 x 3 minor, eqs. 36-39: four gripping arms can lose rank too,
+and then no swing rescues them, since each three of them is as weak). Eq. 46 puts rank loss at |det A| < 0.01;
+the schedule keeps this measure >= `det_a_min`, ours, since near 0.01 the rotor is held so loosely that it
+drifts by degrees. A motion for which no schedule keeps both is refused (RunError). Its
 next point is the next candidate in round-robin order (a -> b -> c -> a) whose gamma is inside the band when
 the arm gets there; while it swings (a quintic in theta and gamma, matching position, speed and acceleration
 at both ends) the other three arms hold the rotor, and only one arm swings at a time, so at least three always
@@ -25,12 +28,14 @@ the next swing.
 
 Switches are planned ahead: with the gripping arms' exits e_1 <= e_2 <= ... (the times their gammas leave the
 band less a margin), the first arm lets go by min_k (e_k - k T_swing), so that every arm can swing in turn
-before its exit.
+before its exit; and by e_A - T_swing, e_A the time the four arms' A would fall under `det_a_min`, so that one
+of them (any) holds another point by then.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import combinations, product
 from typing import Literal
 
 import numpy as np
@@ -99,13 +104,12 @@ class Hold:
 
 @dataclass
 class _Choice:
-    """A moment where `arm` must let go of the point it holds (current: each arm's (point, held since step)): the
-    (release step, next point) options not yet tried, in order of preference, and the release taken."""
+    """A moment where an arm must let go of the point it holds (current: each arm's (point, held since step)): the
+    (arm, release step, next point) options not yet tried, in order of preference, and the one taken."""
 
     current: dict[int, tuple[int, int]]
-    arm: int
-    options: list[tuple[int, int]]
-    release: int = -1
+    options: list[tuple[int, int, int]]
+    taken: tuple[int, int] = (-1, -1)  # (arm, release step)
 
 
 def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -118,9 +122,22 @@ def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return theta, gamma
 
 
+def _first_false(ok: np.ndarray) -> np.ndarray:
+    """For each step along the last axis (and one past the end), the first step at or after it where `ok` is false
+    (the length if never)."""
+    n = ok.shape[-1]
+    first = np.minimum.accumulate(np.where(ok, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
+    return np.concatenate([first, np.full(ok.shape[:-1] + (1,), n)], axis=-1)
+
+
+def _grips(points: dict[int, int]) -> str:
+    """Arms and the points they hold, as '1a 2b 3c 4a'."""
+    return " ".join(f"{a + 1}{'abc'[p]}" for a, p in sorted(points.items()))
+
+
 def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_approach: int = 0) -> list[Hold]:
     """Which point each arm holds when, on the schedule grid (section 4.1-4.3); RunError where no round-robin
-    choice keeps three arms gripping inside the band.
+    choice keeps three arms gripping inside the band with A far from rank loss.
 
     Time advances until an arm must let go (its deadline, see the module's docstring). Its choices, in order of
     preference: the next candidate in round-robin order, then the one after (the paper's order of trial), each
@@ -128,26 +145,46 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
     (first: for the other three arms to take a swing each; then: for one swing), then a little earlier. If a
     choice leads to an arm with no choice later, the search backs up and takes the next one (depth first, at
     most _SEARCH tries).
-    A swing takes n_swing steps, the last n_approach of them following the next point, inside the band too;
-    throughout it the other three arms' rows of A (`rows`, (4, 3, N, 3): every arm on every point) keep
-    |det A| >= task.det_a_min.
+    A swing takes n_swing steps, the last n_approach of them following the next point, inside the band too.
+    Over the whole schedule, at every step, the gripping arms' rows of A (`rows`, (4, 3, N, 3): every arm on every
+    point) keep the type A measure (rsmg.type_a_measure: |det A| of the three holding while one swings, the
+    largest 3 x 3 minor while all four grip; eqs. 36-39) >= task.det_a_min (eq. 46's rank-loss test with our
+    floor), and every gripping arm's gamma inside eq. 45's band less task.gamma_margin. Four gripping arms whose
+    measure falls under the floor cannot be rescued by a swing (each three of them is as weak), so before that
+    step one of them must have moved to another point: that is a deadline like a gamma's exit, and any arm may
+    take it.
     """
     lo, hi = rsmg.GAMMA_BAND[0] + task.gamma_margin, rsmg.GAMMA_BAND[1] - task.gamma_margin
-    good = (gamma > lo) & (gamma < hi)  # NaN (out of reach) is never good
     n = gamma.shape[2]
+    next_bad = _first_false((gamma > lo) & (gamma < hi))  # NaN (out of reach) is never inside
+    limits = (f"no schedule keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46) and every gripping gamma in "
+              f"({np.rad2deg(lo):.0f}, {np.rad2deg(hi):.0f}) deg (eq. 45 less the margin)")
+    minors: dict[tuple[tuple[int, int], ...], np.ndarray] = {}
+    weak_steps: dict[tuple[int, ...], np.ndarray] = {}
 
-    next_bad = np.minimum.accumulate(np.where(good, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
+    def measure(points: dict[int, int], free: int | None = None) -> np.ndarray:
+        """The type A measure (N,) of the arms on `points`, all gripping but `free`: rsmg.type_a_measure's, the
+        largest |3 x 3 minor| of their rows of A (eqs. 36-39); NaN where an arm is out of reach (never firm)."""
+        gripping = [(a, p) for a, p in sorted(points.items()) if a != free]
+        for three in combinations(gripping, 3):
+            if three not in minors:
+                a, b, c = (rows[i, p] for i, p in three)
+                minors[three] = np.abs(np.einsum("ni,ni->n", a, np.cross(b, c)))
+        return np.max([minors[three] for three in combinations(gripping, 3)], axis=0)
 
-    def exit_step(arm: int, point: int, step: int) -> int:
-        """First step at or after `step` where the arm's gamma on that point leaves the band (n if never)."""
-        return int(next_bad[arm, point, step]) if step < n else n
+    def next_weak(points: dict[int, int]) -> np.ndarray:
+        """For each step (and one past the end), the first step at or after it where the four arms gripping
+        `points` have a measure under det_a_min."""
+        key = tuple(points[i] for i in range(rsmg.ARMS))
+        if key not in weak_steps:
+            weak_steps[key] = _first_false(measure(points) >= task.det_a_min)
+        return weak_steps[key]
 
     def holding_firmly(current: dict[int, tuple[int, int]], arm: int, earliest: int, latest: int) -> np.ndarray:
         """Whether the other arms, on their current points, keep |det A| >= det_a_min throughout a swing of
         `arm` released at each step from earliest to latest."""
         stop = min(latest + n_swing + 1, n)
-        a = np.stack([rows[i, p, earliest:stop] for i, (p, _) in sorted(current.items()) if i != arm], axis=1)
-        firm = np.abs(np.linalg.det(a)) >= task.det_a_min  # NaN rows (out of reach) are never firm
+        firm = measure({a: p for a, (p, _) in current.items()}, free=arm)[earliest:stop] >= task.det_a_min
         weak = np.concatenate([[0], np.cumsum(~firm)])
         release = np.arange(latest - earliest + 1)
         end = np.minimum(release + n_swing + 1, firm.size)
@@ -155,7 +192,8 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
 
     def choices(current: dict[int, tuple[int, int]], arm: int, earliest: int, latest: int) -> list[tuple[int, int]]:
         """(release step, next point) in order of preference: for each hold wanted after the grip and each next
-        point, the latest release that works, then up to _EARLIER earlier ones a swing apart."""
+        point, the latest release that works, then up to _EARLIER earlier ones a swing apart. After the grip the
+        four arms must stay firm as long as the arm stays inside the band."""
         point = current[arm][0]
         release = np.arange(latest, earliest - 1, -1)
         release = release[release + n_swing < n]
@@ -164,8 +202,10 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
         found = []
         for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
             for k in ((point + 1) % rsmg.CANDIDATES, (point + 2) % rsmg.CANDIDATES):
+                after = {a: p for a, (p, _) in current.items()} | {arm: k}
+                weak = next_weak(after)[grip]
                 ready = next_bad[arm, k, grip - n_approach] > grip  # inside the band from the approach on
-                lasts = next_bad[arm, k, grip] > np.minimum(grip + hold, n - 1)
+                lasts = np.minimum(next_bad[arm, k, grip], weak) > np.minimum(grip + hold, n - 1)
                 works = release[firm & ready & lasts]
                 picked = [works[0]] if works.size else []
                 for r in works[1:]:
@@ -176,12 +216,6 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
                 found += [(int(r), k) for r in picked if (int(r), k) not in found]
         return found
 
-    current = {}
-    for arm in range(rsmg.ARMS):
-        point = max(range(rsmg.CANDIDATES), key=lambda k: exit_step(arm, k, 0))
-        if exit_step(arm, point, 0) == 0:
-            raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
-        current[arm] = (point, 0)
     def next_choice(current: dict[int, tuple[int, int]], step: int) -> _Choice | list[Hold] | tuple[int, str]:
         """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
         need let go again, or (step, why) if the schedule is stuck."""
@@ -190,45 +224,87 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
             if swinging:  # one arm swings at a time; the others were checked to hold until it grips
                 step = max(swinging)
                 continue
-            exits = sorted((exit_step(a, p, step), a) for a, (p, _) in current.items())
-            if exits[0][0] >= n:
+            points = {a: p for a, (p, _) in current.items()}
+            weak = int(next_weak(points)[step])
+            exits = sorted((int(next_bad[a, p, step]), a) for a, p in points.items())
+            if exits[0][0] >= n and weak >= n:
                 return [Hold(a, p, since, n) for a, (p, since) in current.items()]
-            deadline = min(e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n)
+            band = min([e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n], default=n)
+            deadline = min(band, weak - n_swing)
             if deadline <= step:
                 break
             step = deadline
-        _, arm = exits[0]
-        since = current[arm][1]
+        # The arm leaving the band first lets go; if the four arms' A is what runs out first, any arm may.
+        rank_loss = weak < n and weak - n_swing <= band
+        arms = [a for _, a in exits] if rank_loss else [exits[0][1]]
+        options = []
+        for arm in arms:
+            if any(e < step + n_swing for e, a in exits if a != arm):
+                continue  # another arm leaves the band before this one could grip again
+            earliest = max([current[arm][1] + _FIT + 1] + [s for a, (_, s) in current.items() if a != arm])
+            options += [(arm, r, k) for r, k in choices(current, arm, earliest, step)]
+        if options:
+            return _Choice(current, options)
+        t = f"at t = {step * _STEP:.3f} s"
+        if rank_loss:
+            return step, (f"at t = {weak * _STEP:.3f} s the four gripping arms ({_grips(points)}) hold the rotor "
+                          f"with a largest 3x3 minor of A of {measure(points)[weak]:.4f} and no arm can re-grip "
+                          "before then")
+        arm = exits[0][1]
         if any(e < step + n_swing for e, _ in exits[1:]):
-            return step, (f"at t = {step * _STEP:.3f} s arm {arm + 1} must let go but another arm leaves the "
-                          "gamma band before it can grip again")
-        earliest = max([since + _FIT + 1] + [s for a, (_, s) in current.items() if a != arm])
-        options = choices(current, arm, earliest, step)
-        if not options:
-            return step, (f"at t = {step * _STEP:.3f} s arm {arm + 1} has no next contact point inside the gamma band "
-                          f"(eq. 45) to swing to while the others hold the rotor with |det A| >= {task.det_a_min:g}")
-        return _Choice(current, arm, options)
+            return step, f"{t} arm {arm + 1} must let go but another arm leaves the gamma band before it can grip again"
+        return step, (f"{t} arm {arm + 1} has no next contact point inside the gamma band to swing to while the "
+                      "others hold the rotor firmly")
 
-    taken: list[_Choice] = []  # the choices on the way so far, depth first
-    stuck: list[tuple[int, str]] = []
-    tries = 0
-    found = next_choice(current, 0)
-    while not isinstance(found, list):
-        if isinstance(found, _Choice):
-            taken.append(found)
-        else:
-            stuck.append(found)
-        while taken and not taken[-1].options:  # back up to the latest choice with an option left
-            taken.pop()
-        if not taken or tries >= _SEARCH:
-            why = max(stuck)[1] if stuck else "no schedule"
-            raise RunError(f"round robin: {why}" + (" (search budget spent)" if tries >= _SEARCH else ""))
-        choice = taken[-1]
-        choice.release, nxt = choice.options.pop(0)
-        tries += 1
-        found = next_choice({**choice.current, choice.arm: (nxt, choice.release + n_swing)}, choice.release + 1)
-    holds = [Hold(c.arm, *c.current[c.arm], c.release) for c in taken] + found
-    return sorted(holds, key=lambda h: (h.arm, h.start))
+    def search(current: dict[int, tuple[int, int]], budget: int) -> tuple[list[Hold] | None, list, int]:
+        """Depth first from the initial grips: (holds or None, where it got stuck, tries spent)."""
+        taken: list[_Choice] = []  # the choices on the way so far
+        stuck: list[tuple[int, str]] = []
+        tries = 0
+        found = next_choice(current, 0)
+        while not isinstance(found, list):
+            if isinstance(found, _Choice):
+                taken.append(found)
+            else:
+                stuck.append(found)
+            while taken and not taken[-1].options:  # back up to the latest choice with an option left
+                taken.pop()
+            if not taken or tries >= budget:
+                return None, stuck, tries
+            choice = taken[-1]
+            arm, release, nxt = choice.options.pop(0)
+            choice.taken = (arm, release)
+            tries += 1
+            found = next_choice({**choice.current, arm: (nxt, release + n_swing)}, release + 1)
+        return [Hold(a, *c.current[a], r) for c in taken for a, r in [c.taken]] + found, stuck, tries
+
+    # The initial grips: each arm on its point inside the band longest (the paper's start), then other sets of
+    # points, those whose A stays firm longest first; each must hold firmly at t = 0.
+    inside = [[k for k in range(rsmg.CANDIDATES) if next_bad[a, k, 0] > 0] for a in range(rsmg.ARMS)]
+    for arm, ks in enumerate(inside):
+        if not ks:
+            raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
+    first = {a: max(ks, key=lambda k: next_bad[a, k, 0]) for a, ks in enumerate(inside)}
+
+    def lasting(start: dict[int, int]) -> int:
+        """Steps until the first arm leaves the band or the four arms' A falls under det_a_min."""
+        return min(int(next_weak(start)[0]), *(int(next_bad[a, p, 0]) for a, p in start.items()))
+
+    starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if next_weak(s)[0] > 0]
+    if not starts:
+        raise RunError(f"round robin: at t = 0 no set of contact points inside the gamma band holds the rotor "
+                       f"firmly; {limits}")
+    starts.sort(key=lambda s: (s != first, -lasting(s)))
+    stuck, tries = [], 0
+    for start in starts:
+        holds, more, spent = search({a: (p, 0) for a, p in start.items()}, _SEARCH - tries)
+        stuck, tries = stuck + more, tries + spent
+        if holds is not None:
+            return sorted(holds, key=lambda h: (h.arm, h.start))
+        if tries >= _SEARCH:
+            break
+    why = max(stuck)[1] if stuck else "no schedule"
+    raise RunError(f"round robin: {why}; {limits}" + (" (search budget spent)" if tries >= _SEARCH else ""))
 
 
 def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> np.ndarray:
