@@ -14,6 +14,8 @@ Otherwise its status is `limits`, with one violation per broken promise, `{kind,
                        orientation, `analysis.goal_orientation_tolerance`), or the plan itself ends away from
                        the task's goal (planner-reported)
   singular_crossing    the plan crosses a singular set the mechanism cannot pass through (planner-reported)
+  clearance_margin     the plan comes nearer a singular set or an obstacle than the task's margin, or under its
+                       floor on a dexterity index (planner-reported)
   <event kind>         an event the robot declares breaking (`Robot.breaking`: the Agile Eye's
                        `assembly_mode_change`, the RSMG's type A and B singularities while gripping)
 
@@ -35,7 +37,7 @@ from simbench.trajectory import JointTrajectory
 OK, LIMITS = "ok", "limits"
 # Violation kinds every robot can have (besides its own `breaking` events and its planner's).
 KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
-         "goal_missed", "singular_crossing")
+         "goal_missed", "singular_crossing", "clearance_margin")
 
 
 @dataclass(frozen=True)

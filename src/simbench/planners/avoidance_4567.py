@@ -15,10 +15,31 @@ type 2 singularities by smooth bumps whose parameters SLSQP finds.
      scipy's SLSQP chooses them to maximise the path's mean KCI less a small cost on L, subject to every
      clearance staying above its margin over the whole path (sections 6-7).
   4. Repeat for the next violation, up to max_windows; then check the result with the exact FK.
+
+Two additions of ours (project issue 19):
+  5. Where the bent path still breaks a margin (a plain path across a type 2 curve is rarely saved by windows:
+     they are too short to go round it), a global search in SO(3) (so3_search: RRT-Connect, shortcuts, corners
+     rounded) finds an orientation path that keeps every margin; it is timed by the same 4-5-6-7 law over the
+     scenario's duration, by its geodesic angle, and the joints follow it by IK in the task's working mode. No
+     window or SLSQP start is begun once half of task.avoidance.time_budget is spent; the search gets the rest
+     of the budget, and at least half of it (a slower machine may so stop with fewer windows). If no path
+     keeps the margins, the planner refuses (RunError) naming the margins and the best clearances found, unless
+     task.accept_margin_violation hands over the best path anyway, with warnings and, where its platform
+     passes the type 2 singular surface or ends away from the goal (by the exact FK), the violations
+     singular_crossing and goal_missed (simbench.verdict), so that such a run is never `ok` (a margin
+     short of that, an obstacle's or the KCI's, stays a warning: the verdict has no kind for it).
+     One assembly mode throughout: det A (with theta the IK of R in a fixed working mode) has one sign over all
+     of SO(3) off the singular curves (IK is continuous there, det A vanishes only on the curves, and the curves
+     do not cut SO(3) apart), so a path that keeps away from the curves keeps the start's assembly mode; the
+     final plan is checked for it all the same (det A's sign along the exact FK of the sampled joints).
+  6. The plan carries every joint of the closed chain, the passive ones included, assembled at the start
+     orientation (JointTrajectory.initial): the robot's own assembly picks the FK solution nearest home, which
+     for most start orientations is another assembly mode.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 from typing import Annotated, Literal
 
@@ -27,7 +48,8 @@ from pydantic import Field
 from scipy.optimize import minimize
 
 from simbench import learnt_fk
-from simbench.planners import Planner
+from simbench.errors import RunError
+from simbench.planners import Planner, so3_search
 from simbench.robots import agile_eye
 from simbench.rotations import matrix_to_quat, rotation_angle
 from simbench.schema import NonNegative, NonNegativeAngle, Orientation, Positive, PositiveAngle, SimbenchModel
@@ -39,6 +61,9 @@ _WINDOW_SAMPLES = 101  # samples of a window on which SLSQP judges a candidate
 _SAFETY = np.deg2rad(0.1)  # kept above each margin on the window's samples, so the dense path keeps the margin
 _STEP = 1e-3  # rad: finite-difference step of the clearance gradient that seeds SLSQP
 _MAX_AMPLITUDE = np.pi / 4
+_SEARCH_STEP = np.deg2rad(0.5)  # rotation angle between the states the global search checks along a motion
+_ENDS = 1e-6  # rad: how near the exact FK of the last joint sample must come to the goal orientation
+_ON_CURVE = 1e-6  # rad: a platform axis this near its base axis is on a singular curve
 
 
 class Obstacle(SimbenchModel):
@@ -57,6 +82,8 @@ class Avoidance(SimbenchModel):
     max_windows: int = Field(4, ge=1, le=20)
     estimator: Literal["network", "exact"] = "network"
     deviation_weight: NonNegative = 0.1
+    time_budget: Annotated[float, Field(gt=0, le=600)] = Field(
+        10.0, description="seconds of planning: windows for about half, the global search for the rest")
 
 
 class Task(SimbenchModel):
@@ -70,6 +97,9 @@ class Task(SimbenchModel):
     kci_min: Annotated[float, Field(ge=0, lt=1)] = 0.0
     obstacle_clearance: NonNegativeAngle = 0.0
     avoidance: Avoidance = Avoidance()
+    accept_margin_violation: bool = Field(
+        False, description="hand over the best path found, with warnings, when none keeps the margins (a "
+                           "singular crossing included) instead of refusing to run")
 
 
 def bump(tau: np.ndarray, order: int = 0) -> np.ndarray:
@@ -155,7 +185,7 @@ class _Estimator:
     def __call__(self, theta: np.ndarray, anchor: np.ndarray) -> np.ndarray:
         if self.network is not None:
             return self.network(theta, self.mode)
-        return agile_eye.fk_track(theta, anchor)
+        return _platform(theta, anchor)[0]
 
 
 def _score(plan: Plan, t: np.ndarray, estimate: _Estimator, anchor: np.ndarray,
@@ -184,11 +214,12 @@ def _seeds(plan: Plan, t_worst: float, name: str, task: Task, estimate: _Estimat
 
 
 def _optimise_window(plan: Plan, t0: float, seeds: list[np.ndarray], task: Task, estimate: _Estimator,
-                     anchor: np.ndarray) -> tuple[Window, bool]:
+                     anchor: np.ndarray, deadline: float) -> tuple[Window, bool]:
     """(alpha, beta, gamma, L) of a new window at t0 by SLSQP: maximise the path's mean KCI - w L^2, every
     clearance kept. A window changes the path only within itself, so the KCI and the clearances are judged on
     its own samples (`anchor`: the orientation at t0, where the exact FK starts following the mode).
-    Each seed direction is tried; the best feasible result wins (else the one that misses least)."""
+    Each seed direction is tried (no further one once the clock passes `deadline`); the best feasible result
+    wins (else the one that misses least)."""
     length = task.avoidance.window
     weight = task.avoidance.deviation_weight
     t = np.linspace(t0, t0 + length, _WINDOW_SAMPLES)
@@ -211,6 +242,8 @@ def _optimise_window(plan: Plan, t0: float, seeds: list[np.ndarray], task: Task,
         constraints.append({"type": "ineq", "fun": lambda x, n=name: score(x)[1][n] - _SAFETY})
     best = None
     for seed in seeds:
+        if best is not None and time.perf_counter() > deadline:
+            break
         result = minimize(lambda x: -share * score(x)[0] + weight * x[3] ** 2, np.array([*seed, 0.2]), method="SLSQP",
                           bounds=[(-1, 1)] * 3 + [(0, _MAX_AMPLITUDE)], constraints=constraints,
                           options={"maxiter": 40, "ftol": 1e-6})
@@ -222,8 +255,9 @@ def _optimise_window(plan: Plan, t0: float, seeds: list[np.ndarray], task: Task,
     return with_window(best[1]).windows[-1], best[0][0]
 
 
-def optimise(task: Task, law: TimeLaw) -> tuple[Plan, list[dict]]:
-    """The plain path, then one window per violation until none is left or max_windows is reached.
+def optimise(task: Task, law: TimeLaw, deadline: float = np.inf) -> tuple[Plan, list[dict]]:
+    """The plain path, then one window per violation until none is left, max_windows is reached or the clock
+    (time.perf_counter) passes `deadline`.
 
     Violations are found with the exact FK. Each window is optimised with the chosen estimator: the network
     where the window's stretch of path lies in its training workspace (elsewhere its estimates mean nothing),
@@ -244,6 +278,8 @@ def optimise(task: Task, law: TimeLaw) -> tuple[Plan, list[dict]]:
     steps = []
     need = margins(task)
     for _ in range(task.avoidance.max_windows):
+        if time.perf_counter() > deadline:
+            break
         theta = plan.theta(t)
         rot = exact(theta, start_rot)
         slack = {name: c - need[name] for name, c in clearances(task, theta, rot).items()}
@@ -260,11 +296,11 @@ def optimise(task: Task, law: TimeLaw) -> tuple[Plan, list[dict]]:
         if chosen.kind == "network" and not learnt_fk.in_workspace(exact(plan.theta(span), anchor)).all():
             chosen, used = exact, "exact (the window leaves the network's training workspace)"
         window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, chosen, rot[k]),
-                                            task, chosen, anchor)
+                                            task, chosen, anchor, deadline)
         candidate = plan.with_window(window)
         if chosen.kind == "network" and min(_score(candidate, span, exact, anchor, task)[1].values()) < 0:
             window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, exact, rot[k]),
-                                                task, exact, anchor)
+                                                task, exact, anchor, deadline)
             used = "exact (the network's window failed the exact check)"
             candidate = plan.with_window(window)
         plan = candidate
@@ -284,40 +320,203 @@ def _summary(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict:
             "singular_curves": {f"v{i + 1} = +-u{i + 1}": float(g) for i, g in enumerate(gaps)}}
 
 
+def slack(task: Task, rot: np.ndarray, pad: float = 0.0) -> np.ndarray:
+    """The worst clearance less its margin (N,) at orientations (N, 3, 3), the angular margins raised by `pad`:
+    >= 0 where every margin is kept. The joints are the IK in the task's working mode."""
+    theta = agile_eye.ik(rot, task.working_mode)
+    need = margins(task)
+    return np.min([c - need[name] - (0.0 if name == "kci" else pad)
+                   for name, c in clearances(task, theta, rot).items()], axis=0)
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """A joint path on the control grid with what the exact FK says of it: the platform followed from the start
+    orientation, the summary, where it meets or crosses the type 2 singular surface, how far it ends from the
+    goal, and whether it keeps every margin in one assembly mode and ends at the goal."""
+
+    name: str
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    rot: np.ndarray
+    exact: dict
+    crossings: np.ndarray
+    goal_error: float
+    ok: bool
+
+
+def _platform(theta: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The exact FK followed along a joint path from the start orientation (N, 3, 3), and where it is
+    undetermined (N,): base angles at which the platform can turn with the base locked (the FK's roots
+    degenerate, on the type 2 singular surface). There the orientation before is held."""
+    rot = agile_eye.fk_track(theta, start)
+    undetermined = ~np.isfinite(rot).all(axis=(1, 2))
+    for k in np.flatnonzero(undetermined):
+        rot[k] = rot[k - 1] if k else start
+    return rot, undetermined
+
+
+def _crossings(t: np.ndarray, theta: np.ndarray, rot: np.ndarray, undetermined: np.ndarray) -> np.ndarray:
+    """Times where a path passes the type 2 singular surface: det A changes sign between two samples, or the
+    platform comes onto a singular curve (some v_i = +-u_i within _ON_CURVE; there the FK followed may go on in
+    either assembly mode, det A's sign then telling nothing) or where its orientation is undetermined."""
+    det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0])
+    on = (agile_eye.axis_gaps(rot).min(axis=1) < _ON_CURVE) | undetermined
+    arrives = np.flatnonzero(on & ~np.concatenate([[False], on[:-1]]))
+    flips = 1 + np.flatnonzero(np.sign(det_a[1:]) * np.sign(det_a[:-1]) < 0)
+    return t[np.union1d(arrives, flips)]
+
+
+def _check(task: Task, name: str, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray) -> _Checked:
+    """Judge a joint path by the exact FK of its samples (independent of how it was planned)."""
+    rot, undetermined = _platform(theta, task.start.matrix())
+    exact = _summary(task, theta, rot)
+    crossings = _crossings(t, theta, rot, undetermined)
+    goal_error = float(rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
+    keeps = not _shortfalls(task, exact["clearance"])
+    return _Checked(name, theta, theta_dot, rot, exact, crossings, goal_error,
+                    keeps and not crossings.size and goal_error < _ENDS)
+
+
+def _search(task: Task, law: TimeLaw, t: np.ndarray, deadline: float) -> tuple[_Checked | None, dict]:
+    """The global search's path timed on the control grid and checked, or None; and what the search did.
+    The orientation path R(sigma) is timed as sigma = length S(t / T), S the 4-5-6-7 law (eq. 8), so the
+    platform is at rest with no acceleration or jerk at both ends; the joints are its IK in the working mode."""
+    start, goal = task.start.matrix(), task.goal.matrix()
+    clock = time.perf_counter()
+
+    def padded(rot):  # margins padded so that whole motions keep them (so3_search's docstring)
+        return slack(task, rot, _SEARCH_STEP / 2)
+
+    waypoints, status = so3_search.search(padded, start, goal, max(deadline - clock, 1e-3), _SEARCH_STEP)
+    info = {"status": status, "time": time.perf_counter() - clock}
+    if waypoints is None:
+        return None, info
+    path = so3_search.smooth(waypoints, padded, _SEARCH_STEP)
+    rot = path(path.length * law(t, order=0)[0])
+    theta = np.unwrap(agile_eye.ik(rot, task.working_mode), axis=0)  # continuous, from IK(start) in (-pi, pi]
+    info.update({"waypoints": len(waypoints), "length": path.length, "blends": path.blends.tolist(),
+                 "time": time.perf_counter() - clock})
+    return _check(task, "global search in SO(3)", t, theta, np.gradient(theta, t, axis=0)), info
+
+
+_MARGIN_FIELDS = {"type2": "task.singularity_clearance", "kci": "task.kci_min"}
+
+
+def _shortfalls(task: Task, clearance: dict[str, float]) -> list[str]:
+    """Each margin not kept: the clearance reached, the margin, and the field that sets it. The KCI is a
+    number (1 / cond(A^-1 B)), the clearances angles (in degrees here)."""
+    need = margins(task)
+    out = []
+    for name, c in clearance.items():
+        if c < need[name] - 1e-9:
+            field = _MARGIN_FIELDS.get(name, "task.obstacle_clearance")
+            out.append(f"kci {c:.3f} (floor {need[name]:.3f}, {field})" if name == "kci" else
+                       f"{name} clearance {np.rad2deg(c):.2f} deg (margin {np.rad2deg(need[name]):.2f} deg, {field})")
+    return out
+
+
+def _problems(best: _Checked, task: Task) -> list[str]:
+    """What a path that is not ok breaks: margins, the singular surface, the goal."""
+    out = _shortfalls(task, best.exact["clearance"])
+    if best.crossings.size:
+        out.append(f"it passes the type 2 singular surface at t = {best.crossings[0]:.3f} s")
+    if best.goal_error >= _ENDS:
+        out.append(f"it ends {np.rad2deg(best.goal_error):.1f} deg from the goal orientation")
+    return out
+
+
+def _refusal(task: Task, best: _Checked, search: dict | None) -> str:
+    """Why no path is handed over: the margins not kept, the best clearances found, and what was tried."""
+    for end in ("start", "goal"):
+        rot = getattr(task, end).matrix()[None]
+        clear = {n: float(c[0]) for n, c in clearances(task, agile_eye.ik(rot, task.working_mode), rot).items()}
+        if _shortfalls(task, clear):
+            return (f"the {end} orientation breaks a margin, so no path keeps them: "
+                    f"{'; '.join(_shortfalls(task, clear))}")
+    if search is None:
+        tried = "the global search was off (task.avoidance.enabled: false)"
+    elif "waypoints" in search:
+        tried = "the global search's path failed the exact check of its samples"
+    else:
+        tried = (f"the global search in SO(3) found none in {search['time']:.2f} s ({search['status']}; "
+                 f"task.avoidance.time_budget {task.avoidance.time_budget:g} s)")
+    return (f"no path found that keeps the margins: {tried}; the best path found ({best.name}) has "
+            f"{'; '.join(_problems(best, task))}. Set task.accept_margin_violation: true to run it anyway")
+
+
+def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[_Checked, _Checked, list[dict], dict | None]:
+    """The path to hand over: the plain one if it keeps the margins, else the one bent by windows, else the
+    global search's; each judged by the exact FK on the control grid. Windows get half of the time budget, the
+    search the rest (at least half). Returns the chosen path (not ok if none is), the plain path, the windows
+    and what the search did (None if it did not run). RunError if none keeps the margins and the task does not
+    accept that."""
+    clock = time.perf_counter()
+    budget = task.avoidance.time_budget
+    bent, steps = optimise(task, law, deadline=clock + budget / 2)
+    plain_plan = Plan(bent.theta_init, bent.theta_final, law)
+    plain = _check(task, "plain 4-5-6-7 joint path", t, plain_plan.theta(t), plain_plan.theta(t, order=1))
+    chosen = plain if not steps else _check(task, "4-5-6-7 joint path bent by windows", t, bent.theta(t),
+                                            bent.theta(t, order=1))
+    search = None
+    if not chosen.ok and task.avoidance.enabled:
+        found, search = _search(task, law, t, max(clock + budget, time.perf_counter() + budget / 2))
+        if found is not None and found.ok:
+            chosen = found
+    if not chosen.ok and not task.accept_margin_violation:
+        raise RunError(_refusal(task, chosen, search))
+    return chosen, plain, steps, search
+
+
+def _accepted(task: Task, chosen: _Checked, t_end: float) -> tuple[list[str], list[dict]]:
+    """Warnings and violations (verdict kinds) of a path handed over that breaks its margins: each margin not
+    kept, a singular crossing where it passes the type 2 surface, the goal missed where its platform ends away
+    from the goal."""
+    shortfalls = _shortfalls(task, chosen.exact["clearance"])
+    warnings = [f"{line} not kept (accepted: task.accept_margin_violation)" for line in shortfalls]
+    violations = [{"kind": "clearance_margin", "message": f"{line} not kept"} for line in shortfalls]
+    if chosen.crossings.size:
+        t_cross = float(chosen.crossings[0])
+        message = (f"the plan passes the type 2 singular surface at t = {t_cross:.3f} s: the platform may change "
+                   "assembly mode there")
+        warnings.append(message)
+        violations.append({"kind": "singular_crossing", "message": message, "t": t_cross,
+                           "crossings": chosen.crossings.tolist()})
+    if chosen.goal_error >= _ENDS:
+        message = f"the planned platform ends {np.rad2deg(chosen.goal_error):.1f} deg from the goal orientation"
+        warnings.append(message)
+        violations.append({"kind": "goal_missed", "message": message, "t": t_end,
+                           "error": chosen.goal_error})
+    return warnings, violations
+
+
 def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """Plan, bend and time the path; the exact FK gives the platform orientations the report checks."""
+    """Plan, bend and time the path, searching SO(3) where bending fails; the exact FK gives the platform
+    orientations the report checks. RunError if no path keeps the margins (unless the task accepts that)."""
     task = scenario.task
     law = scenario.timing.law_fn()
-    result, steps = optimise(task, law)
+    clock = time.perf_counter()
     t = control_grid(law.duration, scenario.timing.hold, dt)
-    theta = result.theta(t)
-    start_rot = task.start.matrix()
-    rot = agile_eye.fk_track(theta, start_rot)
-    plain = Plan(result.theta_init, result.theta_final, law)
-    plain_theta = plain.theta(t)
-    exact = _summary(task, theta, rot)
-    need = margins(task)
-    warnings = [f"{name}: clearance {np.rad2deg(c):.2f} deg is below its margin {np.rad2deg(need[name]):.2f} deg"
-                for name, c in exact["clearance"].items() if c < need[name] - 1e-9]
-    det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0])
-    crossings = t[1:][np.sign(det_a[1:]) * np.sign(det_a[:-1]) < 0]
-    goal_error = float(rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
-    if crossings.size:
-        warnings.append(f"the path crosses the type 2 singular surface at t = {crossings[0]:.3f} s (det A changes "
-                        f"sign): the platform changes assembly mode and ends {np.rad2deg(goal_error):.1f} deg "
-                        "from the goal orientation")
+    chosen, plain, steps, search = _choose(task, law, t)
+    theta, rot = chosen.theta, chosen.rot
+    warnings, violations = _accepted(task, chosen, float(t[-1]))
     info = {
-        "method": "paper 003: 4-5-6-7 joint path with smooth avoidance windows found by SLSQP",
+        "method": "paper 003: 4-5-6-7 joint path with smooth avoidance windows found by SLSQP; where they fail, "
+                  "a global search in SO(3) (RRT-Connect) timed by the same law",
+        "path": chosen.name + ("" if chosen.ok else " (margins not kept: accepted by task.accept_margin_violation)"),
+        "planning_time": time.perf_counter() - clock,
         "working_mode": task.working_mode,
-        "theta_init": result.theta_init.tolist(),
-        "theta_final": result.theta_final.tolist(),
+        "theta_init": theta[0].tolist(),
+        "theta_final": theta[-1].tolist(),
         "estimator": task.avoidance.estimator if task.avoidance.enabled else None,
         "windows": steps,
-        "margins": need,
-        "goal_error": goal_error,
-        "singular_crossings": crossings.tolist(),
-        **exact,
-        "plain_path": _summary(task, plain_theta, agile_eye.fk_track(plain_theta, start_rot)),
+        "search": search,
+        "margins": margins(task),
+        "goal_error": chosen.goal_error,
+        "singular_crossings": chosen.crossings.tolist(),
+        **chosen.exact,
+        "plain_path": {**plain.exact, "singular_crossings": plain.crossings.tolist(),
+                       "goal_error": plain.goal_error},
     }
     if task.avoidance.enabled and task.avoidance.estimator == "network":
         estimated = clearances(task, theta, learnt_fk.load()(theta, task.working_mode))
@@ -326,9 +525,16 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     aim = rot @ agile_eye.LINE_OF_SIGHT * agile_eye.AIM
     waypoints = tuple({"s": s, "X": aim[k].tolist(), "q": theta[k].tolist(), "quat": quat[k].tolist()}
                       for s, k in ((0.0, 0), (1.0, -1)))
-    return JointTrajectory(t=t, s=law(t, order=0)[0], q_ref=theta, qd_ref=result.theta(t, order=1), tool_ref=aim,
-                           waypoints=waypoints, info=info, warnings=tuple(warnings),
-                           series={"platform_quat_ref": quat})
+    return JointTrajectory(t=t, s=law(t, order=0)[0], q_ref=theta, qd_ref=chosen.theta_dot, tool_ref=aim,
+                           waypoints=waypoints, info=info, warnings=tuple(warnings), violations=tuple(violations),
+                           series={"platform_quat_ref": quat}, initial=start_assembly(theta[0], task.start.matrix()))
+
+
+def start_assembly(theta: np.ndarray, start: np.ndarray) -> dict[str, list[float]]:
+    """JointTrajectory.initial: every joint of the closed chain, the passive ones included, at base angles theta
+    (3,) and the start orientation (3, 3). The robot's own assembly takes the FK solution nearest home, for
+    most start orientations another assembly mode than the plan's, which the physics would then keep."""
+    return {joint: [value] for joint, value in agile_eye.assemble(theta, start).items()}
 
 
 def check(scenario, robot) -> tuple[str, str] | None:

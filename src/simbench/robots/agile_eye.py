@@ -76,17 +76,24 @@ def fk_all(theta: np.ndarray) -> np.ndarray:
         angle = (np.arctan2(q, p) + root * spread) / 2
         v1 = np.cos(angle)[:, None] * a + np.sin(angle)[:, None] * b
         v2 = np.cross(w[:, 1], v1)
-        v2 /= np.linalg.norm(v2, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):  # NaN where v1 is along w2: a degenerate root
+            v2 /= np.linalg.norm(v2, axis=1, keepdims=True)
         base = np.stack([v1, v2, np.cross(v1, v2)], axis=-1)
         out += [base * flip for flip in _FLIPS]
     return np.stack(out, axis=1)
+
+
+def _finite(score: np.ndarray) -> np.ndarray:
+    """Similarity scores with those of NaN solutions (a degenerate root: fk_all's v2 = w2 x v1 of zero length)
+    at -inf, so that argmax never picks them (it would pick the first NaN)."""
+    return np.where(np.isnan(score), -np.inf, score)
 
 
 def fk_nearest(theta: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """The FK solution (N, 3, 3) nearest each reference orientation (N, 3, 3) or (3, 3)."""
     sols = fk_all(theta)
     ref = np.broadcast_to(reference, (len(sols), 3, 3))
-    index = np.argmax(np.einsum("nkij,nij->nk", sols, ref), axis=1)  # largest trace(ref^T R): nearest rotation
+    index = np.argmax(_finite(np.einsum("nkij,nij->nk", sols, ref)), axis=1)  # largest trace(ref^T R): nearest
     return sols[np.arange(len(sols)), index]
 
 
@@ -95,9 +102,9 @@ def fk_track(theta: np.ndarray, start: np.ndarray) -> np.ndarray:
     beginning nearest `start`: the assembly mode followed continuously."""
     sols = fk_all(theta)
     # similarity[k, i, j]: how near solution i at sample k is to solution j at sample k + 1 (trace of R_i^T R_j)
-    similarity = np.einsum("kiab,kjab->kij", sols[:-1], sols[1:])
+    similarity = _finite(np.einsum("kiab,kjab->kij", sols[:-1], sols[1:]))
     index = np.empty(len(sols), int)
-    index[0] = np.argmax(np.einsum("kab,ab->k", sols[0], start))
+    index[0] = np.argmax(_finite(np.einsum("kab,ab->k", sols[0], start)))
     for k in range(len(sols) - 1):
         index[k + 1] = np.argmax(similarity[k, index[k]])
     return sols[np.arange(len(sols)), index]

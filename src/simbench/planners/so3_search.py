@@ -1,0 +1,162 @@
+"""Global search for an orientation path in SO(3), for when bending a joint path around a constraint fails
+(project issue 19): RRT-Connect in OMPL's SO3StateSpace, shortcut, then every corner rounded so that the path,
+timed by a polynomial law, is smooth to the third derivative.
+
+The constraints come in as one function, `slack(rot)`: for orientations (N, 3, 3), by how much each keeps the
+worst of its margins (>= 0: all kept). OMPL checks a motion at states `step` apart (rotation angle); a
+clearance that is 1-Lipschitz in the rotation angle (the angle to an obstacle's centre, the angle between a
+platform axis and its base axis) cannot dip by more than step / 2 between two checked states, so the caller
+pads those margins by step / 2 in `slack` and the whole motion keeps them.
+
+The corners: waypoints R_0 .. R_n joined by geodesics R_k Exp(u e_k), 0 <= u <= a_k (e_k a unit axis in
+R_k's frame, a_k the segment's angle), parametrised by their summed angle sigma. Near an inner waypoint R_k,
+with x = sigma - sigma_k, the incoming geodesic is R_k Exp(x e_{k-1}) and the outgoing one R_k Exp(x e_k); over
+|x| <= d_k the path is R_k Exp(x ((1 - h) e_{k-1} + h e_k)), h = S((x + d_k) / (2 d_k)) with S the 4-5-6-7
+polynomial of paper 003 (eq. 8). S's value and first three derivatives are 0 at 0 and 1 at 1, so the blend
+meets both geodesics with equal derivatives up to the third, and passes through R_k itself. Each corner takes
+the widest blend (half the shorter neighbouring segment, halved until it fits) that keeps `slack`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+from scipy.spatial.transform import Rotation
+
+from simbench.rotations import axis_rotation, matrix_to_quat, quat_to_matrix
+from simbench.timing import TimeLaw
+
+Slack = Callable[[np.ndarray], np.ndarray]
+_SEED = 1  # OMPL's random seed, set before every search: the same task gives the same path, run after run
+_SHORTCUTS = 5  # rounds of OMPL's vertex reduction after the rope shortcut
+_HALVINGS = 10  # a corner's blend is tried at half the shorter segment, then halved up to this many times
+_S = TimeLaw("4567", 1.0)  # S(tau) = 35 tau^4 - 84 tau^5 + 70 tau^6 - 20 tau^7 (paper 003, eq. 8)
+
+
+@dataclass(frozen=True)
+class OrientationPath:
+    """Geodesics between waypoints (n + 1, 3, 3) with rounded corners. `axes` (n, 3): each segment's unit axis
+    e_k in the frame of its first waypoint; `angles` (n,): its geodesic angle a_k; `blends` (n - 1,): each inner
+    corner's half-width d_k (rad of the summed geodesic angle sigma)."""
+
+    waypoints: np.ndarray
+    axes: np.ndarray
+    angles: np.ndarray
+    blends: np.ndarray
+
+    @classmethod
+    def through(cls, waypoints: np.ndarray, blends: np.ndarray | None = None) -> OrientationPath:
+        """The path through the waypoints, with these blends (default: none, sharp corners)."""
+        vec = Rotation.from_matrix(np.swapaxes(waypoints[:-1], 1, 2) @ waypoints[1:]).as_rotvec()
+        angles = np.linalg.norm(vec, axis=1)
+        blends = np.zeros(len(waypoints) - 2) if blends is None else np.asarray(blends, float)
+        return cls(waypoints, vec / angles[:, None], angles, blends)
+
+    @property
+    def length(self) -> float:
+        """The summed geodesic angle of the segments (rad): the range of sigma."""
+        return float(self.angles.sum())
+
+    def __call__(self, sigma: np.ndarray) -> np.ndarray:
+        """Orientations (N, 3, 3) at sigma (N,) in [0, length]."""
+        axes, knots = self.axes, np.concatenate([[0.0], np.cumsum(self.angles)])
+        sigma = np.clip(np.asarray(sigma, float), 0.0, knots[-1])
+        k = np.clip(np.searchsorted(knots, sigma, side="right") - 1, 0, len(axes) - 1)
+        anchor, vec = k, (sigma - knots[k])[:, None] * axes[k]
+        for j, d in enumerate(self.blends, start=1):  # inner corner j, at knots[j]
+            x = sigma - knots[j]
+            near = np.abs(x) < d
+            h = _S(x[near] / (2 * d) + 0.5, order=0)[0][:, None]
+            anchor = np.where(near, j, anchor)
+            vec[near] = x[near][:, None] * ((1 - h) * axes[j - 1] + h * axes[j])
+        return self.waypoints[anchor] @ _exp(vec)
+
+
+def _exp(vec: np.ndarray) -> np.ndarray:
+    """Exp of rotation vectors (N, 3): rotation matrices (N, 3, 3)."""
+    angle = np.linalg.norm(vec, axis=1)
+    axis = np.where(angle[:, None] > 0, vec / np.maximum(angle, 1e-300)[:, None], [1.0, 0.0, 0.0])
+    return axis_rotation(axis, angle)
+
+
+class _Checker(ob.StateValidityChecker):
+    """OMPL's validity test: the orientation keeps every (padded) margin."""
+
+    def __init__(self, si: ob.SpaceInformation, slack: Slack):
+        super().__init__(si)
+        self.slack = slack
+
+    def isValid(self, state) -> bool:  # noqa: N802 (OMPL's name)
+        rot = quat_to_matrix(np.array([state.w, state.x, state.y, state.z]))
+        return bool(self.slack(rot)[0] >= 0.0)
+
+
+@contextmanager
+def _silent():
+    """OMPL logs each search, and an error when its seed is set again in the same process (which is what makes
+    the search repeatable): hold its messages back."""
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LogLevel.LOG_NONE)
+    try:
+        yield
+    finally:
+        ou.setLogLevel(level)
+
+
+def search(slack: Slack, start: np.ndarray, goal: np.ndarray, time_budget: float,
+           step: float) -> tuple[np.ndarray | None, str]:
+    """Waypoints (n + 1, 3, 3) from start to goal (3, 3) whose geodesics keep slack >= 0 at states `step` apart
+    (rotation angle), and OMPL's status; None if RRT-Connect finds none within time_budget seconds. The path is
+    shortened by OMPL's rope shortcut and vertex reduction (same check), not yet smoothed."""
+    with _silent():
+        ou.RNG.setSeed(_SEED)
+        space = ob.SO3StateSpace()
+        si = ob.SpaceInformation(space)
+        si.setStateValidityChecker(_Checker(si, slack))
+        # OMPL's SO(3) distance is half the rotation angle and its extent pi / 2: step / pi of it is `step`.
+        si.setStateValidityCheckingResolution(step / np.pi)
+        si.setup()
+        setup = og.SimpleSetup(si)
+        ends = []
+        for rot in (start, goal):
+            state = space.allocState()
+            state.w, state.x, state.y, state.z = matrix_to_quat(rot)[0]
+            ends.append(state)
+        setup.setStartAndGoalStates(*ends)
+        setup.setPlanner(og.RRTConnect(si))
+        status = setup.solve(time_budget)
+        if not setup.haveExactSolutionPath():
+            return None, status.asString()
+        path = setup.getSolutionPath()
+        simplifier = og.PathSimplifier(si)
+        simplifier.ropeShortcutPath(path)
+        for _ in range(_SHORTCUTS):
+            simplifier.reduceVertices(path)
+        quat = np.array([[s.w, s.x, s.y, s.z] for s in path.getStates()])
+    return quat_to_matrix(quat), status.asString()
+
+
+def smooth(waypoints: np.ndarray, slack: Slack, step: float) -> OrientationPath:
+    """The waypoints' path with each corner rounded by the widest blend whose samples, `step` / 4 apart in sigma,
+    keep slack >= 0. A corner where even the narrowest blend fails keeps a blend of zero width (a kink, which
+    the caller's exact check of the timed path then reports)."""
+    path = OrientationPath.through(waypoints)
+    knots = np.concatenate([[0.0], np.cumsum(path.angles)])
+    blends = path.blends.copy()
+    for j in range(1, len(waypoints) - 1):
+        widest = min(path.angles[j - 1], path.angles[j]) / 2
+        for d in widest * 0.5 ** np.arange(_HALVINGS + 1):
+            blends[j - 1] = d
+            trial = replace(path, blends=blends)
+            sigma = np.linspace(knots[j] - d, knots[j] + d, max(int(np.ceil(8 * d / step)), 2) + 1)
+            if slack(trial(sigma)).min() >= 0.0:
+                break
+        else:
+            blends[j - 1] = 0.0
+    return replace(path, blends=blends)
