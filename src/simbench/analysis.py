@@ -229,8 +229,6 @@ def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | No
 
 def _saturation_events(robot: Robot, rec: Recording) -> list[dict]:
     """Spans where a joint's actuator force sits at its bound (within a part in a million)."""
-    if rec.force is None:
-        return []
     events = []
     at_bound = np.abs(rec.force) >= rec.force_limit * (1 - 1e-6)
     for j, name in enumerate(robot.joints):

@@ -106,10 +106,8 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
     arrays = {
         "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),
         "q_ref": traj.q_ref[:rows], "qd_ref": traj.qd_ref[:rows], "q": rec.q, "qd": rec.qd, "qpos": rec.qpos,
-        "ctrl": rec.ctrl, "tool_ref": traj.tool_ref[:rows], "tool": rec.tool,
+        "ctrl": rec.ctrl, "actuator_force": rec.force, "tool_ref": traj.tool_ref[:rows], "tool": rec.tool,
     }
-    if rec.force is not None:
-        arrays["actuator_force"] = rec.force
     arrays.update({name: series[:rows] for name, series in traj.series.items()})
     if result is not None:
         arrays.update(result.series)

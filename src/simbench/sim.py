@@ -61,13 +61,13 @@ class Recording:
     ctrl: np.ndarray
     tool: np.ndarray
     timestep: float
+    force: np.ndarray  # (N, dof): each joint's actuator force as MuJoCo applied it (after clamping)
+    force_limit: np.ndarray  # (dof,): each actuator's force bound, inf where unlimited
     warnings: tuple[dict, ...] = ()
     sensors: dict = field(default_factory=dict)
     eq_active: dict = field(default_factory=dict)
     q_ref: np.ndarray | None = None  # the references as commanded, where the plan's feedback revised them
     qd_ref: np.ndarray | None = None
-    force: np.ndarray | None = None  # (N, dof): each joint's actuator force as MuJoCo applied it (after clamping)
-    force_limit: np.ndarray | None = None  # (dof,): each actuator's force bound, inf where unlimited
 
 
 @dataclass(frozen=True)

@@ -416,16 +416,6 @@ def _shortfalls(task: Task, clearance: dict[str, float]) -> list[str]:
     return out
 
 
-def _problems(best: _Checked, task: Task) -> list[str]:
-    """What a path that is not ok breaks: margins, the singular surface, the goal."""
-    out = _shortfalls(task, best.exact["clearance"])
-    if best.crossings.size:
-        out.append(f"it passes the type 2 singular surface at t = {best.crossings[0]:.3f} s")
-    if best.goal_error >= _ENDS:
-        out.append(f"it ends {np.rad2deg(best.goal_error):.1f} deg from the goal orientation")
-    return out
-
-
 def _refusal(task: Task, best: _Checked, search: dict | None) -> str:
     """Why no path is handed over: the margins not kept, the best clearances found, and what was tried."""
     for end in ("start", "goal"):
@@ -442,7 +432,8 @@ def _refusal(task: Task, best: _Checked, search: dict | None) -> str:
         tried = (f"the global search in SO(3) found none in {search['time']:.2f} s ({search['status']}; "
                  f"task.avoidance.time_budget {task.avoidance.time_budget:g} s)")
     return (f"no path found that keeps the margins: {tried}; the best path found ({best.name}) has "
-            f"{'; '.join(_problems(best, task))}. Set task.accept_margin_violation: true to run it anyway")
+            f"{'; '.join(v['message'] for v in _violations(task, best))}. Set "
+            "task.accept_margin_violation: true to run it anyway")
 
 
 def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[_Checked, _Checked, list[dict], dict | None]:
@@ -468,26 +459,27 @@ def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[_Checked, _Checked
     return chosen, plain, steps, search
 
 
-def _accepted(task: Task, chosen: _Checked, t_end: float) -> tuple[list[str], list[dict]]:
-    """Warnings and violations (verdict kinds) of a path handed over that breaks its margins: each margin not
-    kept, a singular crossing where it passes the type 2 surface, the goal missed where its platform ends away
-    from the goal."""
-    shortfalls = _shortfalls(task, chosen.exact["clearance"])
-    warnings = [f"{line} not kept (accepted: task.accept_margin_violation)" for line in shortfalls]
-    violations = [{"kind": "clearance_margin", "message": f"{line} not kept"} for line in shortfalls]
+def _violations(task: Task, chosen: _Checked, t_end: float | None = None) -> list[dict]:
+    """What a path that is not ok breaks, as verdict violations: each margin not kept, a singular crossing where
+    it passes the type 2 surface, the goal missed where its platform ends away from the goal (at `t_end`)."""
+    out = [{"kind": "clearance_margin", "message": f"{line} not kept"}
+           for line in _shortfalls(task, chosen.exact["clearance"])]
     if chosen.crossings.size:
         t_cross = float(chosen.crossings[0])
-        message = (f"the plan passes the type 2 singular surface at t = {t_cross:.3f} s: the platform may change "
-                   "assembly mode there")
-        warnings.append(message)
-        violations.append({"kind": "singular_crossing", "message": message, "t": t_cross,
-                           "crossings": chosen.crossings.tolist()})
+        out.append({"kind": "singular_crossing", "t": t_cross, "crossings": chosen.crossings.tolist(),
+                    "message": f"the plan passes the type 2 singular surface at t = {t_cross:.3f} s: the platform "
+                               "may change assembly mode there"})
     if chosen.goal_error >= _ENDS:
-        message = f"the planned platform ends {np.rad2deg(chosen.goal_error):.1f} deg from the goal orientation"
-        warnings.append(message)
-        violations.append({"kind": "goal_missed", "message": message, "t": t_end,
-                           "error": chosen.goal_error})
-    return warnings, violations
+        out.append({"kind": "goal_missed", "t": t_end, "error": chosen.goal_error,
+                    "message": f"the planned platform ends {np.rad2deg(chosen.goal_error):.1f} deg from the goal "
+                               "orientation"})
+    return out
+
+
+def _accepted(task: Task, chosen: _Checked, t_end: float) -> tuple[list[str], list[dict]]:
+    """Warnings and violations of a path handed over although it breaks its margins (_violations)."""
+    violations = _violations(task, chosen, t_end)
+    return [f"{v['message']} (accepted: task.accept_margin_violation)" for v in violations], violations
 
 
 def plan(scenario, robot, dt: float) -> JointTrajectory:

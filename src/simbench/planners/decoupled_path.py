@@ -23,6 +23,7 @@ turns in the middle of its range. All samples are solved at once (vectorised).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from itertools import product
 from typing import Literal
 
@@ -254,15 +255,15 @@ class Candidate:
     q: np.ndarray
     qd: np.ndarray
 
-    @property
+    @cached_property
     def room(self) -> np.ndarray:
         return np.minimum(self.q.min(axis=0) - LOWER, UPPER - self.q.max(axis=0))
 
-    @property
+    @cached_property
     def speed(self) -> np.ndarray:
         return np.abs(self.qd).max(axis=0) / QD_MAX
 
-    @property
+    @cached_property
     def margin(self) -> float:
         """The least margin, each as a share: of the joint's range, of its speed limit. >= 0 within limits."""
         return float(min((self.room / (UPPER - LOWER)).min(), (1.0 - self.speed).min()))
@@ -369,7 +370,7 @@ def check(scenario, robot) -> tuple[str, str] | None:
         gap = np.linalg.norm(segments[i].point(np.array([0.0]))[0] - segments[i - 1].point(np.array([1.0]))[0])
         if gap > _JOIN_TOL:
             return f"task.path[{i}]", f"starts {gap * 1e3:.3f} mm from where task.path[{i - 1}] ends"
-    bounds = task.build_path().bounds
+    bounds = Composite(tuple(segments)).bounds
     for i, seg in enumerate(segments):
         ends = np.array([0.0, 1.0])
         # each end with the orientation the torch has there (s of the whole path), in any configuration: the
