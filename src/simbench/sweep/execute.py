@@ -127,8 +127,8 @@ class _Worker:
 
     def __init__(self, ctx):
         self.conn, theirs = ctx.Pipe()
-        self.process = ctx.Process(target=_serve, args=(theirs, os.getpid()), name="simbench-sweep-worker",
-                                   daemon=True)
+        self.process = ctx.Process(target=_serve, args=(theirs, os.getpid(), _prctl()),
+                                   name="simbench-sweep-worker", daemon=True)
         self.process.start()
         theirs.close()
         self.index = -1
@@ -147,23 +147,33 @@ class _Worker:
         return self.process.exitcode
 
 
-def _die_with(parent: int) -> None:
+def _prctl():
+    """libc's prctl with its arguments typed (it is variadic: an untyped int leaves a register's upper half
+    undefined), looked up in the parent so that a forked worker only makes the call; None where there is none."""
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+    prctl.restype = ctypes.c_int
+    return prctl
+
+
+def _die_with(parent: int, prctl) -> None:
     """Have the kernel kill this process when its parent dies, however it dies (SIGKILL included: then no
     clean-up of the parent's runs), so that no worker outlives its sweep holding the folder's lock
     (Linux's PR_SET_PDEATHSIG; elsewhere the parent's own clean-up stops the workers)."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (OSError, AttributeError):
+    if prctl is None:
         return
+    prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     if os.getppid() != parent:  # the parent died before the request was made
         os._exit(1)
 
 
-def _serve(conn, parent: int) -> None:
+def _serve(conn, parent: int, prctl) -> None:
     """A worker's loop: run each variant received until the pipe closes. The parent alone answers Ctrl-C and
     SIGTERM; the worker dies with it."""
-    _die_with(parent)
+    _die_with(parent, prctl)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
