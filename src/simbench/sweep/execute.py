@@ -9,10 +9,10 @@ the kernel's OOM killer) is a `crashed` row, the worker is replaced, and the oth
 
 from __future__ import annotations
 
-import ctypes
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from multiprocessing import connection
@@ -25,7 +25,7 @@ _NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duratio
                 "samples", "plan", "waypoints", "wall_time", "outputs", "config"}
 
 Task = tuple[int, dict]  # (run index, keyword arguments of run_variant)
-_PR_SET_PDEATHSIG = 1  # prctl option (linux/prctl.h)
+_WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
@@ -127,7 +127,7 @@ class _Worker:
 
     def __init__(self, ctx):
         self.conn, theirs = ctx.Pipe()
-        self.process = ctx.Process(target=_serve, args=(theirs, os.getpid(), _prctl()),
+        self.process = ctx.Process(target=_serve, args=(theirs, os.getpid()),
                                    name="simbench-sweep-worker", daemon=True)
         self.process.start()
         theirs.close()
@@ -147,33 +147,25 @@ class _Worker:
         return self.process.exitcode
 
 
-def _prctl():
-    """libc's prctl with its arguments typed (it is variadic: an untyped int leaves a register's upper half
-    undefined), looked up in the parent so that a forked worker only makes the call; None where there is none."""
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
-    prctl.restype = ctypes.c_int
-    return prctl
+def _die_with(parent: int) -> None:
+    """End this process as soon as its parent is gone, however it died (SIGKILL included: then no clean-up of
+    the parent's runs), so that no worker outlives its sweep holding the folder's lock. A daemon thread watches
+    the parent's pid (the process is handed to another parent when its own dies). The pipe cannot tell: workers
+    forked later hold copies of the parent's end of it. Linux's PR_SET_PDEATHSIG would, but in a forked worker
+    of a long-lived process with threads it ended in segmentation faults."""
 
-
-def _die_with(parent: int, prctl) -> None:
-    """Have the kernel kill this process when its parent dies, however it dies (SIGKILL included: then no
-    clean-up of the parent's runs), so that no worker outlives its sweep holding the folder's lock
-    (Linux's PR_SET_PDEATHSIG; elsewhere the parent's own clean-up stops the workers)."""
-    if prctl is None:
-        return
-    prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    if os.getppid() != parent:  # the parent died before the request was made
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(_WATCH)
         os._exit(1)
 
+    threading.Thread(target=watch, name="simbench-parent-watch", daemon=True).start()
 
-def _serve(conn, parent: int, prctl) -> None:
+
+def _serve(conn, parent: int) -> None:
     """A worker's loop: run each variant received until the pipe closes. The parent alone answers Ctrl-C and
     SIGTERM; the worker dies with it."""
-    _die_with(parent, prctl)
+    _die_with(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
