@@ -17,12 +17,12 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.1.0"
 
-from simbench.errors import PhysicsError, RunError, ScenarioError  # noqa: E402
+from simbench.errors import OutputError, PhysicsError, RunError, ScenarioError  # noqa: E402
 
 _LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "evaluate": "simbench.pipeline",
          "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario"}
 
-__all__ = ["Evaluation", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__", "evaluate",
+__all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__", "evaluate",
            "load_scenario", "run"]
 
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from simbench.budget import SEARCH_PAIRS
+
 from simbench.robots import Robot, Tolerance
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
@@ -60,7 +62,7 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     taken as is: it is then within h^2 / 2r < h / 200 of the exact distance.
     """
     keep = np.concatenate([[True], np.any(np.diff(path, axis=0) != 0, axis=1)])
-    vertices = path[keep]
+    vertices = _subdivided(path[keep])
     if len(vertices) == 1:
         return np.linalg.norm(points - vertices[0], axis=1)
     tree = cKDTree(vertices)
@@ -69,16 +71,50 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     close = np.flatnonzero(best <= 100 * half)
     if close.size == 0:
         return best
-    near = tree.query_ball_point(points[close], best[close] + half + 1e-12)
-    counts = np.fromiter(map(len, near), int, len(near))  # >= 1: each point's nearest vertex is in its ball
+    radius = best[close] + half + 1e-12
+    counts = tree.query_ball_point(points[close], radius, return_length=True)  # >= 1: the nearest vertex
+    # Points taken in batches of at most SEARCH_PAIRS (point, vertex) pairs, so that memory stays bounded where
+    # many vertices crowd one place (a path that dwells, or one long segment among short ones).
+    marks = np.arange(SEARCH_PAIRS, counts.sum() + SEARCH_PAIRS, SEARCH_PAIRS)
+    ends = np.searchsorted(np.cumsum(counts), marks, "right")
+    start = 0
+    for stop in np.unique(np.maximum(ends, 1)):
+        if stop > start:
+            batch = close[start:stop]
+            best[batch] = np.minimum(best[batch], _nearest_segment(tree, vertices, points[batch], radius[start:stop]))
+            start = stop
+    return best
+
+
+def _subdivided(vertices: np.ndarray) -> np.ndarray:
+    """The same polyline with its long segments cut into pieces no longer than the typical one (the median, or
+    1e-5 of the whole length if that is longer): one long segment among short ones (a jump in the plan) would
+    otherwise widen every point's search ball to it, and the search would grow with the square of the samples."""
+    if len(vertices) < 3:
+        return vertices
+    length = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
+    piece = max(float(np.median(length)), 1e-5 * float(length.sum()))
+    cuts = np.ceil(length / piece).astype(int)
+    if (cuts <= 1).all():
+        return vertices
+    # Vertex i followed by cuts[i] - 1 evenly spaced points towards vertex i + 1.
+    owner = np.repeat(np.arange(len(length)), cuts)
+    fraction = (np.arange(len(owner)) - np.repeat(np.cumsum(cuts) - cuts, cuts)) / cuts[owner]
+    points = vertices[owner] + fraction[:, None] * (vertices[owner + 1] - vertices[owner])
+    return np.concatenate([points, vertices[-1:]])
+
+
+def _nearest_segment(tree: cKDTree, vertices: np.ndarray, points: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Each point's distance from the nearest of the segments that have an end within its radius."""
+    near = tree.query_ball_point(points, radius)
+    counts = np.fromiter(map(len, near), int, len(near))
     vertex = np.concatenate(near).astype(int)
-    owner = np.repeat(close, counts)
+    owner = np.repeat(np.arange(len(points)), counts)
     last = len(vertices) - 2
     distance = np.minimum(_segment_distance(vertices, np.clip(vertex - 1, 0, last), points[owner]),
                           _segment_distance(vertices, np.minimum(vertex, last), points[owner]))
     first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    best[close] = np.minimum(best[close], np.minimum.reduceat(distance, first))
-    return best
+    return np.minimum.reduceat(distance, first)
 
 
 def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) -> np.ndarray:

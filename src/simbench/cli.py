@@ -4,7 +4,10 @@ Exit codes: 0 done, every promise kept (or the failure the scenario expects); 3 
 promise (status `limits`: a joint limit, a speed limit, a motor at its force limit, the path or goal missed, a
 singular crossing), each printed on its own line; 2 bad input (one line naming the file, the field and what is
 expected); 1 the run itself failed (an unreachable path, diverged physics), with the reason, or simbench hit a
-bug (one line; SIMBENCH_DEBUG=1 for the traceback); 130 interrupted.
+bug (one line; SIMBENCH_DEBUG=1 for the traceback); 130 interrupted. What the file system refuses is said in
+its words, naming the path (simbench.errors): before the run (an unreadable scenario, an output folder that
+cannot be written) it is bad input; while writing the outputs (a full disk) the run failed, and nothing
+half-written is left.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ import sys
 from pathlib import Path
 
 from simbench import interrupts
-from simbench.errors import PhysicsError, RunError, ScenarioError
+from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, os_error_line,
+                             printable)
 from simbench.resources import scenarios_dir, sweeps_dir
 
 
@@ -153,6 +157,26 @@ def _validate(paths: list[Path], plan: bool) -> int:
     return code
 
 
+def _run(args) -> int:
+    """The run command: run the scenario, print its summary; a run whose physics failed says where its report
+    is."""
+    from simbench import pipeline, scenario
+
+    sc = scenario.load_scenario(args.scenario)
+    out = args.out if args.out is not None else Path("renders") / sc.name
+    try:
+        result = pipeline.run(sc, out=out, video=not args.no_video, progress=not args.quiet, force=args.force)
+    except PhysicsError as err:
+        kept = "the report and the timeseries up to then are" if err.recording is not None else "the report is"
+        raise RunError(f"{err}; {kept} in {out}") from None
+    if not args.quiet:
+        print(_summary(result))
+    elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
+        print("\n".join(_status_lines(result.report["status"], result.report["violations"],
+                                      result.report.get("expected"))), file=sys.stderr)
+    return _exit_code(result.evaluation.verdict)
+
+
 def _list() -> str:
     from simbench import planners, robots
 
@@ -183,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
 def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
     try:
         with interrupts.held_back():  # the extension modules, imported here, would convert or swallow Ctrl-C
-            from simbench import pipeline, planners, robots, scenario
+            from simbench import pipeline, planners, robots, scenario  # noqa: F401
 
             robots.registry()
             planners.registry()
@@ -199,34 +223,39 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         elif args.command == "validate":
             return _validate(args.scenarios, plan=not args.no_plan)
         else:
-            sc = scenario.load_scenario(args.scenario)
-            result = pipeline.run(sc, out=args.out, video=not args.no_video, progress=not args.quiet,
-                                  force=args.force)
-            if not args.quiet:
-                print(_summary(result))
-            elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
-                print("\n".join(_status_lines(result.report["status"], result.report["violations"],
-                                              result.report.get("expected"))), file=sys.stderr)
-            return _exit_code(result.evaluation.verdict)
+            return _run(args)
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except PhysicsError as err:
-        out = args.out or Path("renders") / sc.name
-        kept = "the report and the timeseries up to then" if err.recording is not None else "the report"
-        print(f"run failed: {err}; {kept} are in {out}", file=sys.stderr)
+    except OutputError as err:
+        if ctrl_c.pressed:  # Ctrl-C reached ffmpeg too, whose broken pipe came first
+            return _interrupted(args, ctrl_c)
+        print(f"error: {err}", file=sys.stderr)
         return 1
     except RunError as err:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return _interrupted(args, ctrl_c)
-    except Exception as err:  # a bug: one line, unless asked for the traceback
-        if ctrl_c.pressed:  # an extension module imported later turned Ctrl-C into this
-            return _interrupted(args, ctrl_c)
-        if os.environ.get("SIMBENCH_DEBUG"):
-            raise
-        print(f"internal error: {type(err).__name__}: {err} (a bug in simbench: please report it with the input; "
-              "SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
-        return 1
+    except OSError as err:
+        if err.filename is None or ctrl_c.pressed:  # not the file system's refusal (a closed pipe): see below
+            return _internal_error(args, ctrl_c, err)
+        # One no module turned into ScenarioError or OutputError: met while looking at the input or the
+        # destination (bad input), unless the machine ran out of space.
+        path, words = os_error_line(err)
+        print(f"error: {path}: {words}", file=sys.stderr)
+        return 1 if err.errno in NO_SPACE else 2
+    except Exception as err:
+        return _internal_error(args, ctrl_c, err)
     return 0
+
+
+def _internal_error(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:
+    """A bug: one line, unless asked for the traceback (SIMBENCH_DEBUG=1)."""
+    if ctrl_c.pressed:  # an extension module imported later turned Ctrl-C into this
+        return _interrupted(args, ctrl_c)
+    if os.environ.get("SIMBENCH_DEBUG"):
+        raise err
+    print(f"internal error: {type(err).__name__}: {printable(str(err))} (a bug in simbench: please report it with "
+          "the input; SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
+    return 1

@@ -1,8 +1,14 @@
-"""The two ways a simbench command fails: bad input (exit 2) and a run that cannot go on (exit 1)."""
+"""The two ways a simbench command fails: bad input (exit 2) and a run that cannot go on (exit 1); and the words
+for what the file system refused (one place, so that every command says it the same way)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import errno
+import os
+import re
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from simbench.sim import Recording
@@ -13,10 +19,10 @@ class ScenarioError(Exception):
     """A scenario file that cannot be used: names the file, the field and what is expected."""
 
     def __init__(self, source: str, field: str | None, message: str):
-        self.source = source
+        self.source = printable(source)
         self.field = None if field is None else printable(field)
         self.message = printable(message)
-        super().__init__(f"{source}: {self.detail}")
+        super().__init__(f"{self.source}: {self.detail}")
 
     @property
     def detail(self) -> str:
@@ -24,10 +30,30 @@ class ScenarioError(Exception):
         return f"{self.field}: {self.message}" if self.field else self.message
 
 
-def printable(text: str) -> str:
+def printable(text: Any) -> str:
     """Text with control characters and line breaks escaped (a key read from a file may hold any), so that an
-    error stays one line."""
+    error stays one line. Anything else is shown as shown() shows it."""
+    if not isinstance(text, str):
+        text = shown(text)
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
+def shown(value: Any, limit: int = 200) -> str:
+    """repr(value), cut to `limit` characters, and for an integer too long for Python to write out in decimal its
+    size instead: formatting an error never fails itself, and stays one readable line."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        digits = int(abs(value).bit_length() * 0.30103) + 1
+        if digits > MAX_INT_DIGITS:
+            return f"{'-' if value < 0 else ''}an integer of about {digits} digits"
+    try:
+        text = repr(value)
+    except ValueError:  # an integer too long inside a container, say
+        return f"a {type(value).__name__} too large to show"
+    return text if len(text) <= limit else f"{text[:limit - 3]}..."
+
+
+# The most digits Python writes an integer out in (sys.get_int_max_str_digits; 0 means no limit).
+MAX_INT_DIGITS = (sys.get_int_max_str_digits() if hasattr(sys, "get_int_max_str_digits") else 0) or 4300
 
 
 class RunError(Exception):
@@ -45,3 +71,156 @@ class PhysicsError(RunError):
         self.recording = recording
         when = f"at t = {t:.4f} s" if t >= 0 else f"while settling at the start pose ({-t:.4f} s before the start)"
         super().__init__(f"physics failed {when}: {cause}")
+
+
+class OutputError(RunError):
+    """Writing a run's or a sweep's outputs failed (a full disk, say): the path, what the file system said, and
+    what was kept. Nothing half-written is left behind (simbench.atomic)."""
+
+    def __init__(self, path: str, problem: str, kept: str):
+        self.path = printable(path)
+        self.problem = problem
+        self.kept = kept
+        super().__init__(f"{self.path}: {problem} (while writing the outputs; {kept})")
+
+
+# --- the file system's refusals in words ------------------------------------------------------------------------
+
+# Errors that say the machine ran out (of space, of a quota), not that the user picked a bad place: a run that
+# meets one failed (exit 1), wherever it meets it.
+NO_SPACE = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
+
+_WORDS = {
+    errno.EACCES: "permission denied",
+    errno.EPERM: "operation not permitted",
+    errno.EROFS: "read-only file system",
+    errno.ENOSPC: "no space left on the device",
+    errno.EFBIG: "no space for a file this large: over the file system's or this process's file-size limit",
+    errno.EDQUOT: "no space left: disk quota exceeded",
+    errno.ELOOP: "a symlink loop (too many levels of symbolic links)",
+    errno.ENOENT: "no such file or folder",
+    errno.EISDIR: "is a folder, not a file",
+    errno.EIO: "input/output error (a failing disk, or a network file system gone?)",
+    errno.EMFILE: "too many open files",
+    errno.ENFILE: "too many open files on this machine",
+    errno.EBUSY: "busy (in use by another program?)",
+    errno.EXDEV: "on another file system",
+}
+
+# The hidden names simbench writes under beside a destination (simbench.atomic, simbench.destination).
+_STAGED = re.compile(r"^\.(?P<name>.+)\.(?:partial|old)-\d+$")
+_LOCK = re.compile(r"^\.(?P<name>.+)\.lock$")
+_ERRNO_IN_TEXT = re.compile(r"^\[Errno (\d+)\] ([^\n]*)")
+
+
+def shown_path(filename: str | os.PathLike | bytes | None) -> str | None:
+    """The path the user knows for one simbench wrote to: a staged file or folder under its final name (a
+    `.report.json.partial-PID` as `report.json`), a lock file as the folder it sits in."""
+    if filename is None:
+        return None
+    path = Path(os.fsdecode(filename))
+    if _LOCK.match(path.name):
+        return str(path.parent)
+    parts = [(m.group("name") if (m := _STAGED.match(part)) else part) for part in path.parts]
+    return str(Path(*parts)) if parts else str(path)
+
+
+def name_max(folder: str | os.PathLike) -> int:
+    """The longest file name (in bytes) the file system holding `folder`, or its nearest existing ancestor,
+    takes."""
+    path = Path(os.path.abspath(folder))
+    for candidate in (path, *path.parents):
+        try:
+            return os.pathconf(candidate, "PC_NAME_MAX")
+        except (OSError, ValueError):
+            continue
+    return 255
+
+
+def _too_long(filename: str) -> str:
+    """ENAMETOOLONG in words: which name, how long, and the limit."""
+    path = Path(filename)
+    limit = name_max(path.parent)
+    for part in path.parts:
+        length = len(os.fsencode(part))
+        if length > limit:
+            return f"name too long ({length} characters; at most {limit})"
+    length = len(os.fsencode(filename))
+    try:
+        limit = os.pathconf(Path(os.path.abspath(filename)).anchor, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        limit = 4096
+    return f"path too long ({length} characters; at most {limit})"
+
+
+def _file_in_the_way(filename: str) -> str | None:
+    """The first component of `filename` that exists and is not a folder (ENOTDIR, or EEXIST of a mkdir)."""
+    path = Path(filename)
+    for candidate in (*reversed(path.parents), path):
+        try:
+            if candidate.exists() and not candidate.is_dir():
+                return str(candidate)
+        except OSError:
+            return None
+    return None
+
+
+def os_words(err: OSError) -> str:
+    """What the file system refused, in words: the errno's (EACCES "permission denied", ENOSPC "no space left
+    on the device", ...), naming the file in the way for ENOTDIR and the lengths for ENAMETOOLONG."""
+    code, filename = err.errno, err.filename
+    text = (err.strerror or str(err) or "").strip()
+    if code is None and (m := _ERRNO_IN_TEXT.match(text)):  # an OSError made of another's text (imageio's)
+        code, text = int(m.group(1)), m.group(2)
+    name = None if filename is None else os.fsdecode(filename)
+    if code in (errno.ENOTDIR, errno.EEXIST) and name is not None:
+        blocker = _file_in_the_way(name)
+        if blocker is not None:
+            return f"{printable(shown_path(blocker))} is a file, not a folder"
+        if code == errno.ENOTDIR:
+            return "a file where a folder was expected"
+        return "already exists"
+    if code == errno.ENAMETOOLONG:
+        return _too_long(name) if name is not None else "name too long"
+    if code in _WORDS:
+        return _WORDS[code]
+    return printable(text.splitlines()[0] if text else type(err).__name__).lower()
+
+
+def os_error_line(err: OSError) -> tuple[str | None, str]:
+    """(the path an OSError is about, as the user knows it; what went wrong in words)."""
+    return printable(shown_path(err.filename)) if err.filename is not None else None, os_words(err)
+
+
+def destination_error(out: Path, err: OSError, what: str = "the output folder") -> Exception:
+    """The error for a destination the file system refuses before anything is run: ScenarioError naming `out`
+    (exit 2: pick another place), or OutputError if the machine ran out of space (exit 1)."""
+    path, words = os_error_line(err)
+    if err.errno in NO_SPACE:
+        return OutputError(path or str(out), words, f"{out} was left as it was")
+    where = f" ({path})" if path and path != str(out) and err.errno not in (errno.ENOTDIR, errno.EEXIST) else ""
+    return ScenarioError(str(out), None, f"cannot write {what}: {words}{where}; pick another --out")
+
+
+def output_error(err: OSError, path: Path, kept: str) -> OutputError:
+    """OutputError for an OSError met while writing outputs into `path` (the file it names, under its final
+    name, or `path` if it names none)."""
+    where, words = os_error_line(err)
+    if err.errno in (None, errno.EPIPE, errno.EIO) and _device_full(path):  # a writer that lost the cause: a
+        words = f"no space left on the device ({words})"  # pipe to ffmpeg broken by ffmpeg's own ENOSPC, say
+    return OutputError(where or str(shown_path(path)), words, kept)
+
+
+def _device_full(path: Path) -> bool:
+    """Whether the file system holding `path` (or its nearest existing ancestor) has no block left."""
+    for candidate in (Path(path), *Path(path).parents):
+        try:
+            return os.statvfs(candidate).f_bavail == 0
+        except OSError:
+            continue
+    return False
+
+
+class RegistryError(Exception):
+    """A robot, planner or controller that cannot be registered (a name taken, the wrong type, a robot whose
+    description does not hold together, an entry point that fails to load): names it and what is wrong."""

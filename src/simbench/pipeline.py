@@ -1,5 +1,9 @@
 """One run, end to end: plan, simulate, analyse, then write every output into a folder at once.
 
+Before anything big is allocated (the model loaded, the plan made) the run's cost is estimated and checked
+against the machine (simbench.budget): too much is bad input, refused naming the field to change; a large run
+gets a one-line note of its cost on stderr when `progress` is on.
+
 Outputs are written into a hidden sibling folder and moved into place only when all of them exist, so a run
 that fails or is interrupted leaves the previous complete output (or none), never a half-written one. A run
 whose physics fails writes what it has, complete in itself: the report of the failure and the timeseries up to
@@ -8,12 +12,13 @@ it.
 
 from __future__ import annotations
 
+import os
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from simbench import destination
+from simbench import budget, destination
 from simbench.analysis import Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
@@ -21,7 +26,7 @@ from simbench.plots import write_plots
 from simbench.render import render_video
 from simbench.report import build_failure_report, build_report, write_report, write_timeseries
 from simbench.robots import Tolerance
-from simbench.scenario import Scenario
+from simbench.scenario import Scenario, as_scenario
 from simbench.sim import Plant, Recording, commanded, simulate
 from simbench.trajectory import JointTrajectory
 from simbench.verdict import Verdict, plan_verdict, run_verdict
@@ -68,8 +73,26 @@ class _Stopwatch:
         return wall
 
 
-def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | None = None) -> Evaluation:
-    """Plan, simulate and analyse a scenario."""
+def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False) -> Evaluation:
+    """Plan, simulate and analyse a scenario (or the scenario file at a path); ScenarioError first if it asks
+    more than the machine has (simbench.budget)."""
+    scenario = as_scenario(scenario, "simbench.evaluate")
+    _afford(scenario, progress)
+    return _evaluate(scenario, progress)
+
+
+def _afford(scenario: Scenario, progress: bool, video: bool = False, outputs: bool = False,
+            out: Path | None = None) -> budget.Estimate:
+    """The run's estimate, checked against the machine (ScenarioError if it exceeds it); its cost on stderr if
+    it is large and `progress` is on."""
+    est = budget.check(scenario, video=video, outputs=outputs, out=out)
+    if progress:
+        budget.announce(est)
+    return est
+
+
+def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | None = None) -> Evaluation:
+    """evaluate() once the budget is checked."""
     watch = watch or _Stopwatch()
     robot = scenario.robot_def
     with watch.stage("load"):
@@ -91,7 +114,9 @@ def evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | Non
 
 def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
     """Plan without simulating, and what the plan alone shows it breaks (its joint ranges, speed limits, jumps,
-    and what the planner reports): `simbench validate`."""
+    and what the planner reports): `simbench validate`. A scenario whose run the machine could not afford is
+    refused here too (ScenarioError)."""
+    budget.check(scenario)
     robot = scenario.robot_def
     plant = Plant.load(robot, scenario.sim.timestep)
     traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
@@ -101,18 +126,21 @@ def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
 def evaluate_report(scenario: Scenario) -> dict:
     """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps of a run)."""
     watch = _Stopwatch()
-    ev = evaluate(scenario, watch=watch)
+    _afford(scenario, progress=False)
+    ev = _evaluate(scenario, watch=watch)
     return build_report(scenario, ev, watch.summary(), {}, scenario.source)
 
 
-def run(scenario: Scenario, out: str | Path | None = None, video: bool = True, progress: bool = False,
-        force: bool = False) -> Result:
+def run(scenario: Scenario | str | os.PathLike, out: str | Path | None = None, video: bool = True,
+        progress: bool = False, force: bool = False) -> Result:
     """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
     into `out` (default renders/<name>/), which must not hold anything yet unless `force`. A run that breaks a
     promise (status `limits`) writes everything as any other and returns normally. If the physics fails,
     the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
-    raised after they are written."""
+    raised after they are written. `scenario` may be the path of a scenario file."""
+    scenario = as_scenario(scenario, "simbench.run")
     out = Path(out) if out is not None else Path("renders") / scenario.name
+    _afford(scenario, progress, video=video, outputs=True, out=out)  # before anything is written
     inputs = [Path(scenario.source)] if scenario.source and Path(scenario.source).is_file() else []
     with destination.locked(out):
         destination.check(out, inputs, force)
@@ -123,7 +151,7 @@ def _run(scenario: Scenario, out: Path, video: bool, progress: bool) -> Result:
     """run() once `out` is locked and checked."""
     watch = _Stopwatch()
     try:
-        ev = evaluate(scenario, progress, watch)
+        ev = _evaluate(scenario, progress, watch)
     except PhysicsError as err:
         _write_failure(scenario, err, out, watch)
         raise

@@ -17,7 +17,10 @@ whatever the rasteriser leaves of the CPU.
 from __future__ import annotations
 
 import copy
+import errno
 import queue
+import resource
+import shutil
 import threading
 from pathlib import Path
 
@@ -42,6 +45,7 @@ class _Encoder:
     """An H.264 MP4 writer fed from a queue by its own thread, so encoding overlaps rendering."""
 
     def __init__(self, path: Path, fps: int):
+        self._path = path
         self._writer = imageio.get_writer(path, format="FFMPEG", mode="I", fps=fps, codec="libx264",
                                           pixelformat="yuv420p", macro_block_size=2, ffmpeg_log_level="error",
                                           output_params=["-preset", "veryfast", "-crf", "23"])
@@ -87,6 +91,23 @@ class _Encoder:
         self._writer.close()
         if self._error is not None:
             raise self._error
+        _check_finished(self._path)
+
+
+def _check_finished(path: Path) -> None:
+    """OSError if ffmpeg left the MP4 unfinished: it writes the index (the `moov` box) last, and imageio-ffmpeg
+    does not pass on ffmpeg's failure, so a file cut short by a full disk or a file-size limit would otherwise be
+    kept as if whole."""
+    with open(path, "rb") as f:
+        if b"moov" in f.read():
+            return
+    size = path.stat().st_size
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    if soft != resource.RLIM_INFINITY and size >= soft:
+        raise OSError(errno.EFBIG, "ffmpeg stopped at the file-size limit", str(path))
+    if shutil.disk_usage(path.parent).free < (1 << 20):
+        raise OSError(errno.ENOSPC, "ffmpeg ran out of space", str(path))
+    raise OSError(errno.EIO, "ffmpeg did not finish the video", str(path))
 
 
 def simplify(points: np.ndarray, tol: float) -> np.ndarray:

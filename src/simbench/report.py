@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 
 from simbench.analysis import Analysis
-from simbench.atomic import write_text
+from simbench.atomic import staged_file, write_text
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
@@ -100,8 +100,8 @@ def write_report(report: dict, path: Path) -> None:
 
 
 def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis | None, path: Path) -> None:
-    """Write timeseries.npz: one row per control sample, SI units, radians. A run that failed (no analysis) has
-    the rows recorded up to the failure, and the plan's over the same times."""
+    """Write timeseries.npz, in one step: one row per control sample, SI units, radians. A run that failed (no
+    analysis) has the rows recorded up to the failure, and the plan's over the same times."""
     rows = rec.t.size
     arrays = {
         "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),
@@ -111,4 +111,5 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
     arrays.update({name: series[:rows] for name, series in traj.series.items()})
     if result is not None:
         arrays.update(result.series)
-    np.savez_compressed(path, **arrays)
+    with staged_file(path) as tmp, open(tmp, "wb") as f:  # a file, not a name: NumPy would append .npz to one
+        np.savez_compressed(f, **arrays)

@@ -22,6 +22,7 @@ Everything is converted to SI (radians, metres) while it is validated.
 from __future__ import annotations
 
 import difflib
+import os
 from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -32,7 +33,7 @@ from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, creat
 
 from simbench import planners, robots, verdict
 from simbench.errors import ScenarioError
-from simbench.schema import Gains, Name, Positive, PositiveAngle, PositiveLength, SimbenchModel, Units
+from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, seconds
 from simbench.timing import TimeLaw
 from simbench.validation import describe, kind_of, read_yaml
 
@@ -41,8 +42,8 @@ class Timing(SimbenchModel):
     """The time law along the path, its duration, and how long to hold the goal afterwards."""
 
     law: Literal["cubic", "quintic", "4567", "trapezoidal"] = "quintic"
-    duration: Positive
-    hold: Annotated[float, Field(ge=0, le=60)] = 0.5
+    duration: seconds(0.01, 86_400.0)
+    hold: seconds(0.0, 60.0) = 0.5
     accel_fraction: Annotated[float, Field(gt=0, le=0.5)] = 0.25
 
     def law_fn(self) -> TimeLaw:
@@ -58,8 +59,8 @@ class Sim(SimbenchModel):
     `gravity_compensation: false` removes the controller's gravity feed-forward (the models' body `gravcomp`), so
     that the servos carry the arm's weight as a plain PD would."""
 
-    timestep: Annotated[float, Field(gt=0, le=0.01)] | None = None
-    settle: Annotated[float, Field(ge=0, le=10)] = 0.2
+    timestep: seconds(1e-5, 0.01) | None = None
+    settle: seconds(0.0, 10.0) = 0.2
     velocity_feedforward: bool = True
     kp: Gains | None = None
     kv: Gains | None = None
@@ -163,6 +164,17 @@ def load_scenario(path: str | Path) -> Scenario:
     scenario = parse_scenario(read_yaml(path), str(path), default_name=path.stem)
     scenario._source = str(path)
     return scenario
+
+
+def as_scenario(value: Scenario | str | os.PathLike, caller: str) -> Scenario:
+    """A Scenario, or the one in the file at a path; TypeError saying what to pass for anything else (the public
+    functions take either)."""
+    if isinstance(value, Scenario):
+        return value
+    if isinstance(value, (str, os.PathLike)):
+        return load_scenario(value)
+    raise TypeError(f"{caller} expects a Scenario (simbench.load_scenario(path)) or the path of a scenario file, "
+                    f"got {type(value).__name__}")
 
 
 def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Scenario:

@@ -8,21 +8,44 @@ against the robot's joint count and limits, and an error quotes the value in the
 from __future__ import annotations
 
 import re
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo, model_validator
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler,
+                      ValidationInfo, field_serializer, model_validator)
 from scipy.spatial.transform import Rotation
 
 from simbench.robots import REVOLUTE, Robot
 
 _DEG = np.pi / 180.0
 
+# The ranges of the schema's quantities, in SI: wide enough for any desk-size mechanism and its tasks, narrow
+# enough that nothing overflows or runs for ever on the way. A value outside is a typo or a unit mix-up.
+MAX_ANGLE = 2 * np.pi * 10  # rad: ten turns
+MAX_LENGTH = 10.0  # m: the workspace's scale
+MIN_LENGTH = 1e-6  # m: below what the simulation resolves
+MAX_COMPONENT = 1e6  # items of a vector that is normalised (a direction, a quaternion)
+MIN_NORM = 1e-6  # and its least length
+MAX_GAIN = 1e9  # servo gains, SI
+
 
 class SimbenchModel(BaseModel):
-    """Strict, frozen, no unknown fields, no NaN or infinity."""
+    """Strict, frozen, no unknown fields, no NaN or infinity. Lists are kept as tuples, so that a loaded
+    scenario cannot be changed after it was checked (`scenario.task.start[2] = 1e9`); they are written out as
+    lists."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _freeze_lists(self):
+        for name, value in self.__dict__.items():
+            if isinstance(value, list):
+                object.__setattr__(self, name, tuple(value))
+        return self
+
+    @field_serializer("*", mode="wrap")
+    def _lists_out(self, value: Any, handler: SerializerFunctionWrapHandler) -> Any:
+        return handler(list(value) if isinstance(value, tuple) else value)
 
 
 class Units(SimbenchModel):
@@ -54,28 +77,60 @@ def _units(info: ValidationInfo) -> Units:
     return (info.context or {}).get("units", Units())
 
 
-def _to_angle(value: float, info: ValidationInfo) -> float:
-    return value * _units(info).angle_factor
+def _bounded(value: float, factor: float, lo: float, hi: float, unit: str, what: str,
+             low_open: bool = False) -> float:
+    """`value` in the file's unit converted to SI (x `factor`), or ValueError quoting the range in that unit."""
+    si = value * factor
+    if not ((lo < si) if low_open else (lo <= si)) or not si <= hi:
+        bracket = "(" if low_open else "["
+        raise ValueError(f"expected {what} in {bracket}{lo / factor:.6g}, {hi / factor:.6g}] {unit}, got "
+                         f"{value:.6g} {unit}")
+    return si
 
 
-def _to_length(value: float, info: ValidationInfo) -> float:
-    return value * _units(info).length_factor
+def _angle(lo: float, hi: float, low_open: bool = False):
+    """An angle in the file's unit, converted to radians and kept within [lo, hi] rad."""
+    def convert(value: float, info: ValidationInfo) -> float:
+        units = _units(info)
+        return _bounded(value, units.angle_factor, lo, hi, units.angle, "an angle", low_open)
+    return AfterValidator(convert)
+
+
+def _length(lo: float, hi: float):
+    """A length in the file's unit, converted to metres and kept within [lo, hi] m."""
+    def convert(value: float, info: ValidationInfo) -> float:
+        units = _units(info)
+        return _bounded(value, units.length_factor, lo, hi, units.length, "a length")
+    return AfterValidator(convert)
 
 
 def _to_position(value: list[float], info: ValidationInfo) -> list[float]:
     if len(value) != 3:
         raise ValueError(f"expected a point [x, y, z], got {len(value)} values")
-    return [v * _units(info).length_factor for v in value]
+    units = _units(info)
+    return [_bounded(v, units.length_factor, -MAX_LENGTH, MAX_LENGTH, units.length, "coordinates") for v in value]
+
+
+def _finite_norm(value: list[float], what: str) -> float:
+    """The length of a vector that is normalised: its items within +-MAX_COMPONENT (so that the length is
+    finite) and the length at least MIN_NORM (so that the direction is not rounding noise)."""
+    if any(abs(v) > MAX_COMPONENT for v in value):
+        raise ValueError(f"expected {what} with items within +-{MAX_COMPONENT:g} (it is normalised), got "
+                         f"{max(value, key=abs):.6g}")
+    norm = float(np.linalg.norm(value))
+    if norm == 0:
+        raise ValueError(f"expected {what}, got a zero vector")
+    if norm < MIN_NORM:
+        raise ValueError(f"expected {what} of length at least {MIN_NORM:g} (it is normalised), got length "
+                         f"{norm:.3g}")
+    return norm
 
 
 def _to_direction(value: list[float]) -> list[float]:
     if len(value) != 3:
         raise ValueError(f"expected a direction [x, y, z], got {len(value)} values")
-    norm = float(np.linalg.norm(value))
-    if norm < 1e-9:
-        raise ValueError("expected a direction, got a zero vector")
+    norm = _finite_norm(value, "a direction")
     return [v / norm for v in value]
-
 
 def _other_unit_hint(value: float, kind: str, lo: float, hi: float, units: Units) -> str:
     """A hint when the value fits the range in the other unit: degrees read as radians, or mm as m."""
@@ -93,6 +148,8 @@ def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
         raise ValueError(f"expected {robot.dof} values, one per joint ({', '.join(robot.joints)}), got {len(value)}")
     q = []
     for name, kind, lo, hi, v in zip(robot.joints, robot.kinds, robot.lower, robot.upper, value):
+        scale = MAX_ANGLE if kind == REVOLUTE else MAX_LENGTH  # a joint without limits turns a few times at most
+        lo, hi = max(lo, -scale), min(hi, scale)
         k = units.factor(kind)
         si = v * k
         if not lo - 1e-12 <= si <= hi + 1e-12:
@@ -116,23 +173,26 @@ def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:
     if len(values) != robot.dof:
         raise ValueError(f"expected one gain for every servo or {robot.dof} values, one per joint "
                          f"({', '.join(robot.joints)}), got {len(values)}")
-    if any(v < 0 for v in values):
-        raise ValueError(f"expected gains >= 0, got {min(values):g}")
+    if any(not 0 <= v <= MAX_GAIN for v in values):
+        bad = next(v for v in values if not 0 <= v <= MAX_GAIN)
+        raise ValueError(f"expected gains in [0, {MAX_GAIN:g}], got {bad:.6g}")
     return [float(v) for v in values]
 
 
-Number = float
-Positive = Annotated[float, Field(gt=0)]
-NonNegative = Annotated[float, Field(ge=0)]
-Angle = Annotated[float, AfterValidator(_to_angle)]
-Length = Annotated[float, AfterValidator(_to_length)]
-PositiveAngle = Annotated[float, Field(gt=0), AfterValidator(_to_angle)]
-NonNegativeAngle = Annotated[float, Field(ge=0), AfterValidator(_to_angle)]
-PositiveLength = Annotated[float, Field(gt=0), AfterValidator(_to_length)]
+def seconds(lo: float, hi: float, low_open: bool = False):
+    """A time in seconds within [lo, hi] (or (lo, hi])."""
+    return Annotated[float, AfterValidator(lambda value: _bounded(value, 1.0, lo, hi, "s", "a time", low_open))]
+
+
+Angle = Annotated[float, _angle(-MAX_ANGLE, MAX_ANGLE)]  # a joint or path angle: a few turns either way
+PositiveAngle = Annotated[float, _angle(0.0, np.pi, low_open=True)]  # a radius, clearance or tolerance on a sphere
+NonNegativeAngle = Annotated[float, _angle(0.0, np.pi)]
+PositiveLength = Annotated[float, _length(MIN_LENGTH, MAX_LENGTH)]
 Position = Annotated[list[float], AfterValidator(_to_position)]
 Direction = Annotated[list[float], AfterValidator(_to_direction)]
 JointVector = Annotated[list[float], AfterValidator(_to_joints)]
 Gains = Annotated[float | list[float], AfterValidator(_to_gains)]  # SI, whatever the file's units
+Weight = Annotated[float, Field(ge=0, le=1e3)]
 Name = Annotated[str, Field(max_length=100), AfterValidator(_check_name)]
 
 
@@ -153,12 +213,17 @@ class Orientation(SimbenchModel):
         size = 4 if self.convention == "quat" else 3
         if len(self.value) != size:
             raise ValueError(f"{self.convention} expects {size} values, got {len(self.value)}")
-        if self.convention == "quat" and np.linalg.norm(self.value) < 1e-9:
-            raise ValueError("a quaternion of zero length is no rotation")
         if self.convention == "quat":
+            _finite_norm(self.value, "a quaternion")
             return self
-        k = _units(info).angle_factor
-        return self.model_copy(update={"value": [v * k for v in self.value]})
+        units = _units(info)
+        value = [_bounded(v, units.angle_factor, -MAX_ANGLE, MAX_ANGLE, units.angle, "angles")
+                 for v in self.value]
+        if self.convention == "rotvec" and np.linalg.norm(value) > MAX_ANGLE:
+            raise ValueError(f"expected a rotation vector of length at most {MAX_ANGLE / units.angle_factor:.6g} "
+                             f"{units.angle}, got {np.linalg.norm(value) / units.angle_factor:.6g}")
+        object.__setattr__(self, "value", tuple(value))  # in radians from here on (the model is frozen)
+        return self
 
     def matrix(self) -> np.ndarray:
         """The 3x3 rotation matrix."""

@@ -7,51 +7,113 @@ Shared by scenario files and sweep files, so both fail the same way: the file, t
 from __future__ import annotations
 
 import difflib
+import errno
+import os
 import re
+import stat
 from pathlib import Path
 from typing import Any
 
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from simbench.errors import ScenarioError
+from simbench.errors import MAX_INT_DIGITS, ScenarioError, os_words, printable, shown
 
 _MAX_BYTES = 1 << 20
 _MAX_VALUES = 100_000  # a scenario has hundreds; an alias bomb has billions once expanded
 _MAX_DEPTH = 32
+_MERGE = "tag:yaml.org,2002:merge"
+
+
+class _Refused(yaml.MarkedYAMLError):
+    """YAML that is valid but that simbench does not take (a merge key, a list as a key, an integer too long to
+    write out): said as it is, not as a syntax error."""
 
 
 class _StrictLoader(yaml.SafeLoader):
-    """YAML's safe loader, refusing a key given twice in one mapping (YAML keeps the last, silently)."""
+    """YAML's safe loader, refusing a key given twice in one mapping (YAML keeps the last, silently), merge keys
+    (`<<: *anchor`: their copies can grow exponentially, like an alias bomb, before anything could count them), a
+    list or mapping as a key (`? [a, b]`: keys are field names), and a value Python cannot build (an integer of
+    more digits than Python writes out, a date such as 2024-13-45)."""
+
+    def construct_object(self, node, deep=False):
+        if node.tag == _MERGE:  # `<<` as a value: YAML reads it as the merge key, not as text
+            raise _Refused(None, None, "'<<' is YAML's merge key: write it in quotes ('<<') to mean the text",
+                           node.start_mark)
+        try:
+            return super().construct_object(node, deep=deep)
+        except (ValueError, OverflowError) as err:
+            kind = str(node.tag).rsplit(":", 1)[-1]
+            raise _Refused(None, None, f"cannot read this {kind}: {printable(str(err).splitlines()[0])}",
+                           node.start_mark) from None
+
+    def construct_yaml_int(self, node):
+        digits = sum(c.isdigit() for c in str(node.value))
+        if digits > MAX_INT_DIGITS or len(str(node.value)) > 4 * MAX_INT_DIGITS:
+            raise _Refused(None, None, f"an integer of {digits} digits is too long (at most {MAX_INT_DIGITS})",
+                           node.start_mark)
+        value = super().construct_yaml_int(node)
+        if value.bit_length() > MAX_INT_DIGITS * 3.32:  # written in hexadecimal, binary or octal
+            raise _Refused(None, None, f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits is "
+                                       f"too long (at most {MAX_INT_DIGITS})", node.start_mark)
+        return value
 
     def construct_mapping(self, node, deep=False):
         seen = {}
         for key_node, _ in node.value:
+            if key_node.tag == _MERGE:
+                raise _Refused(None, None, "YAML merge keys (<<) are not supported: write the fields out",
+                               key_node.start_mark)
+            if isinstance(key_node, (yaml.SequenceNode, yaml.MappingNode)):
+                what = "list" if isinstance(key_node, yaml.SequenceNode) else "mapping"
+                raise _Refused(None, None, f"a {what} as a key is not supported: keys are field names",
+                               key_node.start_mark)
             key = self.construct_object(key_node, deep=deep)
             if isinstance(key, (str, int, float, bool)) and key in seen:
                 raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key '{key}' (first at line {seen[key] + 1})", key_node.start_mark)
+                    None, None, f"duplicate key '{printable(key)}' (first at line {seen[key] + 1})",
+                    key_node.start_mark)
             seen[key] = key_node.start_mark.line
         return super().construct_mapping(node, deep=deep)
 
 
+_StrictLoader.add_constructor("tag:yaml.org,2002:int", _StrictLoader.construct_yaml_int)
+
+
 def read_yaml(path: Path) -> Any:
-    """The YAML document in `path`; ScenarioError if it is missing, too large, not text, not YAML (a key given
+    """The YAML document in `path`; ScenarioError if it is missing or cannot be read (the file system's reason in
+    words: permission denied, a symlink loop, a name too long), too large, not text, not YAML (a key given
     twice included), nested too deeply, too large once its aliases are expanded, or empty."""
+    path = Path(path)
     source = str(path)
-    if not path.exists():
-        raise ScenarioError(source, None, "no such file")
-    if not path.is_file():
-        raise ScenarioError(source, None, "not a file (expected a YAML scenario)")
-    size = path.stat().st_size
-    if size > _MAX_BYTES:
-        raise ScenarioError(source, None, f"file too large ({size} bytes; a scenario is at most {_MAX_BYTES})")
     try:
-        text = path.read_bytes().decode("utf-8")
+        info = os.stat(path)
+    except OSError as err:
+        raise ScenarioError(source, None, _unreachable(path, err)) from None
+    if stat.S_ISDIR(info.st_mode):
+        raise ScenarioError(source, None, "a folder, not a file (expected a YAML scenario)")
+    if not stat.S_ISREG(info.st_mode):
+        raise ScenarioError(source, None, "not a file (expected a YAML scenario)")
+    if info.st_size > _MAX_BYTES:
+        raise ScenarioError(source, None, f"file too large ({info.st_size} bytes; a scenario is at most "
+                                          f"{_MAX_BYTES})")
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(_MAX_BYTES + 1)
+    except OSError as err:
+        words = "permission denied: cannot read it" if err.errno in (errno.EACCES, errno.EPERM) else os_words(err)
+        raise ScenarioError(source, None, words) from None
+    if len(raw) > _MAX_BYTES:  # it grew since
+        raise ScenarioError(source, None, f"file too large (a scenario is at most {_MAX_BYTES} bytes)")
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ScenarioError(source, None, "not a text file (expected UTF-8 YAML)") from None
     try:
         data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader: builds plain data, never objects
+    except _Refused as err:
+        mark = err.problem_mark
+        raise ScenarioError(source, None, f"line {mark.line + 1}, column {mark.column + 1}: {err.problem}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -63,6 +125,15 @@ def read_yaml(path: Path) -> Any:
         raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
     _check_shape(data, source)
     return data
+
+
+def _unreachable(path: Path, err: OSError) -> str:
+    """Why a file cannot even be looked at (its stat failed), in words."""
+    if err.errno == errno.ENOENT:
+        return "no such file (a symlink to a missing file)" if os.path.islink(path) else "no such file"
+    if err.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied: a folder on its path cannot be entered"
+    return os_words(err)
 
 
 def _check_shape(data: Any, source: str) -> None:
@@ -168,8 +239,8 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
     msg = re.sub(r"a valid dictionary or instance of \w+", "a mapping of its fields", msg)
     if isinstance(given, (str, int, float, bool)) or given is None:
-        msg += f", got {given!r}"
-        if isinstance(given, str) and _reads_as_number(given):
+        msg += f", got {shown(given)}"
+        if isinstance(given, str) and _reads_as_number(given) and len(given) < 40:
             msg += f" (YAML reads {given} as text: write it with a decimal point, e.g. {float(given):.1e})"
     elif isinstance(given, (list, dict)):
         msg += f", got {kind_of(given)}"

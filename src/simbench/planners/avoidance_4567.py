@@ -52,7 +52,7 @@ from simbench.errors import RunError
 from simbench.planners import Planner, so3_search
 from simbench.robots import agile_eye
 from simbench.rotations import matrix_to_quat, rotation_angle
-from simbench.schema import NonNegative, NonNegativeAngle, Orientation, Positive, PositiveAngle, SimbenchModel
+from simbench.schema import NonNegativeAngle, Orientation, PositiveAngle, SimbenchModel, Weight, seconds
 from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, control_grid
 
@@ -78,11 +78,11 @@ class Avoidance(SimbenchModel):
     """How the path is bent: window length T*, how many windows at most, which FK estimates clearances."""
 
     enabled: bool = True
-    window: Positive = 1.0
+    window: seconds(0.01, 3600.0) = 1.0
     max_windows: int = Field(4, ge=1, le=20)
     estimator: Literal["network", "exact"] = "network"
-    deviation_weight: NonNegative = 0.1
-    time_budget: Annotated[float, Field(gt=0, le=600)] = Field(
+    deviation_weight: Weight = 0.1
+    time_budget: seconds(0.0, 600.0, low_open=True) = Field(
         10.0, description="seconds of planning: windows for about half, the global search for the rest")
 
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations, product
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
@@ -46,7 +46,7 @@ from simbench.errors import RunError
 from simbench.planners import Planner
 from simbench.robots import rsmg
 from simbench.rotations import matrix_to_quat
-from simbench.schema import Direction, NonNegative, NonNegativeAngle, Positive, SimbenchModel
+from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, Switch, control_grid
 
@@ -59,17 +59,20 @@ _QUINTIC = TimeLaw("quintic", 1.0)
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 
 
+Turns = Annotated[float, Field(ge=-100, le=100)]  # a motion of more turns is a typo: it would run for hours
+
+
 class Motion(SimbenchModel):
     """The rotor's commanded motion. `turns`: `turns` turns about `axis`. `tumble`: `spin_turns` about the
     rotor's `spin_axis` while that axis turns `precession_turns` about `precession_axis`."""
 
     kind: Literal["turns", "tumble"]
     axis: Direction = [0.0, 0.0, 1.0]
-    turns: float = Field(1.0, allow_inf_nan=False)
+    turns: Turns = 1.0
     spin_axis: Direction = [0.0, 0.0, 1.0]
-    spin_turns: float = Field(1.0, allow_inf_nan=False)
+    spin_turns: Turns = 1.0
     precession_axis: Direction = [1.0, 0.0, 0.0]
-    precession_turns: float = Field(1.0, allow_inf_nan=False)
+    precession_turns: Turns = 1.0
 
     def orientation(self, s: np.ndarray) -> np.ndarray:
         """R (N, 3, 3) at path parameters s in [0, 1]."""
@@ -85,9 +88,9 @@ class Task(SimbenchModel):
     """`task:` of the round-robin scheme."""
 
     motion: Motion
-    swing_time: Positive = 0.5
-    approach_time: NonNegative = 0.1
-    det_a_min: Positive = 0.15
+    swing_time: seconds(0.01, 60.0) = 0.5
+    approach_time: seconds(0.0, 60.0) = 0.1
+    det_a_min: Annotated[float, Field(gt=0, le=1)] = 0.15
     regrip_feedback: bool = True
     gamma_margin: NonNegativeAngle = float(np.deg2rad(12.0))
 

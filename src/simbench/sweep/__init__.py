@@ -54,15 +54,17 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
                 rows[index] = store.record(sweep.variants[index], outcome)
                 bar.update()
         columns = table.columns(list(rows.values()), sweep.params)
-        table.write_csv(columns, out / "results.csv")
-        table.write_parquet(columns, out / "results.parquet")
-        plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots,
-                                         out / "plots")
-        summary = {**table.summary(columns, sweep.spec.plots), "resumed": len(sweep.variants) - len(todo),
-                   "backend": backend, "wall_time": round(time.perf_counter() - start, 3),
-                   "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots]},
-                   "notes": notes}
-        write_report(summary, out / "summary.json")
+        with store.writing():  # a full disk here keeps the rows: the same command writes the table again
+            table.write_csv(columns, out / "results.csv")
+            table.write_parquet(columns, out / "results.parquet")
+            plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots,
+                                             out / "plots")
+            summary = {**table.summary(columns, sweep.spec.plots), "resumed": len(sweep.variants) - len(todo),
+                       "backend": backend, "wall_time": round(time.perf_counter() - start, 3),
+                       "outputs": {"table": ["results.csv", "results.parquet"],
+                                   "plots": [f"plots/{p}" for p in plots]},
+                       "notes": notes}
+            write_report(summary, out / "summary.json")
     return SweepResult(out, columns, summary, summary["resumed"])
 
 

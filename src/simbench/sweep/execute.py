@@ -32,7 +32,10 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
                 video: bool = False) -> dict:
     """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | limits | bad_input |
     run_failed | crashed), `error` (for `limits`, the promises broken), `metrics`, `wall_time` (s) and, with
-    outputs='report', the `report`.
+    outputs='report', the `report`. bad_input is the schema's refusal or the budget's (simbench.budget, checked
+    by the pipeline before anything big is allocated: a variant the machine cannot afford), with its line.
+    Each variant is held to the whole machine's limits, taken when it starts (MemAvailable then), not to a
+    share of them: workers running at once may together need more.
     With outputs='full' every output of `simbench run` is written into `out`, replacing whatever a run stopped
     before its row was recorded left there."""
     from simbench import pipeline

@@ -28,6 +28,8 @@ import copy
 import hashlib
 import itertools
 import json
+import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,8 +49,10 @@ _PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
 _PART = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
 _KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
 
-Bound = float | list[float]
-Pair = Annotated[list[Bound], Field(min_length=2, max_length=2)]
+MAX_BOUND = 1e15  # no scenario field is larger: a wider distribution is a typo, and its draws would overflow
+Bound = Annotated[float, Field(ge=-MAX_BOUND, le=MAX_BOUND)]
+Pair = Annotated[list[Bound | list[Bound]], Field(min_length=2, max_length=2)]
+Integer = Annotated[int, Field(ge=-2**53, le=2**53)]
 
 
 class Distribution(SimbenchModel):
@@ -57,7 +61,7 @@ class Distribution(SimbenchModel):
     uniform: Pair | None = None
     loguniform: Pair | None = None
     normal: Pair | None = None
-    integers: Annotated[list[int], Field(min_length=2, max_length=2)] | None = None
+    integers: Annotated[list[Integer], Field(min_length=2, max_length=2)] | None = None
     choice: Annotated[list[Any], Field(min_length=1)] | None = None
 
     @property
@@ -107,7 +111,7 @@ class RandomSpec(SimbenchModel):
     """Seeded random samples of some parameters."""
 
     samples: Annotated[int, Field(ge=1, le=MAX_RUNS)]
-    seed: int = 0
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     params: Annotated[dict[str, Distribution], Field(min_length=1)]
 
 
@@ -220,6 +224,13 @@ def _find_base(text: str, folder: Path, source: str) -> Path:
     for candidate in (folder / text, scenarios_dir() / text, scenarios_dir() / f"{text}.yaml"):
         if candidate.is_file():
             return candidate
+    try:
+        os.lstat(folder / text)
+        return folder / text  # there, but no readable file (a folder, a symlink loop): read_yaml says which
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return folder / text  # a file in the way, a folder that cannot be entered: read_yaml words it
     raise ScenarioError(source, "base", f"no scenario file '{text}' (expected a path relative to the sweep file "
                                         "or a shipped scenario such as spherical_arm/case1)")
 
@@ -243,16 +254,16 @@ def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str, tuple[str | int
 
 def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, source: str) -> list[Variant]:
     """Every grid point crossed with every random sample, numbered in that order."""
+    count = math.prod(len(values) for values in spec.grid.values()) * (spec.random.samples if spec.random else 1)
+    if count > MAX_RUNS:  # counted before anything is built: a grid of 10^8 points would not fit in memory
+        raise ScenarioError(source, "grid" if spec.grid else "random.samples",
+                            f"{count} runs (expected at most {MAX_RUNS})")
     grid_points = list(itertools.product(*spec.grid.values()))
     samples: list[dict[str, Any]] = [{}]
     if spec.random:
         rng = np.random.default_rng(spec.random.seed)
         samples = [{name: dist.draw(rng) for name, dist in spec.random.params.items()}
                    for _ in range(spec.random.samples)]
-    count = len(grid_points) * len(samples)
-    if count > MAX_RUNS:
-        raise ScenarioError(source, "grid" if spec.grid else "random.samples",
-                            f"{count} runs (expected at most {MAX_RUNS})")
     width = max(4, len(str(count - 1)))
     variants = []
     for point, sample in itertools.product(grid_points, samples):

@@ -16,15 +16,19 @@ from __future__ import annotations
 
 import json
 import shutil
-from contextlib import ExitStack
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from simbench import destination
 from simbench.atomic import write_text
-from simbench.errors import ScenarioError
+from simbench.errors import OutputError, ScenarioError, destination_error, output_error
 from simbench.report import plain, write_report
 from simbench.sweep.spec import Sweep, Variant
 
+
+# What a sweep that cannot write a row keeps.
+_KEPT = "the rows of the finished runs are kept: run the same command again to resume"
 
 # What a sweep writes into its folder (the names its marker lists).
 LAYOUT = ("sweep.json", "rows", "runs", "results.csv", "results.parquet", "summary.json", "plots")
@@ -39,7 +43,8 @@ class Store:
         self._lock = ExitStack()
         self._lock.enter_context(destination.locked(out))  # held until close()
         try:
-            self._prepare(force)
+            with destination.refused(out):
+                self._prepare(force)
         except BaseException:
             self.close()
             raise
@@ -58,14 +63,24 @@ class Store:
                 raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or "
                                                     "files that are not a sweep's); pass --force to replace them, "
                                                     "or --out to write elsewhere")
-        (out / "rows").mkdir(parents=True, exist_ok=True)
-        destination.mark(out, LAYOUT)
-        if not manifest.exists():
-            write_text(manifest, json.dumps({
-                "name": sweep.name, "source": sweep.source, "base": str(sweep.base), "fingerprint": fingerprint,
-                "spec": sweep.spec.model_dump(mode="json"),
-                "runs": [{"run": v.index, "id": v.id, "params": v.params} for v in sweep.variants],
-            }, indent=1) + "\n")
+        created = not out.exists()
+        try:  # the manifest first: a folder holding it (and nothing else yet) is one this sweep resumes
+            out.mkdir(parents=True, exist_ok=True)
+            if not manifest.exists():
+                write_text(manifest, json.dumps({
+                    "name": sweep.name, "source": sweep.source, "base": str(sweep.base), "fingerprint": fingerprint,
+                    "spec": sweep.spec.model_dump(mode="json"),
+                    "runs": [{"run": v.index, "id": v.id, "params": v.params} for v in sweep.variants],
+                }, indent=1) + "\n")
+            destination.mark(out, LAYOUT)
+            (out / "rows").mkdir(exist_ok=True)
+        except (OSError, OutputError) as err:
+            if not created:
+                raise
+            shutil.rmtree(out, ignore_errors=True)  # it holds nothing but what this call began to write
+            if isinstance(err, OSError):
+                raise destination_error(out, err) from None
+            raise OutputError(err.path, err.problem, f"nothing was written to {out}") from None
 
     def __enter__(self) -> Store:
         return self
@@ -92,14 +107,27 @@ class Store:
 
     def record(self, variant: Variant, outcome: dict) -> dict:
         """Write a finished run's row (and its report, if kept) and return the row."""
-        if outcome.get("report") is not None:
-            folder = run_folder(self.out, variant.id)
-            folder.mkdir(parents=True, exist_ok=True)
-            write_report(outcome["report"], folder / "report.json")
-        row = plain({"run": variant.index, "id": variant.id, "params": variant.params, "status": outcome["status"],
-                      "error": outcome["error"], "metrics": outcome["metrics"], "wall_time": outcome["wall_time"]})
-        write_text(self.out / "rows" / f"{variant.id}.json", json.dumps(row, allow_nan=False) + "\n")
+        with self.writing():
+            if outcome.get("report") is not None:
+                folder = run_folder(self.out, variant.id)
+                folder.mkdir(parents=True, exist_ok=True)
+                write_report(outcome["report"], folder / "report.json")
+            row = plain({"run": variant.index, "id": variant.id, "params": variant.params,
+                         "status": outcome["status"], "error": outcome["error"], "metrics": outcome["metrics"],
+                         "wall_time": outcome["wall_time"]})
+            write_text(self.out / "rows" / f"{variant.id}.json", json.dumps(row, allow_nan=False) + "\n")
         return row
+
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        """A write into the folder once runs have started: what the file system refuses (a full disk) is
+        OutputError, saying that the rows written so far are kept."""
+        try:
+            yield
+        except OSError as err:
+            raise output_error(err, self.out, _KEPT) from None
+        except OutputError as err:
+            raise OutputError(err.path, err.problem, _KEPT) from None
 
 
 def run_folder(out: Path, run_id: str) -> Path:
