@@ -232,3 +232,26 @@ def test_the_python_api_takes_a_scenario_or_its_path_and_says_what_else_to_pass(
     by_path = fn(file, **kwargs)
     evaluation = by_path.evaluation if call == "run" else by_path
     assert np.array_equal(evaluation.recording.q, simbench.evaluate(load_scenario(file)).recording.q)
+
+
+SWEEP_ABSURD = [("seed", -1), ("seed", 2**70), ("seed", 1.5),
+                ("uniform", [-1e308, 1e308]), ("uniform", [0.0, math.inf]), ("loguniform", [1e-300, 1e300]),
+                ("normal", [0.0, 1e300]), ("integers", [0, 2**70]), ("integers", [-(2**70), 0]),
+                ("uniform", [[0.0, 0.0], [1.0, 1e20]])]
+
+
+@pytest.mark.parametrize(("kind", "value"), SWEEP_ABSURD, ids=[f"{k}={_id(v)}" for k, v in SWEEP_ABSURD])
+def test_a_sweep_with_absurd_distribution_parameters_is_refused_by_name(kind, value, tmp_path, capsys):
+    """Exit 2 naming the sweep's field, before any run is drawn; never an internal error."""
+    random = {"samples": 3, "params": {"timing.duration": {"uniform": [1.0, 2.0]}}}
+    if kind == "seed":
+        random["seed"] = value
+        field = "random.seed"
+    else:
+        random["params"] = {"timing.duration": {kind: value}}
+        field = f"random.params.timing.duration.{kind}"
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(yaml.safe_dump({"base": "spherical_arm/case1", "random": random}))
+    code = main(["sweep", str(sweep), "--dry-run"])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1 and f": {field}" in err[0], err
