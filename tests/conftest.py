@@ -25,7 +25,9 @@ def interrupt(command: list[str], ready, cwd, timeout: float = 120,
               signum: int = signal.SIGINT) -> subprocess.CompletedProcess:
     """Run a command, send it Ctrl-C (SIGINT, or `signum`) once ready() is true, and wait for it (each within
     `timeout` s)."""
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
+    # A shell runs a background job with SIGINT ignored, and the child would inherit that: give it the default.
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + timeout
     while not ready():
         assert proc.poll() is None, proc.communicate()

@@ -299,11 +299,9 @@ def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance
     measures = robot.measures(rec)
     series.update(measures)
     singular = singularity_events(robot, rec, near)
-    extra = {}
-    if robot.summary is not None:
-        extra, events, more = robot.summary(traj, rec, series)
-        series.update(more)
-        singular = sorted(singular + events, key=lambda e: (e["t_start"], e["kind"]))
+    extra, events, more = robot.summary(traj, rec, series)
+    series.update(more)
+    singular = sorted(singular + events, key=lambda e: (e["t_start"], e["kind"]))
     if robot.orientation_error in series:  # a task that is an orientation: its error beside the tool point's
         error = series[robot.orientation_error]
         summary.update(orientation_rms=float(_rms(error)), orientation_max=float(error.max()),

@@ -178,13 +178,18 @@ def _run(args) -> int:
 
 
 def _list() -> str:
-    from simbench import planners, robots
+    """Robots, planners and controllers with where each comes from, then the shipped scenarios and sweeps."""
+    from simbench import api
 
     lines = ["robots:"]
-    lines += [f"  {r.name:16s} {r.description}" for r in robots.registry().values()]
+    lines += [f"  {r.name:16s} {r.description} ({api.origin('robot', r.name)})" for r in api.robots().values()]
     lines.append("planners:")
-    for p in planners.registry().values():
-        lines.append(f"  {p.name:20s} {p.description} [{', '.join(p.robots) if p.robots else 'any robot'}]")
+    for p in api.planners().values():
+        works = ", ".join(p.robots) if p.robots else "any robot" + (f" with {', '.join(p.needs)}" if p.needs else "")
+        lines.append(f"  {p.name:20s} {p.description} [{works}] ({api.origin('planner', p.name)})")
+    lines.append("controllers:")
+    lines += [f"  {c.name:20s} {c.description} ({api.origin('controller', c.name)})"
+              for c in api.controllers().values()]
     for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):
         lines.append(f"{title}:")
         lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]

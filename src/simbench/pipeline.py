@@ -160,13 +160,12 @@ def _run(scenario: Scenario, out: Path, video: bool, progress: bool) -> Result:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz"}
         with watch.stage("plots"):
             names = write_plots(robot, traj, rec, result, tmp / "plots")
-            if robot.plots is not None:
-                names += robot.plots(traj, rec, result, tmp / "plots")
+            names += robot.plots(traj, rec, result, tmp / "plots")
             outputs["plots"] = [f"plots/{name}" for name in names]
         if video:
             r = scenario.render
             planner = scenario.planner_def
-            decorations = planner.decorations(scenario) if planner.decorations else []
+            decorations = planner.decorations(scenario)
             with watch.stage("video"):
                 outputs["video"] = "video.mp4"
                 outputs["video_info"] = render_video(robot.scene, rec, traj.tool_ref, tmp / "video.mp4",

@@ -22,12 +22,14 @@ import queue
 import resource
 import shutil
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 import imageio.v2 as imageio
 import mujoco
 import numpy as np
 
+from simbench.api import Decoration
 from simbench.errors import RunError
 from simbench.sim import Recording, compiled_scene
 
@@ -187,11 +189,15 @@ def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str)
                        "--no-video") from None
 
 
+_DRAW = {"cone": lambda scene, item: add_cone(scene, item.axis, item.half_angle, item.length, item.rgba)}
+"""How each kind of simbench.api.Decoration is drawn."""
+
+
 def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *, width: int = 640,
                  height: int = 480, fps: int = 30, camera: str | None = None, quality: str = "fast",
-                 trace: bool = True, decorations: list[dict] = (), paint=None) -> dict:
+                 trace: bool = True, decorations: Sequence[Decoration] = (), paint=None) -> dict:
     """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
-    shapes to draw in every frame (`{"kind": "cone", "axis", "half_angle", "length", "rgba"}`); `paint(model,
+    shapes to draw in every frame (simbench.api.Decoration); `paint(model,
     rec, row)` may recolour the model for each frame (an electromagnet by whether it grips)."""
     model = copy.copy(compiled_scene(str(scene)))  # the run's own compilation; the copy's sizes are set below
     data = mujoco.MjData(model)
@@ -213,7 +219,7 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
                 paint(model, rec, row)
             renderer.update_scene(data, camera=camera)
             for item in decorations:
-                add_cone(renderer.scene, item["axis"], item["half_angle"], item["length"], item["rgba"])
+                _DRAW[item.kind](renderer.scene, item)
             here = planned[row:row + 1]
             add_polyline(renderer.scene, np.vstack([here, planned[plan_idx[plan_idx > row]]]), _PLAN_RGBA,
                          _PLAN_WIDTH)

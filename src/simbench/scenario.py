@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, create_model, field_validator,
                       model_validator)
 
-from simbench import planners, robots, verdict
+from simbench import api, planners, robots, verdict
 from simbench.errors import ScenarioError
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, seconds
 from simbench.timing import TimeLaw
@@ -183,9 +183,9 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
         raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {kind_of(raw)}")
     robot = robots.registry().get(_name_field(raw, "robot", robots.registry(), source))
     planner = planners.registry()[_name_field(raw, "planner", planners.registry(), source)]
-    if not planner.supports(robot.name):
-        raise ScenarioError(source, "planner", f"'{planner.name}' works with {', '.join(planner.robots)}, "
-                                               f"not '{robot.name}'")
+    refusal = planner.refuses(robot)
+    if refusal:
+        raise ScenarioError(source, "planner", refusal)
     try:
         units = Units.model_validate(raw.get("units", {}))
     except ValidationError as err:
@@ -201,7 +201,7 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     if scenario.render.camera is not None and scenario.render.camera not in cameras:
         raise ScenarioError(source, "render.camera", f"no camera '{scenario.render.camera}' in the "
                                                      f"{robot.name} scene (expected one of: {', '.join(cameras)})")
-    problem = planner.check(scenario, robot) if planner.check else None
+    problem = planner.check(scenario, robot)
     if problem:
         raise ScenarioError(source, *problem)
     return scenario
@@ -212,6 +212,8 @@ def _name_field(raw: dict, field: str, known: dict, source: str) -> str:
     options = ", ".join(sorted(known))
     if value is None:
         raise ScenarioError(source, field, f"missing: this field is required (one of: {options})")
+    if isinstance(value, str) and value in api.broken(field):
+        raise ScenarioError(source, field, api.broken(field)[value])
     if not isinstance(value, str) or value not in known:
         hint = difflib.get_close_matches(str(value), known, n=1)
         suggestion = f"; did you mean '{hint[0]}'?" if hint else ""

@@ -15,7 +15,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, SerializerFu
                       ValidationInfo, field_serializer, model_validator)
 from scipy.spatial.transform import Rotation
 
-from simbench.robots import REVOLUTE, Robot
+from simbench.api import REVOLUTE, Robot
 
 _DEG = np.pi / 180.0
 

@@ -31,7 +31,8 @@ from mujoco import rollout
 from tqdm import tqdm
 
 from simbench.errors import PhysicsError, RunError
-from simbench.robots import Robot
+from simbench.api import Controller, Robot
+from simbench.controllers import Servo
 from simbench.trajectory import JointTrajectory, Switch
 
 _CHUNK = 5000
@@ -131,25 +132,9 @@ class Plant:
         """Full qpos for actuated joints q: the model's reference pose, q, and any passive joints assembled."""
         qpos = self.model.qpos0.copy()
         qpos[self.qpos_adr] = q
-        if self.robot.assemble is not None:
-            for name, value in self.robot.assemble(q).items():
-                qpos[self.model.joint(name).qposadr[0]] = value
+        for name, value in self.robot.assemble(q).items():
+            qpos[self.model.joint(name).qposadr[0]] = value
         return qpos
-
-    def commands(self, q_ref: np.ndarray, qd_ref: np.ndarray, feedforward: bool) -> np.ndarray:
-        """Actuator controls (N, nu) for joint references, clamped to the control ranges."""
-        m = self.model
-        ctrl = np.zeros((q_ref.shape[0], m.nu))
-        act = self.actuators
-        ctrl[:, act] = q_ref
-        if feedforward:
-            kp = m.actuator_gainprm[act, 0]
-            kv = -m.actuator_biasprm[act, 2] + m.dof_damping[self.dof_adr]
-            ctrl[:, act] += qd_ref * (kv / kp)
-        limited = m.actuator_ctrllimited.astype(bool)
-        lo, hi = m.actuator_ctrlrange.T
-        ctrl[:, limited] = np.clip(ctrl[:, limited], lo[limited], hi[limited])
-        return ctrl
 
 
 def scene_spec(scene: str) -> mujoco.MjSpec:
@@ -320,12 +305,13 @@ def apply_switch(model: mujoco.MjModel, data: mujoco.MjData, switch: Switch) -> 
 
 
 def simulate(plant: Plant, traj: JointTrajectory, settle: float = 0.2, feedforward: bool = True,
-             progress: bool = False) -> Recording:
+             progress: bool = False, controller: Controller | None = None) -> Recording:
     """Settle at traj's first reference, then track it, applying the planned switches at their steps; one
     recorded row per control sample. The plant's model is copied, since switching edits it. PhysicsError if the
     physics fails on the way."""
+    controller = controller if controller is not None else Servo(feedforward)
     with _quiet_mujoco():
-        return _simulate(plant, traj, settle, feedforward, progress)
+        return _simulate(plant, traj, settle, controller, progress)
 
 
 def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
@@ -343,10 +329,15 @@ def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoc
     return model, data, steps
 
 
-def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: bool, progress: bool) -> Recording:
+def _simulate(plant: Plant, traj: JointTrajectory, settle: float, controller: Controller,
+              progress: bool) -> Recording:
     if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {plant.model.opt.timestep}")
-    ctrl = plant.commands(traj.q_ref, traj.qd_ref, feedforward)
+    controller.bind(plant, traj)
+    ctrl = controller.open_loop()
+    if ctrl is None:
+        raise RunError(f"controller '{controller.name}' needs the measured state every step: simbench steps only "
+                       "open-loop controllers (through mujoco.rollout) so far")
     bad = ~np.isfinite(ctrl).all(axis=1)
     if bad.any():
         raise RunError(f"the plan has no finite reference at t = {traj.t[np.argmax(bad)]:.4f} s")
@@ -386,7 +377,7 @@ def _simulate(plant: Plant, traj: JointTrajectory, settle: float, feedforward: b
                     apply_switch(model, data, switch)
                     if traj.feedback is not None:
                         change = traj.feedback(switch, model, data, stop - n_settle)
-                        revised = _revise(plant, traj, feedforward, revised, change, ctrl, controls[n_settle:])
+                        revised = _revise(controller, traj, revised, change, controls[n_settle:])
                 done = stop
         except _Fault as fault:
             fault.step += done
@@ -409,11 +400,11 @@ def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
     return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref)
 
 
-def _revise(plant: Plant, traj: JointTrajectory, feedforward: bool, revised: tuple | None, change: tuple | None,
-            ctrl: np.ndarray, upcoming: np.ndarray) -> tuple | None:
+def _revise(controller: Controller, traj: JointTrajectory, revised: tuple | None, change: tuple | None,
+            upcoming: np.ndarray) -> tuple | None:
     """Apply a feedback change (k0, columns, q) to the references (q_ref, qd_ref: copies of the plan's at the
-    first change) and to the controls from row k0 on: ctrl, one row a sample, and `upcoming`, the controls the
-    remaining rollouts read (row k drives the step from sample k). Returns the references as they now are."""
+    first change), to the controller's commands, and to `upcoming`, the controls the remaining rollouts read
+    (row k drives the step from sample k). Returns the references as they now are."""
     if change is None:
         return revised
     k0, columns, q = change
@@ -422,7 +413,8 @@ def _revise(plant: Plant, traj: JointTrajectory, feedforward: bool, revised: tup
     q_ref[k0:k1, columns] = q
     hi = min(k1 + 1, len(q_ref))  # the rate just after the change moves too; rows before k0 have been used
     qd_ref[k0:hi, columns] = np.gradient(q_ref[k0:hi, columns], traj.dt, axis=0)
-    ctrl[k0:hi] = plant.commands(q_ref[k0:hi], qd_ref[k0:hi], feedforward)
+    controller.revise(k0, q_ref, qd_ref)
+    ctrl = controller.open_loop()
     upcoming[k0:min(hi, len(upcoming))] = ctrl[k0:min(hi, len(upcoming))]
     return q_ref, qd_ref
 

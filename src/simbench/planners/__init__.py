@@ -1,6 +1,6 @@
-"""Planners: each turns a scenario's task into a JointTrajectory for one robot or for any.
+"""The shipped planners (simbench.api.Planner), one module each, and what they share.
 
-A planner is a task schema (the `task:` section of a scenario), a `plan` function and, optionally, a `check`
+A planner is a task schema (the `task:` section of a scenario), a `plan` method and, optionally, a `check`
 that rejects a valid-looking task that means nothing (a zero-length path) before anything runs, and
 `decorations`: what of the task the video should show (obstacle regions, say).
 """
@@ -8,29 +8,11 @@ that rejects a valid-looking task that means nothing (a zero-length path) before
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
-from pydantic import BaseModel
 
-from simbench.trajectory import JointTrajectory
-
-
-@dataclass(frozen=True)
-class Planner:
-    """A path-generation method."""
-
-    name: str
-    description: str
-    task: type[BaseModel]
-    plan: Callable[..., JointTrajectory]
-    robots: tuple[str, ...] | None = None
-    check: Callable[..., tuple[str, str] | None] | None = None
-    decorations: Callable[..., list[dict]] | None = None
-
-    def supports(self, robot: str) -> bool:
-        """Whether this planner works with the robot called `robot`."""
-        return self.robots is None or robot in self.robots
+from simbench import api
+from simbench.api import Planner
 
 
 def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: np.ndarray,
@@ -48,8 +30,5 @@ def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: 
 
 
 def registry() -> dict[str, Planner]:
-    """All planners by name."""
-    from simbench.planners import avoidance_4567, decoupled_path, joint_move, round_robin, safe_straight_path
-
-    return {p.name: p for p in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
-                                round_robin.PLANNER, joint_move.PLANNER)}
+    """All planners by name: the shipped ones and those outside packages add (simbench.api)."""
+    return api.planners()

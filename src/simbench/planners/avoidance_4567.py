@@ -48,8 +48,9 @@ from pydantic import Field
 from scipy.optimize import minimize
 
 from simbench import learnt_fk
+from simbench.api import Decoration, Planner
 from simbench.errors import RunError
-from simbench.planners import Planner, so3_search
+from simbench.planners import so3_search
 from simbench.robots import agile_eye
 from simbench.rotations import matrix_to_quat, rotation_angle
 from simbench.schema import NonNegativeAngle, Orientation, PositiveAngle, SimbenchModel, Weight, seconds
@@ -542,22 +543,32 @@ def check(scenario, robot) -> tuple[str, str] | None:
     return None
 
 
-def decorations(scenario) -> list[dict]:
+def decorations(scenario) -> list[Decoration]:
     """The obstacles as the cones of lines of sight they contain, for the video."""
     out = []
     for obstacle in scenario.task.obstacles:
-        axis = obstacle.center.matrix() @ agile_eye.LINE_OF_SIGHT
-        out.append({"kind": "cone", "axis": axis.tolist(), "half_angle": obstacle.radius,
-                    "length": agile_eye.AIM, "rgba": [0.6, 0.25, 0.95, 0.35]})
+        x, y, z = (float(v) for v in obstacle.center.matrix() @ agile_eye.LINE_OF_SIGHT)
+        out.append(Decoration("cone", (x, y, z), obstacle.radius, agile_eye.AIM, (0.6, 0.25, 0.95, 0.35)))
     return out
 
 
-PLANNER = Planner(
-    name="avoidance_4567",
-    description="paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)",
-    task=Task,
-    plan=plan,
-    robots=("agile_eye",),
-    check=check,
-    decorations=decorations,
-)
+
+class Avoidance4567(Planner):
+    """Paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)."""
+
+    name = "avoidance_4567"
+    description = "paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)"
+    task = Task
+    robots = ("agile_eye",)
+
+    def plan(self, scenario, robot, dt: float) -> JointTrajectory:
+        return plan(scenario, robot, dt)
+
+    def check(self, scenario, robot) -> tuple[str, str] | None:
+        return check(scenario, robot)
+
+    def decorations(self, scenario) -> list[Decoration]:
+        return decorations(scenario)
+
+
+PLANNER = Avoidance4567()

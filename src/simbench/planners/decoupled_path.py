@@ -31,9 +31,10 @@ import numpy as np
 from pydantic import Field, model_validator
 from scipy.spatial.transform import Rotation, Slerp
 
+from simbench.api import Planner
 from simbench.errors import RunError
 from simbench.paths import Arc, Composite, Line
-from simbench.planners import Planner, rate
+from simbench.planners import rate
 from simbench.robots import puma600
 from simbench.robots.puma600 import A2, A3, D3, D4, JOINTS, LOWER, QD_MAX, TOOL, UPPER
 from simbench.schema import Angle, Direction, Orientation, Position, PositiveLength, SimbenchModel
@@ -385,11 +386,20 @@ def check(scenario, robot) -> tuple[str, str] | None:
     return None
 
 
-PLANNER = Planner(
-    name="decoupled_path",
-    description="paper 002: lines, circle arcs and composite tool paths by the wrist-distance method",
-    task=Task,
-    plan=plan,
-    robots=("puma600",),
-    check=check,
-)
+
+class DecoupledPath(Planner):
+    """Paper 002: lines, circle arcs and composite tool paths by the wrist-distance method."""
+
+    name = "decoupled_path"
+    description = "paper 002: lines, circle arcs and composite tool paths by the wrist-distance method"
+    task = Task
+    robots = ("puma600",)
+
+    def plan(self, scenario, robot, dt: float) -> JointTrajectory:
+        return plan(scenario, robot, dt)
+
+    def check(self, scenario, robot) -> tuple[str, str] | None:
+        return check(scenario, robot)
+
+
+PLANNER = DecoupledPath()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.planners import Planner
+from simbench.api import Planner
 from simbench.schema import JointVector, SimbenchModel
 from simbench.trajectory import JointTrajectory, control_grid
 
@@ -36,10 +36,20 @@ def check(scenario, robot) -> tuple[str, str] | None:
     return None
 
 
-PLANNER = Planner(
-    name="joint_move",
-    description="joint-space move: every joint on the time law from start to goal (any robot)",
-    task=Task,
-    plan=plan,
-    check=check,
-)
+
+class JointMove(Planner):
+    """Joint-space move: every joint on the time law from start to goal (any robot)."""
+
+    name = "joint_move"
+    description = "joint-space move: every joint on the time law from start to goal (any robot)"
+    task = Task
+    needs = ("fk",)
+
+    def plan(self, scenario, robot, dt: float) -> JointTrajectory:
+        return plan(scenario, robot, dt)
+
+    def check(self, scenario, robot) -> tuple[str, str] | None:
+        return check(scenario, robot)
+
+
+PLANNER = JointMove()

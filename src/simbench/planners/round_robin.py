@@ -42,8 +42,8 @@ import numpy as np
 from pydantic import Field
 from scipy.spatial.transform import Rotation
 
+from simbench.api import Planner
 from simbench.errors import RunError
-from simbench.planners import Planner
 from simbench.robots import rsmg
 from simbench.rotations import matrix_to_quat
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
@@ -440,10 +440,17 @@ def _smoothstep(u: np.ndarray) -> np.ndarray:
     return _QUINTIC(u, order=0)[0]
 
 
-PLANNER = Planner(
-    name="round_robin",
-    description="paper 001: RSMG rotor motion by round-robin re-gripping of four electromagnet arms",
-    task=Task,
-    plan=plan,
-    robots=("rsmg",),
-)
+
+class RoundRobin(Planner):
+    """Paper 001: RSMG rotor motion by round-robin re-gripping of four electromagnet arms."""
+
+    name = "round_robin"
+    description = "paper 001: RSMG rotor motion by round-robin re-gripping of four electromagnet arms"
+    task = Task
+    robots = ("rsmg",)
+
+    def plan(self, scenario, robot, dt: float) -> JointTrajectory:
+        return plan(scenario, robot, dt)
+
+
+PLANNER = RoundRobin()

@@ -19,9 +19,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from pydantic import Field
 
+from simbench.api import REVOLUTE, Planner
 from simbench.errors import RunError
-from simbench.planners import Planner, rate
-from simbench.robots import REVOLUTE
+from simbench.planners import rate
 from simbench.robots.spherical_arm import D1, D4, KINDS, LOWER, UPPER, fk
 from simbench.schema import JointVector, SimbenchModel
 from simbench.trajectory import JointTrajectory, control_grid
@@ -264,11 +264,20 @@ def check(scenario, robot) -> tuple[str, str] | None:
     return None
 
 
-PLANNER = Planner(
-    name="safe_straight_path",
-    description="paper 000: straight tool path between two configurations, with workspace repair",
-    task=Task,
-    plan=plan,
-    robots=("spherical_arm",),
-    check=check,
-)
+
+class SafeStraightPath(Planner):
+    """Paper 000: straight tool path between two configurations, with workspace repair."""
+
+    name = "safe_straight_path"
+    description = "paper 000: straight tool path between two configurations, with workspace repair"
+    task = Task
+    robots = ("spherical_arm",)
+
+    def plan(self, scenario, robot, dt: float) -> JointTrajectory:
+        return plan(scenario, robot, dt)
+
+    def check(self, scenario, robot) -> tuple[str, str] | None:
+        return check(scenario, robot)
+
+
+PLANNER = SafeStraightPath()

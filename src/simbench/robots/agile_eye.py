@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance
+from simbench.api import Summary
+from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 from simbench.rotations import axis_rotation, canonical, quat_to_matrix, rotation_angle
 
 U = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # rows: u1, u2, u3
@@ -209,23 +210,42 @@ def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     return report, events, extra
 
 
-ROBOT = Robot(
-    name="agile_eye",
-    description="Agile Eye: 3-RRR spherical parallel camera orienter (closed chain)",
-    paper="003: Trajectory Optimization of Spherical Parallel Robots using Artificial Neural Network",
-    joints=JOINTS,
-    kinds=KINDS,
-    lower=LOWER,
-    upper=UPPER,
-    qd_max=QD_MAX,
-    tool_site="aim",
-    tool_sensor="aim_pos",
-    orientation_error="orientation_error",
-    breaking=("assembly_mode_change",),
-    fk=fk,
-    measures=measures,
-    singular_sets=singular_sets,
-    sensors=("platform_quat", "tip2", "mount2", "tip3", "mount3"),
-    assemble=assemble,
-    summary=summary,
-)
+
+class AgileEye(Robot):
+    """simbench.api.Robot of the Agile Eye, a closed chain: its passive joints assembled, its report entries (paper 003)."""
+
+    def __init__(self):
+        super().__init__(
+            name="agile_eye",
+            description="Agile Eye: 3-RRR spherical parallel camera orienter (closed chain)",
+            paper="003: Trajectory Optimization of Spherical Parallel Robots using Artificial Neural Network",
+            joints=JOINTS,
+            kinds=KINDS,
+            lower=LOWER,
+            upper=UPPER,
+            qd_max=QD_MAX,
+            tool_site="aim",
+            tool_sensor="aim_pos",
+            orientation_error="orientation_error",
+            breaking=("assembly_mode_change",),
+            sensors=("platform_quat", "tip2", "mount2", "tip3", "mount3"),
+            scene=scene("agile_eye"),
+        )
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        return fk(q)
+
+    def measures(self, rec) -> dict[str, np.ndarray]:
+        return measures(rec)
+
+    def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
+        return singular_sets(rec, tol)
+
+    def assemble(self, q: np.ndarray) -> dict[str, float]:
+        return assemble(q)
+
+    def summary(self, traj, rec, series: dict) -> Summary:
+        return Summary(*summary(traj, rec, series))
+
+
+ROBOT = AgileEye()

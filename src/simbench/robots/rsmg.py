@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance
+from simbench.api import Summary
+from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 from simbench.rotations import quat_to_matrix, rotation_angle
 
 ALPHA = np.deg2rad(70.0)
@@ -271,29 +272,41 @@ def plots(traj, rec, result, folder) -> list[str]:
     return ["gamma.png"]
 
 
-def fk(q: np.ndarray) -> np.ndarray:
-    """Not defined by the arms' joints alone: the rotor's orientation depends on which points they grip."""
-    raise NotImplementedError("the RSMG's rotor pose needs the gripped points: see dk()")
+class RSMG(Robot):
+    """simbench.api.Robot of the RSMG, whose rotor pose depends on the gripped points: no fk of the joints alone (paper 001)."""
+
+    def __init__(self):
+        super().__init__(
+            name="rsmg",
+            description="RSMG: a rotor turned by four electromagnet arms that re-grip it (switched welds)",
+            paper="001: Novel 3-DOF Reconfigurable Spherical Motion Generator with Unlimited Workspace",
+            joints=JOINTS,
+            kinds=KINDS,
+            lower=LOWER,
+            upper=UPPER,
+            qd_max=QD_MAX,
+            tool_site="marker",
+            tool_sensor="marker_pos",
+            orientation_error="rotor_error",
+            breaking=("typeA", "typeB"),
+            sensors=("rotor_quat", "em1_tip", "em2_tip", "em3_tip", "em4_tip"),
+            scene=scene("rsmg"),
+        )
+
+    def measures(self, rec) -> dict[str, np.ndarray]:
+        return measures(rec)
+
+    def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
+        return singular_sets(rec, tol)
+
+    def summary(self, traj, rec, series: dict) -> Summary:
+        return Summary(*summary(traj, rec, series))
+
+    def paint(self, model, rec, row: int) -> None:
+        paint(model, rec, row)
+
+    def plots(self, traj, rec, analysis, folder) -> list[str]:
+        return plots(traj, rec, analysis, folder)
 
 
-ROBOT = Robot(
-    name="rsmg",
-    description="RSMG: a rotor turned by four electromagnet arms that re-grip it (switched welds)",
-    paper="001: Novel 3-DOF Reconfigurable Spherical Motion Generator with Unlimited Workspace",
-    joints=JOINTS,
-    kinds=KINDS,
-    lower=LOWER,
-    upper=UPPER,
-    qd_max=QD_MAX,
-    tool_site="marker",
-    tool_sensor="marker_pos",
-    orientation_error="rotor_error",
-    breaking=("typeA", "typeB"),
-    fk=fk,
-    measures=measures,
-    singular_sets=singular_sets,
-    sensors=("rotor_quat", "em1_tip", "em2_tip", "em3_tip", "em4_tip"),
-    summary=summary,
-    paint=paint,
-    plots=plots,
-)
+ROBOT = RSMG()

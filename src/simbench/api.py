@@ -1,0 +1,390 @@
+"""The public API: the three things a user adds to simbench (a mechanism, a planner, a controller), typed.
+
+    scenario.yaml --> Scenario --Planner.plan--> JointTrajectory --Controller + physics--> Recording --> Analysis
+
+A **Robot** is an MJCF scene and the analytic kinematics simbench checks it with; a **Planner** turns a
+scenario's `task:` into joint references for the robots it supports; a **Controller** turns those references
+and the measured state into actuator commands every control step. Each is a small abstract base class: override
+the abstract methods, and the optional ones where the mechanism or method needs them. The four shipped robots,
+the shipped planners and the servo are built on these classes exactly as an outside package's are.
+
+An outside package makes its objects known in one of two ways:
+
+    simbench.register_robot(MyArm())                       # at run time, from Python
+
+    [project.entry-points."simbench.robots"]               # in its pyproject.toml: found on first use
+    myarm = "mypackage.robot:ROBOT"                        # (groups simbench.robots, .planners, .controllers)
+
+A scenario then names them as it names the shipped ones, and `simbench list` says where each comes from.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import importlib.metadata
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, Literal, NamedTuple, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel
+
+from simbench.errors import RegistryError, RunError
+from simbench.trajectory import JointTrajectory, Switch
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from simbench.scenario import Scenario
+    from simbench.sim import Plant, Recording
+
+__all__ = ["PRISMATIC", "REVOLUTE", "Controller", "Decoration", "JointTrajectory", "Plant", "Planner",
+           "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summary", "Switch", "Tolerance",
+           "broken", "controllers", "origin", "planners", "register_controller", "register_planner",
+           "register_robot", "robots"]
+
+_LAZY = {"Plant": "simbench.sim", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
+
+
+def __getattr__(name: str) -> Any:
+    """Recording, Plant and Scenario, for outside authors' annotations: imported when first asked for (they
+    import MuJoCo and the scenario schema, which import this module)."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'simbench.api' has no attribute {name!r}")
+
+REVOLUTE = "revolute"
+PRISMATIC = "prismatic"
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """How near counts as near: radians for revolute joints, metres for prismatic ones."""
+
+    angle: float
+    length: float
+
+    def of(self, kind: str) -> float:
+        """The tolerance for a joint of this kind."""
+        return self.angle if kind == REVOLUTE else self.length
+
+
+@dataclass(frozen=True)
+class SingularSet:
+    """One singular set evaluated along a run.
+
+    `distance` is normalised: the largest over the set's conditions of |gap| / tolerance, so that a sample with
+    distance <= 1 lies near the set. `gaps` holds each condition's gap in SI units (rad or m).
+    """
+
+    name: str
+    family: str
+    condition: str
+    distance: Array
+    gaps: dict[str, Array]
+
+
+class Summary(NamedTuple):
+    """What a robot adds to a run's analysis: report entries, events (each a dict with at least "t" and
+    "kind"), and per-sample series written to timeseries.npz."""
+
+    entries: dict[str, Any]
+    events: list[dict[str, Any]]
+    series: dict[str, Array]
+
+
+class Decoration(NamedTuple):
+    """A shape a planner asks the video to draw in every frame: a cone of directions from the world origin
+    (an Agile Eye obstacle), `axis` (3,) unit, `half_angle` rad, `length` m, `rgba` (4,)."""
+
+    kind: Literal["cone"]
+    axis: tuple[float, float, float]
+    half_angle: float
+    length: float
+    rgba: tuple[float, float, float, float]
+
+
+class Robot(ABC):
+    """A mechanism: its MJCF scene, its actuated joints, its tool and the analytic kinematics simbench checks the
+    physics against.
+
+    The scene's actuators are named after the joints they drive (a position servo per joint: the `servo`
+    controller sets its gains), and it has a site `tool_site` and a position sensor `tool_sensor` on it.
+    `joints` are in the planner's order; `lower`/`upper` their ranges and `qd_max` their speed limits (SI).
+    Override `fk` if the tool point follows from the joint values alone (planners that follow a Cartesian path
+    need it), `measures` and `singular_sets` always (an empty result is allowed, and says the mechanism has
+    none), and the closed-chain hooks where the mechanism has passive joints.
+    """
+
+    def __init__(self, *, name: str, description: str, scene: str | Path, joints: Sequence[str],
+                 kinds: Sequence[str], lower: Sequence[float], upper: Sequence[float], qd_max: Sequence[float],
+                 tool_site: str, tool_sensor: str, paper: str = "", sensors: Sequence[str] = (),
+                 orientation_error: str | None = None, breaking: Sequence[str] = ()):
+        self.name = name
+        self.description = description
+        self.paper = paper
+        self.scene = Path(scene)
+        self.joints = tuple(joints)
+        self.kinds = tuple(kinds)
+        self.lower = np.asarray(lower, float)
+        self.upper = np.asarray(upper, float)
+        self.qd_max = np.asarray(qd_max, float)
+        self.tool_site = tool_site
+        self.tool_sensor = tool_sensor
+        self.sensors = tuple(sensors)
+        self.orientation_error = orientation_error
+        self.breaking = tuple(breaking)
+        _check_robot(self)
+
+    @property
+    def dof(self) -> int:
+        """Number of actuated joints."""
+        return len(self.joints)
+
+    @property
+    def has_fk(self) -> bool:
+        """Whether the tool point follows from the joint values alone (`fk` overridden)."""
+        return type(self).fk is not Robot.fk
+
+    def cameras(self) -> tuple[str, ...]:
+        """Names of the cameras the scene defines."""
+        return _camera_names(str(self.scene))
+
+    def fk(self, q: Array) -> Array:
+        """The tool point (N, 3) in metres at joint values q (N, dof)."""
+        raise NotImplementedError(f"robot '{self.name}' has no forward kinematics of its joint values")
+
+    @abstractmethod
+    def measures(self, rec: Recording) -> dict[str, Array]:
+        """Per-sample singularity measures of a run (name -> (N,)), written to the report and timeseries."""
+
+    @abstractmethod
+    def singular_sets(self, rec: Recording, tol: Tolerance) -> list[SingularSet]:
+        """The mechanism's singular sets along a run, each with its distance normalised by `tol`."""
+
+    def assemble(self, q: Array) -> dict[str, float]:
+        """The passive joints' values (by joint name) that close the chain at actuated joint values q (dof,)."""
+        return {}
+
+    def summary(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
+        """What this mechanism adds to a run's analysis (closure error, grips, ...); `series` holds the
+        analysis's per-sample series so far (the tool error, say)."""
+        return Summary({}, [], {})
+
+    def paint(self, model: mujoco.MjModel, rec: Recording, row: int) -> None:
+        """Change the model's colours for the video frame of recorded row `row` (a magnet on or off)."""
+
+    def plots(self, traj: JointTrajectory, rec: Recording, analysis: Any, folder: Path) -> list[str]:
+        """Write this mechanism's own plots into `folder`; their file names."""
+        return []
+
+
+TaskT = TypeVar("TaskT", bound=BaseModel)
+
+
+class Planner(ABC, Generic[TaskT]):
+    """A path-generation method: a task schema (the scenario's `task:` section, a pydantic model built from
+    simbench.schema's types so that units are converted at load time) and `plan`.
+
+    `robots` names the robots it is written for (None: any robot that offers what `needs` lists, e.g. "fk").
+    """
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+    task: ClassVar[type[BaseModel]]
+    robots: ClassVar[tuple[str, ...] | None] = None
+    needs: ClassVar[tuple[Literal["fk"], ...]] = ()
+
+    @abstractmethod
+    def plan(self, scenario: Scenario, robot: Robot, dt: float) -> JointTrajectory:
+        """Joint references on the control grid of period dt (simbench.trajectory.control_grid)."""
+
+    def check(self, scenario: Scenario, robot: Robot) -> tuple[str, str] | None:
+        """A task that is well-formed but means nothing (a zero-length path): (field, what is wrong), or None."""
+        return None
+
+    def decorations(self, scenario: Scenario) -> list[Decoration]:
+        """Shapes the video draws in every frame (obstacles, say)."""
+        return []
+
+    def refuses(self, robot: Robot) -> str | None:
+        """Why this planner cannot plan for `robot`, or None if it can."""
+        if self.robots is not None and robot.name not in self.robots:
+            return f"'{self.name}' works with {', '.join(self.robots)}, not '{robot.name}'"
+        if "fk" in self.needs and not robot.has_fk:
+            return f"'{self.name}' needs the robot's forward kinematics of its joints, which '{robot.name}' has not"
+        return None
+
+
+@dataclass(frozen=True)
+class State:
+    """What a controller measures at a control step: time (s, 0 at the plan's start), the actuated joints'
+    positions and speeds, and the whole MuJoCo state for controllers that need more."""
+
+    k: int
+    t: float
+    q: Array
+    qd: Array
+    qpos: Array
+    qvel: Array
+
+
+class Controller(ABC):
+    """Turns the plan and the measured state into actuator commands (the model's `ctrl`, one row per control
+    step). `bind` is called once before the run with the plant and the plan; `commands` every step.
+
+    A controller whose commands do not depend on the measured state returns them all at once from
+    `open_loop`: the physics then runs in C through `mujoco.rollout`, without a Python call per step.
+    """
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+
+    def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
+        """Prepare for a run of `trajectory` on `plant` (gains, references, indices)."""
+
+    def open_loop(self) -> Array | None:
+        """Every step's commands (N, nu), if they do not depend on the measured state; else None."""
+        return None
+
+    @abstractmethod
+    def commands(self, state: State) -> Array:
+        """The actuator commands (nu,) for the step from `state`."""
+
+    def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
+        """The plan's feedback changed the references from row k0 on (an RSMG arm re-solving its hold):
+        q_ref and qd_ref are the whole revised references."""
+
+
+def _check_robot(robot: Robot) -> None:
+    """A robot whose description does not hold together: RegistryError naming the field."""
+    n = len(robot.joints)
+    for field, value in (("kinds", robot.kinds), ("lower", robot.lower), ("upper", robot.upper),
+                         ("qd_max", robot.qd_max)):
+        if len(value) != n:
+            raise RegistryError(f"robot '{robot.name}': {field} has {len(value)} items, one per joint expected ({n})")
+    if not set(robot.kinds) <= {REVOLUTE, PRISMATIC}:
+        raise RegistryError(f"robot '{robot.name}': kinds must be '{REVOLUTE}' or '{PRISMATIC}', got {robot.kinds}")
+    if not (robot.lower < robot.upper).all() or not (robot.qd_max > 0).all():
+        raise RegistryError(f"robot '{robot.name}': expected lower < upper and qd_max > 0 for every joint")
+
+
+def _camera_names(scene: str) -> tuple[str, ...]:
+    from simbench.sim import compiled_scene
+
+    model = compiled_scene(scene)
+    return tuple(model.camera(i).name for i in range(model.ncam))
+
+
+# --- registries ---------------------------------------------------------------------------------------------
+
+@dataclass
+class _Registry:
+    """The objects of one kind by name, each with where it came from; entry points are read on first use."""
+
+    group: str
+    kind: type
+    objects: dict[str, Any] = dataclasses.field(default_factory=dict)
+    origins: dict[str, str] = dataclasses.field(default_factory=dict)
+    broken: dict[str, str] = dataclasses.field(default_factory=dict)  # entry point name -> why it did not load
+    loaded: bool = False
+
+    def add(self, obj: Any, origin: str) -> None:
+        if not (issubclass(obj, self.kind) if self.kind is Controller and isinstance(obj, type)
+                else isinstance(obj, self.kind) and self.kind is not Controller):
+            expected = "subclass" if self.kind is Controller else "instance"
+            raise RegistryError(f"{origin}: expected a simbench.api.{self.kind.__name__} {expected}, got "
+                                f"{obj!r:.80}")
+        name = getattr(obj, "name", None)
+        if not isinstance(name, str) or not name:
+            raise RegistryError(f"{origin}: a {self.kind.__name__} needs a name")
+        if name in self.objects and self.objects[name] is not obj:
+            raise RegistryError(f"{origin}: a {self.kind.__name__.lower()} called '{name}' is already registered "
+                                f"(from {self.origins[name]})")
+        self.objects[name] = obj
+        self.origins[name] = origin
+
+    def all(self) -> dict[str, Any]:
+        """Every object by name, the installed packages' entry points read the first time. One that fails to
+        load or to register is kept out and remembered in `broken` (a scenario naming it is told why), so that
+        one broken package does not stop the others."""
+        if not self.loaded:
+            _load_shipped()
+            for ep in importlib.metadata.entry_points(group=self.group):
+                origin = f"entry point {ep.value} ({ep.dist.name if ep.dist else 'unknown package'})"
+                try:
+                    self.add(ep.load(), origin)
+                except Exception as err:  # an outside package's failure, whatever it is: named, then skipped
+                    self.broken[ep.name] = f"{origin} cannot be used: {type(err).__name__}: {err}"
+            self.loaded = True
+        return self.objects
+
+
+_ROBOTS = _Registry("simbench.robots", Robot)
+_PLANNERS = _Registry("simbench.planners", Planner)
+_CONTROLLERS = _Registry("simbench.controllers", Controller)
+_REGISTRIES = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS}
+
+
+def _load_shipped() -> None:
+    """The robots, planners and controllers that come with simbench, registered as an outside package's are."""
+    if _ROBOTS.objects.get("spherical_arm") is not None:
+        return
+    from simbench import controllers
+    from simbench.planners import avoidance_4567, decoupled_path, joint_move, round_robin, safe_straight_path
+    from simbench.robots import agile_eye, puma600, rsmg, spherical_arm
+
+    for robot in (spherical_arm.ROBOT, puma600.ROBOT, agile_eye.ROBOT, rsmg.ROBOT):
+        _ROBOTS.add(robot, "simbench")
+    for planner in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
+                    round_robin.PLANNER, joint_move.PLANNER):
+        _PLANNERS.add(planner, "simbench")
+    _CONTROLLERS.add(controllers.Servo, "simbench")
+
+
+def register_robot(robot: Robot, origin: str = "registered from Python") -> None:
+    """Make `robot` known to scenarios by its name."""
+    _ROBOTS.all()
+    _ROBOTS.add(robot, origin)
+
+
+def register_planner(planner: Planner, origin: str = "registered from Python") -> None:
+    """Make `planner` known to scenarios by its name."""
+    _PLANNERS.all()
+    _PLANNERS.add(planner, origin)
+
+
+def register_controller(controller: type[Controller], origin: str = "registered from Python") -> None:
+    """Make the Controller subclass `controller` known to scenarios by its name (a run makes its own instance)."""
+    _CONTROLLERS.all()
+    _CONTROLLERS.add(controller, origin)
+
+
+def robots() -> dict[str, Robot]:
+    """Every robot by name: the shipped ones, those of installed packages' entry points, those registered."""
+    return _ROBOTS.all()
+
+
+def planners() -> dict[str, Planner]:
+    """Every planner by name."""
+    return _PLANNERS.all()
+
+
+def controllers() -> dict[str, type[Controller]]:
+    """Every controller class by name."""
+    return _CONTROLLERS.all()
+
+
+def broken(kind: Literal["robot", "planner", "controller"]) -> dict[str, str]:
+    """Entry points of this kind that failed to load or register, by name, with why."""
+    return _REGISTRIES[kind].broken
+
+
+def origin(kind: Literal["robot", "planner", "controller"], name: str) -> str:
+    """Where the robot, planner or controller called `name` comes from."""
+    return _REGISTRIES[kind].origins[name]

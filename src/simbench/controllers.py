@@ -1,0 +1,65 @@
+"""The shipped controllers (simbench.api.Controller): today the position servo with velocity feed-forward.
+
+Each actuator is a position servo, force = kp (ctrl - q) - kv qd. With velocity feed-forward the command is
+ctrl = q_ref + ((kv + b) / kp) qd_ref, which makes the same servo a PD on both errors that also cancels the
+joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd_ref, as an industrial joint
+controller with friction compensation is. Commands are clamped to the actuators' control ranges (the joint
+ranges), as the servo's own limits would. The commands depend on the plan alone, so the servo is open-loop to
+simbench: the physics runs through `mujoco.rollout` with all of them computed beforehand.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from simbench.api import Array, Controller, State
+from simbench.trajectory import JointTrajectory
+
+if TYPE_CHECKING:
+    from simbench.sim import Plant
+
+
+class Servo(Controller):
+    """The MJCF's position servos with velocity feed-forward (`sim.velocity_feedforward`)."""
+
+    name = "servo"
+    description = "position servo with velocity feed-forward (the MJCF's position actuators)"
+
+    def __init__(self, feedforward: bool = True):
+        self.feedforward = feedforward
+        self._plant: Plant | None = None
+        self._ctrl: Array | None = None
+
+    def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
+        self._plant = plant
+        self._ctrl = self.targets(trajectory.q_ref, trajectory.qd_ref)
+
+    def open_loop(self) -> Array | None:
+        return self._ctrl
+
+    def commands(self, state: State) -> Array:
+        assert self._ctrl is not None, "bind() first"
+        return self._ctrl[min(state.k, len(self._ctrl) - 1)]
+
+    def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
+        assert self._ctrl is not None, "bind() first"
+        self._ctrl[k0:] = self.targets(q_ref[k0:], qd_ref[k0:])
+
+    def targets(self, q_ref: Array, qd_ref: Array) -> Array:
+        """Actuator controls (N, nu) for joint references, clamped to the control ranges."""
+        assert self._plant is not None, "bind() first"
+        plant = self._plant
+        m = plant.model
+        ctrl = np.zeros((q_ref.shape[0], m.nu))
+        act = plant.actuators
+        ctrl[:, act] = q_ref
+        if self.feedforward:
+            kp = m.actuator_gainprm[act, 0]
+            kv = -m.actuator_biasprm[act, 2] + m.dof_damping[plant.dof_adr]
+            ctrl[:, act] += qd_ref * (kv / kp)
+        limited = m.actuator_ctrllimited.astype(bool)
+        lo, hi = m.actuator_ctrlrange.T
+        ctrl[:, limited] = np.clip(ctrl[:, limited], lo[limited], hi[limited])
+        return ctrl
