@@ -1,6 +1,6 @@
 """Steps per second of simbench's tracking loop against raw MuJoCo stepping, on the same model in the same run.
 
-The tracking loop is `simbench.sim.simulate`: controls from the plan, stepping, and recording of state and
+The tracking loop is `simbench.sim.simulate`: controls from the plan (simbench.controllers.Servo), stepping, and recording of state and
 tool position at every step, with no Python in the loop between switches (`mujoco.rollout` over precomputed
 controls, one call per stretch between electromagnet switches). It is compared, pair by pair in alternation,
 with
@@ -17,6 +17,7 @@ import numpy as np
 from mujoco import rollout
 
 from benchmarks.common import interleaved, shipped
+from simbench.controllers import Servo
 from simbench.sim import Plant, apply_switch, at_start, simulate
 
 REPEATS = 15
@@ -41,7 +42,9 @@ def measure_case(robot_name: str, scenario: str) -> dict:
     plant = Plant.load(sc.robot_def, sc.sim.timestep)
     traj = sc.planner_def.plan(sc, sc.robot_def, float(plant.model.opt.timestep))
     steps = traj.t.size - 1
-    ctrl = plant.commands(traj.q_ref, traj.qd_ref, True)[:-1]
+    servo = Servo()
+    servo.bind(plant, traj)
+    ctrl = servo.open_loop()[:-1]
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
     def tracking():
