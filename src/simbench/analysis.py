@@ -73,16 +73,12 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
         return best
     radius = best[close] + half + 1e-12
     counts = tree.query_ball_point(points[close], radius, return_length=True)  # >= 1: the nearest vertex
-    # Points taken in batches of at most SEARCH_PAIRS (point, vertex) pairs, so that memory stays bounded where
-    # many vertices crowd one place (a path that dwells, or one long segment among short ones).
-    marks = np.arange(SEARCH_PAIRS, counts.sum() + SEARCH_PAIRS, SEARCH_PAIRS)
-    ends = np.searchsorted(np.cumsum(counts), marks, "right")
-    start = 0
-    for stop in np.unique(np.maximum(ends, 1)):
-        if stop > start:
-            batch = close[start:stop]
-            best[batch] = np.minimum(best[batch], _nearest_segment(tree, vertices, points[batch], radius[start:stop]))
-            start = stop
+    # Points taken in batches of about SEARCH_PAIRS (point, vertex) pairs (a batch ends with the point that
+    # crosses the bound), so that memory stays bounded where many vertices crowd one place.
+    batch_of = (np.cumsum(counts) - counts) // SEARCH_PAIRS
+    for part in np.split(np.arange(close.size), np.flatnonzero(np.diff(batch_of)) + 1):
+        batch = close[part]
+        best[batch] = np.minimum(best[batch], _nearest_segment(tree, vertices, points[batch], radius[part]))
     return best
 
 

@@ -26,6 +26,7 @@ import importlib.metadata
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, Literal, NamedTuple, TypeVar
 
@@ -289,15 +290,15 @@ class _Registry:
 
     group: str
     kind: type
+    classes: bool = False  # holds subclasses of `kind` (a run makes its own instance), not instances
     objects: dict[str, Any] = dataclasses.field(default_factory=dict)
     origins: dict[str, str] = dataclasses.field(default_factory=dict)
     broken: dict[str, str] = dataclasses.field(default_factory=dict)  # entry point name -> why it did not load
     loaded: bool = False
 
     def add(self, obj: Any, origin: str) -> None:
-        if not (issubclass(obj, self.kind) if self.kind is Controller and isinstance(obj, type)
-                else isinstance(obj, self.kind) and self.kind is not Controller):
-            expected = "subclass" if self.kind is Controller else "instance"
+        if not (isinstance(obj, type) and issubclass(obj, self.kind) if self.classes else isinstance(obj, self.kind)):
+            expected = "subclass" if self.classes else "instance"
             raise RegistryError(f"{origin}: expected a simbench.api.{self.kind.__name__} {expected}, got "
                                 f"{obj!r:.80}")
         name = getattr(obj, "name", None)
@@ -327,14 +328,14 @@ class _Registry:
 
 _ROBOTS = _Registry("simbench.robots", Robot)
 _PLANNERS = _Registry("simbench.planners", Planner)
-_CONTROLLERS = _Registry("simbench.controllers", Controller)
+_CONTROLLERS = _Registry("simbench.controllers", Controller, classes=True)
 _REGISTRIES = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS}
 
 
+@cache
 def _load_shipped() -> None:
-    """The robots, planners and controllers that come with simbench, registered as an outside package's are."""
-    if _ROBOTS.objects.get("spherical_arm") is not None:
-        return
+    """The robots, planners and controllers that come with simbench, registered as an outside package's are
+    (once: each registry asks for them on first use)."""
     from simbench import controllers
     from simbench.planners import avoidance_4567, decoupled_path, joint_move, round_robin, safe_straight_path
     from simbench.robots import agile_eye, puma600, rsmg, spherical_arm

@@ -212,10 +212,9 @@ def main(argv: list[str] | None = None) -> int:
 def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
     try:
         with interrupts.held_back():  # the extension modules, imported here, would convert or swallow Ctrl-C
-            from simbench import pipeline, planners, robots, scenario  # noqa: F401
+            from simbench import api, pipeline, scenario  # noqa: F401
 
-            robots.registry()
-            planners.registry()
+            api.robots(), api.planners(), api.controllers()  # outside packages' entry points, imported too
 
         if args.command == "list":
             print(_list())

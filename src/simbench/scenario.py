@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, create_model, field_validator,
                       model_validator)
 
-from simbench import api, planners, robots, verdict
+from simbench import api, verdict
 from simbench.errors import ScenarioError
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, seconds
 from simbench.timing import TimeLaw
@@ -142,19 +142,19 @@ class Scenario(SimbenchModel):
         return self._source
 
     @property
-    def robot_def(self) -> robots.Robot:
+    def robot_def(self) -> api.Robot:
         """The Robot this scenario runs."""
-        return robots.get(self.robot)
+        return api.robots()[self.robot]
 
     @property
-    def planner_def(self) -> planners.Planner:
+    def planner_def(self) -> api.Planner:
         """The Planner this scenario uses."""
-        return planners.registry()[self.planner]
+        return api.planners()[self.planner]
 
 
 @cache
 def _scenario_class(planner_name: str) -> type[Scenario]:
-    task = planners.registry()[planner_name].task
+    task = api.planners()[planner_name].task
     return create_model(f"Scenario_{planner_name}", __base__=Scenario, task=(task, ...))
 
 
@@ -181,8 +181,8 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     """Validate a scenario already read into Python objects."""
     if not isinstance(raw, dict):
         raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {kind_of(raw)}")
-    robot = robots.registry().get(_name_field(raw, "robot", robots.registry(), source))
-    planner = planners.registry()[_name_field(raw, "planner", planners.registry(), source)]
+    robot = api.robots()[_name_field(raw, "robot", api.robots(), source)]
+    planner = api.planners()[_name_field(raw, "planner", api.planners(), source)]
     refusal = planner.refuses(robot)
     if refusal:
         raise ScenarioError(source, "planner", refusal)

@@ -11,8 +11,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from simbench import api
-from simbench.api import Planner
 
 
 def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: np.ndarray,
@@ -27,8 +25,3 @@ def rate(evaluate: Callable[[np.ndarray], np.ndarray], s: np.ndarray, revolute: 
     dq = evaluate(hi) - evaluate(lo)
     dq[:, revolute] = np.angle(np.exp(1j * dq[:, revolute]))
     return dq / (hi - lo)[:, None]
-
-
-def registry() -> dict[str, Planner]:
-    """All planners by name: the shipped ones and those outside packages add (simbench.api)."""
-    return api.planners()

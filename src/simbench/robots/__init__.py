@@ -12,16 +12,17 @@ orientation error (`orientation_error`), and any robot names the events that mea
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from simbench import api
 from simbench.api import PRISMATIC, REVOLUTE, Robot, SingularSet, Tolerance
 from simbench.resources import models_dir
 
-__all__ = ["PRISMATIC", "REVOLUTE", "Robot", "SingularSet", "Tolerance", "get", "joint_set", "registry", "scene"]
+__all__ = ["PRISMATIC", "REVOLUTE", "Robot", "SingularSet", "Tolerance", "joint_set", "scene"]
 
 
-def scene(name: str):
+def scene(name: str) -> Path:
     """The MJCF scene of the shipped robot `name` (its folder under models/: robot, floor, lights, cameras)."""
     return models_dir() / name / "scene.xml"
 
@@ -32,13 +33,3 @@ def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dic
     gaps = {joints[j]: np.abs(q[:, j] - v) for j, v in values.items()}
     distance = np.max([gaps[joints[j]] / tol.of(kinds[j]) for j in values], axis=0)
     return SingularSet(name, family, condition, distance, gaps)
-
-
-def registry() -> dict[str, Robot]:
-    """All robots by name: the shipped ones and those outside packages add (simbench.api)."""
-    return api.robots()
-
-
-def get(name: str) -> Robot:
-    """The robot called `name`; KeyError if there is none."""
-    return registry()[name]
