@@ -32,7 +32,7 @@ from simbench.errors import RunError  # noqa: E402
 from simbench.robots import agile_eye  # noqa: E402
 from simbench.rotations import rotation_angle  # noqa: E402
 from simbench.scenario import parse_scenario  # noqa: E402
-from simbench.sim import Plant  # noqa: E402
+from simbench.plant import Plant  # noqa: E402
 
 TASKS = 40
 SEED = 19

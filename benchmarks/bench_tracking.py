@@ -18,7 +18,9 @@ from mujoco import rollout
 
 from benchmarks.common import interleaved, shipped
 from simbench.controllers import Servo
-from simbench.sim import Plant, apply_switch, at_start, simulate
+from simbench.plant import Plant
+from simbench.sim import simulate
+from simbench.switches import apply_switch, at_start
 
 REPEATS = 15
 CASES = (("spherical_arm", "demo"), ("rsmg", "three_turns"))

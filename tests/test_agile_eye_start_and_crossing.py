@@ -12,7 +12,9 @@ import simbench
 from simbench.errors import RunError
 from simbench.robots import agile_eye as E
 from simbench.scenario import parse_scenario
-from simbench.sim import Plant, at_start, simulate
+from simbench.plant import Plant
+from simbench.sim import simulate
+from simbench.switches import at_start
 
 DT = 0.0005
 

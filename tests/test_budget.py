@@ -15,7 +15,7 @@ from simbench import analysis, budget, pipeline
 from simbench.cli import main
 from simbench.errors import ScenarioError
 from simbench.scenario import load_scenario, parse_scenario
-from simbench.sim import compiled_scene
+from simbench.plant import compiled_scene
 from simbench.sweep import load_sweep, run_sweep
 
 # Runs long enough that the per-sample terms dominate, short enough for the test suite (about 1 s each).

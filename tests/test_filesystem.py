@@ -505,7 +505,7 @@ def test_the_python_api_raises_the_same_errors(ws, monkeypatch):
 
 def _fails_while_settling(monkeypatch):
     """The simulation failing before the first tracked sample, as diverged physics while settling does."""
-    def simulate(plant, trajectory, **kwargs):
+    def simulate(plant, trajectory, *args, **kwargs):
         raise PhysicsError(-0.0125, "joint 'q1' diverging", trajectory, None)
     monkeypatch.setattr(pipeline, "simulate", simulate)
 

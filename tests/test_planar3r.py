@@ -13,7 +13,7 @@ import pytest
 simbench_planar3r = pytest.importorskip("simbench_planar3r", reason="pip install -e examples/planar3r")
 
 from simbench.api import REVOLUTE, Tolerance  # noqa: E402
-from simbench.scenario import Analysis, Timing, load_scenario  # noqa: E402
+from simbench.scenario import Thresholds, Timing, load_scenario  # noqa: E402
 from simbench.schema import Units  # noqa: E402
 from simbench_planar3r.planner import PLANNER  # noqa: E402
 from simbench_planar3r.robot import L1, L2, L3, ROBOT  # noqa: E402
@@ -154,7 +154,7 @@ def _scenario(start, goal, goal_phi, **task):
     {"robot": "planar3r", "planner": "dls_line", "task": ..., "timing": ...}."""
     raw = {"start": [float(v) for v in start], "goal": [float(v) for v in goal], "goal_phi": goal_phi, **task}
     return SimpleNamespace(task=PLANNER.task.model_validate(raw, context={"robot": ROBOT, "units": Units()}),
-                           timing=Timing(law="quintic", duration=3.0, hold=0.5), analysis=Analysis(), units=Units())
+                           timing=Timing(law="quintic", duration=3.0, hold=0.5), analysis=Thresholds(), units=Units())
 
 
 def _segment_distance(points, a, b):

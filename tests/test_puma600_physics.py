@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from simbench.robots import puma600 as P
-from simbench.sim import Plant, simulate
+from simbench.plant import Plant
+from simbench.sim import simulate
 from simbench.trajectory import JointTrajectory
 
 

@@ -17,7 +17,7 @@ from simbench import api, pipeline
 from simbench.cli import main
 from simbench.errors import RegistryError, ScenarioError
 from simbench.scenario import parse_scenario
-from simbench.sim import Plant, compiled_scene
+from simbench.plant import Plant, compiled_scene
 
 ROBOTS = sorted(api.robots())
 PLANNERS = sorted(api.planners())

@@ -15,9 +15,10 @@ import yaml
 from conftest import interrupt, scenario_file
 
 import simbench
-from simbench import sim
+from simbench import plant as plants, sim, switches
 from simbench.cli import main
 from simbench.errors import PhysicsError
+from simbench.faults import MAX_SPEED
 
 
 def stiff_puma(tmp_path) -> Path:
@@ -47,15 +48,15 @@ def test_diverging_run_stops_at_the_first_sign_and_keeps_its_timeseries(tmp_path
     assert ts["q_ref"].shape[0] == ts["q"].shape[0] == n
     # Every kept sample is sound, and one plain mj_step from the last of them is not: the run stopped at the
     # first sign, neither before nor after.
-    assert np.isfinite(ts["qpos"]).all() and np.abs(ts["qd"]).max() <= sim._MAX_SPEED
+    assert np.isfinite(ts["qpos"]).all() and np.abs(ts["qd"]).max() <= MAX_SPEED
     sc = simbench.load_scenario(path)
-    plant = sim.Plant.load(sc.robot_def, sc.sim.timestep, sc.sim.kp, sc.sim.kv, sc.sim.force_limits)
+    plant = plants.Plant.load(sc.robot_def, sc.sim.timestep, sc.sim.kp, sc.sim.kv, sc.sim.force_limits)
     data = mujoco.MjData(plant.model)
     data.qpos[:] = ts["qpos"][-1]
     data.qvel[plant.dof_adr] = ts["qd"][-1]
     data.ctrl[:] = ts["ctrl"][-1]
     mujoco.mj_step(plant.model, data)
-    assert np.abs(data.qvel).max() > sim._MAX_SPEED
+    assert np.abs(data.qvel).max() > MAX_SPEED
 
 
 def test_nan_state_mid_run_is_named_and_the_run_kept_up_to_it(monkeypatch):
@@ -63,7 +64,7 @@ def test_nan_state_mid_run_is_named_and_the_run_kept_up_to_it(monkeypatch):
     that switch, and the recording stops there."""
     scenario = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
     calls = []
-    real = sim.apply_switch
+    real = switches.apply_switch
 
     def poisoned(model, data, switch):
         real(model, data, switch)
@@ -71,7 +72,8 @@ def test_nan_state_mid_run_is_named_and_the_run_kept_up_to_it(monkeypatch):
         if len(calls) == 3 + 4:  # the four grips at t = 0 come first
             data.qvel[:] = np.nan
 
-    monkeypatch.setattr(sim, "apply_switch", poisoned)
+    monkeypatch.setattr(switches, "apply_switch", poisoned)  # the grips at the start (switches.at_start)
+    monkeypatch.setattr(sim, "apply_switch", poisoned)  # and those during the run
     with pytest.raises(PhysicsError) as caught:
         simbench.evaluate(scenario)
     err, t_switch = caught.value, calls[-1]
@@ -84,11 +86,11 @@ def test_nan_state_mid_run_is_named_and_the_run_kept_up_to_it(monkeypatch):
 def _scene_with_memory(monkeypatch, memory: int) -> None:
     """Compile every scene with an arena of `memory` bytes (MuJoCo's <size memory>), to overflow it."""
     def compiled(scene: str) -> mujoco.MjModel:
-        spec = sim.scene_spec(scene)
+        spec = plants.scene_spec(scene)
         spec.memory = memory
         return spec.compile()
 
-    monkeypatch.setattr(sim, "compiled_scene", compiled)
+    monkeypatch.setattr(plants, "compiled_scene", compiled)
 
 
 @pytest.mark.parametrize("memory, expected", [(3000, "the constraint buffer is full (the model's <size memory> is "

@@ -12,7 +12,8 @@ import simbench
 from simbench.errors import RunError
 from simbench.planners import round_robin
 from simbench.robots import rsmg as S
-from simbench.sim import Plant, apply_switch
+from simbench.plant import Plant
+from simbench.switches import apply_switch
 from simbench.trajectory import Switch
 
 V = Rotation.random(3000, random_state=0).as_matrix()[:, :, 0]  # unit vectors all over the sphere

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from simbench.robots import Tolerance, spherical_arm
-from simbench.sim import Plant
+from simbench.plant import Plant
 
 ROBOT = spherical_arm.ROBOT
 

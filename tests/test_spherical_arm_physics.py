@@ -5,7 +5,9 @@ import pytest
 
 from simbench.analysis import path_deviation
 from simbench.robots import spherical_arm
-from simbench.sim import Plant, simulate
+from simbench.plant import Plant
+from simbench.controllers import Servo
+from simbench.sim import simulate
 from simbench.trajectory import JointTrajectory
 
 ROBOT = spherical_arm.ROBOT
@@ -106,7 +108,7 @@ def test_gravity_compensation_holds_a_pose_without_droop(q):
 def test_velocity_feedforward_reduces_lag(evaluated):
     scenario, with_ff = evaluated("spherical_arm", "demo")
     plant = Plant.load(ROBOT)
-    without = simulate(plant, with_ff.trajectory, settle=scenario.sim.settle, feedforward=False)
+    without = simulate(plant, with_ff.trajectory, Servo(feedforward=False), settle=scenario.sim.settle)
     lag_without = np.abs(without.q - with_ff.trajectory.q_ref).max(axis=0)
     lag_with = np.abs(with_ff.recording.q - with_ff.trajectory.q_ref).max(axis=0)
     assert np.all(lag_with[1:] < 0.5 * lag_without[1:])

@@ -35,20 +35,22 @@ from numpy.typing import NDArray
 from pydantic import BaseModel
 
 from simbench.errors import RegistryError, RunError
+from simbench.frozen import SimbenchModel
 from simbench.trajectory import JointTrajectory, Switch
 
 if TYPE_CHECKING:
     import mujoco
 
     from simbench.scenario import Scenario
-    from simbench.sim import Plant, Recording
+    from simbench.plant import Plant
+    from simbench.sim import Recording
 
-__all__ = ["PRISMATIC", "REVOLUTE", "Controller", "Decoration", "JointTrajectory", "Plant", "Planner",
+__all__ = ["PRISMATIC", "REVOLUTE", "ControlSettings", "Controller", "Decoration", "JointTrajectory", "Plant", "Planner",
            "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summary", "Switch", "Tolerance",
            "broken", "controllers", "origin", "planners", "register_controller", "register_planner",
            "register_robot", "robots"]
 
-_LAZY = {"Plant": "simbench.sim", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
+_LAZY = {"Plant": "simbench.plant", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
 
 
 def __getattr__(name: str) -> Any:
@@ -224,8 +226,11 @@ class Planner(ABC, Generic[TaskT]):
 
 @dataclass(frozen=True)
 class State:
-    """What a controller measures at a control step: time (s, 0 at the plan's start), the actuated joints'
-    positions and speeds, and the whole MuJoCo state for controllers that need more."""
+    """What a controller measures at a control step k: time (s, 0 at the plan's start, negative while settling
+    at sample 0), the actuated joints' positions and speeds, the whole MuJoCo state, and the live MjData with
+    everything that depends on positions and speeds computed for this state (`mj_step1`: the mass matrix (mj_fullM),
+    the bias forces qfrc_bias, qfrc_passive, site poses, position sensors), for controllers that need more. The
+    data is the simulator's own: read it, do not change it."""
 
     k: int
     t: float
@@ -233,18 +238,36 @@ class State:
     qd: Array
     qpos: Array
     qvel: Array
+    data: mujoco.MjData | None = None
+
+
+class ControlSettings(SimbenchModel):
+    """The scenario's `control:` section: which controller, and (in a controller's subclass of this model) its
+    own fields, built from simbench.schema's types so that units are converted at load time."""
+
+    controller: str = "servo"
 
 
 class Controller(ABC):
     """Turns the plan and the measured state into actuator commands (the model's `ctrl`, one row per control
-    step). `bind` is called once before the run with the plant and the plan; `commands` every step.
+    step). A run makes one with `from_scenario`, calls `bind` once with the plant and the plan, then
+    `commands` every step.
 
     A controller whose commands do not depend on the measured state returns them all at once from
     `open_loop`: the physics then runs in C through `mujoco.rollout`, without a Python call per step.
+    `actuation` says what the commands are: position targets of the scene's position servos, or forces and
+    torques ("torque": the plant's joint actuators are made motors, their force limits kept).
     """
 
     name: ClassVar[str]
     description: ClassVar[str]
+    settings: ClassVar[type[ControlSettings]] = ControlSettings
+    actuation: Literal["position", "torque"] = "position"
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Controller:
+        """The controller a scenario asks for, from its `control:` section (an instance of `settings`)."""
+        return cls(scenario.control)  # type: ignore[call-arg]
 
     def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
         """Prepare for a run of `trajectory` on `plant` (gains, references, indices)."""
@@ -261,6 +284,10 @@ class Controller(ABC):
         """The plan's feedback changed the references from row k0 on (an RSMG arm re-solving its hold):
         q_ref and qd_ref are the whole revised references."""
 
+    def gains(self) -> dict[str, Any]:
+        """What report.json says of this controller after `bind`: its gains and choices, SI units."""
+        return {}
+
 
 def _check_robot(robot: Robot) -> None:
     """A robot whose description does not hold together: RegistryError naming the field."""
@@ -276,7 +303,7 @@ def _check_robot(robot: Robot) -> None:
 
 
 def _camera_names(scene: str) -> tuple[str, ...]:
-    from simbench.sim import compiled_scene
+    from simbench.plant import compiled_scene
 
     model = compiled_scene(scene)
     return tuple(model.camera(i).name for i in range(model.ncam))
@@ -336,7 +363,7 @@ _REGISTRIES = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLER
 def _load_shipped() -> None:
     """The robots, planners and controllers that come with simbench, registered as an outside package's are
     (once: each registry asks for them on first use)."""
-    from simbench import controllers
+    from simbench import computed_torque, controllers, policy
     from simbench.planners import avoidance_4567, decoupled_path, joint_move, round_robin, safe_straight_path
     from simbench.robots import agile_eye, puma600, rsmg, spherical_arm
 
@@ -345,7 +372,8 @@ def _load_shipped() -> None:
     for planner in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
                     round_robin.PLANNER, joint_move.PLANNER):
         _PLANNERS.add(planner, "simbench")
-    _CONTROLLERS.add(controllers.Servo, "simbench")
+    for controller in (controllers.Servo, computed_torque.ComputedTorque, policy.Policy):
+        _CONTROLLERS.add(controller, "simbench")
 
 
 def register_robot(robot: Robot, origin: str = "registered from Python") -> None:

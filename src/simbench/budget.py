@@ -11,7 +11,7 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
 
 - Memory. A run keeps `columns` float64 numbers a sample: the trajectory (t, s, q_ref, qd_ref, tool_ref: 5 +
   2 dof) and the Recording (t, the full physics state, q, qd, force, ctrl, every sensor: 1 + nstate + 3 dof + nu +
-  nsensordata; simbench.sim._record), 8 * columns = R bytes: measured 388, 588, 1023 and 530 B a sample kept
+  nsensordata; simbench.sim._Run._record), 8 * columns = R bytes: measured 388, 588, 1023 and 530 B a sample kept
   after simulating for the spherical arm, PUMA 600, RSMG and Agile Eye against R = 368, 568, 904 and 488. Planning,
   simulating and analysing peak at 1.5 R (spherical arm), 1.8 R (RSMG), 3.0 R (PUMA 600: its eight IK branches)
   and 3.5-4.2 R (Agile Eye: its planner): taken as 2.5 R. Writing the outputs (plots, the compressed timeseries)
@@ -112,7 +112,7 @@ def _model(scene: str, dof: int) -> tuple[int, float]:
     per process: the run compiles the same)."""
     import mujoco
 
-    from simbench.sim import compiled_scene
+    from simbench.plant import compiled_scene
 
     model = compiled_scene(scene)
     nstate = mujoco.mj_stateSize(model, int(mujoco.mjtState.mjSTATE_FULLPHYSICS))

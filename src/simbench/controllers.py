@@ -1,16 +1,19 @@
-"""The shipped controllers (simbench.api.Controller): today the position servo with velocity feed-forward.
+"""The shipped controllers (simbench.api.Controller): the position servo, computed torque, and a user's policy.
 
-Each actuator is a position servo, force = kp (ctrl - q) - kv qd. With velocity feed-forward the command is
-ctrl = q_ref + ((kv + b) / kp) qd_ref, which makes the same servo a PD on both errors that also cancels the
-joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd_ref, as an industrial joint
-controller with friction compensation is. Commands are clamped to the actuators' control ranges (the joint
-ranges), as the servo's own limits would. The commands depend on the plan alone, so the servo is open-loop to
-simbench: the physics runs through `mujoco.rollout` with all of them computed beforehand.
+- `servo`: each actuator is a position servo, force = kp (ctrl - q) - kv qd. With velocity feed-forward the
+  command is ctrl = q_ref + ((kv + b) / kp) qd_ref, which makes the same servo a PD on both errors that also
+  cancels the joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd_ref, as an
+  industrial joint controller with friction compensation is. Commands are clamped to the actuators' control
+  ranges (the joint ranges), as the servo's own limits would. The commands depend on the plan alone, so the
+  servo is open-loop to simbench: the physics runs through `mujoco.rollout` with all of them computed
+  beforehand.
+- `computed_torque` (simbench.computed_torque): torques from the model's inverse dynamics plus PD.
+- `policy` (simbench.policy): a Python object named in the scenario, called every step with an observation.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,11 +21,12 @@ from simbench.api import Array, Controller, State
 from simbench.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
-    from simbench.sim import Plant
+    from simbench.plant import Plant
+    from simbench.scenario import Scenario
 
 
 class Servo(Controller):
-    """The MJCF's position servos with velocity feed-forward (`sim.velocity_feedforward`)."""
+    """The MJCF's position servos with velocity feed-forward (the scenario's `sim.velocity_feedforward`)."""
 
     name = "servo"
     description = "position servo with velocity feed-forward (the MJCF's position actuators)"
@@ -31,6 +35,10 @@ class Servo(Controller):
         self.feedforward = feedforward
         self._plant: Plant | None = None
         self._ctrl: Array | None = None
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> Servo:
+        return cls(scenario.sim.velocity_feedforward)
 
     def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
         self._plant = plant
@@ -46,6 +54,10 @@ class Servo(Controller):
     def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
         assert self._ctrl is not None, "bind() first"
         self._ctrl[k0:] = self.targets(q_ref[k0:], qd_ref[k0:])
+
+    def gains(self) -> dict[str, Any]:
+        assert self._plant is not None, "bind() first"
+        return {**self._plant.gains(), "velocity_feedforward": self.feedforward}
 
     def targets(self, q_ref: Array, qd_ref: Array) -> Array:
         """Actuator controls (N, nu) for joint references, clamped to the control ranges."""

@@ -64,13 +64,21 @@ class PhysicsError(RunError):
     """The simulation failed mid-run (diverged, overflowed): when, why, the trajectory it was tracking and the
     recording up to then (None if it failed while settling, before the first tracked sample)."""
 
+    failed = "physics failed"
+
     def __init__(self, t: float, cause: str, trajectory: JointTrajectory, recording: Recording | None):
         self.t = t
         self.cause = cause
         self.trajectory = trajectory
         self.recording = recording
         when = f"at t = {t:.4f} s" if t >= 0 else f"while settling at the start pose ({-t:.4f} s before the start)"
-        super().__init__(f"physics failed {when}: {cause}")
+        super().__init__(f"{self.failed} {when}: {cause}")
+
+
+class ControlError(PhysicsError):
+    """A controller failed mid-run (it raised, or commanded NaN or the wrong shape): as PhysicsError."""
+
+    failed = "control failed"
 
 
 class OutputError(RunError):

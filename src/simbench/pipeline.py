@@ -27,7 +27,8 @@ from simbench.render import render_video
 from simbench.report import build_failure_report, build_report, write_report, write_timeseries
 from simbench.robots import Tolerance
 from simbench.scenario import Scenario, as_scenario
-from simbench.sim import Plant, Recording, commanded, simulate
+from simbench.plant import Plant
+from simbench.sim import Recording, commanded, simulate
 from simbench.trajectory import JointTrajectory
 from simbench.verdict import Verdict, plan_verdict, run_verdict
 
@@ -41,6 +42,7 @@ class Evaluation:
     recording: Recording
     analysis: Analysis
     verdict: Verdict
+    control: dict  # the controller, its actuation and its gains, as report.json gives them
 
 
 @dataclass(frozen=True)
@@ -97,19 +99,21 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
     robot = scenario.robot_def
     with watch.stage("load"):
         sim = scenario.sim
-        plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation)
+        controller = scenario.controller_def.from_scenario(scenario)
+        plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation,
+                           controller.actuation)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     with watch.stage("simulate"):
-        rec = simulate(plant, traj, settle=scenario.sim.settle, feedforward=scenario.sim.velocity_feedforward,
-                       progress=progress)
+        rec = simulate(plant, traj, controller, settle=scenario.sim.settle, progress=progress)
         traj = commanded(traj, rec)
+        control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
     with watch.stage("analyse"):
         a = scenario.analysis
         result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
                          margin=Tolerance(a.limit_angle, a.limit_length))
         found = run_verdict(robot, traj, result, a, scenario.expect)
-    return Evaluation(traj, rec, result, found)
+    return Evaluation(traj, rec, result, found, control)
 
 
 def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:

@@ -31,7 +31,8 @@ import numpy as np
 
 from simbench.api import Decoration
 from simbench.errors import RunError
-from simbench.sim import Recording, compiled_scene
+from simbench.plant import compiled_scene
+from simbench.sim import Recording
 
 _PLAN_RGBA = np.array([0.1, 0.45, 1.0, 1.0], np.float32)
 _PLAN_PAST_RGBA = np.array([0.1, 0.45, 1.0, 0.2], np.float32)

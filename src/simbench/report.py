@@ -48,6 +48,7 @@ def _head(scenario, timestep: float, source: str | None) -> dict:
         "scenario": {"name": scenario.name, "file": source, "description": scenario.description},
         "robot": scenario.robot,
         "planner": scenario.planner,
+        "control": {"controller": scenario.control.controller},
         "versions": versions(),
         "timestep": timestep,
         "duration": timing.duration,
@@ -80,6 +81,7 @@ def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | Non
     return plain({
         **_head(scenario, rec.timestep, source),
         **ev.verdict.to_report(),
+        "control": ev.control,
         "samples": int(rec.t.size),
         "tracking": result.tracking,
         "singularity_events": result.singularity_events,

@@ -12,6 +12,7 @@ A scenario is a YAML mapping:
       goal: [120, 75, 5, 90]
     timing: {law: quintic, duration: 4.0, hold: 0.5}
     sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}   # also kp, kv: servo gains (SI)
+    control: {controller: computed_torque, kp: [...], kd: [...]}     # default servo: the MJCF's servos
     analysis: {near_angle: 2, near_length: 2}
     render: {width: 640, height: 480, fps: 30, camera: front, quality: fast, trace: true}
     expect: {status: limits, violations: [joint_limit], reason: ...}   # only where the run is meant to fail
@@ -68,8 +69,8 @@ class Sim(SimbenchModel):
     gravity_compensation: bool = True
 
 
-class Analysis(SimbenchModel):
-    """How near a singular set or a joint limit counts as near (angles for revolute, lengths for prismatic), and
+class Thresholds(SimbenchModel):
+    """The `analysis:` section. How near a singular set or a joint limit counts as near (angles for revolute, lengths for prismatic), and
     the tolerances a run must keep to end `ok`: the tool's distance from the planned path, its distance from the
     plan's end when the run ends, and for a robot whose task is an orientation, the same for the orientation."""
 
@@ -131,7 +132,8 @@ class Scenario(SimbenchModel):
     units: Units = Units()
     timing: Timing
     sim: Sim = Sim()
-    analysis: Analysis = Analysis()
+    analysis: Thresholds = Thresholds()
+    control: api.ControlSettings = api.ControlSettings()
     render: Render = Render()
     expect: Expect | None = None
     _source: str | None = PrivateAttr(None)
@@ -151,11 +153,19 @@ class Scenario(SimbenchModel):
         """The Planner this scenario uses."""
         return api.planners()[self.planner]
 
+    @property
+    def controller_def(self) -> type[api.Controller]:
+        """The Controller class this scenario runs with."""
+        return api.controllers()[self.control.controller]
+
 
 @cache
-def _scenario_class(planner_name: str) -> type[Scenario]:
+def _scenario_class(planner_name: str, controller_name: str = "servo") -> type[Scenario]:
+    """The schema of a scenario with this planner's `task:` and this controller's `control:` section."""
     task = api.planners()[planner_name].task
-    return create_model(f"Scenario_{planner_name}", __base__=Scenario, task=(task, ...))
+    settings = api.controllers()[controller_name].settings
+    return create_model(f"Scenario_{planner_name}_{controller_name}", __base__=Scenario, task=(task, ...),
+                        control=(settings, settings()))
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -190,7 +200,7 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
         units = Units.model_validate(raw.get("units", {}))
     except ValidationError as err:
         raise ScenarioError(source, *describe(err, Units, raw.get("units"), prefix=("units",))) from None
-    cls = _scenario_class(planner.name)
+    cls = _scenario_class(planner.name, _controller_name(raw, source))
     try:
         scenario = cls.model_validate(raw, context={"robot": robot, "units": units})
     except ValidationError as err:
@@ -207,15 +217,28 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     return scenario
 
 
-def _name_field(raw: dict, field: str, known: dict, source: str) -> str:
-    value = raw.get(field)
+def _controller_name(raw: dict, source: str) -> str:
+    """The controller the `control:` section names (default servo), checked against the registry."""
+    control = raw.get("control", {})
+    if not isinstance(control, dict):
+        raise ScenarioError(source, "control", f"expected a mapping (controller: name, and its fields), got "
+                                               f"{kind_of(control)}")
+    if "controller" not in control:
+        return "servo"
+    return _name_field(control, "controller", api.controllers(), source, path="control.controller")
+
+
+def _name_field(raw: dict, field: str, known: dict, source: str, path: str | None = None) -> str:
+    """raw[field], the name of a registered robot, planner or controller; ScenarioError naming `path` (default
+    the field) if it is missing, unknown or broken."""
+    value, path = raw.get(field), path or field
     options = ", ".join(sorted(known))
     if value is None:
-        raise ScenarioError(source, field, f"missing: this field is required (one of: {options})")
+        raise ScenarioError(source, path, f"missing: this field is required (one of: {options})")
     if isinstance(value, str) and value in api.broken(field):
-        raise ScenarioError(source, field, api.broken(field)[value])
+        raise ScenarioError(source, path, api.broken(field)[value])
     if not isinstance(value, str) or value not in known:
         hint = difflib.get_close_matches(str(value), known, n=1)
         suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
-        raise ScenarioError(source, field, f"unknown {field} {value!r} (expected one of: {options}){suggestion}")
+        raise ScenarioError(source, path, f"unknown {field} {value!r} (expected one of: {options}){suggestion}")
     return value

@@ -11,11 +11,11 @@ import re
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler,
-                      ValidationInfo, field_serializer, model_validator)
+from pydantic import AfterValidator, Field, ValidationInfo, model_validator
 from scipy.spatial.transform import Rotation
 
 from simbench.api import REVOLUTE, Robot
+from simbench.frozen import SimbenchModel
 
 _DEG = np.pi / 180.0
 
@@ -27,25 +27,6 @@ MIN_LENGTH = 1e-6  # m: below what the simulation resolves
 MAX_COMPONENT = 1e6  # items of a vector that is normalised (a direction, a quaternion)
 MIN_NORM = 1e-6  # and its least length
 MAX_GAIN = 1e9  # servo gains, SI
-
-
-class SimbenchModel(BaseModel):
-    """Strict, frozen, no unknown fields, no NaN or infinity. Lists are kept as tuples, so that a loaded
-    scenario cannot be changed after it was checked (`scenario.task.start[2] = 1e9`); they are written out as
-    lists."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
-
-    @model_validator(mode="after")
-    def _freeze_lists(self):
-        for name, value in self.__dict__.items():
-            if isinstance(value, list):
-                object.__setattr__(self, name, tuple(value))
-        return self
-
-    @field_serializer("*", mode="wrap")
-    def _lists_out(self, value: Any, handler: SerializerFunctionWrapHandler) -> Any:
-        return handler(list(value) if isinstance(value, tuple) else value)
 
 
 class Units(SimbenchModel):

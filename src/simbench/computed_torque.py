@@ -1,0 +1,134 @@
+"""The computed-torque controller: the joints' actuators as motors, commanded the torque the model's own inverse
+dynamics needs for the plan, plus PD on the joint errors.
+
+    tau = tau_ff + Kp (q_ref - q) + Kd (qd_ref - qd)
+
+For a serial arm (no equality constraint in the scene) tau_ff is MuJoCo's inverse dynamics (`mj_inverse`) at
+the planned state q_ref, qd_ref, qdd_ref (qdd_ref the plan's rate differentiated): inertia, Coriolis and
+centrifugal terms, gravity (less what the bodies' `gravcomp` already cancels), the joints' damping and armature.
+It depends on the plan alone and is computed once, before the run.
+
+For a closed chain or a gripped part (an equality constraint in the scene: the Agile Eye's loops, the RSMG's
+welds) the plan fixes only the actuated joints: the passive joints' and the rotor's accelerations, and the
+constraint forces that carry the load, follow from the mechanism. There tau_ff is the effective inertia
+(`effective_inertia`, a diagonal approximation) times qdd_ref plus the bias force at the measured state
+(qfrc_bias - qfrc_passive on the actuated joints: gravity, Coriolis, damping), and the PD does the rest.
+
+Gains are per joint, SI (N m/rad or N/m, and N m s/rad or N s/m); by default each joint gets
+Kp = I_i w^2 and Kd = 2 zeta I_i w, where I_i is the joint's effective inertia at the plan's start with the
+mechanism's constraints included (`effective_inertia`): a second-order error response of natural frequency w
+(`bandwidth`, rad/s) and damping ratio zeta. Commands are
+clamped by MuJoCo to the actuators' force ranges, as the servos' forces were.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import mujoco
+import numpy as np
+from pydantic import Field
+
+
+from simbench.api import Array, Controller, ControlSettings, State
+from simbench.plant import Plant
+from simbench.schema import Gains
+from simbench.switches import at_start
+from simbench.trajectory import JointTrajectory
+
+
+class ComputedTorqueSettings(ControlSettings):
+    """The `control:` fields of computed_torque."""
+
+    kp: Gains | None = None
+    kd: Gains | None = None
+    bandwidth: Annotated[float, Field(gt=0, le=1e4)] = 100.0  # rad/s, for the default gains
+    damping_ratio: Annotated[float, Field(gt=0, le=10)] = 1.0
+
+
+class ComputedTorque(Controller):
+    """Inverse-dynamics feed-forward plus joint PD, on torque actuation."""
+
+    name = "computed_torque"
+    description = "torque actuation: inverse dynamics of the model at the plan (mj_inverse) plus joint PD"
+    settings = ComputedTorqueSettings
+    actuation = "torque"
+
+    def __init__(self, settings: ComputedTorqueSettings | None = None):
+        self.config = settings or ComputedTorqueSettings(controller=self.name)
+        self.kp = self.kd = np.zeros(0)
+        self.tau_ff: Array | None = None  # (N, dof) for a serial arm; None where it is measured each step
+
+    def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
+        self.plant = plant
+        self.q_ref, self.qd_ref = trajectory.q_ref, trajectory.qd_ref
+        self.constrained = plant.model.neq > 0
+        self.inertia = effective_inertia(plant, trajectory)
+        self.kp, self.kd = self._gains()
+        self.qdd_ref = np.gradient(trajectory.qd_ref, float(plant.model.opt.timestep), axis=0)
+        self.tau_ff = None if self.constrained else self._inverse_dynamics(trajectory.q_ref, trajectory.qd_ref)
+        self.ctrl = np.zeros(plant.model.nu)
+
+    def _gains(self) -> tuple[Array, Array]:
+        """The scenario's gains, or those of the bandwidth for the effective inertia at the start."""
+        c, inertia = self.config, self.inertia
+        kp = np.array(c.kp) if c.kp is not None else inertia * c.bandwidth ** 2
+        kd = np.array(c.kd) if c.kd is not None else 2 * c.damping_ratio * inertia * c.bandwidth
+        return kp, kd
+
+    def _inverse_dynamics(self, q_ref: Array, qd_ref: Array) -> Array:
+        """tau_ff (N, dof): mj_inverse at every planned sample, the other DOFs at rest."""
+        plant, model = self.plant, self.plant.model
+        data = mujoco.MjData(model)
+        qdd_ref = np.gradient(qd_ref, float(model.opt.timestep), axis=0)
+        tau = np.empty_like(q_ref)
+        for k in range(len(q_ref)):
+            data.qpos[:] = plant.initial_qpos(q_ref[k])
+            data.qvel[:] = 0
+            data.qacc[:] = 0
+            data.qvel[plant.dof_adr] = qd_ref[k]
+            data.qacc[plant.dof_adr] = qdd_ref[k]
+            mujoco.mj_inverse(model, data)
+            tau[k] = data.qfrc_inverse[plant.dof_adr]
+        return tau
+
+    def commands(self, state: State) -> Array:
+        k, dof = state.k, self.plant.dof_adr
+        if self.tau_ff is not None:
+            ff = self.tau_ff[k]
+        else:
+            assert state.data is not None, "computed_torque needs the live data of a constrained plant"
+            ff = self.inertia * self.qdd_ref[k] + state.data.qfrc_bias[dof] - state.data.qfrc_passive[dof]
+        self.ctrl[self.plant.actuators] = (ff + self.kp * (self.q_ref[k] - state.q)
+                                           + self.kd * (self.qd_ref[k] - state.qd))
+        return self.ctrl.copy()
+
+    def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
+        self.q_ref, self.qd_ref = q_ref, qd_ref
+        self.qdd_ref = np.gradient(qd_ref, float(self.plant.model.opt.timestep), axis=0)
+        if self.tau_ff is not None:
+            self.tau_ff[k0:] = self._inverse_dynamics(q_ref[k0:], qd_ref[k0:])
+
+    def gains(self) -> dict[str, Any]:
+        feedforward = ("effective inertia x planned acceleration + bias forces at the measured state "
+                       "(constrained mechanism)" if self.constrained
+                       else "inverse dynamics at the planned state")
+        return {"kp": self.kp.tolist(), "kd": self.kd.tolist(), "feedforward": feedforward,
+                "bandwidth": self.config.bandwidth, "damping_ratio": self.config.damping_ratio}
+
+
+def effective_inertia(plant: Plant, trajectory: JointTrajectory) -> Array:
+    """Each actuated joint's inertia as its actuator feels it at the plan's start, the mechanism's constraints
+    included (a closed chain's other legs, a gripped rotor): the diagonal of G^-1, where column i of G is the
+    joints' acceleration per unit of torque on joint i (MuJoCo's forward dynamics at rest, at the start pose
+    and grips). For a serial arm this is the diagonal of the joint-space inertia matrix."""
+    model, data, _ = at_start(plant, trajectory)
+    mujoco.mj_forward(model, data)
+    rest = data.qacc[plant.dof_adr].copy()
+    response = np.empty((plant.robot.dof, plant.robot.dof))
+    for i, dof in enumerate(plant.dof_adr):
+        data.qfrc_applied[:] = 0
+        data.qfrc_applied[dof] = 1.0
+        mujoco.mj_forward(model, data)
+        response[:, i] = data.qacc[plant.dof_adr] - rest
+    return np.diag(np.linalg.inv(response)).copy()

@@ -1,0 +1,152 @@
+"""A robot's scene compiled as simbench runs it: force sensors on every actuator, the timestep and servo gains of
+the scenario, position or torque actuation, and the indices of the robot's joints, actuators and sensors.
+
+Each of the robot's joints is driven by the one actuator whose transmission is that joint (found by the
+transmission, not by name). With torque actuation (the `actuation` a controller asks for) those actuators become
+motors: force = ctrl, within the same force limits, so a controller's commands are forces and torques.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from functools import cache
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from simbench.api import Robot
+from simbench.errors import RegistryError
+
+FORCE_SENSOR = "simbench/force/"  # prefix of the actuator-force sensors added to every scene (scene_spec)
+Actuation = Literal["position", "torque"]
+
+
+@dataclass(frozen=True)
+class Plant:
+    """A robot's compiled model with the indices the simulator needs."""
+
+    model: mujoco.MjModel
+    robot: Robot
+    qpos_adr: np.ndarray
+    dof_adr: np.ndarray
+    actuators: np.ndarray
+    sensors: dict[str, slice]
+    force_sensors: np.ndarray
+    actuation: Actuation = "position"
+
+    @classmethod
+    def load(cls, robot: Robot, timestep: float | None = None, kp: list[float] | None = None,
+             kv: list[float] | None = None, force_limits: bool = True, gravity_compensation: bool = True,
+             actuation: Actuation = "position") -> "Plant":
+        """The robot's compiled scene (a fresh copy: a run changes its model), with the timestep and the position
+        servos' gains (one per joint) where given, without force limits if asked, without the bodies' gravity
+        compensation (`gravcomp`: the controller's gravity feed-forward) if asked, and with the joints'
+        actuators made motors if `actuation` is "torque"."""
+        model = copy.copy(compiled_scene(str(robot.scene)))
+        if timestep is not None:
+            model.opt.timestep = timestep
+        joints = [model.joint(name) for name in robot.joints]
+        act = np.array([_actuator_of(model, robot, joint.id) for joint in joints])
+        _set_gains(model, act, kp, kv)
+        if not force_limits:
+            model.actuator_forcelimited[:] = 0
+            model.jnt_actfrclimited[:] = 0
+        if not gravity_compensation:
+            model.body_gravcomp[:] = 0
+        if actuation == "torque":
+            _make_motors(model, act)
+        return cls(model=model, robot=robot,
+                   qpos_adr=np.array([j.qposadr[0] for j in joints]),
+                   dof_adr=np.array([j.dofadr[0] for j in joints]),
+                   actuators=act,
+                   sensors=_sensor_slices(model, (robot.tool_sensor, *robot.sensors)),
+                   force_sensors=np.array([model.sensor(FORCE_SENSOR + model.actuator(a).name).adr[0]
+                                           for a in act]),
+                   actuation=actuation)
+
+    def force_limit(self) -> np.ndarray:
+        """Each joint's actuator force bound (dof,): the actuator's force range, and the joint's actuator force
+        range where that is tighter; inf where neither limits it."""
+        m = self.model
+        bound = np.where(m.actuator_forcelimited[self.actuators].astype(bool),
+                         np.abs(m.actuator_forcerange[self.actuators]).min(axis=1), np.inf)
+        jnt = m.actuator_trnid[self.actuators, 0]
+        joint_bound = np.where(m.jnt_actfrclimited[jnt].astype(bool), np.abs(m.jnt_actfrcrange[jnt]).min(axis=1),
+                               np.inf)
+        return np.minimum(bound, joint_bound)
+
+    def initial_qpos(self, q: np.ndarray) -> np.ndarray:
+        """Full qpos for actuated joints q: the model's reference pose, q, and any passive joints assembled."""
+        qpos = self.model.qpos0.copy()
+        qpos[self.qpos_adr] = q
+        for name, value in self.robot.assemble(q).items():
+            qpos[self.model.joint(name).qposadr[0]] = value
+        return qpos
+
+    def gains(self) -> dict[str, list[float]]:
+        """The position servos' stiffness kp and damping kv per joint (N/m or N m/rad, N s/m or N m s/rad), as
+        the model holds them; empty under torque actuation."""
+        if self.actuation == "torque":
+            return {}
+        m = self.model
+        return {"kp": m.actuator_gainprm[self.actuators, 0].tolist(),
+                "kv": (-m.actuator_biasprm[self.actuators, 2]).tolist()}
+
+
+def _actuator_of(model: mujoco.MjModel, robot: Robot, joint: int) -> int:
+    """The one actuator whose transmission is `joint`; RegistryError if there is none or more than one."""
+    found = [i for i in range(model.nu)
+             if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT and model.actuator_trnid[i, 0] == joint]
+    if len(found) != 1:
+        raise RegistryError(f"robot '{robot.name}': joint '{model.joint(joint).name}' is driven by {len(found)} "
+                            "actuators in its scene; exactly one joint actuator is expected")
+    return found[0]
+
+
+def _set_gains(model: mujoco.MjModel, act: np.ndarray, kp: list[float] | None, kv: list[float] | None) -> None:
+    """A position servo's force = kp ctrl - kp q - kv qd: its gain and bias terms."""
+    if kp is not None:
+        model.actuator_gainprm[act, 0] = kp
+        model.actuator_biasprm[act, 1] = -np.asarray(kp)
+    if kv is not None:
+        model.actuator_biasprm[act, 2] = -np.asarray(kv)
+
+
+def _make_motors(model: mujoco.MjModel, act: np.ndarray) -> None:
+    """Position servos turned into motors (force = ctrl): no bias, and the control range the force range, so the
+    force limits still hold and an out-of-range command is clamped as a servo's would be."""
+    model.actuator_gaintype[act] = mujoco.mjtGain.mjGAIN_FIXED
+    model.actuator_gainprm[act] = 0
+    model.actuator_gainprm[act, 0] = 1
+    model.actuator_biastype[act] = mujoco.mjtBias.mjBIAS_NONE
+    model.actuator_biasprm[act] = 0
+    limited = model.actuator_forcelimited[act].astype(bool)
+    model.actuator_ctrllimited[act] = limited
+    model.actuator_ctrlrange[act] = np.where(limited[:, None], model.actuator_forcerange[act], 0)
+
+
+def _sensor_slices(model: mujoco.MjModel, names: tuple[str, ...]) -> dict[str, slice]:
+    """Where each named sensor's reading sits in sensordata."""
+    slices = {}
+    for name in names:
+        sensor = model.sensor(name)
+        slices[name] = slice(int(sensor.adr[0]), int(sensor.adr[0] + sensor.dim[0]))
+    return slices
+
+
+def scene_spec(scene: str) -> mujoco.MjSpec:
+    """A scene as simbench runs it: the MJCF, plus an actuator-force sensor (FORCE_SENSOR + name) on every
+    actuator, so that the recording holds the force MuJoCo really applied, force limits included."""
+    spec = mujoco.MjSpec.from_file(scene)
+    for actuator in spec.actuators:
+        spec.add_sensor(name=FORCE_SENSOR + actuator.name, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator.name)
+    return spec
+
+
+@cache
+def compiled_scene(scene: str) -> mujoco.MjModel:
+    """A scene compiled once per process (compiling costs about as much as simulating a short scenario)."""
+    return scene_spec(scene).compile()

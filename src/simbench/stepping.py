@@ -1,0 +1,193 @@
+"""The stepping loops: from the current state through a stretch of control steps, recording every state.
+
+Both fill the same rows (`Rows`): the full physics state after each step and the sensors MuJoCo computed during
+it (before integrating, so at the state the step started from), and the command that drove it.
+
+- `OpenLoop`: the commands are known beforehand (a controller's `open_loop`); the steps run in C through
+  `mujoco.rollout`, in chunks. After each chunk the run is checked (simbench.faults); a chunk that went wrong is
+  replayed step by step to find the first step at fault.
+- `ClosedLoop`: the controller is asked for each step's command from the measured state, and MuJoCo steps in
+  Python, each step checked as it is taken. The step is split as MuJoCo's manual advises for control:
+  `mj_step1` computes what depends on positions and velocities (the controller reads it), the command is set,
+  `mj_step2` finishes the step; together they are `mj_step` (the scenes use the implicitfast integrator).
+
+Step i of a run is control sample k = max(i - n_settle, 0) at time t = (i - n_settle) dt: the first n_settle
+steps hold the first sample while the robot settles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from simbench.api import Controller, State
+from simbench.errors import RunError
+from simbench.faults import (FATAL, MAX_SPEED, Fault, clear_warnings, fatal_cause, step_fault, unsound,
+                             warnings_raised)
+from simbench.plant import Plant
+
+_CHUNK = 5000
+FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+
+
+@dataclass(frozen=True)
+class Rows:
+    """A run's recorded steps: states (n, nstate) after each step, sensors (n, nsensordata) during it, controls
+    (n, nu) that drove it; n_settle of them settle before the plan's first sample."""
+
+    states: np.ndarray
+    sensors: np.ndarray
+    controls: np.ndarray
+    n_settle: int
+    t0: float  # the simulated time of the plan's first sample
+
+    @classmethod
+    def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int) -> "Rows":
+        n = n_settle + n_track
+        return cls(states=np.empty((n, mujoco.mj_stateSize(model, FULL))), sensors=np.empty((n, model.nsensordata)),
+                   controls=np.empty((n, model.nu)), n_settle=n_settle, t0=n_settle * model.opt.timestep)
+
+
+def state_slices(model: mujoco.MjModel) -> dict[str, slice]:
+    """Where time, qpos and qvel sit in a full physics state vector."""
+    slices, start = {}, 0
+    for bit in range(int(mujoco.mjtState.mjNSTATE)):
+        part = 1 << bit
+        if FULL & part:
+            size = mujoco.mj_stateSize(model, part)
+            slices[mujoco.mjtState(part).name] = slice(start, start + size)
+            start += size
+    return slices
+
+
+def _warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
+    """The non-fatal warnings counted since they were last cleared, as the report lists them; then cleared."""
+    found = [{"t": float(data.time - t0), "kind": mujoco.mjtWarning(code).name,
+              "count": int(data.warning[code].number)} for code in warnings_raised(data)]
+    clear_warnings(data)
+    return found
+
+
+class OpenLoop:
+    """Precomputed commands stepped through `mujoco.rollout`, chunk by chunk."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.slices = state_slices(model)
+        self.state = np.empty(mujoco.mj_stateSize(model, FULL))
+
+    def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
+            progress=None) -> list[dict]:
+        """Steps first..stop-1 with rows.controls, from data's current state; the warnings met. Data is left at
+        the last state. Fault at the first step at fault."""
+        found, k = [], first
+        ctrl_spec = int(mujoco.mjtState.mjSTATE_CTRL)
+        while k < stop:
+            mujoco.mj_getState(model, data, self.state, FULL)
+            warmstart = data.qacc_warmstart.copy()
+            end = min(k + _CHUNK, stop)
+            try:
+                rollout.rollout(model, data, self.state[None], rows.controls[None, k:end], control_spec=ctrl_spec,
+                                initial_warmstart=warmstart[None], state=rows.states[None, k:end],
+                                sensordata=rows.sensors[None, k:end])
+                stopped = False
+            except mujoco.FatalError:  # MuJoCo gave up (out of arena memory): found again when replayed
+                stopped = True
+            if stopped or self._went_wrong(model, data, rows.states[k:end]):
+                step, cause = _locate(model, data, self.state, warmstart, rows.controls[k:end])
+                raise Fault(k + step, cause)
+            found += _warning_rows(data, rows.t0)
+            if progress is not None:
+                progress.update(end - k)
+            k = end
+        return found
+
+    def _went_wrong(self, model: mujoco.MjModel, data: mujoco.MjData, chunk: np.ndarray) -> bool:
+        return bool(set(warnings_raised(data)) & FATAL) or unsound(
+            model, chunk[:, self.slices["mjSTATE_QPOS"]], chunk[:, self.slices["mjSTATE_QVEL"]]) is not None
+
+
+def _locate(model, data, state: np.ndarray, warmstart: np.ndarray, controls: np.ndarray) -> tuple[int, str]:
+    """Replay a chunk that went wrong one step at a time, from its first state; the first step at fault and why.
+    Leaves data where that step left it."""
+    mujoco.mj_setState(model, data, state, FULL)
+    data.qacc_warmstart[:] = warmstart
+    clear_warnings(data)
+    for j, u in enumerate(controls):
+        data.ctrl[:] = u
+        try:
+            mujoco.mj_step(model, data)
+        except mujoco.FatalError as err:
+            return j, fatal_cause(err)
+        cause = step_fault(model, data)
+        if cause:
+            return j, cause
+    return len(controls) - 1, "the chunk failed, but not when replayed step by step"
+
+
+class ClosedLoop:
+    """A controller asked for every step's command from the measured state; MuJoCo steps in Python."""
+
+    def __init__(self, plant: Plant, controller: Controller):
+        if plant.model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+            raise RunError(f"controller '{controller.name}' is closed-loop, which steps with mj_step1 and "
+                           f"mj_step2; the {plant.robot.name} scene's RK4 integrator cannot be split so (use "
+                           "implicitfast or Euler)")
+        self.plant = plant
+        self.controller = controller
+        self.nu = plant.model.nu
+
+    def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
+            progress=None) -> list[dict]:
+        """Steps first..stop-1, each commanded by the controller, from data's current state; the warnings met.
+        Fault at the first step at fault, CommandFault at the first bad command."""
+        found = []
+        qpos_adr, dof_adr, dt = self.plant.qpos_adr, self.plant.dof_adr, model.opt.timestep
+        for i in range(first, stop):
+            try:
+                mujoco.mj_step1(model, data)  # positions and velocities: what the controller may read
+                state = State(k=max(i - rows.n_settle, 0), t=(i - rows.n_settle) * dt, q=data.qpos[qpos_adr],
+                              qd=data.qvel[dof_adr], qpos=data.qpos.copy(), qvel=data.qvel.copy(), data=data)
+                rows.controls[i] = data.ctrl[:] = self._command(state, i)
+                mujoco.mj_step2(model, data)  # forces, acceleration, integration
+            except mujoco.FatalError as err:
+                raise Fault(i, fatal_cause(err)) from None
+            mujoco.mj_getState(model, data, rows.states[i], FULL)
+            rows.sensors[i] = data.sensordata
+            if data.warning.number.any() or not np.isfinite(data.qvel).all():
+                found += self._check(model, data, i, rows.t0)
+            elif np.abs(data.qvel).max() > MAX_SPEED:
+                raise Fault(i, unsound(model, data.qpos, data.qvel) or "")
+            if progress is not None and i % 1000 == 999:
+                progress.update(1000)
+        return found
+
+    def _command(self, state: State, step: int) -> np.ndarray:
+        """The controller's command for `state`, checked: CommandFault naming what is wrong with it."""
+        name = self.controller.name
+        try:
+            u = np.asarray(self.controller.commands(state), dtype=float)
+        except Exception as err:  # a user's controller: whatever it raises is reported, not a traceback
+            raise CommandFault(step, f"controller '{name}' raised {type(err).__name__}: {err}") from None
+        if u.shape != (self.nu,):
+            raise CommandFault(step, f"controller '{name}' returned commands of shape {u.shape}; ({self.nu},) "
+                                     "expected, one per actuator")
+        if not np.isfinite(u).all():
+            bad = int(np.flatnonzero(~np.isfinite(u))[0])
+            raise CommandFault(step, f"controller '{name}' commanded {u[bad]} to actuator "
+                                     f"'{self.plant.model.actuator(bad).name}'")
+        return u
+
+    @staticmethod
+    def _check(model: mujoco.MjModel, data: mujoco.MjData, step: int, t0: float) -> list[dict]:
+        """Fault if the step just taken went wrong; else the warnings it raised (cleared)."""
+        cause = step_fault(model, data)
+        if cause:
+            raise Fault(step, cause)
+        return _warning_rows(data, t0)
+
+
+class CommandFault(Fault):
+    """A controller's command that cannot be applied, at the step it was asked for."""
