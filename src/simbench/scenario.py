@@ -165,7 +165,7 @@ def _scenario_class(planner_name: str, controller_name: str = "servo") -> type[S
     task = api.planners()[planner_name].task
     settings = api.controllers()[controller_name].settings
     return create_model(f"Scenario_{planner_name}_{controller_name}", __base__=Scenario, task=(task, ...),
-                        control=(settings, settings()))
+                        control=(settings, Field(default_factory=settings)))
 
 
 def load_scenario(path: str | Path) -> Scenario:
