@@ -210,12 +210,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
+    """Run the command; its exit code, and for a failure its one line on stderr."""
     try:
-        with interrupts.held_back():  # the extension modules, imported here, would convert or swallow Ctrl-C
-            from simbench import api, pipeline, scenario  # noqa: F401
-
-            api.robots(), api.planners(), api.controllers()  # outside packages' entry points, imported too
-
+        _preload()
         if args.command == "list":
             print(_list())
         elif args.command == "train-fk":
@@ -228,30 +225,46 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
             return _validate(args.scenarios, plan=not args.no_plan)
         else:
             return _run(args)
-    except ScenarioError as err:
+    except KeyboardInterrupt:
+        return _interrupted(args, ctrl_c)
+    except Exception as err:
+        return _failed(args, ctrl_c, err)
+    return 0
+
+
+def _preload() -> None:
+    """Import the extension modules and every registry (outside packages' entry points too) with Ctrl-C held
+    back: while they load they would convert or swallow it."""
+    with interrupts.held_back():
+        from simbench import api, pipeline, scenario  # noqa: F401
+
+        api.robots(), api.planners(), api.controllers()
+
+
+def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:
+    """The line and exit code of a command that raised `err`: 2 bad input, 1 a run that failed or a bug."""
+    if isinstance(err, ScenarioError):
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except OutputError as err:
+    if isinstance(err, OutputError):
         if ctrl_c.pressed:  # Ctrl-C reached ffmpeg too, whose broken pipe came first
             return _interrupted(args, ctrl_c)
         print(f"error: {err}", file=sys.stderr)
         return 1
-    except RunError as err:
+    if isinstance(err, RunError):
         print(f"run failed: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        return _interrupted(args, ctrl_c)
-    except OSError as err:
-        if err.filename is None or ctrl_c.pressed:  # not the file system's refusal (a closed pipe): see below
-            return _internal_error(args, ctrl_c, err)
-        # One no module turned into ScenarioError or OutputError: met while looking at the input or the
-        # destination (bad input), unless the machine ran out of space.
-        path, words = os_error_line(err)
-        print(f"error: {path}: {words}", file=sys.stderr)
-        return 1 if err.errno in NO_SPACE else 2
-    except Exception as err:
-        return _internal_error(args, ctrl_c, err)
-    return 0
+    if isinstance(err, OSError) and err.filename is not None and not ctrl_c.pressed:
+        return _refused(err)
+    return _internal_error(args, ctrl_c, err)  # not the file system's refusal either (a closed pipe, say)
+
+
+def _refused(err: OSError) -> int:
+    """A no of the file system that no module turned into ScenarioError or OutputError: met while looking at the
+    input or the destination (bad input, 2), unless the machine ran out of space (1)."""
+    path, words = os_error_line(err)
+    print(f"error: {path}: {words}", file=sys.stderr)
+    return 1 if err.errno in NO_SPACE else 2
 
 
 def _internal_error(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:

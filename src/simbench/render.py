@@ -22,7 +22,7 @@ import queue
 import resource
 import shutil
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -177,65 +177,106 @@ def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length
 
 
 def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str) -> mujoco.Renderer:
-    """An offscreen renderer of exactly this size (a larger buffer costs time on a CPU)."""
+    """An offscreen renderer of exactly this size (a larger buffer costs time on a CPU), with the preset's
+    shadows and reflections."""
+    pretty = quality == "pretty"
     model.vis.global_.offwidth, model.vis.global_.offheight = width, height
-    model.vis.quality.offsamples = 4 if quality == "pretty" else 0
-    if quality != "pretty":
+    model.vis.quality.offsamples = 4 if pretty else 0
+    if not pretty:
         model.vis.quality.shadowsize = 0  # no shadow map to allocate: a third of the renderer's start-up
     try:
-        return mujoco.Renderer(model, height=height, width=width, max_geom=4000)
+        renderer = mujoco.Renderer(model, height=height, width=width, max_geom=4000)
     except Exception as err:  # the GL backend reports its own failure types
         raise RunError(f"cannot open an offscreen renderer ({type(err).__name__}: {err}); set MUJOCO_GL=egl "
                        "before simbench is imported and install EGL (Debian: libegl1 libgl1-mesa-dri), or pass "
                        "--no-video") from None
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = pretty
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = pretty
+    return renderer
 
 
 _DRAW = {"cone": lambda scene, item: add_cone(scene, item.axis, item.half_angle, item.length, item.rgba)}
 """How each kind of simbench.api.Decoration is drawn."""
 
 
+def _check_decorations(decorations: Sequence[Decoration]) -> None:
+    """ValueError naming a decoration of a kind simbench cannot draw, before any frame is made."""
+    for item in decorations:
+        if item.kind not in _DRAW:
+            raise ValueError(f"cannot draw a decoration of kind {item.kind!r} (known: {', '.join(_DRAW)})")
+
+
+def _frame_rows(t: np.ndarray, fps: int) -> np.ndarray:
+    """The recorded row each frame shows: frames every 1/fps s from 0 to t[-1], each the first row at or after
+    its time."""
+    frame_t = np.arange(0.0, t[-1] + 1e-9, 1.0 / fps)
+    return np.clip(np.searchsorted(t, frame_t), 0, len(t) - 1)
+
+
+class _Overlay:
+    """What is drawn over the model in every frame: the decorations, the planned path (solid ahead of the
+    reference, faint behind it) and, if kept, the tool's trace up to the frame, each polyline simplified once."""
+
+    def __init__(self, planned: np.ndarray, tool: np.ndarray | None, decorations: Sequence[Decoration]):
+        self.planned, self.tool, self.decorations = planned, tool, decorations
+        self.plan_idx = simplify(planned, _SIMPLIFY_TOL)
+        self.trace_idx = simplify(tool, _SIMPLIFY_TOL) if tool is not None else np.zeros(0, int)
+
+    def draw(self, scene: mujoco.MjvScene, row: int) -> None:
+        """Append the overlay of the frame showing recorded row `row` to the scene."""
+        for item in self.decorations:
+            _DRAW[item.kind](scene, item)
+        planned, idx = self.planned, self.plan_idx
+        here = planned[row:row + 1]
+        add_polyline(scene, np.vstack([here, planned[idx[idx > row]]]), _PLAN_RGBA, _PLAN_WIDTH)
+        add_polyline(scene, np.vstack([planned[idx[idx <= row]], here]), _PLAN_PAST_RGBA, _PLAN_WIDTH)
+        if self.tool is not None:
+            upto = self.trace_idx[self.trace_idx <= row]
+            add_polyline(scene, np.vstack([self.tool[upto], self.tool[row:row + 1]]), _TRACE_RGBA, _TRACE_RADIUS,
+                         mujoco.mjtGeom.mjGEOM_CAPSULE)
+
+
+def _frames(model: mujoco.MjModel, renderer: mujoco.Renderer, rec: Recording, rows: np.ndarray, camera: str,
+            overlay: _Overlay, paint) -> Iterator[np.ndarray]:
+    """Each frame's pixels: the model posed at its row, painted, seen from `camera`, with the overlay."""
+    data = mujoco.MjData(model)
+    for row in rows:
+        data.qpos[:] = rec.qpos[row]
+        mujoco.mj_forward(model, data)
+        if paint is not None:
+            paint(model, rec, row)
+        renderer.update_scene(data, camera=camera)
+        overlay.draw(renderer.scene, row)
+        yield renderer.render()
+
+
+def _encode(path: Path, fps: int, frames: Iterable[np.ndarray]) -> None:
+    """Encode the frames into an H.264 MP4 at `path` as they come; on any failure on the way (Ctrl-C included)
+    stop ffmpeg and raise it."""
+    encoder = _Encoder(path, fps)
+    try:
+        for frame in frames:
+            encoder.put(frame)
+    except BaseException:
+        encoder.abort()
+        raise
+    encoder.close()
+
+
 def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *, width: int = 640,
                  height: int = 480, fps: int = 30, camera: str | None = None, quality: str = "fast",
                  trace: bool = True, decorations: Sequence[Decoration] = (), paint=None) -> dict:
     """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
-    shapes to draw in every frame (simbench.api.Decoration); `paint(model,
-    rec, row)` may recolour the model for each frame (an electromagnet by whether it grips)."""
+    shapes to draw in every frame (simbench.api.Decoration; ValueError for a kind simbench cannot draw);
+    `paint(model, rec, row)` may recolour the model for each frame (an electromagnet by whether it grips)."""
+    _check_decorations(decorations)
     model = copy.copy(compiled_scene(str(scene)))  # the run's own compilation; the copy's sizes are set below
-    data = mujoco.MjData(model)
     camera = camera or model.camera(0).name
-    frame_t = np.arange(0.0, rec.t[-1] + 1e-9, 1.0 / fps)
-    rows = np.clip(np.searchsorted(rec.t, frame_t), 0, len(rec.t) - 1)
-    plan_idx = simplify(planned, _SIMPLIFY_TOL)
-    trace_idx = simplify(rec.tool, _SIMPLIFY_TOL)
+    rows = _frame_rows(rec.t, fps)
+    overlay = _Overlay(planned, rec.tool if trace else None, decorations)
     renderer = _open_renderer(model, width, height, quality)
-    pretty = quality == "pretty"
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = pretty
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = pretty
-    encoder = _Encoder(path, fps)
     try:
-        for row in rows:
-            data.qpos[:] = rec.qpos[row]
-            mujoco.mj_forward(model, data)
-            if paint is not None:
-                paint(model, rec, row)
-            renderer.update_scene(data, camera=camera)
-            for item in decorations:
-                _DRAW[item.kind](renderer.scene, item)
-            here = planned[row:row + 1]
-            add_polyline(renderer.scene, np.vstack([here, planned[plan_idx[plan_idx > row]]]), _PLAN_RGBA,
-                         _PLAN_WIDTH)
-            add_polyline(renderer.scene, np.vstack([planned[plan_idx[plan_idx <= row]], here]), _PLAN_PAST_RGBA,
-                         _PLAN_WIDTH)
-            if trace:
-                upto = trace_idx[trace_idx <= row]
-                add_polyline(renderer.scene, np.vstack([rec.tool[upto], rec.tool[row:row + 1]]), _TRACE_RGBA,
-                             _TRACE_RADIUS, mujoco.mjtGeom.mjGEOM_CAPSULE)
-            encoder.put(renderer.render())
-    except BaseException:
-        encoder.abort()
-        raise
-    else:
-        encoder.close()
+        _encode(path, fps, _frames(model, renderer, rec, rows, camera, overlay, paint))
     finally:
         renderer.close()
     return {"frames": int(len(rows)), "fps": fps, "width": width, "height": height, "camera": camera,

@@ -16,6 +16,7 @@ from typing import Any
 
 import yaml
 from pydantic import BaseModel, ValidationError
+from pydantic_core import ErrorDetails
 
 from simbench.errors import MAX_INT_DIGITS, ScenarioError, os_words, printable, shown
 
@@ -86,6 +87,17 @@ def read_yaml(path: Path) -> Any:
     twice included), nested too deeply, too large once its aliases are expanded, or empty."""
     path = Path(path)
     source = str(path)
+    _check_file(path, source)
+    data = _parse(_read_text(path, source), source)
+    if data is None:
+        raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
+    _check_shape(data, source)
+    return data
+
+
+def _check_file(path: Path, source: str) -> None:
+    """ScenarioError unless `path` is a regular file of at most _MAX_BYTES (if it cannot even be looked at, the
+    file system's reason)."""
     try:
         info = os.stat(path)
     except OSError as err:
@@ -97,6 +109,11 @@ def read_yaml(path: Path) -> Any:
     if info.st_size > _MAX_BYTES:
         raise ScenarioError(source, None, f"file too large ({info.st_size} bytes; a scenario is at most "
                                           f"{_MAX_BYTES})")
+
+
+def _read_text(path: Path, source: str) -> str:
+    """The file's text; ScenarioError if it cannot be read, has grown past _MAX_BYTES since it was looked at, or
+    is not UTF-8."""
     try:
         with open(path, "rb") as f:
             raw = f.read(_MAX_BYTES + 1)
@@ -106,11 +123,16 @@ def read_yaml(path: Path) -> Any:
     if len(raw) > _MAX_BYTES:  # it grew since
         raise ScenarioError(source, None, f"file too large (a scenario is at most {_MAX_BYTES} bytes)")
     try:
-        text = raw.decode("utf-8")
+        return raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ScenarioError(source, None, "not a text file (expected UTF-8 YAML)") from None
+
+
+def _parse(text: str, source: str) -> Any:
+    """The YAML document in `text`, as plain data; ScenarioError saying where and why YAML, or simbench's
+    stricter loader, refuses it."""
     try:
-        data = yaml.load(text, Loader=_StrictLoader)  # a SafeLoader: builds plain data, never objects
+        return yaml.load(text, Loader=_StrictLoader)  # a SafeLoader: builds plain data, never objects
     except _Refused as err:
         mark = err.problem_mark
         raise ScenarioError(source, None, f"line {mark.line + 1}, column {mark.column + 1}: {err.problem}") from None
@@ -121,10 +143,6 @@ def read_yaml(path: Path) -> Any:
         raise ScenarioError(source, None, f"not valid YAML{where}: {problem}") from None
     except RecursionError:
         raise ScenarioError(source, None, f"nested too deeply (at most {_MAX_DEPTH} levels)") from None
-    if data is None:
-        raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
-    _check_shape(data, source)
-    return data
 
 
 def _unreachable(path: Path, err: OSError) -> str:
@@ -211,31 +229,53 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
     that wanted no mapping at all.
     """
     errors = err.errors(include_url=False)
+    first = _first_error(errors, document)
+    where = _field_loc(first["loc"], document)
+    loc = prefix + where
+    if first["type"] == "missing":
+        return format_loc(loc), "missing: this field is required"
+    if first["type"] == "extra_forbidden":
+        return format_loc(loc), _unknown_field(cls, tuple(first["loc"])[:-1], str(loc[-1]))
+    msg = _union_message(first, [e for e in errors if e is not first and _field_loc(e["loc"], document) == where])
+    if msg.startswith("Value error, "):
+        return format_loc(loc), msg.removeprefix("Value error, ")
+    return format_loc(loc), _in_user_terms(msg, first.get("input"))
+
+
+def _first_error(errors: list[ErrorDetails], document: Any) -> ErrorDetails:
+    """The error to report (see describe): an unknown field, else the first that no other error lies within,
+    else the first."""
     locs = [_field_loc(e["loc"], document) for e in errors]
 
     def inside(i: int) -> bool:  # another error lies within this one's mapping or list
         return isinstance(errors[i].get("input"), (dict, list)) and any(
             len(other) > len(locs[i]) and other[:len(locs[i])] == locs[i] for other in locs)
 
-    first = next((e for e in errors if e["type"] == "extra_forbidden"),
-                 next((e for i, e in enumerate(errors) if not inside(i)), errors[0]))
-    where = _field_loc(first["loc"], document)
-    loc = prefix + where
-    kind, msg, given = first["type"], first["msg"], first.get("input")
-    # A value that fits no member of a union (a number or a list) fails once per member: say what each expects.
-    alike = [e["msg"] for e in errors if _field_loc(e["loc"], document) == where
-             and e["msg"].startswith("Input should be") and e is not first]
+    return next((e for e in errors if e["type"] == "extra_forbidden"),
+                next((e for i, e in enumerate(errors) if not inside(i)), errors[0]))
+
+
+def _unknown_field(cls: type[BaseModel], parent: tuple, name: str) -> str:
+    """The message for an unknown field `name` in the model at `parent`: the fields it has, and the nearest."""
+    fields = _fields_at(cls, parent)
+    hint = difflib.get_close_matches(name, fields, n=1)
+    suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
+    return f"unknown field (expected one of: {', '.join(fields)}){suggestion}"
+
+
+def _union_message(first: ErrorDetails, same_field: list[ErrorDetails]) -> str:
+    """pydantic's message for `first`; for a value that fits no member of a union (a number or a list), which
+    fails once per member (the errors in `same_field`), what each member expects."""
+    msg = first["msg"]
+    alike = [e["msg"] for e in same_field if e["msg"].startswith("Input should be")]
     if alike and msg.startswith("Input should be"):
         msg = " or ".join([msg] + [m.removeprefix("Input should be ") for m in alike])
-    if kind == "missing":
-        return format_loc(loc), "missing: this field is required"
-    if kind == "extra_forbidden":
-        fields = _fields_at(cls, tuple(first["loc"])[:-1])
-        hint = difflib.get_close_matches(str(loc[-1]), fields, n=1)
-        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
-        return format_loc(loc), f"unknown field (expected one of: {', '.join(fields)}){suggestion}"
-    if msg.startswith("Value error, "):
-        return format_loc(loc), msg.removeprefix("Value error, ")
+    return msg
+
+
+def _in_user_terms(msg: str, given: Any) -> str:
+    """pydantic's message as what is expected, and what was given (with a hint where YAML read a number as
+    text)."""
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
     msg = re.sub(r"a valid dictionary or instance of \w+", "a mapping of its fields", msg)
     if isinstance(given, (str, int, float, bool)) or given is None:
@@ -244,4 +284,4 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
             msg += f" (YAML reads {given} as text: write it with a decimal point, e.g. {float(given):.1e})"
     elif isinstance(given, (list, dict)):
         msg += f", got {kind_of(given)}"
-    return format_loc(loc), msg
+    return msg

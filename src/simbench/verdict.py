@@ -84,35 +84,54 @@ def _limit_violations(robot: Robot, limit_events: list[dict]) -> list[dict]:
     """One violation per kind and joint of the limit events that break a promise (not `at_limit`: a joint may
     rest at its limit)."""
     kind_of = dict(zip(robot.joints, robot.kinds))
-    out = []
-    for name, events in _by_joint([e for e in limit_events if e["kind"] == "joint_limit"]).items():
-        worst = max(events, key=lambda e: e["detail"]["excess"])["detail"]
-        out.append(_violation("joint_limit", f"{name} is asked for {_quantity(worst['worst'], kind_of[name])}, "
-                              f"{_quantity(worst['excess'], kind_of[name])} beyond its {worst['bound']} limit "
-                              f"{_quantity(worst['limit'], kind_of[name])}, from t = {events[0]['t_start']:.3f} s",
-                              events, joint=name, excess=worst["excess"]))
-    for name, events in _by_joint([e for e in limit_events if e["kind"] == "velocity_limit"]).items():
-        worst = max(events, key=lambda e: e["detail"]["worst"])["detail"]
-        out.append(_violation("velocity_limit", f"{name} is asked for {_quantity(worst['worst'], kind_of[name], True)}"
-                              f" against its speed limit {_quantity(worst['limit'], kind_of[name], True)}, from "
-                              f"t = {events[0]['t_start']:.3f} s", events, joint=name,
-                              ratio=worst["worst"] / worst["limit"]))
+
+    def each_joint(kind: str) -> list[tuple[str, list[dict], str]]:  # (joint, its events of this kind, its kind)
+        events = [e for e in limit_events if e["kind"] == kind]
+        return [(name, found, kind_of[name]) for name, found in _by_joint(events).items()]
+
+    out = [_joint_limit(*found) for found in each_joint("joint_limit")]
+    out += [_velocity_limit(*found) for found in each_joint("velocity_limit")]
     jumps = [e for e in limit_events if e["kind"] == "reference_jump"]
     if jumps:
-        joints = sorted({j for e in jumps for j in e["detail"]["joints"]}, key=robot.joints.index)
-        cost = max((e["detail"].get("cost", {}).get("tool_off_path_max", 0.0) for e in jumps), default=0.0)
-        costly = f", the tool leaving the path by {cost * 1e3:.1f} mm" if "cost" in jumps[0]["detail"] else ""
-        out.append(_violation("reference_jump", f"the plan steps {', '.join(joints)} discontinuously at t = "
-                              f"{jumps[0]['t_start']:.3f} s ({len(jumps)} jump{'s' * (len(jumps) > 1)}){costly}",
-                              jumps, joints=joints))
-    for name, events in _by_joint([e for e in limit_events if e["kind"] == "actuator_saturation"]).items():
-        total = sum(e["detail"]["duration"] for e in events)
-        limit = events[0]["detail"]["limit"]
-        unit = "N m" if kind_of[name] == REVOLUTE else "N"
-        out.append(_violation("actuator_saturation", f"{name}'s actuator sits at its force limit {limit:g} {unit} for "
-                              f"{total:.3f} s from t = {events[0]['t_start']:.3f} s", events, joint=name,
-                              duration=total))
+        out.append(_reference_jump(robot, jumps))
+    out += [_actuator_saturation(*found) for found in each_joint("actuator_saturation")]
     return out
+
+
+def _joint_limit(name: str, events: list[dict], kind: str) -> dict:
+    """A joint the plan takes beyond its range: the worst excess, and when it starts."""
+    worst = max(events, key=lambda e: e["detail"]["excess"])["detail"]
+    return _violation("joint_limit", f"{name} is asked for {_quantity(worst['worst'], kind)}, "
+                      f"{_quantity(worst['excess'], kind)} beyond its {worst['bound']} limit "
+                      f"{_quantity(worst['limit'], kind)}, from t = {events[0]['t_start']:.3f} s",
+                      events, joint=name, excess=worst["excess"])
+
+
+def _velocity_limit(name: str, events: list[dict], kind: str) -> dict:
+    """A joint the plan drives faster than its speed limit: the worst speed, and when it starts."""
+    worst = max(events, key=lambda e: e["detail"]["worst"])["detail"]
+    return _violation("velocity_limit", f"{name} is asked for {_quantity(worst['worst'], kind, True)} against its "
+                      f"speed limit {_quantity(worst['limit'], kind, True)}, from t = {events[0]['t_start']:.3f} s",
+                      events, joint=name, ratio=worst["worst"] / worst["limit"])
+
+
+def _reference_jump(robot: Robot, jumps: list[dict]) -> dict:
+    """The plan's discontinuities, in one violation: the joints that step, and what the worst cost the tool."""
+    joints = sorted({j for e in jumps for j in e["detail"]["joints"]}, key=robot.joints.index)
+    cost = max((e["detail"].get("cost", {}).get("tool_off_path_max", 0.0) for e in jumps), default=0.0)
+    costly = f", the tool leaving the path by {cost * 1e3:.1f} mm" if "cost" in jumps[0]["detail"] else ""
+    return _violation("reference_jump", f"the plan steps {', '.join(joints)} discontinuously at t = "
+                      f"{jumps[0]['t_start']:.3f} s ({len(jumps)} jump{'s' * (len(jumps) > 1)}){costly}",
+                      jumps, joints=joints)
+
+
+def _actuator_saturation(name: str, events: list[dict], kind: str) -> dict:
+    """A joint's actuator at its force limit: for how long in all, and from when."""
+    total = sum(e["detail"]["duration"] for e in events)
+    unit = "N m" if kind == REVOLUTE else "N"
+    return _violation("actuator_saturation", f"{name}'s actuator sits at its force limit "
+                      f"{events[0]['detail']['limit']:g} {unit} for {total:.3f} s from t = "
+                      f"{events[0]['t_start']:.3f} s", events, joint=name, duration=total)
 
 
 def _tolerance_violations(tracking: dict, series: dict, t: np.ndarray, robot: Robot, tol) -> list[dict]:

@@ -12,6 +12,7 @@ The sweep file is described in `simbench.sweep.spec`, the output folder in `simb
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,25 +48,38 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
         workers = max(1, min(workers or execute.cpu_count(), len(todo) or 1))
         start = time.perf_counter()
         outcomes, backend = _backend(sweep, todo, out, workers, ray)
-        tqdm.monitor_interval = 0  # no monitor thread: the worker processes are forked from this one
-        with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,
-                  leave=False) as bar:
-            for index, outcome in outcomes:
-                rows[index] = store.record(sweep.variants[index], outcome)
-                bar.update()
+        _collect(store, outcomes, rows, progress)
         columns = table.columns(list(rows.values()), sweep.params)
         with store.writing():  # a full disk here keeps the rows: the same command writes the table again
-            table.write_csv(columns, out / "results.csv")
-            table.write_parquet(columns, out / "results.parquet")
-            plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots,
-                                             out / "plots")
-            summary = {**table.summary(columns, sweep.spec.plots), "resumed": len(sweep.variants) - len(todo),
-                       "backend": backend, "wall_time": round(time.perf_counter() - start, 3),
-                       "outputs": {"table": ["results.csv", "results.parquet"],
-                                   "plots": [f"plots/{p}" for p in plots]},
-                       "notes": notes}
-            write_report(summary, out / "summary.json")
+            summary = _write_results(sweep, columns, out, resumed=len(sweep.variants) - len(todo), backend=backend,
+                                     start=start)
     return SweepResult(out, columns, summary, summary["resumed"])
+
+
+def _collect(store: Store, outcomes: Iterable[tuple[int, dict]], rows: dict[int, dict], progress: bool) -> None:
+    """Record each run's row as it finishes, into the store and into `rows` (by run index), with a progress bar."""
+    sweep = store.sweep
+    tqdm.monitor_interval = 0  # no monitor thread: the worker processes are forked from this one
+    with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,
+              leave=False) as bar:
+        for index, outcome in outcomes:
+            rows[index] = store.record(sweep.variants[index], outcome)
+            bar.update()
+
+
+def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed: int, backend: str,
+                   start: float) -> dict:
+    """Write the table, its plots and summary.json (with the runs resumed, where they ran and the wall time since
+    `start`); the summary."""
+    table.write_csv(columns, out / "results.csv")
+    table.write_parquet(columns, out / "results.parquet")
+    plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots")
+    summary = {**table.summary(columns, sweep.spec.plots), "resumed": resumed, "backend": backend,
+               "wall_time": round(time.perf_counter() - start, 3),
+               "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots]},
+               "notes": notes}
+    write_report(summary, out / "summary.json")
+    return summary
 
 
 def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None):

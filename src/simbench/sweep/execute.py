@@ -38,27 +38,31 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
     share of them: workers running at once may together need more.
     With outputs='full' every output of `simbench run` is written into `out`, replacing whatever a run stopped
     before its row was recorded left there."""
+    start = time.perf_counter()
+    report, status, error = _attempt(document, source, outputs, out, video)
+    return {"status": status, "error": error, "metrics": metrics(report) if report else {},
+            "wall_time": time.perf_counter() - start, "report": report if outputs == "report" else None}
+
+
+def _attempt(document: dict, source: str, outputs: str, out: str | None, video: bool) -> tuple[dict | None, str, str]:
+    """One run as (its report if it got that far, status, one-line error); every failure caught."""
     from simbench import pipeline
     from simbench.scenario import parse_scenario
 
-    start = time.perf_counter()
-    report, status, error = None, "ok", ""
+    report = None
     try:
         scenario = parse_scenario(document, source)
         if outputs == "full":
             report = pipeline.run(scenario, out=out, video=video, force=True).report
         else:
             report = pipeline.evaluate_report(scenario)
-        status = report["status"]
-        error = "; ".join(f"{v['kind']}: {v['message']}" for v in report["violations"])
+        return report, report["status"], "; ".join(f"{v['kind']}: {v['message']}" for v in report["violations"])
     except ScenarioError as err:
-        status, error = "bad_input", err.detail
+        return report, "bad_input", err.detail
     except RunError as err:
-        status, error = "run_failed", str(err)
+        return report, "run_failed", str(err)
     except Exception as err:  # any other failure is this run's row, not the end of the sweep
-        status, error = "crashed", f"{type(err).__name__}: {err}"
-    return {"status": status, "error": error, "metrics": metrics(report) if report else {},
-            "wall_time": time.perf_counter() - start, "report": report if outputs == "report" else None}
+        return report, "crashed", f"{type(err).__name__}: {err}"
 
 
 def metrics(report: dict) -> dict[str, Any]:
@@ -184,32 +188,49 @@ def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[
     stops it afterwards. simbench must be installed on every node, and with outputs: full the output folder must
     be on a filesystem every node sees."""
     import ray
-    import ray.exceptions
 
-    started = not ray.is_initialized()
-    if started:
-        options = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
-        if address == "local":
-            ray.init(num_cpus=workers, **options)
-        else:
-            ray.init(address=address, **options)
+    started = _join_ray(address, workers)
     remote = ray.remote(num_cpus=1, max_retries=0)(run_variant)
     pending = {remote.remote(**kwargs): index for index, kwargs in tasks}
     try:
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                index = pending.pop(ref)
-                try:
-                    outcome = ray.get(ref)
-                except ray.exceptions.RayError as err:
-                    outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
-                yield index, outcome
+        yield from _ray_outcomes(pending)
     finally:
         for ref in pending:
             ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
+
+
+def _join_ray(address: str, workers: int) -> bool:
+    """Connect to Ray unless this process already is: 'local' starts a cluster here with `workers` CPUs, anything
+    else is a running cluster's address. Whether this call started the connection (and should end it)."""
+    import ray
+
+    if ray.is_initialized():
+        return False
+    options = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+    if address == "local":
+        ray.init(num_cpus=workers, **options)
+    else:
+        ray.init(address=address, **options)
+    return True
+
+
+def _ray_outcomes(pending: dict) -> Iterator[tuple[int, dict]]:
+    """The outcomes of the pending Ray tasks (task: run index) as they finish, each taken out of `pending`; a
+    task whose worker failed is a `crashed` outcome."""
+    import ray
+    import ray.exceptions
+
+    while pending:
+        done, _ = ray.wait(list(pending), num_returns=1)
+        for ref in done:
+            index = pending.pop(ref)
+            try:
+                outcome = ray.get(ref)
+            except ray.exceptions.RayError as err:
+                outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
+            yield index, outcome
 
 
 def cpu_count() -> int:

@@ -53,27 +53,11 @@ class Store:
         """Check the folder, clear it (force) or keep it to resume, and write the manifest and marker."""
         out, sweep = self.out, self.sweep
         destination.check_inputs(out, [p for p in (Path(sweep.source), Path(sweep.base)) if p.is_file()])
-        manifest = out / "sweep.json"
         fingerprint = sweep.fingerprint()
-        if out.exists() and any(out.iterdir()):
-            if force:
-                destination.check_replace(out)
-                shutil.rmtree(out)
-            elif _fingerprint_in(manifest) != fingerprint:
-                raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or "
-                                                    "files that are not a sweep's); pass --force to replace them, "
-                                                    "or --out to write elsewhere")
+        self._clear_or_keep(force, fingerprint)
         created = not out.exists()
-        try:  # the manifest first: a folder holding it (and nothing else yet) is one this sweep resumes
-            out.mkdir(parents=True, exist_ok=True)
-            if not manifest.exists():
-                write_text(manifest, json.dumps({
-                    "name": sweep.name, "source": sweep.source, "base": str(sweep.base), "fingerprint": fingerprint,
-                    "spec": sweep.spec.model_dump(mode="json"),
-                    "runs": [{"run": v.index, "id": v.id, "params": v.params} for v in sweep.variants],
-                }, indent=1) + "\n")
-            destination.mark(out, LAYOUT)
-            (out / "rows").mkdir(exist_ok=True)
+        try:
+            self._start_folder(fingerprint)
         except (OSError, OutputError) as err:
             if not created:
                 raise
@@ -81,6 +65,34 @@ class Store:
             if isinstance(err, OSError):
                 raise destination_error(out, err) from None
             raise OutputError(err.path, err.problem, f"nothing was written to {out}") from None
+
+    def _clear_or_keep(self, force: bool, fingerprint: str) -> None:
+        """Empty a folder that holds anything (with force, and only if simbench wrote it all), or keep it to resume
+        if its manifest is this sweep's; ScenarioError for a folder holding other results without force."""
+        out = self.out
+        if not (out.exists() and any(out.iterdir())):
+            return
+        if force:
+            destination.check_replace(out)
+            shutil.rmtree(out)
+        elif _fingerprint_in(out / "sweep.json") != fingerprint:
+            raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or files "
+                                                "that are not a sweep's); pass --force to replace them, or --out to "
+                                                "write elsewhere")
+
+    def _start_folder(self, fingerprint: str) -> None:
+        """Create the folder, its manifest (first: a folder holding it, and nothing else yet, is one this sweep
+        resumes), its marker and rows/."""
+        out, sweep, manifest = self.out, self.sweep, self.out / "sweep.json"
+        out.mkdir(parents=True, exist_ok=True)
+        if not manifest.exists():
+            write_text(manifest, json.dumps({
+                "name": sweep.name, "source": sweep.source, "base": str(sweep.base), "fingerprint": fingerprint,
+                "spec": sweep.spec.model_dump(mode="json"),
+                "runs": [{"run": v.index, "id": v.id, "params": v.params} for v in sweep.variants],
+            }, indent=1) + "\n")
+        destination.mark(out, LAYOUT)
+        (out / "rows").mkdir(exist_ok=True)
 
     def __enter__(self) -> Store:
         return self
