@@ -214,46 +214,116 @@ def _seeds(plan: Plan, t_worst: float, name: str, task: Task, estimate: _Estimat
     return [direction] + [np.sign(direction[a]) * np.eye(3)[a] for a in axes]
 
 
-def _optimise_window(plan: Plan, t0: float, seeds: list[np.ndarray], task: Task, estimate: _Estimator,
-                     anchor: np.ndarray, deadline: float) -> tuple[Window, bool]:
-    """(alpha, beta, gamma, L) of a new window at t0 by SLSQP: maximise the path's mean KCI - w L^2, every
-    clearance kept. A window changes the path only within itself, so the KCI and the clearances are judged on
-    its own samples (`anchor`: the orientation at t0, where the exact FK starts following the mode).
-    Each seed direction is tried (no further one once the clock passes `deadline`); the best feasible result
-    wins (else the one that misses least)."""
-    length = task.avoidance.window
-    weight = task.avoidance.deviation_weight
-    t = np.linspace(t0, t0 + length, _WINDOW_SAMPLES)
-    share = length / plan.law.duration  # the window's part of the path's mean KCI
+@dataclass(frozen=True)
+class _Violation:
+    """The constraint whose clearance falls furthest below its margin along a plan, the time of its worst sample
+    and the platform orientation there (exact FK)."""
 
-    def with_window(x: np.ndarray) -> Plan:
-        direction = x[:3] / max(np.linalg.norm(x[:3]), 1e-12)
-        return plan.with_window(Window(t0, length, direction, float(x[3])))
+    name: str
+    t_worst: float
+    rot: np.ndarray
 
-    cache: dict[bytes, tuple[float, dict]] = {}
 
-    def score(x: np.ndarray):
+class _WindowFit:
+    """SLSQP's problem for a new window at t0 (x = alpha, beta, gamma, L): the plan with it, judged on the
+    window's own samples, since a window changes the path only within itself (`anchor`: the orientation at t0,
+    where the exact FK starts following the mode). Scores are cached, as the objective and every constraint
+    ask for the same x."""
+
+    def __init__(self, plan: Plan, t0: float, task: Task, estimate: _Estimator, anchor: np.ndarray):
+        self.plan, self.t0, self.task, self.estimate, self.anchor = plan, t0, task, estimate, anchor
+        self.length = task.avoidance.window
+        self.t = np.linspace(t0, t0 + self.length, _WINDOW_SAMPLES)
+        self.share = self.length / plan.law.duration  # the window's part of the path's mean KCI
+        self.cache: dict[bytes, tuple[float, dict]] = {}
+
+    def window(self, x: np.ndarray) -> Window:
+        """The window x stands for, its direction made a unit vector."""
+        return Window(self.t0, self.length, x[:3] / max(np.linalg.norm(x[:3]), 1e-12), float(x[3]))
+
+    def score(self, x: np.ndarray) -> tuple[float, dict[str, float]]:
+        """_score of the plan with the window x."""
         key = x.tobytes()
-        if key not in cache:
-            cache[key] = _score(with_window(x), t, estimate, anchor, task)
-        return cache[key]
+        if key not in self.cache:
+            self.cache[key] = _score(self.plan.with_window(self.window(x)), self.t, self.estimate, self.anchor,
+                                     self.task)
+        return self.cache[key]
 
-    constraints = [{"type": "eq", "fun": lambda x: x[:3] @ x[:3] - 1.0}]
-    for name in margins(task):
-        constraints.append({"type": "ineq", "fun": lambda x, n=name: score(x)[1][n] - _SAFETY})
+    def objective(self, x: np.ndarray) -> float:
+        """What SLSQP minimises: -(the window's share of the path's mean KCI) + w L^2."""
+        return -self.share * self.score(x)[0] + self.task.avoidance.deviation_weight * x[3] ** 2
+
+    def constraints(self) -> list[dict]:
+        """(alpha, beta, gamma) a unit vector, and every clearance _SAFETY above its margin."""
+        return [{"type": "eq", "fun": lambda x: x[:3] @ x[:3] - 1.0}] + [
+            {"type": "ineq", "fun": lambda x, n=name: self.score(x)[1][n] - _SAFETY} for name in margins(self.task)]
+
+
+def _optimise_window(plan: Plan, t0: float, worst: _Violation, task: Task, estimate: _Estimator,
+                     anchor: np.ndarray, deadline: float) -> tuple[Window, bool]:
+    """(alpha, beta, gamma, L) of a new window at t0 by SLSQP (_WindowFit): maximise the path's mean KCI - w L^2,
+    every clearance kept. Each seed direction (_seeds, at the violation's worst instant) is tried (no further one
+    once the clock passes `deadline`); the best feasible result wins (else the one that misses least). Returns
+    the window and whether it is feasible."""
+    fit = _WindowFit(plan, t0, task, estimate, anchor)
+    constraints = fit.constraints()
     best = None
-    for seed in seeds:
+    for seed in _seeds(plan, worst.t_worst, worst.name, task, estimate, worst.rot):
         if best is not None and time.perf_counter() > deadline:
             break
-        result = minimize(lambda x: -share * score(x)[0] + weight * x[3] ** 2, np.array([*seed, 0.2]), method="SLSQP",
+        result = minimize(fit.objective, np.array([*seed, 0.2]), method="SLSQP",
                           bounds=[(-1, 1)] * 3 + [(0, _MAX_AMPLITUDE)], constraints=constraints,
                           options={"maxiter": 40, "ftol": 1e-6})
-        slack = min(score(result.x)[1].values()) - _SAFETY
+        slack = min(fit.score(result.x)[1].values()) - _SAFETY
         # Feasible candidates rank by their objective, the others by how far they miss.
         rank = (True, -result.fun) if slack >= -1e-6 else (False, slack)
         if best is None or rank > best[0]:
             best = (rank, result.x)
-    return with_window(best[1]).windows[-1], best[0][0]
+    return fit.window(best[1]), best[0][0]
+
+
+def _plain_plan(task: Task, law: TimeLaw) -> Plan:
+    """The 4-5-6-7 joint path (eqs. 8-10) from the IK of the start to that of the goal in the working mode, each
+    joint the shorter way round."""
+    theta_init = agile_eye.ik(task.start.matrix(), task.working_mode)[0]
+    theta_goal = agile_eye.ik(task.goal.matrix(), task.working_mode)[0]
+    theta_final = theta_init + np.angle(np.exp(1j * (theta_goal - theta_init)))  # the shorter way round
+    return Plan(theta_init, theta_final, law)
+
+
+def _worst_violation(task: Task, plan: Plan, t: np.ndarray, exact: _Estimator) -> _Violation | None:
+    """The plan's worst broken margin on the samples t, by the exact FK from the start; None if it keeps all."""
+    theta = plan.theta(t)
+    rot = exact(theta, task.start.matrix())
+    need = margins(task)
+    slack = {name: c - need[name] for name, c in clearances(task, theta, rot).items()}
+    worst_name = min(slack, key=lambda n: slack[n].min())
+    if slack[worst_name].min() >= 0:
+        return None
+    k = int(np.argmin(slack[worst_name]))
+    return _Violation(worst_name, float(t[k]), rot[k])
+
+
+def _bend(task: Task, plan: Plan, t: np.ndarray, worst: _Violation, estimate: _Estimator, exact: _Estimator,
+          deadline: float) -> tuple[Plan, dict]:
+    """The plan with one more window of T* centred on the worst sample (kept inside [0, T]), and what it did.
+    It is optimised with `estimate` where the window's stretch lies in the network's training workspace, else
+    with the exact FK, and again with the exact FK if the network's window fails the exact check."""
+    length = task.avoidance.window
+    t0 = float(np.clip(worst.t_worst - length / 2, 0.0, plan.law.duration - length))
+    anchor = exact(plan.theta(np.append(t[t < t0], t0)), task.start.matrix())[-1]  # the orientation at t0
+    span = np.linspace(t0, t0 + length, _WINDOW_SAMPLES)
+    chosen, used = estimate, estimate.kind
+    if chosen.kind == "network" and not learnt_fk.in_workspace(exact(plan.theta(span), anchor)).all():
+        chosen, used = exact, "exact (the window leaves the network's training workspace)"
+    window, feasible = _optimise_window(plan, t0, worst, task, chosen, anchor, deadline)
+    if chosen.kind == "network" and min(_score(plan.with_window(window), span, exact, anchor, task)[1].values()) < 0:
+        window, feasible = _optimise_window(plan, t0, worst, task, exact, anchor, deadline)
+        used = "exact (the network's window failed the exact check)"
+    return plan.with_window(window), {
+        "avoiding": worst.name, "t_worst": worst.t_worst, "t0": t0, "length": length,
+        "alpha": float(window.direction[0]), "beta": float(window.direction[1]),
+        "gamma": float(window.direction[2]), "L": window.amplitude, "estimator": used, "feasible": feasible}
 
 
 def optimise(task: Task, law: TimeLaw, deadline: float = np.inf) -> tuple[Plan, list[dict]]:
@@ -265,50 +335,19 @@ def optimise(task: Task, law: TimeLaw, deadline: float = np.inf) -> tuple[Plan, 
     then checked with the exact FK and optimised again with it where the check fails. Returns the plan and what
     each window did, estimator included.
     """
-    start_rot = task.start.matrix()
-    theta_init = agile_eye.ik(start_rot, task.working_mode)[0]
-    theta_goal = agile_eye.ik(task.goal.matrix(), task.working_mode)[0]
-    theta_final = theta_init + np.angle(np.exp(1j * (theta_goal - theta_init)))  # the shorter way round
-    plan = Plan(theta_init, theta_final, law)
+    plan = _plain_plan(task, law)
     if not task.avoidance.enabled:
         return plan, []
     t = np.linspace(0.0, law.duration, _COARSE)
     exact = _Estimator("exact", task.working_mode)
     estimate = _Estimator(task.avoidance.estimator, task.working_mode)
-    length = task.avoidance.window
     steps = []
-    need = margins(task)
     for _ in range(task.avoidance.max_windows):
-        if time.perf_counter() > deadline:
+        worst = None if time.perf_counter() > deadline else _worst_violation(task, plan, t, exact)
+        if worst is None:
             break
-        theta = plan.theta(t)
-        rot = exact(theta, start_rot)
-        slack = {name: c - need[name] for name, c in clearances(task, theta, rot).items()}
-        worst_name = min(slack, key=lambda n: slack[n].min())
-        if slack[worst_name].min() >= 0:
-            break
-        k = int(np.argmin(slack[worst_name]))
-        t_worst = float(t[k])
-        t0 = float(np.clip(t_worst - length / 2, 0.0, law.duration - length))
-        before = np.append(t[t < t0], t0)
-        anchor = exact(plan.theta(before), start_rot)[-1]
-        span = np.linspace(t0, t0 + length, _WINDOW_SAMPLES)
-        chosen, used = estimate, estimate.kind
-        if chosen.kind == "network" and not learnt_fk.in_workspace(exact(plan.theta(span), anchor)).all():
-            chosen, used = exact, "exact (the window leaves the network's training workspace)"
-        window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, chosen, rot[k]),
-                                            task, chosen, anchor, deadline)
-        candidate = plan.with_window(window)
-        if chosen.kind == "network" and min(_score(candidate, span, exact, anchor, task)[1].values()) < 0:
-            window, feasible = _optimise_window(plan, t0, _seeds(plan, t_worst, worst_name, task, exact, rot[k]),
-                                                task, exact, anchor, deadline)
-            used = "exact (the network's window failed the exact check)"
-            candidate = plan.with_window(window)
-        plan = candidate
-        steps.append({"avoiding": worst_name, "t_worst": t_worst, "t0": t0, "length": length,
-                      "alpha": float(window.direction[0]), "beta": float(window.direction[1]),
-                      "gamma": float(window.direction[2]), "L": window.amplitude, "estimator": used,
-                      "feasible": feasible})
+        plan, step = _bend(task, plan, t, worst, estimate, exact, deadline)
+        steps.append(step)
     return plan, steps
 
 
@@ -483,21 +522,16 @@ def _accepted(task: Task, chosen: _Checked, t_end: float) -> tuple[list[str], li
     return [f"{v['message']} (accepted: task.accept_margin_violation)" for v in violations], violations
 
 
-def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """Plan, bend and time the path, searching SO(3) where bending fails; the exact FK gives the platform
-    orientations the report checks. RunError if no path keeps the margins (unless the task accepts that)."""
-    task = scenario.task
-    law = scenario.timing.law_fn()
-    clock = time.perf_counter()
-    t = control_grid(law.duration, scenario.timing.hold, dt)
-    chosen, plain, steps, search = _choose(task, law, t)
-    theta, rot = chosen.theta, chosen.rot
-    warnings, violations = _accepted(task, chosen, float(t[-1]))
+def _info(task: Task, chosen: _Checked, plain: _Checked, steps: list[dict], search: dict | None,
+          planning_time: float) -> dict:
+    """The plan's info: the path chosen, its windows and search, and what the exact FK says of it and of the
+    plain path; with the network, the clearances it estimates along the chosen path too."""
+    theta = chosen.theta
     info = {
         "method": "paper 003: 4-5-6-7 joint path with smooth avoidance windows found by SLSQP; where they fail, "
                   "a global search in SO(3) (RRT-Connect) timed by the same law",
         "path": chosen.name + ("" if chosen.ok else " (margins not kept: accepted by task.accept_margin_violation)"),
-        "planning_time": time.perf_counter() - clock,
+        "planning_time": planning_time,
         "working_mode": task.working_mode,
         "theta_init": theta[0].tolist(),
         "theta_final": theta[-1].tolist(),
@@ -514,6 +548,20 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     if task.avoidance.enabled and task.avoidance.estimator == "network":
         estimated = clearances(task, theta, learnt_fk.load()(theta, task.working_mode))
         info["clearance_estimated"] = {name: float(c.min()) for name, c in estimated.items()}
+    return info
+
+
+def plan(scenario, robot, dt: float) -> JointTrajectory:
+    """Plan, bend and time the path, searching SO(3) where bending fails; the exact FK gives the platform
+    orientations the report checks. RunError if no path keeps the margins (unless the task accepts that)."""
+    task = scenario.task
+    law = scenario.timing.law_fn()
+    clock = time.perf_counter()
+    t = control_grid(law.duration, scenario.timing.hold, dt)
+    chosen, plain, steps, search = _choose(task, law, t)
+    theta, rot = chosen.theta, chosen.rot
+    warnings, violations = _accepted(task, chosen, float(t[-1]))
+    info = _info(task, chosen, plain, steps, search, time.perf_counter() - clock)
     quat = matrix_to_quat(rot)
     aim = rot @ agile_eye.LINE_OF_SIGHT * agile_eye.AIM
     waypoints = tuple({"s": s, "X": aim[k].tolist(), "q": theta[k].tolist(), "quat": quat[k].tolist()}

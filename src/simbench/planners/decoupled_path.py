@@ -327,6 +327,31 @@ def choose(task: Task, path: Composite, t: np.ndarray, s: np.ndarray, ds: np.nda
                   "candidates": [c.summary() for c in ranked]}
 
 
+def _require_reach(task: Task, path: Composite, t: np.ndarray, s: np.ndarray) -> None:
+    """RunError at the first sample whose wrist centre is out of reach. The reach is the wrist centre's
+    distances alone: the same in every configuration."""
+    bad = np.isnan(solve(path.point(s), task.rotations(s), CONFIGURATIONS[0].flags())).any(axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        point = path.point(s[k:k + 1])[0]
+        raise RunError(f"the path leaves the arm's reach at s = {s[k]:.4f} (t = {t[k]:.3f} s), tool point "
+                       f"[{point[0]:.4f}, {point[1]:.4f}, {point[2]:.4f}] m: its wrist centre cannot be reached")
+
+
+def _waypoints(path: Composite, s: np.ndarray, q_ref: np.ndarray) -> tuple[dict, ...]:
+    """Each segment's ends: s, the tool point, and the joints at the control sample at or after it."""
+    bounds = path.bounds
+    wp_q = q_ref[np.minimum(np.searchsorted(s, bounds), len(s) - 1)]
+    return tuple({"s": float(b), "X": x.tolist(), "q": qq.tolist()}
+                 for b, x, qq in zip(bounds, path.point(bounds), wp_q))
+
+
+def _branch_changes(chosen: Candidate, t: np.ndarray, s: np.ndarray) -> list[dict]:
+    """Where the wrist changes branch through q5 = 0, and to which."""
+    flips = np.flatnonzero(np.diff(chosen.flags[:, 2])) + 1
+    return [{"t": float(t[k]), "s": float(s[k]), "to": "noflip" if chosen.flags[k, 2] > 0 else "flip"} for k in flips]
+
+
 def plan(scenario, robot, dt: float) -> JointTrajectory:
     """Solve the tool path at every control sample by paper 002's method."""
     task = scenario.task
@@ -334,33 +359,21 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     law = scenario.timing.law_fn()
     t = control_grid(law.duration, scenario.timing.hold, dt)
     s, ds = law(t, order=1)
-    bad = np.isnan(solve(path.point(s), task.rotations(s), CONFIGURATIONS[0].flags())).any(axis=1)
-    if bad.any():  # the reach is the wrist centre's distances alone: the same in every configuration
-        k = int(np.argmax(bad))
-        point = path.point(s[k:k + 1])[0]
-        raise RunError(f"the path leaves the arm's reach at s = {s[k]:.4f} (t = {t[k]:.3f} s), tool point "
-                       f"[{point[0]:.4f}, {point[1]:.4f}, {point[2]:.4f}] m: its wrist centre cannot be reached")
+    _require_reach(task, path, t, s)
     chosen, choice = choose(task, path, t, s, ds)
-    q_ref = chosen.q
     tool_ref = path.point(s)
-    bounds = path.bounds
-    wp_q = q_ref[np.minimum(np.searchsorted(s, bounds), len(s) - 1)]  # the control samples at or after each bound
-    waypoints = tuple({"s": float(b), "X": x.tolist(), "q": qq.tolist()}
-                      for b, x, qq in zip(bounds, path.point(bounds), wp_q))
     speed = np.linalg.norm(np.gradient(tool_ref, t, axis=0), axis=1)
-    flips = np.flatnonzero(np.diff(chosen.flags[:, 2])) + 1
     info = {
         "method": "paper 002: q3 from the wrist distance (eqs. 9-19, corrected), q1 and q2 closed form, "
                   "spherical wrist",
         "configuration": choice,
-        "wrist_branch_changes": [{"t": float(t[k]), "s": float(s[k]),
-                                  "to": "noflip" if chosen.flags[k, 2] > 0 else "flip"} for k in flips],
+        "wrist_branch_changes": _branch_changes(chosen, t, s),
         "segments": [("line" if seg.line else "arc") for seg in task.path],
         "path_length": path.length,
         "tool_speed_max": float(speed.max()),
     }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=chosen.qd, tool_ref=tool_ref, waypoints=waypoints,
-                           info=info)
+    return JointTrajectory(t=t, s=s, q_ref=chosen.q, qd_ref=chosen.qd, tool_ref=tool_ref,
+                           waypoints=_waypoints(path, s, chosen.q), info=info)
 
 
 def check(scenario, robot) -> tuple[str, str] | None:

@@ -34,9 +34,9 @@ of them (any) holds another point by then.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import combinations, product
-from typing import Annotated, Literal
+from typing import Annotated, Literal, NamedTuple
 
 import numpy as np
 from pydantic import Field
@@ -138,6 +138,224 @@ def _grips(points: dict[int, int]) -> str:
     return " ".join(f"{a + 1}{'abc'[p]}" for a, p in sorted(points.items()))
 
 
+_Current = dict[int, tuple[int, int]]  # each arm's (point it holds, step it grips it from)
+
+
+def _held(current: _Current) -> dict[int, int]:
+    """The point each arm holds, without since when."""
+    return {a: p for a, (p, _) in current.items()}
+
+
+def _band(task: Task) -> tuple[float, float]:
+    """(lo, hi): eq. 45's band of gamma, (10, 170) deg, narrowed by task.gamma_margin at both ends."""
+    return rsmg.GAMMA_BAND[0] + task.gamma_margin, rsmg.GAMMA_BAND[1] - task.gamma_margin
+
+
+def _limits(task: Task) -> str:
+    """What a refused schedule could not keep, for its RunError."""
+    lo, hi = _band(task)
+    return (f"no schedule keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46) and every gripping gamma in "
+            f"({np.rad2deg(lo):.0f}, {np.rad2deg(hi):.0f}) deg (eq. 45 less the margin)")
+
+
+def _latest_and_earlier(works: np.ndarray, n_swing: int) -> list:
+    """Of the release steps that work (latest first), the latest and up to _EARLIER earlier ones, each at least a
+    swing before the one picked before it."""
+    picked = [works[0]] if works.size else []
+    for r in works[1:]:
+        if len(picked) > _EARLIER:
+            break
+        if picked[-1] - r >= n_swing:
+            picked.append(r)
+    return picked
+
+
+class _Due(NamedTuple):
+    """A step where an arm must let go: what the arms hold then, the first step the four arms' type A measure is
+    under det_a_min, the arms' (exit step, arm) from the band, soonest first, and whether A's rank loss (any arm
+    may let go) rather than a gamma's exit (the soonest arm must) sets the deadline."""
+
+    step: int
+    points: dict[int, int]
+    weak: int
+    exits: list[tuple[int, int]]
+    rank_loss: bool
+
+    def others_leave(self, arm: int, n_swing: int) -> bool:
+        """Whether another arm leaves the band before `arm` could swing and grip again."""
+        return any(e < self.step + n_swing for e, a in self.exits if a != arm)
+
+
+@dataclass
+class _Scheduler:
+    """The search of `schedule` on its grid: `rows` (4, 3, N, 3) every arm's row of A on every point, `next_bad`
+    (4, 3, N + 1) for each step the first at or after it where the arm's gamma on the point leaves the band, a
+    swing of n_swing steps whose last n_approach follow the next point. Caches the type A measures it meets."""
+
+    rows: np.ndarray
+    next_bad: np.ndarray
+    det_a_min: float
+    n_swing: int
+    n_approach: int
+    minors: dict[tuple[tuple[int, int], ...], np.ndarray] = field(default_factory=dict)
+    weak_steps: dict[tuple[int, ...], np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        """Steps of the grid."""
+        return self.next_bad.shape[-1] - 1
+
+    def measure(self, points: dict[int, int], free: int | None = None) -> np.ndarray:
+        """The type A measure (N,) of the arms on `points`, all gripping but `free`: rsmg.type_a_measure's, the
+        largest |3 x 3 minor| of their rows of A (eqs. 36-39); NaN where an arm is out of reach (never firm)."""
+        gripping = [(a, p) for a, p in sorted(points.items()) if a != free]
+        for three in combinations(gripping, 3):
+            if three not in self.minors:
+                a, b, c = (self.rows[i, p] for i, p in three)
+                self.minors[three] = np.abs(np.einsum("ni,ni->n", a, np.cross(b, c)))
+        return np.max([self.minors[three] for three in combinations(gripping, 3)], axis=0)
+
+    def next_weak(self, points: dict[int, int]) -> np.ndarray:
+        """For each step (and one past the end), the first step at or after it where the four arms gripping
+        `points` have a measure under det_a_min."""
+        key = tuple(points[i] for i in range(rsmg.ARMS))
+        if key not in self.weak_steps:
+            self.weak_steps[key] = _first_false(self.measure(points) >= self.det_a_min)
+        return self.weak_steps[key]
+
+    def holding_firmly(self, current: _Current, arm: int, earliest: int, latest: int) -> np.ndarray:
+        """Whether the other arms, on their current points, keep |det A| >= det_a_min throughout a swing of
+        `arm` released at each step from earliest to latest."""
+        stop = min(latest + self.n_swing + 1, self.n)
+        firm = self.measure(_held(current), free=arm)[earliest:stop] >= self.det_a_min
+        weak = np.concatenate([[0], np.cumsum(~firm)])
+        release = np.arange(latest - earliest + 1)
+        end = np.minimum(release + self.n_swing + 1, firm.size)
+        return weak[end] - weak[release] == 0
+
+    def choices(self, current: _Current, arm: int, earliest: int, latest: int) -> list[tuple[int, int]]:
+        """(release step, next point) in order of preference: for each hold wanted after the grip and each next
+        point, the latest release that works, then up to _EARLIER earlier ones a swing apart. After the grip the
+        four arms must stay firm as long as the arm stays inside the band."""
+        n, n_swing, point = self.n, self.n_swing, current[arm][0]
+        release = np.arange(latest, earliest - 1, -1)
+        release = release[release + n_swing < n]
+        grip = release + n_swing
+        firm = self.holding_firmly(current, arm, earliest, latest)[release - earliest]
+        found = []
+        for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
+            for k in ((point + 1) % rsmg.CANDIDATES, (point + 2) % rsmg.CANDIDATES):
+                weak = self.next_weak(_held(current) | {arm: k})[grip]
+                ready = self.next_bad[arm, k, grip - self.n_approach] > grip  # inside the band from the approach on
+                lasts = np.minimum(self.next_bad[arm, k, grip], weak) > np.minimum(grip + hold, n - 1)
+                picked = _latest_and_earlier(release[firm & ready & lasts], n_swing)
+                found += [(int(r), k) for r in picked if (int(r), k) not in found]
+        return found
+
+    def next_choice(self, current: _Current, step: int) -> _Choice | list[Hold] | tuple[int, str]:
+        """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
+        need let go again, or (step, why) if the schedule is stuck."""
+        due = self.due(current, step)
+        if isinstance(due, list):
+            return due
+        options = self.options(current, due)
+        return _Choice(current, options) if options else (due.step, self.stuck(due))
+
+    def due(self, current: _Current, step: int) -> _Due | list[Hold]:
+        """The first step from `step` where an arm must let go (see the module's docstring: the band's exits a
+        swing apart, and a swing before the four arms' A runs out), or the last holds if none must."""
+        n, n_swing = self.n, self.n_swing
+        # one arm swings at a time; the others were checked to hold until it grips
+        step = max(step, *(since for _, since in current.values()))
+        points = _held(current)
+        while True:
+            weak = int(self.next_weak(points)[step])
+            exits = sorted((int(self.next_bad[a, p, step]), a) for a, p in points.items())
+            if exits[0][0] >= n and weak >= n:
+                return [Hold(a, p, since, n) for a, (p, since) in current.items()]
+            band = min([e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n], default=n)
+            deadline = min(band, weak - n_swing)
+            if deadline <= step:
+                return _Due(step, points, weak, exits, weak < n and weak - n_swing <= band)
+            step = deadline
+
+    def options(self, current: _Current, due: _Due) -> list[tuple[int, int, int]]:
+        """(arm, release step, next point) for each arm that may let go at `due`, in order of preference."""
+        # The arm leaving the band first lets go; if the four arms' A is what runs out first, any arm may.
+        arms = [a for _, a in due.exits] if due.rank_loss else [due.exits[0][1]]
+        options = []
+        for arm in arms:
+            if due.others_leave(arm, self.n_swing):
+                continue
+            earliest = max([current[arm][1] + _FIT + 1] + [s for a, (_, s) in current.items() if a != arm])
+            options += [(arm, r, k) for r, k in self.choices(current, arm, earliest, due.step)]
+        return options
+
+    def stuck(self, due: _Due) -> str:
+        """Why no arm can let go at `due`."""
+        if due.rank_loss:
+            return (f"at t = {due.weak * _STEP:.3f} s the four gripping arms ({_grips(due.points)}) hold the rotor "
+                    f"with a largest 3x3 minor of A of {self.measure(due.points)[due.weak]:.4f} and no arm can re-grip "
+                    "before then")
+        t, arm = f"at t = {due.step * _STEP:.3f} s", due.exits[0][1]
+        if due.others_leave(arm, self.n_swing):
+            return f"{t} arm {arm + 1} must let go but another arm leaves the gamma band before it can grip again"
+        return (f"{t} arm {arm + 1} has no next contact point inside the gamma band to swing to while the "
+                "others hold the rotor firmly")
+
+    def search(self, current: _Current, budget: int) -> tuple[list[Hold] | None, list, int]:
+        """Depth first from the initial grips: (holds or None, where it got stuck, tries spent)."""
+        taken: list[_Choice] = []  # the choices on the way so far
+        stuck: list[tuple[int, str]] = []
+        tries = 0
+        found = self.next_choice(current, 0)
+        while not isinstance(found, list):
+            if isinstance(found, _Choice):
+                taken.append(found)
+            else:
+                stuck.append(found)
+            while taken and not taken[-1].options:  # back up to the latest choice with an option left
+                taken.pop()
+            if not taken or tries >= budget:
+                return None, stuck, tries
+            choice = taken[-1]
+            arm, release, nxt = choice.options.pop(0)
+            choice.taken = (arm, release)
+            tries += 1
+            found = self.next_choice({**choice.current, arm: (nxt, release + self.n_swing)}, release + 1)
+        return [Hold(a, *c.current[a], r) for c in taken for a, r in [c.taken]] + found, stuck, tries
+
+    def search_from(self, starts: list[dict[int, int]]) -> tuple[list[Hold] | None, list, int]:
+        """`search` from each set of initial grips in turn, until one gives a schedule or _SEARCH tries are spent
+        in all: (holds or None, where it got stuck, tries spent)."""
+        stuck, tries = [], 0
+        for start in starts:
+            holds, more, spent = self.search({a: (p, 0) for a, p in start.items()}, _SEARCH - tries)
+            stuck, tries = stuck + more, tries + spent
+            if holds is not None or tries >= _SEARCH:
+                return holds, stuck, tries
+        return None, stuck, tries
+
+    def lasting(self, start: dict[int, int]) -> int:
+        """Steps until the first arm leaves the band or the four arms' A falls under det_a_min."""
+        return min(int(self.next_weak(start)[0]), *(int(self.next_bad[a, p, 0]) for a, p in start.items()))
+
+    def starts(self, limits: str) -> list[dict[int, int]]:
+        """The initial grips to try, each holding firmly at t = 0: each arm on its point inside the band longest
+        (the paper's start), then other sets of points, those whose A stays firm longest first."""
+        inside = [[k for k in range(rsmg.CANDIDATES) if self.next_bad[a, k, 0] > 0] for a in range(rsmg.ARMS)]
+        for arm, ks in enumerate(inside):
+            if not ks:
+                raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
+        first = {a: max(ks, key=lambda k: self.next_bad[a, k, 0]) for a, ks in enumerate(inside)}
+        starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if self.next_weak(s)[0] > 0]
+        if not starts:
+            raise RunError(f"round robin: at t = 0 no set of contact points inside the gamma band holds the rotor "
+                           f"firmly; {limits}")
+        starts.sort(key=lambda s: (s != first, -self.lasting(s)))
+        return starts
+
+
 def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_approach: int = 0) -> list[Hold]:
     """Which point each arm holds when, on the schedule grid (section 4.1-4.3); RunError where no round-robin
     choice keeps three arms gripping inside the band with A far from rank loss.
@@ -157,157 +375,15 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
     step one of them must have moved to another point: that is a deadline like a gamma's exit, and any arm may
     take it.
     """
-    lo, hi = rsmg.GAMMA_BAND[0] + task.gamma_margin, rsmg.GAMMA_BAND[1] - task.gamma_margin
-    n = gamma.shape[2]
+    lo, hi = _band(task)
     next_bad = _first_false((gamma > lo) & (gamma < hi))  # NaN (out of reach) is never inside
-    limits = (f"no schedule keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46) and every gripping gamma in "
-              f"({np.rad2deg(lo):.0f}, {np.rad2deg(hi):.0f}) deg (eq. 45 less the margin)")
-    minors: dict[tuple[tuple[int, int], ...], np.ndarray] = {}
-    weak_steps: dict[tuple[int, ...], np.ndarray] = {}
-
-    def measure(points: dict[int, int], free: int | None = None) -> np.ndarray:
-        """The type A measure (N,) of the arms on `points`, all gripping but `free`: rsmg.type_a_measure's, the
-        largest |3 x 3 minor| of their rows of A (eqs. 36-39); NaN where an arm is out of reach (never firm)."""
-        gripping = [(a, p) for a, p in sorted(points.items()) if a != free]
-        for three in combinations(gripping, 3):
-            if three not in minors:
-                a, b, c = (rows[i, p] for i, p in three)
-                minors[three] = np.abs(np.einsum("ni,ni->n", a, np.cross(b, c)))
-        return np.max([minors[three] for three in combinations(gripping, 3)], axis=0)
-
-    def next_weak(points: dict[int, int]) -> np.ndarray:
-        """For each step (and one past the end), the first step at or after it where the four arms gripping
-        `points` have a measure under det_a_min."""
-        key = tuple(points[i] for i in range(rsmg.ARMS))
-        if key not in weak_steps:
-            weak_steps[key] = _first_false(measure(points) >= task.det_a_min)
-        return weak_steps[key]
-
-    def holding_firmly(current: dict[int, tuple[int, int]], arm: int, earliest: int, latest: int) -> np.ndarray:
-        """Whether the other arms, on their current points, keep |det A| >= det_a_min throughout a swing of
-        `arm` released at each step from earliest to latest."""
-        stop = min(latest + n_swing + 1, n)
-        firm = measure({a: p for a, (p, _) in current.items()}, free=arm)[earliest:stop] >= task.det_a_min
-        weak = np.concatenate([[0], np.cumsum(~firm)])
-        release = np.arange(latest - earliest + 1)
-        end = np.minimum(release + n_swing + 1, firm.size)
-        return weak[end] - weak[release] == 0
-
-    def choices(current: dict[int, tuple[int, int]], arm: int, earliest: int, latest: int) -> list[tuple[int, int]]:
-        """(release step, next point) in order of preference: for each hold wanted after the grip and each next
-        point, the latest release that works, then up to _EARLIER earlier ones a swing apart. After the grip the
-        four arms must stay firm as long as the arm stays inside the band."""
-        point = current[arm][0]
-        release = np.arange(latest, earliest - 1, -1)
-        release = release[release + n_swing < n]
-        grip = release + n_swing
-        firm = holding_firmly(current, arm, earliest, latest)[release - earliest]
-        found = []
-        for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
-            for k in ((point + 1) % rsmg.CANDIDATES, (point + 2) % rsmg.CANDIDATES):
-                after = {a: p for a, (p, _) in current.items()} | {arm: k}
-                weak = next_weak(after)[grip]
-                ready = next_bad[arm, k, grip - n_approach] > grip  # inside the band from the approach on
-                lasts = np.minimum(next_bad[arm, k, grip], weak) > np.minimum(grip + hold, n - 1)
-                works = release[firm & ready & lasts]
-                picked = [works[0]] if works.size else []
-                for r in works[1:]:
-                    if len(picked) > _EARLIER:
-                        break
-                    if picked[-1] - r >= n_swing:
-                        picked.append(r)
-                found += [(int(r), k) for r in picked if (int(r), k) not in found]
-        return found
-
-    def next_choice(current: dict[int, tuple[int, int]], step: int) -> _Choice | list[Hold] | tuple[int, str]:
-        """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
-        need let go again, or (step, why) if the schedule is stuck."""
-        while True:
-            swinging = [since for _, since in current.values() if since > step]
-            if swinging:  # one arm swings at a time; the others were checked to hold until it grips
-                step = max(swinging)
-                continue
-            points = {a: p for a, (p, _) in current.items()}
-            weak = int(next_weak(points)[step])
-            exits = sorted((int(next_bad[a, p, step]), a) for a, p in points.items())
-            if exits[0][0] >= n and weak >= n:
-                return [Hold(a, p, since, n) for a, (p, since) in current.items()]
-            band = min([e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n], default=n)
-            deadline = min(band, weak - n_swing)
-            if deadline <= step:
-                break
-            step = deadline
-        # The arm leaving the band first lets go; if the four arms' A is what runs out first, any arm may.
-        rank_loss = weak < n and weak - n_swing <= band
-        arms = [a for _, a in exits] if rank_loss else [exits[0][1]]
-        options = []
-        for arm in arms:
-            if any(e < step + n_swing for e, a in exits if a != arm):
-                continue  # another arm leaves the band before this one could grip again
-            earliest = max([current[arm][1] + _FIT + 1] + [s for a, (_, s) in current.items() if a != arm])
-            options += [(arm, r, k) for r, k in choices(current, arm, earliest, step)]
-        if options:
-            return _Choice(current, options)
-        t = f"at t = {step * _STEP:.3f} s"
-        if rank_loss:
-            return step, (f"at t = {weak * _STEP:.3f} s the four gripping arms ({_grips(points)}) hold the rotor "
-                          f"with a largest 3x3 minor of A of {measure(points)[weak]:.4f} and no arm can re-grip "
-                          "before then")
-        arm = exits[0][1]
-        if any(e < step + n_swing for e, _ in exits[1:]):
-            return step, f"{t} arm {arm + 1} must let go but another arm leaves the gamma band before it can grip again"
-        return step, (f"{t} arm {arm + 1} has no next contact point inside the gamma band to swing to while the "
-                      "others hold the rotor firmly")
-
-    def search(current: dict[int, tuple[int, int]], budget: int) -> tuple[list[Hold] | None, list, int]:
-        """Depth first from the initial grips: (holds or None, where it got stuck, tries spent)."""
-        taken: list[_Choice] = []  # the choices on the way so far
-        stuck: list[tuple[int, str]] = []
-        tries = 0
-        found = next_choice(current, 0)
-        while not isinstance(found, list):
-            if isinstance(found, _Choice):
-                taken.append(found)
-            else:
-                stuck.append(found)
-            while taken and not taken[-1].options:  # back up to the latest choice with an option left
-                taken.pop()
-            if not taken or tries >= budget:
-                return None, stuck, tries
-            choice = taken[-1]
-            arm, release, nxt = choice.options.pop(0)
-            choice.taken = (arm, release)
-            tries += 1
-            found = next_choice({**choice.current, arm: (nxt, release + n_swing)}, release + 1)
-        return [Hold(a, *c.current[a], r) for c in taken for a, r in [c.taken]] + found, stuck, tries
-
-    # The initial grips: each arm on its point inside the band longest (the paper's start), then other sets of
-    # points, those whose A stays firm longest first; each must hold firmly at t = 0.
-    inside = [[k for k in range(rsmg.CANDIDATES) if next_bad[a, k, 0] > 0] for a in range(rsmg.ARMS)]
-    for arm, ks in enumerate(inside):
-        if not ks:
-            raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
-    first = {a: max(ks, key=lambda k: next_bad[a, k, 0]) for a, ks in enumerate(inside)}
-
-    def lasting(start: dict[int, int]) -> int:
-        """Steps until the first arm leaves the band or the four arms' A falls under det_a_min."""
-        return min(int(next_weak(start)[0]), *(int(next_bad[a, p, 0]) for a, p in start.items()))
-
-    starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if next_weak(s)[0] > 0]
-    if not starts:
-        raise RunError(f"round robin: at t = 0 no set of contact points inside the gamma band holds the rotor "
-                       f"firmly; {limits}")
-    starts.sort(key=lambda s: (s != first, -lasting(s)))
-    stuck, tries = [], 0
-    for start in starts:
-        holds, more, spent = search({a: (p, 0) for a, p in start.items()}, _SEARCH - tries)
-        stuck, tries = stuck + more, tries + spent
-        if holds is not None:
-            return sorted(holds, key=lambda h: (h.arm, h.start))
-        if tries >= _SEARCH:
-            break
-    why = max(stuck)[1] if stuck else "no schedule"
-    raise RunError(f"round robin: {why}; {limits}" + (" (search budget spent)" if tries >= _SEARCH else ""))
+    scheduler = _Scheduler(rows, next_bad, task.det_a_min, n_swing, n_approach)
+    limits = _limits(task)
+    holds, stuck, tries = scheduler.search_from(scheduler.starts(limits))
+    if holds is None:
+        why = max(stuck)[1] if stuck else "no schedule"
+        raise RunError(f"round robin: {why}; {limits}" + (" (search budget spent)" if tries >= _SEARCH else ""))
+    return sorted(holds, key=lambda h: (h.arm, h.start))
 
 
 def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -355,24 +431,47 @@ def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
     return np.array([c[0], c[1], 2 * c[2]])
 
 
-def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """Schedule the grips and solve every arm at every control sample."""
-    task = scenario.task
-    law = scenario.timing.law_fn()
-    grid = np.arange(int(np.ceil((law.duration + scenario.timing.hold) / _STEP)) + 1) * _STEP
-    rot_grid = task.motion.orientation(law(grid, order=0)[0])
-    theta, gamma = _gammas(rot_grid)
-    rows = np.stack([np.stack([rsmg.jacobian_rows(i, theta[i, k], gamma[i, k])[0] for k in range(rsmg.CANDIDATES)])
+class _ScheduleGrid(NamedTuple):
+    """The schedule on its grid (times `grid`, _STEP apart): every arm's theta and gamma (4, 3, N) on every
+    candidate, the holds, and the steps of a swing's approach."""
+
+    grid: np.ndarray
+    theta: np.ndarray
+    gamma: np.ndarray
+    holds: list[Hold]
+    n_approach: int
+
+
+def _rows(theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+    """Every arm's row of A (eqs. 34-35) on every candidate along the grid, (4, 3, N, 3): what `schedule` keeps
+    far from rank loss."""
+    return np.stack([np.stack([rsmg.jacobian_rows(i, theta[i, k], gamma[i, k])[0] for k in range(rsmg.CANDIDATES)])
                      for i in range(rsmg.ARMS)])
+
+
+def _schedule_grips(task: Task, law: TimeLaw, hold: float) -> _ScheduleGrid:
+    """The schedule grid, every arm's IK on every candidate along the rotor's motion there, and the grips
+    scheduled on it."""
+    grid = np.arange(int(np.ceil((law.duration + hold) / _STEP)) + 1) * _STEP
+    theta, gamma = _gammas(task.motion.orientation(law(grid, order=0)[0]))
     n_approach = int(round(task.approach_time / _STEP))
-    holds = schedule(gamma, rows, task, max(1, int(round(task.swing_time / _STEP))) + n_approach, n_approach)
-    t = control_grid(law.duration, scenario.timing.hold, dt)
-    s = law(t, order=0)[0]
+    n_swing = max(1, int(round(task.swing_time / _STEP))) + n_approach
+    holds = schedule(gamma, _rows(theta, gamma), task, n_swing, n_approach)
+    return _ScheduleGrid(grid, theta, gamma, holds, n_approach)
+
+
+def _joint_paths(t: np.ndarray, sched: _ScheduleGrid) -> np.ndarray:
+    """q_ref (N, 8) on the control grid: every arm's theta, then every arm's gamma (_arm_path)."""
     q_ref = np.empty((t.size, 2 * rsmg.ARMS))
     for arm in range(rsmg.ARMS):
-        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, holds, theta, gamma, grid, n_approach)
-    qd_ref = np.gradient(q_ref, t, axis=0)
-    rot = task.motion.orientation(s)
+        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, sched.holds, sched.theta, sched.gamma,
+                                                             sched.grid, sched.n_approach)
+    return q_ref
+
+
+def _switches(holds: list[Hold], grid: np.ndarray) -> tuple[Switch, ...]:
+    """The electromagnets' switches in time order: on at each grip (from the point the arm held before), off at
+    each release."""
     switches = []
     for h in holds:
         previous = [p for p in holds if p.arm == h.arm and p.end <= h.start]
@@ -383,21 +482,40 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
         if h.end < grid.size:
             switches.append(Switch(t=float(grid[h.end]), equality=f"grip{h.arm + 1}", active=False,
                                    servo_group=h.arm + 1, detail={"arm": h.arm + 1, "from_point": "abc"[h.point]}))
+    return tuple(sorted(switches, key=lambda w: w.t))
+
+
+def _engaged(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarray:
+    """Which arms grip (N, 4) at each control sample."""
     engaged = np.zeros((t.size, rsmg.ARMS), bool)
     for h in holds:
         stop = grid[h.end] if h.end < grid.size else np.inf
         engaged[(t >= grid[h.start]) & (t < stop), h.arm] = True
-    feedback = _RegripFeedback(rot, q_ref, holds, grid, dt, round(task.swing_time / dt)) if task.regrip_feedback \
-        else None
+    return engaged
+
+
+def plan(scenario, robot, dt: float) -> JointTrajectory:
+    """Schedule the grips and solve every arm at every control sample."""
+    task = scenario.task
+    law = scenario.timing.law_fn()
+    sched = _schedule_grips(task, law, scenario.timing.hold)
+    t = control_grid(law.duration, scenario.timing.hold, dt)
+    s = law(t, order=0)[0]
+    q_ref = _joint_paths(t, sched)
+    rot = task.motion.orientation(s)
+    engaged = _engaged(t, sched.holds, sched.grid)
+    feedback = _RegripFeedback(rot, q_ref, sched.holds, sched.grid, dt, round(task.swing_time / dt)) \
+        if task.regrip_feedback else None
     quat = matrix_to_quat(rot)
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
         "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": rsmg.CANDIDATES},
-        "grips": len(holds) - rsmg.ARMS,
+        "grips": len(sched.holds) - rsmg.ARMS,
         "fewest_gripping": int(engaged.sum(axis=1).min()),
     }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=qd_ref, tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS),
-                           info=info, switches=tuple(sorted(switches, key=lambda w: w.t)),
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=np.gradient(q_ref, t, axis=0),
+                           tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS), info=info,
+                           switches=_switches(sched.holds, sched.grid),
                            series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                            initial={"rotor": quat[0].tolist()}, feedback=feedback)
 

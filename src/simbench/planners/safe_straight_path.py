@@ -138,6 +138,28 @@ def _check_grid(nd: int = 11) -> np.ndarray:
     return np.union1d(np.linspace(0.0, 1.0, _CHECK_SAMPLES), np.linspace(0.0, 1.0, nd))
 
 
+def _limit_tests(q: np.ndarray) -> list[tuple[np.ndarray, str]]:
+    """(where it breaks, which) for each joint limit of q2, q3 and q4 but q3's lower one (the flowchart's own
+    test, q3 < -75 deg)."""
+    tests = []
+    for j, name in ((1, "q2"), (2, "q3"), (3, "q4")):
+        if j != 2:
+            tests.append((q[:, j] < LOWER[j] - _LIMIT_TOL, f"{name} below its lower limit"))
+        tests.append((q[:, j] > UPPER[j] + _LIMIT_TOL, f"{name} above its upper limit"))
+    return tests
+
+
+def _eq27_jumps(sol: dict[str, np.ndarray]) -> np.ndarray:
+    """Where eq. 27 makes q2 and q3 step (N,): the unrepaired sample of each boundary of the q4 = 0 region that
+    lies below the pivot (h < 0)."""
+    rep = sol["repaired"]
+    edge = np.flatnonzero(rep[1:] != rep[:-1])
+    outside = np.where(rep[edge], edge + 1, edge)  # the unrepaired sample of each boundary pair
+    jump = np.zeros(rep.shape, bool)
+    jump[outside[sol["h_lin"][outside] < 0]] = True
+    return jump
+
+
 def exit_reasons(line: Line, nd: int = 11) -> list[dict]:
     """Where and why the path leaves the workspace (Fig. 10's test), first s of each; empty if it does not.
 
@@ -150,25 +172,12 @@ def exit_reasons(line: Line, nd: int = 11) -> list[dict]:
     sol = _solve(line, s, line.backward(s))
     q, x = sol["q"], sol["x"]
     q[s == 0] = line.q_init
-    reasons = []
-
-    def note(mask: np.ndarray, condition: str) -> None:
-        if np.any(mask):
-            reasons.append({"s": float(s[np.argmax(mask)]), "condition": condition})
-
     dq3 = line.q_goal[2] - line.q_init[2]
-    note((line.q_init[2] > np.pi / 2) & (dq3 > 0) & (x[:, 2] < D1), "q3_init > 90 deg, dq3 > 0 and z < d1")
-    note(q[:, 2] < LOWER[2] - _LIMIT_TOL, "q3 < -75 deg")
-    for j, name in ((1, "q2"), (2, "q3"), (3, "q4")):
-        if j != 2:
-            note(q[:, j] < LOWER[j] - _LIMIT_TOL, f"{name} below its lower limit")
-        note(q[:, j] > UPPER[j] + _LIMIT_TOL, f"{name} above its upper limit")
-    rep = sol["repaired"]
-    edge = np.flatnonzero(rep[1:] != rep[:-1])
-    outside = np.where(rep[edge], edge + 1, edge)  # the unrepaired sample of each boundary pair
-    jump = np.zeros(s.shape, bool)
-    jump[outside[sol["h_lin"][outside] < 0]] = True
-    note(jump, "eq. 27 jump: the tool leaves the q4 = 0 region below the pivot (q2 and q3 step)")
+    tests = [((line.q_init[2] > np.pi / 2) & (dq3 > 0) & (x[:, 2] < D1), "q3_init > 90 deg, dq3 > 0 and z < d1"),
+             (q[:, 2] < LOWER[2] - _LIMIT_TOL, "q3 < -75 deg"),
+             *_limit_tests(q),
+             (_eq27_jumps(sol), "eq. 27 jump: the tool leaves the q4 = 0 region below the pivot (q2 and q3 step)")]
+    reasons = [{"s": float(s[np.argmax(mask)]), "condition": condition} for mask, condition in tests if np.any(mask)]
     return sorted(reasons, key=lambda r: r["s"])
 
 
@@ -224,6 +233,22 @@ def waypoints(line: Line, nd: int) -> tuple[dict, ...]:
     return tuple({"s": float(sk), "X": xk.tolist(), "q": qk.tolist()} for sk, xk, qk in zip(s, x, q))
 
 
+def _info(line: Line, reasons: list[dict], repair_info: dict | None) -> dict:
+    """The plan's info: the method's ends, its branch choices, and the workspace test and repair."""
+    return {
+        "method": "paper 000: safe straight path (eqs. 21-29), new initial q3 by Fig. 8 (eqs. 30-34)",
+        "q_init": line.q_init.tolist(),
+        "q_goal": line.q_goal.tolist(),
+        "x_init": line.x_init.tolist(),
+        "x_goal": line.x_goal.tolist(),
+        "branch": {"start": "backward" if line.backward_start else "forward",
+                   "lift_axis_crossing_s": line.flip_at,
+                   "forward_from_first_point": line.forward_only},
+        "workspace_exit": reasons,
+        "workspace_repair": repair_info,
+    }
+
+
 def plan(scenario, robot, dt: float) -> JointTrajectory:
     """Paper 000's method on the scenario's start and goal, solved at every control sample."""
     task = scenario.task
@@ -239,22 +264,9 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     law = scenario.timing.law_fn()
     t = control_grid(law.duration, scenario.timing.hold, dt)
     s, ds = law(t, order=1)
-    q_ref = evaluate(line, s)
-    qd_ref = derivative(line, s) * ds[:, None]
-    info = {
-        "method": "paper 000: safe straight path (eqs. 21-29), new initial q3 by Fig. 8 (eqs. 30-34)",
-        "q_init": line.q_init.tolist(),
-        "q_goal": line.q_goal.tolist(),
-        "x_init": line.x_init.tolist(),
-        "x_goal": line.x_goal.tolist(),
-        "branch": {"start": "backward" if line.backward_start else "forward",
-                   "lift_axis_crossing_s": line.flip_at,
-                   "forward_from_first_point": line.forward_only},
-        "workspace_exit": reasons,
-        "workspace_repair": repair_info,
-    }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=qd_ref, tool_ref=line.points(s)[0],
-                           waypoints=waypoints(line, task.nd), info=info, warnings=tuple(warnings))
+    return JointTrajectory(t=t, s=s, q_ref=evaluate(line, s), qd_ref=derivative(line, s) * ds[:, None],
+                           tool_ref=line.points(s)[0], waypoints=waypoints(line, task.nd),
+                           info=_info(line, reasons, repair_info), warnings=tuple(warnings))
 
 
 def check(scenario, robot) -> tuple[str, str] | None:

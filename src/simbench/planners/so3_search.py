@@ -109,6 +109,34 @@ def _silent():
         ou.setLogLevel(level)
 
 
+def _space_information(slack: Slack, step: float) -> tuple[ob.SO3StateSpace, ob.SpaceInformation]:
+    """OMPL's SO(3) with `slack` as its validity test, checked along a motion at states `step` apart."""
+    space = ob.SO3StateSpace()
+    si = ob.SpaceInformation(space)
+    si.setStateValidityChecker(_Checker(si, slack))
+    # OMPL's SO(3) distance is half the rotation angle and its extent pi / 2: step / pi of it is `step`.
+    si.setStateValidityCheckingResolution(step / np.pi)
+    si.setup()
+    return space, si
+
+
+def _state(space: ob.SO3StateSpace, rot: np.ndarray):
+    """An OMPL state of `space` at orientation rot (3, 3)."""
+    state = space.allocState()
+    state.w, state.x, state.y, state.z = matrix_to_quat(rot)[0]
+    return state
+
+
+def _shortened(si: ob.SpaceInformation, path) -> np.ndarray:
+    """The quaternions (n + 1, 4) of OMPL's path after its rope shortcut and _SHORTCUTS rounds of vertex
+    reduction (both keep the validity test)."""
+    simplifier = og.PathSimplifier(si)
+    simplifier.ropeShortcutPath(path)
+    for _ in range(_SHORTCUTS):
+        simplifier.reduceVertices(path)
+    return np.array([[s.w, s.x, s.y, s.z] for s in path.getStates()])
+
+
 def search(slack: Slack, start: np.ndarray, goal: np.ndarray, time_budget: float,
            step: float) -> tuple[np.ndarray | None, str]:
     """Waypoints (n + 1, 3, 3) from start to goal (3, 3) whose geodesics keep slack >= 0 at states `step` apart
@@ -116,29 +144,15 @@ def search(slack: Slack, start: np.ndarray, goal: np.ndarray, time_budget: float
     shortened by OMPL's rope shortcut and vertex reduction (same check), not yet smoothed."""
     with _silent():
         ou.RNG.setSeed(_SEED)
-        space = ob.SO3StateSpace()
-        si = ob.SpaceInformation(space)
-        si.setStateValidityChecker(_Checker(si, slack))
-        # OMPL's SO(3) distance is half the rotation angle and its extent pi / 2: step / pi of it is `step`.
-        si.setStateValidityCheckingResolution(step / np.pi)
-        si.setup()
+        space, si = _space_information(slack, step)
         setup = og.SimpleSetup(si)
-        ends = []
-        for rot in (start, goal):
-            state = space.allocState()
-            state.w, state.x, state.y, state.z = matrix_to_quat(rot)[0]
-            ends.append(state)
+        ends = [_state(space, rot) for rot in (start, goal)]
         setup.setStartAndGoalStates(*ends)
         setup.setPlanner(og.RRTConnect(si))
         status = setup.solve(time_budget)
         if not setup.haveExactSolutionPath():
             return None, status.asString()
-        path = setup.getSolutionPath()
-        simplifier = og.PathSimplifier(si)
-        simplifier.ropeShortcutPath(path)
-        for _ in range(_SHORTCUTS):
-            simplifier.reduceVertices(path)
-        quat = np.array([[s.w, s.x, s.y, s.z] for s in path.getStates()])
+        quat = _shortened(si, setup.getSolutionPath())
     return quat_to_matrix(quat), status.asString()
 
 
