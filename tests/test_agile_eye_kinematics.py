@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from simbench import learnt_fk
+from simbench.planners import learnt_fk
 from simbench.robots import agile_eye as E
 from simbench.plant import Plant
 

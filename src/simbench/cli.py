@@ -216,7 +216,7 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         if args.command == "list":
             print(_list())
         elif args.command == "train-fk":
-            from simbench import learnt_fk
+            from simbench.planners import learnt_fk
 
             learnt_fk.train(args.samples, tuple(args.hidden), args.seed, args.out or learnt_fk.WEIGHTS)
         elif args.command == "sweep":

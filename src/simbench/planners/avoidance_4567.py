@@ -47,7 +47,7 @@ import numpy as np
 from pydantic import Field
 from scipy.optimize import minimize
 
-from simbench import learnt_fk
+from simbench.planners import learnt_fk
 from simbench.api import Decoration, Planner
 from simbench.errors import RunError
 from simbench.planners import so3_search

@@ -34,7 +34,7 @@ from simbench.errors import RunError
 from simbench.robots import agile_eye
 from simbench.rotations import axis_rotation, rotation_angle
 
-WEIGHTS = Path(__file__).resolve().parent / "data" / "agile_eye_fk.npz"
+WEIGHTS = Path(__file__).resolve().parent.parent / "data" / "agile_eye_fk.npz"
 CONE = np.deg2rad(75.0)
 TORSION = np.deg2rad(45.0)
 _E1 = np.cross(agile_eye.LINE_OF_SIGHT, [0.0, 0.0, 1.0])  # across the line of sight: tilt azimuths start here
@@ -149,19 +149,11 @@ def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 
           log=print) -> dict:
     """Fit mode 0's network on 75 % of the samples, derive the other modes', check each on held-out poses of its
     own mode, write them to `out`; return the held-out errors in degrees (geodesic angle to the exact R)."""
-    try:
-        from sklearn.neural_network import MLPRegressor
-    except ImportError as err:
-        raise RunError("training needs scikit-learn: pip install -e '.[train]'") from err
     split = int(0.75 * samples)
     mode_0 = training_set(0, samples, seed)
-    theta, rot = mode_0
-    model = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="lbfgs", max_iter=4000, tol=1e-10,
-                         random_state=seed)
-    model.fit(features(theta[:split]), targets(rot[:split]))
-    base = Network(tuple(model.coefs_), tuple(model.intercepts_))
+    base = _fit(*mode_0, split, hidden, seed)
     arrays: dict[str, np.ndarray] = {}
-    stats = {"median": [], "p95": [], "max": []}
+    stats: dict[str, list[float]] = {"median": [], "p95": [], "max": []}
     for m in range(8):
         net = for_mode(base, m)
         theta, rot = mode_0 if m == 0 else training_set(m, samples, seed)
@@ -170,11 +162,29 @@ def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 
             stats[key].append(float(value))
         log(f"mode {m}: held-out error median {stats['median'][-1]:.3f} deg, 95th percentile "
             f"{stats['p95'][-1]:.3f} deg, max {stats['max'][-1]:.3f} deg")
-        arrays[f"layers_{m}"] = np.array(len(net.weights))
-        for k, (w, b) in enumerate(zip(net.weights, net.biases)):
-            arrays[f"w_{m}_{k}"], arrays[f"b_{m}_{k}"] = w, b
+        arrays.update(_arrays(net, m))
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **arrays, **{k: np.array(v) for k, v in stats.items()}, samples=np.array(samples),
                         hidden=np.array(hidden), seed=np.array(seed))
     load.cache_clear()
     return stats
+
+
+def _fit(theta: np.ndarray, rot: np.ndarray, split: int, hidden: tuple[int, ...], seed: int) -> Network:
+    """Mode 0's network fitted by scikit-learn on the first `split` samples (tanh layers, L-BFGS)."""
+    try:
+        from sklearn.neural_network import MLPRegressor
+    except ImportError as err:
+        raise RunError("training needs scikit-learn: pip install -e '.[train]'") from err
+    model = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="lbfgs", max_iter=4000, tol=1e-10,
+                         random_state=seed)
+    model.fit(features(theta[:split]), targets(rot[:split]))
+    return Network(tuple(model.coefs_), tuple(model.intercepts_))
+
+
+def _arrays(net: Network, mode: int) -> dict[str, np.ndarray]:
+    """A mode's network as the weights file stores it."""
+    arrays = {f"layers_{mode}": np.array(len(net.weights))}
+    for k, (w, b) in enumerate(zip(net.weights, net.biases)):
+        arrays[f"w_{mode}_{k}"], arrays[f"b_{mode}_{k}"] = w, b
+    return arrays
