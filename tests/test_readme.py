@@ -7,7 +7,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def commands() -> list[str]:
     lines = (ROOT / "README.md").read_text().splitlines()
-    return [line.strip() for line in lines[:12] if line.startswith("    python3 -m venv")]
+    return [line.strip() for line in lines[:14] if line.startswith(("    python3 -m venv", "    (command -v"))]
 
 
 def test_readme_starts_with_the_two_setup_commands():

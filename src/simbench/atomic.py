@@ -26,9 +26,9 @@ def _beside(path: Path, tag: str) -> Path:
 
 
 def write_text(path: Path, text: str) -> None:
-    """Replace `path` with `text` in one step."""
+    """Replace `path` with `text` (UTF-8, whatever the locale) in one step."""
     with staged_file(path) as tmp:
-        tmp.write_text(text)
+        tmp.write_text(text, encoding="utf-8")
 
 
 @contextmanager
