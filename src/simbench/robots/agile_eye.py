@@ -210,9 +210,9 @@ def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     return report, events, extra
 
 
-
 class AgileEye(Robot):
-    """simbench.api.Robot of the Agile Eye, a closed chain: its passive joints assembled, its report entries (paper 003)."""
+    """simbench.api.Robot of the Agile Eye (paper 003), a closed chain: its passive joints assembled, its report
+    entries."""
 
     def __init__(self):
         super().__init__(

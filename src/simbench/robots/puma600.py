@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
+from simbench.robots import REVOLUTE, SingularSet, Tolerance
+from simbench.robots.serial import SerialArm
 
 A2, A3, D3, D4 = 0.432, 0.02, 0.149, 0.432
 D6 = 0.056  # wrist centre to tool flange along z6 (PUMA 560 flange)
@@ -232,8 +233,7 @@ def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
     ]
 
 
-
-class Puma600(Robot):
+class Puma600(SerialArm):
     """simbench.api.Robot of the PUMA 600 with its welding torch (paper 002)."""
 
     def __init__(self):
@@ -241,24 +241,9 @@ class Puma600(Robot):
             name="puma600",
             description="PUMA 600 6-DOF arm with a welding torch (decoupled, spherical wrist)",
             paper="002: joint time histories for line and circle paths of a decoupled arm",
-            joints=JOINTS,
-            kinds=KINDS,
-            lower=LOWER,
-            upper=UPPER,
-            qd_max=QD_MAX,
-            tool_site="tool",
-            tool_sensor="tool_pos",
-            scene=scene("puma600"),
+            joints=JOINTS, kinds=KINDS, lower=LOWER, upper=UPPER, qd_max=QD_MAX,
+            fk=fk, measures=measures, singular_sets=singular_sets,
         )
-
-    def fk(self, q: np.ndarray) -> np.ndarray:
-        return fk(q)
-
-    def measures(self, rec) -> dict[str, np.ndarray]:
-        return measures(rec.q)
-
-    def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
-        return singular_sets(rec.q, tol)
 
 
 ROBOT = Puma600()

@@ -21,6 +21,9 @@ free hinge about v_i. Constraints (eqs. 10-11): w_i . u_i = cos ALPHA, v_i . w_i
 Design (the surviving text does not give it; models/rsmg/README.md justifies each choice): four arms on the axes
 of a regular tetrahedron, one from below; ALPHA = BETA = 70 deg; three candidate contact points per arm, 120 deg
 apart on the rotor's great circle normal to that arm's axis at the home pose.
+
+What a run's outputs show of the RSMG (report entries, switch events, the EMs' colours, the gamma plot) is in
+simbench.robots.rsmg_outputs.
 """
 
 from __future__ import annotations
@@ -29,7 +32,6 @@ import numpy as np
 
 from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
-from simbench.rotations import quat_to_matrix, rotation_angle
 
 ALPHA = np.deg2rad(70.0)
 BETA = np.deg2rad(70.0)
@@ -148,7 +150,8 @@ def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     return best
 
 
-def _engaged(rec) -> np.ndarray:
+def gripping(rec) -> np.ndarray:
+    """Which arms grip (their welds on) at each recorded sample (N, 4), bool."""
     return np.stack([rec.eq_active[f"grip{i + 1}"] for i in range(ARMS)], axis=1).astype(bool)
 
 
@@ -165,14 +168,14 @@ def _type_b_gap(gamma: np.ndarray, engaged: np.ndarray) -> np.ndarray:
 
 def measures(rec) -> dict[str, np.ndarray]:
     """The type A measure (largest 3 x 3 minor of A over the gripping arms) and the type B gap."""
-    engaged = _engaged(rec)
+    engaged = gripping(rec)
     return {"type_a": type_a_measure(_rows(rec), engaged), "type_b_gap": _type_b_gap(rec.q[:, ARMS:], engaged)}
 
 
 def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
     """Type A: |det A1| and |det A2| (every 3 x 3 minor over the gripping arms) under 0.01 (eq. 46). Type B: a
     gripping arm's gamma within 10 deg of 0 or 180 deg (eq. 45). The paper's own thresholds, not `tol`."""
-    engaged = _engaged(rec)
+    engaged = gripping(rec)
     type_a = type_a_measure(_rows(rec), engaged)
     type_b = _type_b_gap(rec.q[:, ARMS:], engaged)
     return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01", type_a / DET_A_MIN,
@@ -181,99 +184,10 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
                         type_b / GAMMA_BAND[0], {"gamma": type_b})]
 
 
-def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
-    """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped."""
-    engaged = _engaged(rec)
-    gamma = rec.q[:, ARMS:]
-    rot = quat_to_matrix(rec.sensors["rotor_quat"])
-    error = rotation_angle(quat_to_matrix(traj.series["rotor_quat_ref"]), rot)
-    held = gamma[engaged]
-    closure = _closure_error(rec, rot, engaged)
-    report = {
-        "rotor_error_max": float(error.max()),
-        "closure_error_max": float(closure.max()),
-        "fewest_gripping": int(engaged.sum(axis=1).min()),
-        "gripping_gamma": {"min": float(held.min()), "max": float(held.max())},
-        "switch_events": _switch_events(traj, rec, rot),
-    }
-    extra = {"gamma": gamma.copy(), "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"].copy(),
-             "rotor_error": error, "closure_error": closure}
-    return report, [], extra
-
-
-def _closure_error(rec, rot: np.ndarray, engaged: np.ndarray) -> np.ndarray:
-    """How far each gripping EM's tip has moved on the rotor since it gripped (the weld's violation: the loop
-    through the arm and the rotor failing to close), the largest over the arms (N,), in m."""
-    closure = np.zeros(rec.t.size)
-    for arm in range(ARMS):
-        on_rotor = np.einsum("nji,nj->ni", rot, rec.sensors[f"em{arm + 1}_tip"])  # R^T tip, in the rotor's frame
-        grip = engaged[:, arm] & ~np.concatenate([[False], engaged[:-1, arm]])  # the rows where it grips
-        since = np.maximum.accumulate(np.where(grip, np.arange(rec.t.size), 0))
-        drift = np.linalg.norm(on_rotor - on_rotor[since], axis=1)
-        closure = np.maximum(closure, np.where(engaged[:, arm], drift, 0.0))
-    return closure
-
-
-def _switch_events(traj, rec, rot: np.ndarray) -> list[dict]:
-    """One event a re-grip: release to grip, the arm, the points; the grip's snap (the EM tip's jump in the step
-    after the weld goes on, beyond what its motion before carried it: the second difference of its position); and
-    the grip's offset (how far the EM tip is from the planned contact point when it grips, which the weld then
-    keeps). `rot`: the recorded rotor orientations."""
-    events = []
-    releases = {}
-    for sw in traj.switches:
-        arm = sw.detail["arm"]
-        if not sw.active:
-            releases[arm] = sw
-            continue
-        if arm not in releases:
-            continue  # the initial grips
-        k = int(np.clip(np.searchsorted(rec.t, sw.t - 1e-9), 1, len(rec.t) - 2))
-        tip = rec.sensors[f"em{arm}_tip"]
-        jump = float(np.linalg.norm(tip[k + 1] - 2 * tip[k] + tip[k - 1]))
-        point = rot[k] @ POINTS[arm - 1, "abc".index(sw.detail["to_point"])] * RADIUS
-        events.append({"t_start": releases[arm].t, "t_end": sw.t, "kind": "switch",
-                       "detail": {"arm": arm, "from_point": sw.detail["from_point"], "to_point": sw.detail["to_point"],
-                                  "contact_jump": jump, "grip_offset": float(np.linalg.norm(tip[k] - point))}})
-    return events
-
-
-def paint(model, rec, row: int) -> None:
-    """Colour each EM by its state in this frame: green while it grips, grey while it is free."""
-    for i in range(ARMS):
-        on = rec.eq_active[f"grip{i + 1}"][row]
-        model.geom(f"em{i + 1}").rgba = [0.2, 0.85, 0.3, 1.0] if on else [0.55, 0.55, 0.58, 1.0]
-
-
-def plots(traj, rec, result, folder) -> list[str]:
-    """gamma of every arm against time with its switches (paper 001's Fig. 11 is arm 1's)."""
-    import matplotlib.pyplot as plt
-
-    engaged = _engaged(rec)
-    fig, axes = plt.subplots(ARMS, 1, figsize=(8, 7), sharex=True)
-    for i, ax in enumerate(axes):
-        g = np.rad2deg(rec.q[:, ARMS + i])
-        ax.plot(rec.t, np.where(engaged[:, i], g, np.nan), color="tab:green", lw=1.2, label="gripping")
-        ax.plot(rec.t, np.where(engaged[:, i], np.nan, g), color="tab:gray", lw=1.0, label="swinging")
-        for bound in np.rad2deg(GAMMA_BAND):
-            ax.axhline(bound, color="k", ls=":", lw=0.8)
-        for e in result.extra["switch_events"]:
-            if e["detail"]["arm"] == i + 1:
-                ax.axvline(e["t_end"], color="tab:red", lw=0.8)
-        ax.set_ylabel(f"gamma{i + 1} (deg)")
-        ax.set_ylim(-5, 185)
-        ax.grid(alpha=0.3)
-    axes[0].legend(loc="upper right", fontsize=8)
-    axes[0].set_title("gamma of each arm (red: re-grips; dotted: the 10-170 deg band)")
-    axes[-1].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(folder / "gamma.png", dpi=110)
-    plt.close(fig)
-    return ["gamma.png"]
-
-
 class RSMG(Robot):
-    """simbench.api.Robot of the RSMG, whose rotor pose depends on the gripped points: no fk of the joints alone (paper 001)."""
+    """simbench.api.Robot of the RSMG (paper 001), whose rotor pose depends on the gripped points: no fk of the
+    joints alone. Its report entries, video colours and plot are rsmg_outputs', imported when first asked for (it
+    imports this module, and only its plot needs matplotlib)."""
 
     def __init__(self):
         super().__init__(
@@ -300,13 +214,19 @@ class RSMG(Robot):
         return singular_sets(rec, tol)
 
     def summary(self, traj, rec, series: dict) -> Summary:
-        return Summary(*summary(traj, rec, series))
+        from simbench.robots import rsmg_outputs
+
+        return rsmg_outputs.summary(traj, rec, series)
 
     def paint(self, model, rec, row: int) -> None:
-        paint(model, rec, row)
+        from simbench.robots import rsmg_outputs
+
+        rsmg_outputs.paint(model, rec, row)
 
     def plots(self, traj, rec, analysis, folder) -> list[str]:
-        return plots(traj, rec, analysis, folder)
+        from simbench.robots import rsmg_outputs
+
+        return rsmg_outputs.plots(traj, rec, analysis, folder)
 
 
 ROBOT = RSMG()

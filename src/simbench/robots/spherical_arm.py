@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.robots import PRISMATIC, REVOLUTE, Robot, SingularSet, Tolerance, joint_set, scene
+from simbench.robots import PRISMATIC, REVOLUTE, SingularSet, Tolerance, joint_set
+from simbench.robots.serial import SerialArm
 
 D1 = 0.030
 D4 = 0.030
@@ -113,8 +114,7 @@ def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
     return sets
 
 
-
-class SphericalArm(Robot):
+class SphericalArm(SerialArm):
     """simbench.api.Robot of the 4-DOF spherical arm of paper 000."""
 
     def __init__(self):
@@ -122,24 +122,9 @@ class SphericalArm(Robot):
             name="spherical_arm",
             description="4-DOF RPRP spherical arm (turntable, lift, elevation, radial extension)",
             paper="000: Verification and Generation of Safe Straight Paths for a 4-DOF Spherical Manipulator",
-            joints=JOINTS,
-            kinds=KINDS,
-            lower=LOWER,
-            upper=UPPER,
-            qd_max=QD_MAX,
-            tool_site="tool",
-            tool_sensor="tool_pos",
-            scene=scene("spherical_arm"),
+            joints=JOINTS, kinds=KINDS, lower=LOWER, upper=UPPER, qd_max=QD_MAX,
+            fk=fk, measures=measures, singular_sets=singular_sets,
         )
-
-    def fk(self, q: np.ndarray) -> np.ndarray:
-        return fk(q)
-
-    def measures(self, rec) -> dict[str, np.ndarray]:
-        return measures(rec.q)
-
-    def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
-        return singular_sets(rec.q, tol)
 
 
 ROBOT = SphericalArm()

@@ -1,0 +1,121 @@
+"""What the RSMG (simbench.robots.rsmg) adds to a run's outputs: report entries, the re-grips as switch events,
+its electromagnets coloured by state in the video, and a plot of every arm's gamma (paper 001's Fig. 11).
+
+The robot's hooks (RSMG.summary, .paint, .plots) call these. matplotlib is imported only when the plot is drawn:
+the analysis and the video need none of it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from simbench.api import Summary
+from simbench.robots.rsmg import ARMS, GAMMA_BAND, POINTS, RADIUS, gripping
+from simbench.rotations import quat_to_matrix, rotation_angle
+
+_GRIPPING_RGBA = [0.2, 0.85, 0.3, 1.0]  # an EM that grips: green
+_FREE_RGBA = [0.55, 0.55, 0.58, 1.0]  # an EM that is free: grey
+
+
+def summary(traj, rec, series: dict) -> Summary:
+    """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped."""
+    engaged = gripping(rec)
+    gamma = rec.q[:, ARMS:]
+    rot = quat_to_matrix(rec.sensors["rotor_quat"])
+    error = rotation_angle(quat_to_matrix(traj.series["rotor_quat_ref"]), rot)
+    held = gamma[engaged]
+    closure = _closure_error(rec, rot, engaged)
+    report = {
+        "rotor_error_max": float(error.max()),
+        "closure_error_max": float(closure.max()),
+        "fewest_gripping": int(engaged.sum(axis=1).min()),
+        "gripping_gamma": {"min": float(held.min()), "max": float(held.max())},
+        "switch_events": _switch_events(traj, rec, rot),
+    }
+    extra = {"gamma": gamma.copy(), "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"].copy(),
+             "rotor_error": error, "closure_error": closure}
+    return Summary(report, [], extra)
+
+
+def _closure_error(rec, rot: np.ndarray, engaged: np.ndarray) -> np.ndarray:
+    """How far each gripping EM's tip has moved on the rotor since it gripped (the weld's violation: the loop
+    through the arm and the rotor failing to close), the largest over the arms (N,), in m."""
+    closure = np.zeros(rec.t.size)
+    for arm in range(ARMS):
+        on_rotor = np.einsum("nji,nj->ni", rot, rec.sensors[f"em{arm + 1}_tip"])  # R^T tip, in the rotor's frame
+        grip = engaged[:, arm] & ~np.concatenate([[False], engaged[:-1, arm]])  # the rows where it grips
+        since = np.maximum.accumulate(np.where(grip, np.arange(rec.t.size), 0))
+        drift = np.linalg.norm(on_rotor - on_rotor[since], axis=1)
+        closure = np.maximum(closure, np.where(engaged[:, arm], drift, 0.0))
+    return closure
+
+
+def _switch_events(traj, rec, rot: np.ndarray) -> list[dict]:
+    """One event a re-grip (an arm's release, then its grip); the initial grips are none. `rot`: the recorded
+    rotor orientations."""
+    events = []
+    releases = {}
+    for sw in traj.switches:
+        arm = sw.detail["arm"]
+        if not sw.active:
+            releases[arm] = sw
+        elif arm in releases:
+            events.append(_regrip_event(rec, rot, releases[arm], sw))
+    return events
+
+
+def _regrip_event(rec, rot: np.ndarray, release, grip) -> dict:
+    """The re-grip from switch `release` to switch `grip` of one arm: the arm, the points; the grip's snap (the
+    EM tip's jump in the step after the weld goes on, beyond what its motion before carried it: the second
+    difference of its position); and the grip's offset (how far the EM tip is from the planned contact point
+    when it grips, which the weld then keeps)."""
+    arm = grip.detail["arm"]
+    k = int(np.clip(np.searchsorted(rec.t, grip.t - 1e-9), 1, len(rec.t) - 2))
+    tip = rec.sensors[f"em{arm}_tip"]
+    jump = float(np.linalg.norm(tip[k + 1] - 2 * tip[k] + tip[k - 1]))
+    point = rot[k] @ POINTS[arm - 1, "abc".index(grip.detail["to_point"])] * RADIUS
+    return {"t_start": release.t, "t_end": grip.t, "kind": "switch",
+            "detail": {"arm": arm, "from_point": grip.detail["from_point"], "to_point": grip.detail["to_point"],
+                       "contact_jump": jump, "grip_offset": float(np.linalg.norm(tip[k] - point))}}
+
+
+def paint(model, rec, row: int) -> None:
+    """Colour each EM by its state in this frame: green while it grips, grey while it is free."""
+    for i in range(ARMS):
+        on = rec.eq_active[f"grip{i + 1}"][row]
+        model.geom(f"em{i + 1}").rgba = _GRIPPING_RGBA if on else _FREE_RGBA
+
+
+def plots(traj, rec, result, folder: Path) -> list[str]:
+    """gamma of every arm against time with its switches (paper 001's Fig. 11 is arm 1's)."""
+    import matplotlib.pyplot as plt
+
+    engaged = gripping(rec)
+    fig, axes = plt.subplots(ARMS, 1, figsize=(8, 7), sharex=True)
+    for arm, ax in enumerate(axes):
+        _plot_gamma(ax, rec, arm, engaged[:, arm], result.extra["switch_events"])
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[0].set_title("gamma of each arm (red: re-grips; dotted: the 10-170 deg band)")
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(folder / "gamma.png", dpi=110)
+    plt.close(fig)
+    return ["gamma.png"]
+
+
+def _plot_gamma(ax, rec, arm: int, engaged: np.ndarray, switch_events: list[dict]) -> None:
+    """Arm `arm`'s gamma (deg) on `ax`: green while it grips, grey while it swings, its re-grips in red and the
+    band of eq. 45 dotted."""
+    g = np.rad2deg(rec.q[:, ARMS + arm])
+    ax.plot(rec.t, np.where(engaged, g, np.nan), color="tab:green", lw=1.2, label="gripping")
+    ax.plot(rec.t, np.where(engaged, np.nan, g), color="tab:gray", lw=1.0, label="swinging")
+    for bound in np.rad2deg(GAMMA_BAND):
+        ax.axhline(bound, color="k", ls=":", lw=0.8)
+    for e in switch_events:
+        if e["detail"]["arm"] == arm + 1:
+            ax.axvline(e["t_end"], color="tab:red", lw=0.8)
+    ax.set_ylabel(f"gamma{arm + 1} (deg)")
+    ax.set_ylim(-5, 185)
+    ax.grid(alpha=0.3)

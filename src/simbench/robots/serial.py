@@ -1,0 +1,38 @@
+"""What the shipped serial arms (spherical_arm, puma600) share as simbench.api.Robot: kinematics that are
+functions of the joint values alone, a tool site `tool` with the position sensor `tool_pos` on it, and the scene
+models/<name>/scene.xml. A closed chain (agile_eye, rsmg) needs more of a Recording than its joint values and
+subclasses Robot itself."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from simbench.robots import Robot, SingularSet, Tolerance, scene
+
+Fk = Callable[[np.ndarray], np.ndarray]
+Measures = Callable[[np.ndarray], dict[str, np.ndarray]]
+SingularSets = Callable[[np.ndarray, Tolerance], list[SingularSet]]
+
+
+class SerialArm(Robot):
+    """A shipped serial arm: `fk`, `measures` and `singular_sets` are its kinematics module's functions of the
+    joint values q (N, dof); the last two are given the recording's `rec.q`. Each arm subclasses it with a
+    constructor of no arguments, as every shipped robot class has (tests make a fresh one that way)."""
+
+    def __init__(self, *, name: str, description: str, paper: str, joints: Sequence[str], kinds: Sequence[str],
+                 lower: np.ndarray, upper: np.ndarray, qd_max: np.ndarray, fk: Fk, measures: Measures,
+                 singular_sets: SingularSets):
+        super().__init__(name=name, description=description, paper=paper, joints=joints, kinds=kinds, lower=lower,
+                         upper=upper, qd_max=qd_max, tool_site="tool", tool_sensor="tool_pos", scene=scene(name))
+        self._fk, self._measures, self._singular_sets = fk, measures, singular_sets
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        return self._fk(q)
+
+    def measures(self, rec) -> dict[str, np.ndarray]:
+        return self._measures(rec.q)
+
+    def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
+        return self._singular_sets(rec.q, tol)
