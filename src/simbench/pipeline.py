@@ -159,6 +159,15 @@ def _run(scenario: Scenario, out: Path, video: bool, progress: bool) -> Result:
     except PhysicsError as err:
         _write_failure(scenario, err, out, watch)
         raise
+    return write_outputs(scenario, ev, out, video, watch)
+
+
+def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = True,
+                  watch: _Stopwatch | None = None) -> Result:
+    """Write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4 of an evaluated run into
+    `out` at once: what `run` writes after it has simulated, also for a run simulated elsewhere (an episode of
+    simbench.env). `out` is taken as it is: locking and checking it is the caller's (see `run`)."""
+    watch = watch or _Stopwatch()
     robot, traj, rec, result = scenario.robot_def, ev.trajectory, ev.recording, ev.analysis
     with staged_folder(out) as tmp:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz"}

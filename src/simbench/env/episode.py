@@ -1,0 +1,240 @@
+"""The episode of a scenario as dm_control's Physics and Task: simbench's stepping, switching and recording
+inside `control.Environment` (simbench.env builds them; its docstring says what an episode is)."""
+
+from __future__ import annotations
+
+import copy
+from collections import OrderedDict
+from typing import Any
+
+import mujoco
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco import wrapper
+from dm_control.rl import control
+from dm_env import specs
+
+from simbench.api import Array, JointTrajectory, State
+from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
+from simbench.controllers import Servo
+from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault, warnings_raised
+from simbench.observation import observation
+from simbench.plant import Actuation, Plant
+from simbench.scenario import Scenario
+from simbench.sim import Recording
+from simbench.stepping import ClosedLoop, OpenLoop, Rows
+from simbench.switches import apply_switch, switch_steps
+
+_REWARD_AT_TOLERANCE = 0.5  # the reward when the tool is analysis.path_tolerance off its reference
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+class Physics(dm_mujoco.Physics):
+    """dm_control's Physics of a simbench scene, stepped as simbench's closed loop steps and checked as simbench
+    checks a run; `readings` holds the sensors MuJoCo computed during the last step (at the state it started
+    from, as `simulate` records them), `counts` MuJoCo's warning counters, and `t0` the simulated time of the
+    plan's first sample."""
+
+    readings: Array
+    counts: Array
+    t0: float = 0.0
+
+    def _reload_from_data(self, data: wrapper.MjData) -> None:
+        super()._reload_from_data(data)
+        self.counts = data.ptr.warning.number  # a view of MuJoCo's warning counters
+        self.readings = data.ptr.sensordata.copy()
+
+    def step(self, nstep: int = 1) -> None:
+        """Finish the step mj_step1 prepared (mj_step2), keep its sensors, prepare the next (mj_step1); nstep
+        times. PhysicsError at the first step that fails (checked as simbench's closed loop checks a step)."""
+        model, data = self.model.ptr, self.data.ptr
+        for _ in range(nstep):
+            with quiet_mujoco():
+                try:
+                    mujoco.mj_step2(model, data)
+                except mujoco.FatalError as err:
+                    raise control.PhysicsError(self._when(fatal_cause(err))) from None
+                # NaN fails the comparison: one reduction finds a NaN, an infinite or a diverging speed
+                if self.counts.any() or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED:
+                    cause = step_fault(model, data)
+                    if cause:
+                        raise control.PhysicsError(self._when(cause))
+                self.readings = data.sensordata.copy()
+                mujoco.mj_step1(model, data)
+
+    def _when(self, cause: str) -> str:
+        return f"the physics failed at t = {self.data.time - self.t0:.4f} s: {cause}"
+
+
+class Track(control.Task):
+    """The scenario's episode: settle at the plan's start, then follow it to its last sample."""
+
+    def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics):
+        self.scenario, self.plant, self.plan = scenario, plant, plan
+        self.actuation: Actuation = plant.actuation
+        model, data = physics.model.ptr, physics.data.ptr
+        self.dt = float(model.opt.timestep)
+        self.n = plan.t.size  # samples; an episode is n - 1 steps
+        self.n_settle = round(scenario.sim.settle / self.dt)
+        # The start: the state and grips at_start left, and what switching changes in the model (restored at reset).
+        self._start = np.empty(mujoco.mj_stateSize(model, _FULL))
+        mujoco.mj_getState(model, data, self._start, _FULL)
+        self._eq_active = data.eq_active.copy()
+        self._model0 = (model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator))
+        steps = switch_steps(model, plan)
+        self._switches: dict[int, list] = {}
+        for switch, k in zip(plan.switches, steps):
+            if 0 < k < self.n - 1:  # as simulate: the step-0 ones are in the start, none after the last step
+                self._switches.setdefault(int(k), []).append(switch)
+        self._settler = self._settling_controller()
+        self._tool = plant.sensors[plant.robot.tool_sensor]
+        self._tolerance = scenario.analysis.path_tolerance
+        self._rows(model)
+
+    def _settling_controller(self) -> Servo | ComputedTorque:
+        """What holds the start while the robot settles: the servo (position) or computed torque (torque)."""
+        if self.actuation == "torque":
+            settings = self.scenario.control
+            settler: Servo | ComputedTorque = ComputedTorque(settings if isinstance(settings, ComputedTorqueSettings)
+                                                             else None)
+            settler.bind(self.plant, self.plan)
+            return settler
+        settler = Servo(self.scenario.sim.velocity_feedforward)
+        settler.bind(self.plant, self.plan)
+        ctrl = settler.open_loop()
+        assert ctrl is not None, "the servo's commands follow from the plan alone"
+        self._hold = ctrl[0].copy()  # simulate's first command, held while settling
+        return settler
+
+    def _rows(self, model: mujoco.MjModel) -> None:
+        """An empty recording, and the references and sample of an episode's start."""
+        n = self.n
+        self.k = 0
+        self.q_ref, self.qd_ref, self.revised = self.plan.q_ref, self.plan.qd_ref, False
+        self.warnings: list[dict] = []
+        self._qpos, self._qvel = np.empty((n, model.nq)), np.empty((n, model.nv))
+        self._readings, self._ctrl = np.empty((n, model.nsensordata)), np.zeros((n, model.nu))
+        self._eq = np.empty((n, model.neq), bool)
+
+    # --- control.Task -----------------------------------------------------------------------------------------
+
+    def initialize_episode(self, physics: Physics) -> None:
+        """The start pose and grips, settled for sim.settle (PhysicsError if that fails)."""
+        model, data = physics.model.ptr, physics.data.ptr
+        model.eq_data[:], model.eq_active0[:] = self._model0[:2]
+        model.opt.disableactuator = self._model0[2]
+        mujoco.mj_resetData(model, data)
+        mujoco.mj_setState(model, data, self._start, _FULL)
+        data.eq_active[:] = self._eq_active
+        self._rows(model)
+        physics.t0 = self.n_settle * self.dt
+        rows = Rows.empty(model, self.n_settle, 0)
+        with quiet_mujoco():
+            try:
+                if isinstance(self._settler, Servo):
+                    rows.controls[:] = data.ctrl[:] = self._hold
+                    found = OpenLoop(model).run(model, data, rows, 0, self.n_settle)
+                else:
+                    found = ClosedLoop(self.plant, self._settler).run(model, data, rows, 0, self.n_settle)
+                mujoco.mj_step1(model, data)
+            except Fault as fault:
+                raise control.PhysicsError(f"the physics failed while settling at the plan's start (step "
+                                           f"{fault.step} of {self.n_settle}): {fault.cause}") from None
+        self.warnings += found
+        self._qpos[0], self._qvel[0], self._eq[0] = data.qpos, data.qvel, data.eq_active
+
+    def before_step(self, action: Any, physics: Physics) -> None:
+        """The action to the joints' actuators; ValueError if it is not one finite value per joint."""
+        action = np.asarray(action, dtype=float)
+        if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
+            raise ValueError(self._refusal(action))
+        ctrl = self._ctrl[self.k]  # zero but for the joints' actuators
+        ctrl[self.plant.actuators] = action
+        physics.data.ptr.ctrl[:] = ctrl
+
+    def _refusal(self, action: Array) -> str:
+        """What is wrong with an action."""
+        robot = self.plant.robot
+        if action.shape != (robot.dof,):
+            return (f"an action has one value per joint ({', '.join(robot.joints)}): shape ({robot.dof},) "
+                    f"expected, got {action.shape}")
+        bad = int(np.flatnonzero(~np.isfinite(action))[0])
+        return f"the action for joint '{robot.joints[bad]}' is {action[bad]}"
+
+    def after_step(self, physics: Physics) -> None:
+        """Record the step; at a planned switch's sample apply it, and the plan's feedback on it."""
+        model, data = physics.model.ptr, physics.data.ptr
+        self._readings[self.k] = physics.readings
+        self.k = k = self.k + 1
+        self._qpos[k], self._qvel[k] = data.qpos, data.qvel
+        if physics.counts.any():
+            self.warnings += [{"t": float(data.time - physics.t0), "kind": mujoco.mjtWarning(code).name,
+                               "count": int(data.warning[code].number)} for code in warnings_raised(data)]
+            clear_warnings(data)
+        if k in self._switches:
+            for switch in self._switches[k]:
+                apply_switch(model, data, switch)
+                if self.plan.feedback is not None:
+                    self._revise(self.plan.feedback(switch, model, data, k))
+            mujoco.mj_step1(model, data)  # the constraints as they now are, for the next step
+        self._eq[k] = data.eq_active
+
+    def _revise(self, change: tuple | None) -> None:
+        """A feedback change (k0, columns, q) applied to the references, as simulate applies it (sim._Run)."""
+        if change is None:
+            return
+        if not self.revised:
+            self.q_ref, self.qd_ref, self.revised = self.plan.q_ref.copy(), self.plan.qd_ref.copy(), True
+        k0, columns, q = change
+        k1 = k0 + len(q)
+        self.q_ref[k0:k1, columns] = q
+        hi = min(k1 + 1, len(self.q_ref))
+        self.qd_ref[k0:hi, columns] = np.gradient(self.q_ref[k0:hi, columns], self.plan.dt, axis=0)
+
+    def action_spec(self, physics: Physics) -> specs.BoundedArray:
+        """One value per robot joint, within its actuator's control range where it has one."""
+        model, act = physics.model.ptr, self.plant.actuators
+        limited = model.actuator_ctrllimited[act].astype(bool)
+        lo = np.where(limited, model.actuator_ctrlrange[act, 0], -mujoco.mjMAXVAL)
+        hi = np.where(limited, model.actuator_ctrlrange[act, 1], mujoco.mjMAXVAL)
+        return specs.BoundedArray(shape=(self.plant.robot.dof,), dtype=float, minimum=lo, maximum=hi,
+                                  name="action")
+
+    def get_observation(self, physics: Physics) -> OrderedDict:
+        """simbench.observation.observation at this sample, with the references as revised."""
+        data = physics.data.ptr
+        state = State(k=self.k, t=float(self.plan.t[self.k]), q=data.qpos[self.plant.qpos_adr],
+                      qd=data.qvel[self.plant.dof_adr], qpos=data.qpos, qvel=data.qvel, data=data)
+        return observation(self.plant, state, self.q_ref, self.qd_ref, self.plan.tool_ref)
+
+    def get_reward(self, physics: Physics) -> float:
+        """1 with the tool on its reference, 0.5 at analysis.path_tolerance from it, towards 0 beyond: dm_control's
+        rewards.tolerance(error, bounds=(0, 0), margin=path_tolerance, sigmoid="gaussian", value_at_margin=0.5),
+        written out: 0.5 ** ((error / path_tolerance) ** 2), a tenth of the library call's cost."""
+        offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
+        return _REWARD_AT_TOLERANCE ** (float(offset @ offset) / self._tolerance ** 2)
+
+    def get_termination(self, physics: Physics) -> float | None:
+        """Discount 1 at the plan's last sample (the episode's time limit), None before."""
+        return 1.0 if self.k >= self.n - 1 else None
+
+    # --- the episode as a run ---------------------------------------------------------------------------------
+
+    def recording(self, physics: Physics) -> Recording:
+        """The episode so far as simulate records a closed-loop run: row k the state at sample k, the sensors of
+        the step from it (the last row's from mj_forward at the last state, the last command held), the command
+        that drove that step (the last row repeats the one before), the constraints in force from it on."""
+        model, plant, rows = physics.model.ptr, self.plant, self.k + 1
+        end = copy.copy(physics.data.ptr)
+        mujoco.mj_forward(model, end)
+        readings = np.concatenate([self._readings[:rows - 1], end.sensordata[None]])
+        qpos, qvel = self._qpos[:rows].copy(), self._qvel[:rows]
+        given = self._ctrl[:rows - 1]
+        ctrl = np.concatenate([given, given[-1:] if len(given) else end.ctrl[None]])
+        recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
+        revised = {"q_ref": self.q_ref.copy(), "qd_ref": self.qd_ref.copy()} if self.revised else {}
+        return Recording(t=self.plan.t[:rows].copy(), qpos=qpos, q=qpos[:, plant.qpos_adr],
+                         qd=qvel[:, plant.dof_adr], ctrl=ctrl, tool=recorded.pop(plant.robot.tool_sensor),
+                         timestep=self.dt, warnings=tuple(self.warnings), sensors=recorded,
+                         eq_active={model.equality(i).name: self._eq[:rows, i].copy() for i in range(model.neq)},
+                         force=readings[:, plant.force_sensors], force_limit=plant.force_limit(), **revised)
