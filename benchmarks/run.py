@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from benchmarks import (bench_agile_eye_crossing, bench_planners, bench_puma_auto, bench_render, bench_run,
-                        bench_soak, bench_sweep, bench_tracking)
+from benchmarks import (bench_agile_eye_crossing, bench_control, bench_planners, bench_puma_auto, bench_render,
+                        bench_run, bench_soak, bench_sweep, bench_tracking)
 from benchmarks.common import machine, today
 
 
 def main() -> None:
     sections = [module.markdown(module.measure())
                 for module in (bench_tracking, bench_render, bench_sweep, bench_planners, bench_puma_auto,
-                               bench_agile_eye_crossing, bench_run, bench_soak)]
+                               bench_agile_eye_crossing, bench_control, bench_run, bench_soak)]
     text = "\n\n".join([
         "# Benchmarks",
         "Written by `python -m benchmarks.run` (from the repository root, in the test environment).",

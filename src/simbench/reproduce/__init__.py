@@ -1,0 +1,104 @@
+"""Each paper's published results regenerated beside the printed ones, every difference classified (project
+issue 15): `reproduce(paper, out)` writes out/<paper>/ for 000, 001, 002, 003 or all four.
+
+A difference is a typo in the paper (a value misprinted, which the paper's own other values show), an error in
+the paper (shown by a number: a method or equation that does not do what the paper says), or ours (simbench
+departs from the paper, or cannot tell why a value differs). Each paper's module (paper000 ... paper003) writes
+its tables (CSV and Markdown) and figures (PNG) and returns its part of the Summary.
+
+Outputs go where a run's go (simbench.pipeline.run): a folder out/<paper> that holds anything is replaced only
+with `force` and only if simbench wrote everything in it; one writer at a time (destination.locked); each
+folder is assembled under a hidden name and moved into place whole (atomic.staged_folder).
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from simbench import destination
+from simbench.atomic import staged_folder
+from simbench.reproduce._common import CLASSES, ERROR, OURS, TYPO, Difference, PaperSummary
+from simbench.resources import scenarios_dir
+
+__all__ = ["CLASSES", "ERROR", "OURS", "PAPERS", "TYPO", "Difference", "PaperSummary", "Summary", "reproduce"]
+
+PAPERS = ("000", "001", "002", "003")
+_MODULES = {"000": "paper000", "001": "paper001", "002": "paper002", "003": "paper003"}
+
+
+@dataclass(frozen=True)
+class Summary:
+    """What `reproduce` found: one PaperSummary a paper, where they were written and how long it took."""
+
+    out: Path
+    papers: tuple[PaperSummary, ...]
+    seconds: float
+
+    def paper(self, name: str) -> PaperSummary:
+        """The part of one paper ('000' ...)."""
+        return next(p for p in self.papers if p.paper == name)
+
+    def counts(self) -> dict[str, int]:
+        """Differences of each class over every paper."""
+        return {k: sum(p.count(k) for p in self.papers) for k in CLASSES}
+
+    def lines(self) -> list[str]:
+        """A one-screen summary: per paper the printed values reproduced, the differences by class, its headline."""
+        out = [f"simbench reproduce: {len(self.papers)} paper(s) into {self.out} in {self.seconds:.1f} s"]
+        for p in self.papers:
+            counts = ", ".join(f"{k} {p.count(k)}" for k in CLASSES)
+            out.append(f"{p.paper} {p.title}: {p.reproduced} of {p.compared} printed values and claims reproduced; "
+                       f"differences: {counts}")
+            out += [f"    {line}" for line in p.headline[:4]]
+        total = self.counts()
+        out.append("all papers, differences: " + ", ".join(f"{k} {total[k]}" for k in CLASSES)
+                   + f"; tables and figures in {self.out}/<paper>/ (summary.md, differences.md)")
+        return out
+
+
+def _papers(paper: str) -> tuple[str, ...]:
+    if paper == "all":
+        return PAPERS
+    if paper in PAPERS:
+        return (paper,)
+    raise ValueError(f"paper must be one of {', '.join(PAPERS)} or all, not {paper!r}")
+
+
+def _inputs() -> list[Path]:
+    """The files the reproductions read, which an output folder must not be or hold."""
+    return sorted(scenarios_dir().glob("*/*.yaml"))
+
+
+def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], None] | None = None) -> Summary:
+    """Reproduce paper `paper` ('000', '001', '002', '003' or 'all') into out/<paper>/ for each; the Summary.
+
+    A folder out/<paper> that holds anything is refused (ScenarioError, naming it) unless `force`, and then
+    replaced only if simbench wrote every file in it; every folder is checked before anything is computed.
+    `log`, if given, is called with a line as each paper starts and ends.
+    """
+    names = _papers(paper)
+    out = Path(out)
+    start = time.perf_counter()
+    parts = []
+    with ExitStack() as stack:
+        for name in names:
+            stack.enter_context(destination.locked(out / name))
+        for name in names:
+            destination.check(out / name, _inputs(), force)
+        for name in names:
+            module = importlib.import_module(f"simbench.reproduce.{_MODULES[name]}")
+            if log:
+                log(f"paper {name}: {module.TITLE} ...")
+            began = time.perf_counter()
+            with staged_folder(out / name) as tmp:
+                part = module.reproduce(tmp)
+            part = replace(part, seconds=time.perf_counter() - began)
+            if log:
+                log(f"paper {name}: done in {part.seconds:.1f} s")
+            parts.append(part)
+    return Summary(out, tuple(parts), time.perf_counter() - start)
