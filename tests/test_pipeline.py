@@ -116,7 +116,8 @@ def test_the_report_a_sweep_keeps_is_the_runs_but_for_what_was_written_and_when(
 def test_without_a_video_none_is_made_listed_or_timed(tmp_path, monkeypatch):
     no_plots(monkeypatch)
     result = simbench.run(parse_scenario(short_case1(), "short"), out=tmp_path / "out", video=False)
-    assert written(tmp_path / "out") == {"report.json", "timeseries.npz"} == listed(result.report["outputs"])
+    expected = {"report.json", "timeseries.npz", "index.html"}
+    assert written(tmp_path / "out") == expected == listed(result.report["outputs"])
     assert set(result.report["wall_time"]) == STAGES | {"total"}
 
 
@@ -134,7 +135,7 @@ def test_the_default_folder_is_renders_name_and_evaluate_writes_nothing(tmp_path
     no_plots(monkeypatch)
     result = simbench.run(path, video=False)
     assert result.out == Path("renders") / "quick"
-    assert written(work) == {"renders/quick/report.json", "renders/quick/timeseries.npz"}
+    assert written(work) == {"renders/quick/report.json", "renders/quick/timeseries.npz", "renders/quick/index.html"}
     description = yaml.safe_load(path.read_text())["description"]
     assert result.report["scenario"] == {"name": "quick", "file": str(path), "description": description}
 
@@ -189,7 +190,7 @@ def test_a_run_whose_physics_fails_raises_what_it_wrote(tmp_path):
         simbench.run(parse_scenario(doc, "stiff"), out=out)
     err = caught.value
     report = json.loads((out / "report.json").read_text())
-    assert written(out) == {"report.json", "timeseries.npz"} == listed(report["outputs"])
+    assert written(out) == {"report.json", "timeseries.npz", "index.html"} == listed(report["outputs"])
     assert report["status"] == "failed"
     assert report["failure"] == {"stage": "simulate", "t": pytest.approx(err.t), "cause": err.cause}
     ts = np.load(out / "timeseries.npz")

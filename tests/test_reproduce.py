@@ -202,3 +202,17 @@ def test_unknown_paper_is_refused(tmp_path):
     with pytest.raises(ValueError, match="000, 001, 002, 003 or all"):
         reproduce("004", tmp_path)
     assert not any(tmp_path.iterdir())
+
+
+def test_the_reproduce_command_prints_the_summary_and_needs_force_the_second_time(tmp_path, capsys):
+    from simbench.cli import main
+
+    out = tmp_path / "rep"
+    assert main(["reproduce", "002", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].startswith(f"simbench reproduce: 1 paper(s) into {out}") and any(
+        line.startswith("002 ") for line in printed)
+    assert (out / "002" / "index.html").is_file()
+    assert main(["reproduce", "002", "--out", str(out)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+    assert main(["reproduce", "002", "--out", str(out), "--force"]) == 0

@@ -202,6 +202,7 @@ class Planner(ABC, Generic[TaskT]):
     task: ClassVar[type[BaseModel]]
     robots: ClassVar[tuple[str, ...] | None] = None
     needs: ClassVar[tuple[Literal["fk"], ...]] = ()
+    seconds_per_sample: ClassVar[float] = 0.0  # planning time a control sample beyond a few us (budget.py)
 
     @abstractmethod
     def plan(self, scenario: Scenario, robot: Robot, dt: float) -> JointTrajectory:
@@ -364,13 +365,14 @@ def _load_shipped() -> None:
     """The robots, planners and controllers that come with simbench, registered as an outside package's are
     (once: each registry asks for them on first use)."""
     from simbench import computed_torque, controllers, policy
-    from simbench.planners import avoidance_4567, decoupled_path, joint_move, round_robin, safe_straight_path
+    from simbench.planners import (avoidance_4567, decoupled_path, joint_move, mink_baseline, round_robin,
+                                   safe_straight_path)
     from simbench.robots import agile_eye, puma600, rsmg, spherical_arm
 
     for robot in (spherical_arm.ROBOT, puma600.ROBOT, agile_eye.ROBOT, rsmg.ROBOT):
         _ROBOTS.add(robot, "simbench")
     for planner in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
-                    round_robin.PLANNER, joint_move.PLANNER):
+                    round_robin.PLANNER, joint_move.PLANNER, mink_baseline.PLANNER):
         _PLANNERS.add(planner, "simbench")
     for controller in (controllers.Servo, computed_torque.ComputedTorque, policy.Policy):
         _CONTROLLERS.add(controller, "simbench")

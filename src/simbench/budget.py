@@ -94,6 +94,7 @@ class Ask:
     fps: int = 30
     quality: str = "fast"
     outputs: bool = False
+    plan_seconds: float = 0.0  # the planner's own time a sample beyond _SAMPLE_SECONDS (seconds_per_sample)
 
     @classmethod
     def of(cls, scenario, video: bool = False, outputs: bool = False) -> Ask:
@@ -103,7 +104,8 @@ class Ask:
         return cls(duration=scenario.timing.duration, hold=scenario.timing.hold, settle=scenario.sim.settle,
                    timestep=scenario.sim.timestep or model_timestep, law=scenario.timing.law, columns=columns,
                    model_timestep=model_timestep, video=video, width=r.width, height=r.height, fps=r.fps,
-                   quality=r.quality, outputs=outputs or video)
+                   quality=r.quality, outputs=outputs or video,
+                   plan_seconds=scenario.planner_def.seconds_per_sample)
 
 
 @cache
@@ -157,7 +159,8 @@ def estimate(ask: Ask) -> Estimate:
     kept = 8.0 * ask.columns
     pairs = n * max(_PAIRS_PER_SAMPLE, _CROWDING * n if ask.law == "4567" else 0.0)
     memory = max(_RUN_FACTOR * kept * (n + n_settle), _KEPT_FACTOR * kept * n + _PAIR_BYTES * min(pairs, SEARCH_PAIRS))
-    seconds = (_START_SECONDS + _STEP_SECONDS * ask.columns * (n + n_settle) + _SAMPLE_SECONDS * n
+    seconds = (_START_SECONDS + _STEP_SECONDS * ask.columns * (n + n_settle)
+               + (_SAMPLE_SECONDS + ask.plan_seconds) * n
                + _PAIR_SECONDS * pairs)
     disk = 0.0
     if ask.outputs:

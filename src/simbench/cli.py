@@ -47,6 +47,20 @@ def _parser() -> argparse.ArgumentParser:
     validate.add_argument("scenarios", type=Path, nargs="+")
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
     sub.add_parser("list", help="list robots, planners and shipped scenarios")
+    reproduce = sub.add_parser("reproduce", help="regenerate a paper's published results beside simbench's")
+    reproduce.add_argument("paper", choices=["000", "001", "002", "003", "all"])
+    reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",
+                           help="output folder, one subfolder a paper (default renders/reproduce/)")
+    reproduce.add_argument("--force", action="store_true", help="replace an earlier reproduction")
+    compare = sub.add_parser("compare", help="run one scenario's task with several planners or controllers")
+    compare.add_argument("scenario", type=Path)
+    compare.add_argument("--planners", type=_names, required=True, help="comma-separated, e.g. "
+                                                                      "decoupled_path,mink_baseline")
+    compare.add_argument("--controllers", type=_names, default=None,
+                         help="comma-separated (default: the scenario's own)")
+    compare.add_argument("--out", type=Path, default=None, help="output folder (default renders/compare/<name>/)")
+    compare.add_argument("--force", action="store_true", help="replace an earlier comparison")
+    compare.add_argument("--quiet", action="store_true", help="no progress")
     train = sub.add_parser("train-fk", help="retrain the Agile Eye's learnt forward kinematics (needs scikit-learn)")
     train.add_argument("--samples", type=int, default=20000, help="poses per working mode (75 %% train)")
     train.add_argument("--hidden", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
@@ -56,6 +70,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 EXIT_LIMITS = 3
+
+
+def _names(text: str) -> list[str]:
+    """A comma-separated list of names."""
+    return [name.strip() for name in text.split(",") if name.strip()]
 
 
 def _summary(result) -> str:
@@ -120,6 +139,25 @@ def _sweep(args) -> None:
               f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
         for note in result.summary["notes"]:
             print(f"  note: {note}")
+
+
+def _reproduce(args) -> None:
+    """The reproduce command: each paper's tables and figures, and a one-screen summary."""
+    from simbench.reproduce import reproduce
+
+    summary = reproduce(args.paper, args.out, force=args.force)
+    print("\n".join(summary.lines()))
+
+
+def _compare(args) -> None:
+    """The compare command: the table and plots of every method, and the table on screen."""
+    from simbench.compare import compare
+
+    out = args.out or Path("renders") / "compare" / args.scenario.stem
+    result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
+                     progress=not args.quiet)
+    print((result.out / "comparison.md").read_text())
+    print(f"table, plots and index.html in {result.out}")
 
 
 def _dry_run(sweep) -> str:
@@ -221,6 +259,10 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
             learnt_fk.train(args.samples, tuple(args.hidden), args.seed, args.out or learnt_fk.WEIGHTS)
         elif args.command == "sweep":
             _sweep(args)
+        elif args.command == "reproduce":
+            _reproduce(args)
+        elif args.command == "compare":
+            _compare(args)
         elif args.command == "validate":
             return _validate(args.scenarios, plan=not args.no_plan)
         else:

@@ -22,6 +22,7 @@ from simbench import budget, destination
 from simbench.analysis import Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
+from simbench.page import run_page, write_page
 from simbench.plots import write_plots
 from simbench.render import render_video
 from simbench.report import build_failure_report, build_report, write_report, write_timeseries
@@ -170,7 +171,7 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
     watch = watch or _Stopwatch()
     robot, traj, rec, result = scenario.robot_def, ev.trajectory, ev.recording, ev.analysis
     with staged_folder(out) as tmp:
-        outputs = {"report": "report.json", "timeseries": "timeseries.npz"}
+        outputs = {"report": "report.json", "timeseries": "timeseries.npz", "page": "index.html"}
         with watch.stage("plots"):
             names = write_plots(robot, traj, rec, result, tmp / "plots")
             names += robot.plots(traj, rec, result, tmp / "plots")
@@ -189,15 +190,17 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
             write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
         report = build_report(scenario, ev, watch.summary(), outputs, scenario.source)
         write_report(report, tmp / "report.json")
+        write_page(tmp, run_page(tmp, report))
     return Result(out=out, report=report, evaluation=ev)
 
 
 def _write_failure(scenario: Scenario, err: PhysicsError, out: Path, watch: _Stopwatch) -> None:
     """The outputs of a run whose physics failed: report.json with the failure, and the timeseries up to it."""
     with staged_folder(out) as tmp:
-        outputs = {"report": "report.json"}
+        outputs = {"report": "report.json", "page": "index.html"}
         if err.recording is not None:
             outputs["timeseries"] = "timeseries.npz"
             write_timeseries(scenario.robot_def, err.trajectory, err.recording, None, tmp / "timeseries.npz")
-        write_report(build_failure_report(scenario, err, watch.summary(), outputs, scenario.source),
-                     tmp / "report.json")
+        report = build_failure_report(scenario, err, watch.summary(), outputs, scenario.source)
+        write_report(report, tmp / "report.json")
+        write_page(tmp, run_page(tmp, report))

@@ -12,6 +12,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from simbench.page import table_page, write_page  # noqa: E402
 
 TYPO = "typo in the paper"
 ERROR = "error in the paper"
@@ -114,7 +115,7 @@ def save(fig, path: Path) -> str:
 
 
 def write_summary_page(folder: Path, part: PaperSummary, notes: Sequence[str] = ()) -> str:
-    """summary.md: the paper's headline, counts, differences, notes and files."""
+    """summary.md and index.html: the paper's headline, counts, differences, notes, tables and figures."""
     counts = ", ".join(f"{k} {part.count(k)}" for k in CLASSES)
     text = [f"# Paper {part.paper}: {part.title}", "",
             f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}.", ""]
@@ -123,5 +124,11 @@ def write_summary_page(folder: Path, part: PaperSummary, notes: Sequence[str] = 
     if notes:
         text += ["## Notes", ""] + [f"- {n}" for n in notes] + [""]
     text += ["## Files", ""] + [f"- `{name}`" for name in sorted(part.files)] + [""]
-    (folder / "summary.md").write_text("\n".join(text))
+    (folder / "summary.md").write_text("\n".join(text), encoding="utf-8")
+    write_page(folder, table_page(
+        folder, f"Paper {part.paper}: {part.title}",
+        f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}.\n\n"
+        + "\n".join(part.headline) + ("\n\n" + "\n".join(notes) if notes else ""),
+        [(name, folder / name) for name in sorted(part.files) if name.endswith(".csv")],
+        [name for name in sorted(part.files) if name.endswith(".png")], digits=None))
     return "summary.md"

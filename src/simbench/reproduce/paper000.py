@@ -570,6 +570,6 @@ def reproduce(folder: Path) -> PaperSummary:
              "q1 is compared modulo 360 deg.",
              "simbench regenerates cases 3 and 4 from their printed new initial configurations (case 3's q1 = 120 "
              "deg, as its x and y say); the new q3 itself is compared in the last table of table2.md."]
-    part = replace(part, files=tuple(files) + ("summary.md",))
+    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
     write_summary_page(folder, part, notes)
     return part

@@ -206,7 +206,7 @@ def reproduce(folder: Path) -> PaperSummary:
                         facts={"turns_achieved": float(achieved[-1]), "turns_commanded": float(commanded[-1]),
                                "rotor_error_max_deg": float(error.max()), "regrips": len(switches),
                                "gripping_gamma_deg": (float(held.min()), float(held.max()))})
-    part = replace(part, files=tuple(files) + ("summary.md",))
+    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
     write_summary_page(folder, part, notes=[
         "The paper's band and threshold (eqs. 45-46) as it prints them; simbench's margins inside them are its "
         "own (choices.md). The paper's Fig. 11 shows arm 1; gamma.png shows every arm.",

@@ -271,7 +271,7 @@ def reproduce(folder: Path) -> PaperSummary:
                 f"equations: {reproduced} reproduced, {sum(d.kind == TYPO for d in diffs)} typos (eq. 1's Py, eq. "
                 f"32), {sum(d.kind == ERROR for d in diffs)} errors (eqs. 9, 15, 16, 20-21, 24-25, 31-36)")
     part = PaperSummary("002", TITLE, len(rows), reproduced, tuple(diffs), headline)
-    part = replace(part, files=tuple(files) + ("summary.md",), facts={"tool_on_path_max": worst})
+    part = replace(part, files=tuple(files) + ("summary.md", "index.html"), facts={"tool_on_path_max": worst})
     write_summary_page(folder, part, notes=[
         "The paper's symbols for eq. 9 read with eq. 1's numbers: its a3 = 0.432 m (Craig's a2), a4 = 0.02 m "
         "(Craig's a3), b4 = 0.432 m (Craig's d4); d3 = 0.149 m is missing from it.",

@@ -297,7 +297,7 @@ def reproduce(folder: Path) -> PaperSummary:
                                "kci_simulated": float(kci["simulated"].mean()),
                                "learnt_fk_median_deg": float(np.median(shipped)),
                                "paper_size_median_deg": float(np.median(e))})
-    part = replace(part, files=tuple(files) + ("summary.md",))
+    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
     write_summary_page(folder, part, notes=[
         "Printed values compared: the six average KCIs (one difference: another example), the network's form and "
         "training error (one difference), and the claims in checks.md.",

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import execute, table
 from simbench.sweep.spec import Sweep, load_sweep
@@ -76,9 +77,15 @@ def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed
     plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots")
     summary = {**table.summary(columns, sweep.spec.plots), "resumed": resumed, "backend": backend,
                "wall_time": round(time.perf_counter() - start, 3),
-               "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots]},
+               "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots],
+                           "page": "index.html"},
                "notes": notes}
     write_report(summary, out / "summary.json")
+    counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)
+    write_page(out, table_page(out, f"Sweep: {sweep.name}", f"{summary['runs']} runs of {sweep.base} ({counts}) on "
+                                                             f"{backend}.\n\n" + "\n".join(notes),
+                               [("Every run (results.csv)", out / "results.csv")], [f"plots/{p}" for p in plots],
+                               summary))
     return summary
 
 

@@ -31,7 +31,7 @@ from simbench.sweep.spec import Sweep, Variant
 _KEPT = "the rows of the finished runs are kept: run the same command again to resume"
 
 # What a sweep writes into its folder (the names its marker lists).
-LAYOUT = ("sweep.json", "rows", "runs", "results.csv", "results.parquet", "summary.json", "plots")
+LAYOUT = ("sweep.json", "rows", "runs", "results.csv", "results.parquet", "summary.json", "plots", "index.html")
 
 
 class Store:

@@ -1,0 +1,404 @@
+"""Methods side by side: one scenario's task planned and run by several planners (and controllers), one table and
+overlaid plots (project issue 15).
+
+    result = compare("scenarios/puma600/wrist_singularity.yaml", ["decoupled_path", "mink_baseline"], None,
+                     Path("renders/compare_wrist"))
+
+Each method is the scenario with another planner or controller: the scenario's own planner takes it as it is;
+`mink_baseline` (simbench.planners.mink_baseline) takes `{follow: <the scenario's planner>, task: <its task>}`,
+so it follows the same Cartesian reference; any other planner takes the task as written (it must fit that
+planner's schema). A controller other than the scenario's own gets its default `control:` fields. Every pair of a
+planner and a controller is one method, evaluated by simbench.evaluate (plan, simulate, analyse) exactly as a
+separate run of that scenario would be; only the scenario's own pair keeps its `expect:` (a failure it is
+made to show is that method's, not the others').
+
+Written into `out` at once (simbench.atomic; never over a folder simbench did not write, simbench.destination):
+
+  comparison.csv     a row per method, SI units (m, rad/s or m/s; shares of the speed limit; singular-set
+                     distances in multiples of the scenario's near tolerance, where <= 1 is near)
+  comparison.md      the same figures, a column per method, in mm, deg/s and percent
+  comparison.json    the rows, each method's violations and plan warnings, and the scenario variants run
+  plots/tool_error.png, plots/joint_speeds.png, plots/singular_distance.png   the methods overlaid against time
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import difflib
+import io
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simbench import api, budget, destination
+from simbench.atomic import staged_folder
+from simbench.page import table_page, write_page
+from simbench.errors import PhysicsError, RunError, ScenarioError
+from simbench.scenario import Scenario, load_scenario, parse_scenario
+from simbench.validation import read_yaml
+
+MINK = "mink_baseline"
+_SOURCE = "compare"  # how a refusal of the arguments names where it comes from (the arguments, not a file)
+
+
+@dataclass(frozen=True)
+class MethodRun:
+    """One method of a comparison: its planner and controller, the scenario it ran, and what came of it. `status`
+    is the run's (`ok`, `limits`), or `failed` (the physics failed) or `refused` (the planner refused the task),
+    with `error` saying why; `evaluation` is None unless it ran to the end."""
+
+    label: str
+    planner: str
+    controller: str
+    scenario: Scenario
+    status: str
+    evaluation: Any = None  # simbench.pipeline.Evaluation
+    error: str | None = None
+
+
+@dataclass(frozen=True)
+class ComparisonResult:
+    """A written comparison: where, the methods in order, the table's rows (comparison.csv, SI) and the files."""
+
+    out: Path
+    scenario: str
+    robot: str
+    methods: tuple[MethodRun, ...]
+    rows: tuple[dict, ...]
+    files: tuple[str, ...]
+
+
+def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: list[str] | None, out: Path,
+            force: bool = False, progress: bool = False) -> ComparisonResult:
+    """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own
+    controller) and write the table and plots into `out` (which must be empty or absent unless `force`, and then
+    hold only what simbench wrote). ScenarioError (one line) for an unknown or unsuitable planner or controller,
+    a bad scenario file or destination, before anything runs."""
+    source = Path(scenario_path)
+    out = Path(out)
+    base = load_scenario(source)
+    raw = read_yaml(source)
+    variants = _variants(raw, base, source, _names(planners, "planner", api.planners()),
+                         _names(controllers, "controller", api.controllers()) if controllers is not None
+                         else [base.control.controller])
+    for *_, scenario in variants:  # every method affordable (simbench.budget) before any runs
+        budget.check(scenario)
+    with destination.locked(out):
+        destination.check(out, [source], force)
+        from simbench.pipeline import evaluate  # the pipeline (MuJoCo, SciPy) once the arguments are known good
+
+        runs = tuple(_run(evaluate, *variant, progress) for variant in variants)
+        rows = tuple(row(run) for run in runs)
+        with staged_folder(out) as tmp:
+            files = _write(tmp, base, runs, rows)
+    return ComparisonResult(out=out, scenario=base.name or source.stem, robot=base.robot, methods=runs, rows=rows,
+                            files=tuple(files))
+
+
+def _names(names: Any, kind: str, known: dict) -> list[str]:
+    """The planner or controller names asked for, each registered, duplicates dropped; ScenarioError (one line)
+    naming the first unknown one."""
+    if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:
+        raise ScenarioError(_SOURCE, f"{kind}s", f"expected a list of one or more {kind} names, got {names!r:.80}")
+    for name in names:
+        if not isinstance(name, str) or name not in known:
+            hint = difflib.get_close_matches(str(name), known, n=1)
+            suggestion = f"; did you mean {hint[0]!r}?" if hint else ""
+            raise ScenarioError(_SOURCE, f"{kind}s", f"unknown {kind} {name!r} (expected one of: "
+                                                     f"{', '.join(sorted(known))}){suggestion}")
+    return list(dict.fromkeys(names))
+
+
+def _variants(raw: dict, base: Scenario, source: Path, planners: list[str],
+              controllers: list[str]) -> list[tuple[str, str, str, Scenario]]:
+    """(label, planner, controller, scenario) of every method, each scenario validated as a file of its own would
+    be; ScenarioError naming the method a variant does not suit."""
+    out = []
+    for planner in planners:
+        for controller in controllers:
+            doc = copy.deepcopy(raw)
+            doc["planner"], doc["task"] = planner, _task_for(planner, raw, base)
+            own = planner == base.planner and controller == base.control.controller
+            if controller != base.control.controller:
+                doc["control"] = {"controller": controller}
+            if not own:
+                doc.pop("expect", None)
+            try:
+                scenario = parse_scenario(doc, str(source), default_name=source.stem)
+            except ScenarioError as err:
+                what = planner if len(controllers) == 1 else f"{planner} with {controller}"
+                raise ScenarioError(_SOURCE, "planners" if len(controllers) == 1 else "methods",
+                                    f"{what} cannot run {source}: {err.detail}") from None
+            label = planner if len(controllers) == 1 else f"{planner} / {controller}"
+            out.append((label, planner, controller, scenario))
+    return out
+
+
+def _task_for(planner: str, raw: dict, base: Scenario) -> Any:
+    """The `task:` a planner gets: the scenario's own for its own planner; for the mink baseline, the scenario's
+    planner and task to follow; for the planner a mink_baseline scenario follows, the task it follows; else the
+    task as written."""
+    task = raw.get("task")
+    if planner == base.planner:
+        return task
+    if planner == MINK:
+        return {"follow": base.planner, "task": task}
+    if base.planner == MINK and isinstance(task, dict) and task.get("follow") == planner:
+        return task.get("task")
+    return task
+
+
+def _run(evaluate, label: str, planner: str, controller: str, scenario: Scenario, progress: bool) -> MethodRun:
+    """One method evaluated; a physics failure or a refused plan is its row's status, not the comparison's end."""
+    try:
+        ev = evaluate(scenario, progress=progress)
+    except PhysicsError as err:
+        return MethodRun(label, planner, controller, scenario, "failed", error=str(err))
+    except RunError as err:
+        return MethodRun(label, planner, controller, scenario, "refused", error=str(err))
+    return MethodRun(label, planner, controller, scenario, ev.verdict.status, evaluation=ev)
+
+
+# --- the table ------------------------------------------------------------------------------------------------
+
+def singular_sets(run: MethodRun) -> list[api.SingularSet]:
+    """The robot's singular sets along the run, each distance in multiples of the scenario's near tolerance
+    (<= 1: near), as the analysis measures them."""
+    a = run.scenario.analysis
+    return run.scenario.robot_def.singular_sets(run.evaluation.recording, api.Tolerance(a.near_angle, a.near_length))
+
+
+def row(run: MethodRun) -> dict:
+    """The table's row of a method, SI units: its status, tool error and path deviation (the simulated tool, as
+    the analysis measures them, and the plan's own tool by the robot's fk), each joint's planned speed peak and
+    its share of the speed limit, the least distance to each singular set, and its events counted by kind."""
+    out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
+                           "status": run.status, "error": run.error, "violations": ""}
+    ev = run.evaluation
+    if ev is None:
+        return out
+    robot = run.scenario.robot_def
+    tracking, traj, rec = ev.analysis.tracking, ev.trajectory, ev.recording
+    out["violations"] = " ".join(sorted({v["kind"] for v in ev.verdict.violations}))
+    out.update(tool_error_max_m=tracking["tool_error_max"], tool_error_rms_m=tracking["tool_error_rms"],
+               path_deviation_max_m=tracking["tool_max"], path_deviation_rms_m=tracking["tool_rms"],
+               plan_path_deviation_max_m=_plan_deviation(robot, traj))
+    peak = np.abs(traj.qd_ref).max(axis=0)
+    for j, name in enumerate(robot.joints):
+        out[f"qd_peak_{name}"] = float(peak[j])
+    for j, name in enumerate(robot.joints):
+        out[f"qd_share_{name}"] = float(peak[j] / robot.qd_max[j])
+    out["qd_share_max"] = float((peak / robot.qd_max).max())
+    out["qd_share_max_simulated"] = float((np.abs(rec.qd) / robot.qd_max).max())
+    for sset in singular_sets(run):
+        out[f"singular_min_{sset.name}"] = float(sset.distance.min())
+    for prefix, events in (("singular_events", ev.analysis.singularity_events),
+                           ("limit_events", ev.analysis.limit_events)):
+        for kind in sorted({e["kind"] for e in events}):
+            out[f"{prefix}_{kind}"] = sum(e["kind"] == kind for e in events)
+    return out
+
+
+def _plan_deviation(robot, traj) -> float | None:
+    """The largest distance of the plan's own tool (the robot's fk at q_ref) from the plan's tool_ref path."""
+    from simbench.analysis import path_deviation
+
+    if not robot.has_fk:
+        return None
+    return float(path_deviation(traj.tool_ref, robot.fk(traj.q_ref)).max())
+
+
+def _columns(rows: tuple[dict, ...]) -> list[str]:
+    """Every row's columns, in the order first met; event counts last (absent from a row: 0)."""
+    names: dict[str, None] = {}
+    for r in rows:
+        names.update(dict.fromkeys(k for k in r if "_events_" not in k))
+    events = sorted({k for r in rows for k in r if "_events_" in k})
+    return list(names) + events
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def table_csv(rows: tuple[dict, ...]) -> str:
+    """comparison.csv: a row per method; an event kind a method did not meet counts 0, a figure a failed method
+    has not is empty."""
+    columns = _columns(rows)
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(columns)
+    for r in rows:
+        ran = "tool_error_max_m" in r
+        writer.writerow([_cell(r.get(c, 0 if ran and "_events_" in c else None)) for c in columns])
+    return buffer.getvalue()
+
+
+def _display(column: str, robot) -> tuple[str, float, str]:
+    """(label, scale, format) of a column in comparison.md: mm, deg/s (or mm/s), percent."""
+    if column.endswith("_m"):
+        return column.removesuffix("_m").replace("_", " ") + " (mm)", 1e3, "{:.3f}"
+    if column.startswith("qd_peak_"):
+        joint = column.removeprefix("qd_peak_")
+        revolute = robot.kinds[robot.joints.index(joint)] == api.REVOLUTE
+        return f"{joint} speed peak ({'deg/s' if revolute else 'mm/s'})", (180 / np.pi if revolute else 1e3), "{:.1f}"
+    if column.startswith("qd_share_"):
+        what = column.removeprefix("qd_share_").replace("_", " ")
+        return f"{what} speed peak (% of limit)", 100.0, "{:.1f}"
+    if column.startswith("singular_min_"):
+        return f"min distance to {column.removeprefix('singular_min_')} (x near tol.)", 1.0, "{:.3f}"
+    if "_events_" in column:
+        family, kind = column.split("_events_")
+        return f"{family} events: {kind}", 1.0, "{:d}"
+    return column.replace("_", " "), 1.0, "{}"
+
+
+def table_markdown(base: Scenario, rows: tuple[dict, ...]) -> str:
+    """comparison.md: a column per method, a line per figure, in mm, deg/s and percent."""
+    robot = base.robot_def
+    a = base.analysis
+    lines = [f"# {base.name}: methods compared", "",
+             f"{base.description}".strip() or f"robot {base.robot}, planner {base.planner}", "",
+             f"Robot `{base.robot}`. Tool error: the simulated tool against the plan's reference at the same time; "
+             "path deviation: its distance from the planned path; plan path deviation: the plan's own tool (the "
+             "robot's forward kinematics at its joint references). Speed peaks are the plan's. Distances to "
+             f"singular sets are in multiples of the near tolerance ({np.rad2deg(a.near_angle):g} deg, "
+             f"{a.near_length * 1e3:g} mm): at most 1 is near.", "",
+             "| | " + " | ".join(f"`{r['method']}`" for r in rows) + " |",
+             "|---|" + "---:|" * len(rows)]
+    for column in _columns(rows):
+        if column in ("method",):
+            continue
+        label, scale, fmt = _display(column, robot)
+        cells = []
+        for r in rows:
+            value = r.get(column, 0 if "tool_error_max_m" in r and "_events_" in column else None)
+            if value is None or value == "":
+                cells.append("")
+            elif isinstance(value, (int, float)) and not isinstance(value, bool):
+                cells.append(fmt.format(int(value)) if fmt == "{:d}" else fmt.format(value * scale))
+            else:
+                cells.append(str(value).replace("|", "\\|"))
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+# --- the outputs ----------------------------------------------------------------------------------------------
+
+def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tuple[dict, ...]) -> list[str]:
+    """Every output into `folder`; their names."""
+    (folder / "comparison.csv").write_text(table_csv(rows))
+    (folder / "comparison.md").write_text(table_markdown(base, rows))
+    plots = _plots(folder / "plots", base, runs)
+    files = ["comparison.csv", "comparison.md", "comparison.json", *(f"plots/{p}" for p in plots)]
+    document = {
+        "scenario": {"name": base.name, "file": base.source, "description": base.description},
+        "robot": base.robot,
+        "methods": [{"method": run.label, "planner": run.planner, "controller": run.controller,
+                     "status": run.status, "error": run.error,
+                     "violations": [] if run.evaluation is None else list(run.evaluation.verdict.violations),
+                     "plan_warnings": [] if run.evaluation is None else list(run.evaluation.trajectory.warnings),
+                     "config": run.scenario.model_dump(mode="json")} for run in runs],
+        "rows": list(rows),
+        "outputs": files,
+    }
+    from simbench.report import plain
+
+    (folder / "comparison.json").write_text(json.dumps(plain(document), indent=2, allow_nan=False) + "\n")
+    write_page(folder, table_page(
+        folder, f"Comparison: {base.name} ({base.robot})",
+        f"The task of {base.source or base.name}, with each method in turn. {base.description}",
+        [("Methods, SI units (comparison.csv)", folder / "comparison.csv")], [f"plots/{p}" for p in plots],
+        document["methods"][0]["config"]))
+    return [*files, "index.html"]
+
+
+def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[str]:
+    """The methods overlaid against time: tool error, joint speeds, distance to each singular set."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    ran = [r for r in runs if r.evaluation is not None]
+    robot = base.robot_def
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    color = {r.label: colors[i % len(colors)] for i, r in enumerate(runs)}
+    floor = 1e-4  # mm: the log scales' floor
+
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    for r in ran:
+        series, t = r.evaluation.analysis.series, r.evaluation.recording.t
+        axes[0].plot(t, np.maximum(series["path_deviation"] * 1e3, floor), color=color[r.label], lw=1.2, label=r.label)
+        axes[1].plot(t, np.maximum(series["tool_error"] * 1e3, floor), color=color[r.label], lw=1.2, label=r.label)
+    axes[0].axhline(base.analysis.path_tolerance * 1e3, color="k", ls=":", lw=0.8, label="path tolerance")
+    axes[0].set_ylabel("distance from path (mm)")
+    axes[1].set_ylabel("tool error (mm)")
+    axes[1].set_xlabel("time (s)")
+    axes[0].set_title(f"{base.name}: the simulated tool against the plan's reference")
+    for ax in axes:
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8, loc="best")
+    _save(fig, folder / "tool_error.png")
+
+    fig, axes = plt.subplots(robot.dof, 1, figsize=(8, 1.7 * robot.dof + 0.8), sharex=True, squeeze=False)
+    for j, ax in enumerate(axes[:, 0]):
+        revolute = robot.kinds[j] == api.REVOLUTE
+        scale, unit = (180 / np.pi, "deg/s") if revolute else (1e3, "mm/s")
+        for r in ran:
+            ev = r.evaluation
+            ax.plot(ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2, label=r.label)
+            ax.plot(ev.recording.t, ev.recording.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--", alpha=0.7)
+        for sign in (-1, 1):
+            ax.axhline(sign * robot.qd_max[j] * scale, color="k", ls=":", lw=0.8)
+        ax.set_ylabel(f"{robot.joints[j]} ({unit})")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="best")
+    axes[0, 0].set_title("Joint speeds: planned (solid), simulated (dashed), speed limits (dotted)")
+    axes[-1, 0].set_xlabel("time (s)")
+    _save(fig, folder / "joint_speeds.png")
+
+    sets = {r.label: singular_sets(r) for r in ran}
+    first = next(iter(sets.values()), [])
+    files = ["tool_error.png", "joint_speeds.png"]
+    if first:
+        cols = 1 if len(first) <= 4 else 3
+        rows_ = -(-len(first) // cols)
+        fig, axes = plt.subplots(rows_, cols, figsize=(8 if cols == 1 else 13, 2.0 * rows_ + 0.8), sharex=True,
+                                 squeeze=False)
+        for i, (ax, sset) in enumerate(zip(axes.flat, first)):
+            for r in ran:
+                ax.plot(r.evaluation.recording.t, np.maximum(sets[r.label][i].distance, 1e-3), color=color[r.label],
+                        lw=1.2, label=r.label)
+            ax.axhline(1.0, color="k", ls=":", lw=0.8)
+            ax.set_yscale("log")
+            ax.set_title(f"{sset.name}: {sset.condition}", fontsize=8)
+            ax.grid(alpha=0.3, which="both")
+        for ax in list(axes.flat)[len(first):]:
+            ax.set_visible(False)
+        axes[0, 0].legend(fontsize=8, loc="best")
+        fig.suptitle("Distance to each singular set, in multiples of the near tolerance (dotted: near)")
+        for ax in axes[-1]:
+            ax.set_xlabel("time (s)")
+        _save(fig, folder / "singular_distance.png")
+        files.append("singular_distance.png")
+    return files
+
+
+def _save(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,276 @@
+"""The mink baseline (simbench.planners.mink_baseline) and methods compared side by side (simbench.compare).
+
+The baseline is checked against the robots' analytic kinematics (robots/puma600.py, robots/spherical_arm.py), not
+against its own report: on random straight lines the tool stays on the line, every joint within its range and
+its speed limit (the rates measured as differences of the joint references). A comparison's table is checked
+against separate simbench.evaluate runs of the same methods, written out as scenario files by hand.
+"""
+
+import csv
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+import simbench
+from simbench import api, random_tasks
+from simbench.compare import compare
+from simbench.errors import RunError, ScenarioError
+from simbench.planners import mink_baseline
+from simbench.robots import puma600 as P
+from simbench.robots import spherical_arm as S
+from simbench.scenario import parse_scenario
+from conftest import scenario_file
+
+DT = 0.01  # s: the random lines' control grid (100 Hz; the shipped scenarios run at 1 kHz: the same method)
+N_LINES = 12
+ON_LINE = 5e-4  # m: the tool's largest distance from the line: a tenth of the shipped path tolerance (at a 1 ms
+# grid it is ten times less: each step's QP lags its target by about damping / sigma^2 of the step)
+ON_ORIENTATION = np.deg2rad(0.05)  # the PUMA torch's largest turn from the line's orientation
+FAR = api.Tolerance(np.deg2rad(10.0), 0.02)  # followed plans stay farther than this from singular sets
+_SPEED = 1 + 1e-9  # a joint speed within its limit, to rounding
+WRIST = scenario_file("puma600", "wrist_singularity")
+
+
+def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (N,) of points x (N, 3) from the segment a-b."""
+    ab = b - a
+    u = np.clip((x - a) @ ab / (ab @ ab), 0.0, 1.0)
+    return np.linalg.norm(x - (a + u[:, None] * ab), axis=1)
+
+
+def follow(doc: dict, **settings) -> dict:
+    """A scenario document with mink_baseline following the document's planner and task."""
+    return {**doc, "planner": "mink_baseline", "task": {"follow": doc["planner"], "task": doc["task"], **settings}}
+
+
+def followed_plan(doc: dict):
+    """(scenario, the followed planner's plan) of a mink_baseline document, on the DT grid."""
+    scenario = parse_scenario(doc, "random")
+    inner = mink_baseline.followed(scenario)
+    return scenario, inner.planner_def.plan(inner, scenario.robot_def, DT)
+
+
+def inside_limits(robot, q: np.ndarray, room: np.ndarray) -> bool:
+    """Every joint at least `room` inside its range all along q."""
+    return bool((q >= robot.lower + room).all() and (q <= robot.upper - room).all())
+
+
+def far_and_slow(kinematics, plan) -> bool:
+    """The plan keeps away from every singular set of the robot's kinematics module (FAR) and within 80 % of
+    every speed limit."""
+    near = min(s.distance.min() for s in kinematics.singular_sets(plan.q_ref, FAR))
+    return near > 1.0 and (np.abs(plan.qd_ref) / kinematics.QD_MAX).max() < 0.8
+
+
+def puma_lines():
+    """N_LINES random PUMA lines (random_tasks, the torch within 30 deg of straight down) whose followed plan is
+    far from singular sets and joint limits and slow enough to follow: (line start, end, torch rotation, followed
+    plan, baseline plan)."""
+    out = []
+    for doc in random_tasks.puma_lines(60, seed=3, cone=np.deg2rad(30)):
+        try:
+            scenario, ref = followed_plan(follow(doc))
+        except RunError:  # no configuration keeps this line within the joint ranges
+            continue
+        if far_and_slow(P, ref) and inside_limits(P.ROBOT, ref.q_ref, np.deg2rad(5.0)):
+            line = doc["task"]["path"][0]["line"]
+            w, x, y, z = doc["task"]["orientation"]["value"]
+            out.append((np.array(line["start"]), np.array(line["end"]), Rotation.from_quat([x, y, z, w]), ref,
+                        scenario.planner_def.plan(scenario, P.ROBOT, DT)))
+        if len(out) == N_LINES:
+            return out
+    raise AssertionError("too few random PUMA lines far from singularities")
+
+
+def spherical_lines():
+    """N_LINES random lines of the spherical arm between two random configurations (paper 000's method, no
+    workspace repair), whose followed plan is far from singular sets and limits: (line start, end, followed plan,
+    baseline plan)."""
+    rng = np.random.default_rng(5)
+    lo, hi = np.array([0.0, 0.02, np.deg2rad(-60.0), 0.02]), np.array([2 * np.pi, 0.38, np.deg2rad(170.0), 0.38])
+    out = []
+    while len(out) < N_LINES:
+        q0, q1 = rng.uniform(lo, hi, size=(2, 4))
+        a, b = S.fk(q0)[0], S.fk(q1)[0]
+        doc = {"robot": "spherical_arm", "planner": "safe_straight_path",
+               "task": {"start": q0.tolist(), "goal": q1.tolist(), "workspace_repair": False},
+               "timing": {"duration": max(1.0, float(np.linalg.norm(b - a)) / 0.1)}}
+        scenario, ref = followed_plan(follow(doc))
+        room = np.array([0.0, 0.01, 0.1, 0.01])
+        if ref.warnings or not far_and_slow(S, ref) or not inside_limits(S.ROBOT, ref.q_ref, room):
+            continue  # leaves the workspace, or comes near a singular set or a limit
+        out.append((a, b, ref, scenario.planner_def.plan(scenario, S.ROBOT, DT)))
+    return out
+
+
+def assert_within_ranges_and_speeds(robot, plan) -> None:
+    """Every joint inside its range, and its speed (differences of the references, and the plan's own rates)
+    within its limit; the rates are those that carry each reference to the next."""
+    q = plan.q_ref
+    assert (q >= robot.lower - 1e-9).all() and (q <= robot.upper + 1e-9).all()
+    assert (np.abs(np.diff(q, axis=0)) / plan.dt <= robot.qd_max * _SPEED).all()
+    assert (np.abs(plan.qd_ref) <= robot.qd_max * _SPEED).all()
+    assert np.allclose(q[:-1] + plan.qd_ref[:-1] * plan.dt, q[1:], rtol=0, atol=1e-12)
+
+
+def test_on_random_puma_lines_the_baseline_keeps_the_torch_on_the_line_within_its_limits():
+    for a, b, rotation, ref, plan in puma_lines():
+        position, r06 = P.tool_pose(plan.q_ref)
+        assert segment_distance(position, a, b).max() < ON_LINE
+        assert np.linalg.norm(position[-1] - b) < ON_LINE  # it gets to the end, not only somewhere on the line
+        turn = (Rotation.from_matrix(r06) * rotation.inv()).magnitude()
+        assert turn.max() < ON_ORIENTATION
+        assert_within_ranges_and_speeds(P.ROBOT, plan)
+        assert plan.info["qp_failures"] == 0 and not plan.violations
+        assert np.array_equal(plan.t, ref.t) and np.array_equal(plan.tool_ref, ref.tool_ref)  # the same reference
+
+
+def test_on_random_spherical_arm_lines_the_baseline_keeps_the_tool_on_the_line_within_its_limits():
+    """The arm is redundant for a tool point (4 joints, 3 coordinates): the baseline resolves that its own way
+    (least joint motion, a weak pull to the start), which may take a joint to its range's end, where the arm
+    loses a degree of freedom; there it may leave the line, and must say by how much."""
+    on_line = 0
+    for a, b, ref, plan in spherical_lines():
+        assert_within_ranges_and_speeds(S.ROBOT, plan)
+        deviation = segment_distance(S.fk(plan.q_ref), a, b)
+        if deviation.max() < ON_LINE:
+            assert np.linalg.norm(S.fk(plan.q_ref[-1])[0] - b) < ON_LINE
+            on_line += 1
+        else:  # only where a joint came to its range's end, and the plan says how far it left the line
+            assert not inside_limits(S.ROBOT, plan.q_ref, np.array([0.0, 1e-3, 1e-2, 1e-3]))
+            assert plan.info["plan_path_deviation_max"] == pytest.approx(deviation.max(), rel=0.05)
+            assert any("leaves the followed path" in w for w in plan.warnings)
+    assert on_line >= N_LINES - 2
+
+
+def test_near_the_puma_wrist_singularity_the_baseline_keeps_the_speed_limits_and_leaves_the_path():
+    doc = yaml.safe_load(WRIST.read_text())
+    doc.pop("expect")
+    scenario = parse_scenario(follow(doc), str(WRIST))
+    plan = scenario.planner_def.plan(scenario, P.ROBOT, 1e-3)
+    inner = mink_baseline.followed(scenario)
+    paper = inner.planner_def.plan(inner, P.ROBOT, 1e-3)
+    # paper 002's method stays on the line at the price of the wrist speeds (q4, q6 over 1.3 times their limit)
+    assert (np.abs(paper.qd_ref[:, [3, 5]]) / P.QD_MAX[[3, 5]]).max() > 1.3
+    assert_within_ranges_and_speeds(P.ROBOT, plan)
+    assert np.isclose(np.abs(plan.qd_ref[:, [3, 5]]).max(axis=0), P.QD_MAX[[3, 5]]).all()  # held at the limit
+    line = doc["task"]["path"][0]["line"]
+    a, b = np.array(line["start"]) * 1e-3, np.array(line["end"]) * 1e-3
+    deviation = segment_distance(P.fk(plan.q_ref), a, b)
+    k = int(np.argmax(deviation))
+    assert 1e-3 < deviation[k] < 0.02  # damped: it leaves the line by millimetres, not by the arm's size
+    assert P.wrist_gap(paper.q_ref[k:k + 1])[0] < np.deg2rad(10)  # where the wrist is near its singularity
+    assert deviation[-1] < 1e-4  # and comes back to the line's end
+    assert any("speed limit" in w for w in plan.warnings)
+
+
+def test_the_baseline_refuses_a_robot_without_forward_kinematics_or_a_closed_chain_when_validated():
+    task = {"follow": "round_robin", "task": {}}
+    for robot, why in (("rsmg", "forward kinematics"), ("agile_eye", "closed chain")):
+        doc = {"robot": robot, "planner": "mink_baseline", "task": task, "timing": {"duration": 1.0}}
+        with pytest.raises(ScenarioError) as err:
+            parse_scenario(doc, "x.yaml")
+        assert err.value.field == "planner" and why in err.value.message and "\n" not in str(err.value)
+
+
+def test_the_followed_task_is_checked_by_the_followed_planner_and_named_inside_task_task():
+    doc = follow(yaml.safe_load(WRIST.read_text()))
+    doc["task"]["task"]["configuratoin"] = "auto"
+    with pytest.raises(ScenarioError, match=r"task\.task\.configuratoin: unknown field .*did you mean 'configuration'"):
+        parse_scenario(doc, "x.yaml")
+    doc = follow(yaml.safe_load(WRIST.read_text()))
+    doc["task"]["task"]["path"][0]["line"]["end"] = doc["task"]["task"]["path"][0]["line"]["start"]
+    with pytest.raises(ScenarioError, match=r"task\.task\.path\[0\]\.line: a line needs two different points"):
+        parse_scenario(doc, "x.yaml")
+    doc = follow(yaml.safe_load(WRIST.read_text()))
+    doc["task"]["follow"] = "safe_straight_path"
+    with pytest.raises(ScenarioError, match=r"task\.follow: 'safe_straight_path' works with spherical_arm"):
+        parse_scenario(doc, "x.yaml")
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare") / "wrist"
+    return out, compare(WRIST, ["decoupled_path", "mink_baseline"], None, out)
+
+
+def test_compare_writes_a_table_whose_rows_are_separate_evaluate_runs(compared, tmp_path):
+    out, result = compared
+    with open(out / "comparison.csv") as f:
+        rows = {r["method"]: r for r in csv.DictReader(f)}
+    assert list(rows) == ["decoupled_path", "mink_baseline"]
+    # the same methods as scenario files of their own, each evaluated separately
+    doc = yaml.safe_load(WRIST.read_text())
+    doc.pop("expect")
+    mink_file = tmp_path / "mink.yaml"
+    mink_file.write_text(yaml.safe_dump(follow(doc)))
+    for method, path in (("decoupled_path", WRIST), ("mink_baseline", mink_file)):
+        ev = simbench.evaluate(path)
+        r, tracking = rows[method], ev.analysis.tracking
+        assert r["status"] == ev.verdict.status
+        assert r["violations"].split() == sorted({v["kind"] for v in ev.verdict.violations})
+        for column, value in (("tool_error_max_m", tracking["tool_error_max"]),
+                              ("tool_error_rms_m", tracking["tool_error_rms"]),
+                              ("path_deviation_max_m", tracking["tool_max"]),
+                              ("path_deviation_rms_m", tracking["tool_rms"])):
+            assert float(r[column]) == value
+        peak = np.abs(ev.trajectory.qd_ref).max(axis=0)
+        for j, joint in enumerate(P.JOINTS):
+            assert float(r[f"qd_peak_{joint}"]) == peak[j]
+            assert float(r[f"qd_share_{joint}"]) == pytest.approx(peak[j] / P.QD_MAX[j], rel=1e-12)
+        near = simbench.load_scenario(path).analysis.near_angle
+        assert float(r["singular_min_wrist"]) == pytest.approx(P.wrist_gap(ev.recording.q).min() / near, rel=1e-12)
+        wrist_events = sum(e["kind"] == "wrist" for e in ev.analysis.singularity_events)
+        assert int(r["singular_events_wrist"]) == wrist_events
+        speed_events = sum(e["kind"] == "velocity_limit" for e in ev.analysis.limit_events)
+        assert int(r["limit_events_velocity_limit"]) == speed_events
+    # what the comparison shows: the paper's method asks over the wrist speed limit, the baseline leaves the path
+    assert float(rows["decoupled_path"]["qd_share_max"]) > 1.3 > 1.0 >= float(rows["mink_baseline"]["qd_share_max"])
+    assert float(rows["mink_baseline"]["plan_path_deviation_max_m"]) > 1e-3 > float(
+        rows["decoupled_path"]["plan_path_deviation_max_m"])
+
+
+def test_compare_writes_its_outputs_at_once_and_never_over_a_folder_it_did_not_write(compared, tmp_path):
+    out, result = compared
+    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert written == sorted([".simbench", *result.files])
+    assert {"comparison.csv", "comparison.md", "plots/tool_error.png", "plots/joint_speeds.png",
+            "plots/singular_distance.png"} <= set(result.files)
+    assert all((out / f).stat().st_size > 0 for f in result.files)
+    assert "| status | limits | limits |" in (out / "comparison.md").read_text()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes")
+    with pytest.raises(ScenarioError, match="did not write"):
+        compare(WRIST, ["decoupled_path"], None, mine, force=True)
+    assert (mine / "notes.txt").read_text() == "my notes" and len(list(mine.iterdir())) == 1
+
+
+def test_compare_refuses_an_unknown_planner_in_one_line_before_anything_runs(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(ScenarioError) as err:
+        compare(WRIST, ["decoupled_path", "mink_basline"], None, out)
+    message = str(err.value)
+    assert "\n" not in message and "unknown planner 'mink_basline'" in message and "'mink_baseline'" in message
+    with pytest.raises(ScenarioError, match="safe_straight_path cannot run .*works with spherical_arm"):
+        compare(WRIST, ["safe_straight_path"], None, out)
+    with pytest.raises(ScenarioError, match="unknown controller 'servos'"):
+        compare(WRIST, ["decoupled_path"], ["servos"], out)
+    assert not out.exists()
+
+
+def test_the_compare_command_prints_the_table_and_refuses_a_typo_in_one_line(tmp_path, capsys):
+    from simbench.cli import main
+
+    scenario = str(scenario_file("puma600", "wrist_singularity"))
+    code = main(["compare", scenario, "--planners", "decoupled_path,mink_basline", "--out", str(tmp_path / "c")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "mink_basline" in err[0] and not (tmp_path / "c").exists()
+    code = main(["compare", scenario, "--planners", "decoupled_path", "--controllers", "servo,computed_torque",
+                 "--out", str(tmp_path / "c"), "--quiet"])
+    printed = capsys.readouterr().out
+    assert code == 0 and printed == (tmp_path / "c" / "comparison.md").read_text() + "\n" + \
+        f"table, plots and index.html in {tmp_path / 'c'}\n"
+    assert (tmp_path / "c" / "index.html").is_file()
