@@ -76,3 +76,143 @@ def test_through_singularity_plan_reports_the_crossing(evaluated):
     assert any("may change assembly mode" in w for w in ev.trajectory.warnings)
     assert {v["kind"] for v in ev.trajectory.violations} == {"clearance_margin", "singular_crossing", "goal_missed"}
     assert ev.verdict.as_expected
+
+
+# Project issue 14: the planner's fast forms and analytic derivatives, each against what it stands for.
+
+def _random_poses(count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Base angles uniform on the torus and the FK solution nearest home (some near the singular curves)."""
+    theta = np.random.default_rng(seed).uniform(-np.pi, np.pi, (count, 3))
+    return theta, E.fk_nearest(theta, np.eye(3))
+
+
+def test_closed_form_kci_is_the_kci():
+    theta, rot = _random_poses(3000, 14)
+    exact = E.kci(theta, rot)
+    assert exact.min() < 1e-3  # the draw reaches near the singular curves
+    np.testing.assert_allclose(E.kci_closed_form(theta, rot), exact, rtol=0, atol=1e-12)
+    # on a singular curve (v1 = u1 = z: a quarter turn about -y, then any turn about the new v1), both are 0
+    on_curve = (E.axis_rotation(np.array([[0.0, 1.0, 0.0]]), np.array([-np.pi / 2]))
+                @ E.axis_rotation(np.array([[1.0, 0.0, 0.0]]), np.array([0.7])))
+    assert E.axis_gaps(on_curve)[0, 0] < 1e-7
+    assert E.kci(E.ik(on_curve), on_curve)[0] == pytest.approx(0.0, abs=1e-12)
+    assert E.kci_closed_form(E.ik(on_curve), on_curve)[0] == pytest.approx(0.0, abs=1e-12)
+    # every v_i = +-u_i (B = 0 up to rounding, A regular: where agile_eye/through_singularity's plain path ends
+    # up): the same numbers as kci, whatever they mean there
+    cyclic = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])  # columns z, x, y: v_i = u_i
+    aligned = cyclic @ np.array([np.diag(f) for f in ([1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1])], float)
+    assert E.axis_gaps(aligned).max() == 0.0
+    turned = aligned @ E.axis_rotation(np.array([[1.0, 0.0, 0.0]]), np.array([1e-9]))
+    for rot in (aligned, turned):
+        theta = E.ik(rot)
+        np.testing.assert_array_equal(E.kci_closed_form(theta, rot), E.kci(theta, rot))
+
+
+def test_fk_follow_gives_fk_tracks_orientations():
+    """The same arrays, on smooth paths and on paths whose samples jump (the followed solution changing often)."""
+    rng = np.random.default_rng(14)
+    for step in (1e-3, 1e-2, 0.3, 2.0):
+        theta = np.cumsum(rng.normal(scale=step, size=(1500, 3)), axis=0)
+        start = E.fk_all(theta[:1])[0, rng.integers(8)]
+        assert np.array_equal(E.fk_follow(theta, start), E.fk_track(theta, start), equal_nan=True)
+
+
+def _fd_along_fk(fn, theta, rot, h=1e-6):
+    """Central differences in each base angle of fn(theta, rot), the platform following the exact FK."""
+    out = []
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = h
+        plus, minus = E.fk_nearest(theta + d, rot), E.fk_nearest(theta - d, rot)
+        out.append((fn(theta + d, plus) - fn(theta - d, minus)) / (2 * h))
+    return np.stack(out, axis=-1)
+
+
+def test_kci_and_axis_gap_gradients_match_finite_differences():
+    """Along the exact FK (rates A^-1 B), and in a turn of the platform alone (as a learnt FK's estimate turns,
+    off the closure constraints)."""
+    theta, rot = _random_poses(400, 15)
+    keep = E.kci(theta, rot) > 0.02  # away from the singular curves, where the KCI is not differentiable
+    theta, rot = theta[keep], rot[keep]
+    rates = E.platform_rates(theta, rot)
+    kci, d_theta, d_omega = E.kci_partials(theta, rot)
+    np.testing.assert_allclose(kci, E.kci(theta, rot), atol=1e-12)
+    fd = _fd_along_fk(E.kci, theta, rot)
+    np.testing.assert_allclose(d_theta + np.einsum("nc,ncj->nj", d_omega, rates), fd, rtol=1e-5, atol=1e-6)
+    gaps, d_gaps = E.axis_gap_partials(rot)
+    np.testing.assert_array_equal(gaps, E.axis_gaps(rot))
+    fd = _fd_along_fk(lambda t, r: E.axis_gaps(r), theta, rot)
+    np.testing.assert_allclose(np.einsum("nic,ncj->nij", d_gaps, rates), fd, rtol=1e-5, atol=1e-6)
+    # the platform turned off the FK (w_i . v_i != 0), the base held
+    axes = np.random.default_rng(16).normal(size=(len(rot), 3))
+    rot = E.axis_rotation(axes / np.linalg.norm(axes, axis=1, keepdims=True), np.full(len(rot), 0.1)) @ rot
+    _, d_theta, d_omega = E.kci_partials(theta, rot)
+    h = 1e-6
+    for c in range(3):
+        axis = np.zeros((len(rot), 3))
+        axis[:, c] = 1.0
+        turned = [E.axis_rotation(axis, np.full(len(rot), s * h)) @ rot for s in (1, -1)]
+        fd = (E.kci_closed_form(theta, turned[0]) - E.kci_closed_form(theta, turned[1])) / (2 * h)
+        np.testing.assert_allclose(d_omega[:, c], fd, rtol=1e-5, atol=1e-6)
+        d = np.zeros(3)
+        d[c] = h
+        fd = (E.kci_closed_form(theta + d, rot) - E.kci_closed_form(theta - d, rot)) / (2 * h)
+        np.testing.assert_allclose(d_theta[:, c], fd, rtol=1e-5, atol=1e-6)
+
+
+def test_learnt_fk_reverse_mode_matches_finite_differences():
+    """rates_vjp: torque . (angular velocity of the network's estimate per unit rate of theta_j)."""
+    from simbench.planners import learnt_fk
+
+    net = learnt_fk.load()
+    rng = np.random.default_rng(17)
+    rot = learnt_fk.sample_workspace(300, rng)
+    for mode in (0, 6):
+        theta = E.ik(rot, mode)
+        estimate, layers = net.forward(theta, mode)
+        assert np.array_equal(estimate, net(theta, mode))
+        torque = rng.normal(size=(len(theta), 3))
+        pulled = net.rates_vjp(theta, mode, torque, layers)
+        h = 1e-6
+        for j in range(3):
+            d = np.zeros(3)
+            d[j] = h
+            turn = (net(theta + d, mode) - net(theta - d, mode)) / (2 * h) @ estimate.transpose(0, 2, 1)
+            omega = np.stack([turn[:, 2, 1], turn[:, 0, 2], turn[:, 1, 0]], axis=-1)
+            np.testing.assert_allclose(pulled[:, j], np.einsum("nc,nc->n", torque, omega), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("estimator", ["network", "exact"])
+def test_window_gradients_match_finite_differences(estimator):
+    """SLSQP's analytic gradients (objective and each constraint's worst clearance) against central differences
+    in x = (alpha, beta, gamma, L), at random x on the shipped scenario's first window; where the worst sample
+    changes within the step (a kink of the minimum) the constraint is skipped."""
+    import simbench
+    from conftest import scenario_file
+
+    task = simbench.load_scenario(scenario_file("agile_eye", "avoidance")).task
+    law = TimeLaw("4567", 4.0)
+    plan = method._plain_plan(task, law)
+    t0 = 0.5
+    exact = method._Estimator("exact", task.working_mode)
+    anchor = exact(plan.theta(np.linspace(0.0, t0, 26)), task.start.matrix())[-1]
+    fit = method._WindowFit(plan, t0, task, method._Estimator(estimator, task.working_mode), anchor)
+    rng = np.random.default_rng(18)
+    h = 1e-6
+    checked = 0
+    for _ in range(12):
+        x = np.array([*rng.normal(size=3), rng.uniform(0.05, 0.4)])
+        objective, constraint = fit._gradients(x)
+        for i in range(4):
+            d = np.zeros(4)
+            d[i] = h
+            plus, minus = fit.evaluate(x + d), fit.evaluate(x - d)
+            fd = (fit.objective(x + d) - fit.objective(x - d)) / (2 * h)
+            assert objective[i] == pytest.approx(fd, rel=1e-4, abs=1e-7)
+            for name, c in fit.evaluate(x).clear.items():
+                if not np.argmin(plus.clear[name]) == np.argmin(minus.clear[name]) == np.argmin(c):
+                    continue
+                fd = (plus.slack[name] - minus.slack[name]) / (2 * h)
+                assert constraint[name][i] == pytest.approx(fd, rel=1e-4, abs=1e-7), name
+                checked += 1
+    assert checked > 100

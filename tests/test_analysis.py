@@ -79,3 +79,119 @@ def test_simplified_polyline_stays_within_tolerance(seed, tol):
     assert kept[0] == 0 and kept[-1] == len(pts) - 1
     dist = path_deviation(pts[kept], pts)
     assert dist.max() <= tol + 1e-12
+
+
+# --- the search of the planned path (analysis._nearest, ._deviation) against brute force --------------------------
+
+def _segment_distances(path: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Distance of p from every segment of path, one by one."""
+    a, ab = path[:-1], np.diff(path, axis=0)
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    return np.linalg.norm(a + u[:, None] * ab - p, axis=1)
+
+
+def _kd_tree_rule(stretch: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The distances the k-d tree search of simbench 0ca0635 gave points from a stretch of path, written out by
+    brute force: repeated samples dropped, segments longer than the median (or 1e-5 of the length) cut into
+    pieces, and beyond 100 h (h half the longest piece) the nearest piece end's distance, else the exact one."""
+    v = stretch[np.concatenate([[True], np.any(np.diff(stretch, axis=0) != 0, axis=1)])]
+    if len(v) == 1:
+        return np.linalg.norm(points - v[0], axis=1)
+    length = np.linalg.norm(np.diff(v, axis=0), axis=1)
+    cuts = np.ones(len(length), int)
+    if len(v) >= 3:
+        cuts = np.ceil(length / max(np.median(length), 1e-5 * length.sum())).astype(int)
+    ends = np.concatenate([v[i] + np.arange(c)[:, None] / c * (v[i + 1] - v[i]) for i, c in enumerate(cuts)]
+                          + [v[-1:]])
+    half = 0.5 * np.linalg.norm(np.diff(ends, axis=0), axis=1).max()
+    out = []
+    for p in points:
+        nearest_end = np.linalg.norm(ends - p, axis=1).min()
+        out.append(nearest_end if nearest_end > 100 * half else _segment_distances(v, p).min())
+    return np.array(out)
+
+
+def _random_path(rng: np.random.Generator, n: int) -> np.ndarray:
+    """A wandering path with what the planned paths have: stretches that crawl (steps of 1e-9 of the others, as a
+    4-5-6-7 law's ends), samples repeated (a hold), a jump, and a return near where it has been."""
+    steps = rng.normal(scale=0.01, size=(n - 1, 3))
+    steps[: n // 6] *= 1e-9
+    steps[n // 3: n // 3 + n // 10] = 0.0
+    steps[n // 2] *= 200
+    path = np.concatenate([[np.zeros(3)], np.cumsum(steps, axis=0)])
+    back = n // 8
+    path[n - back:] = path[n // 4: n // 4 + back][::-1] + 1e-4
+    return path
+
+
+def test_the_branch_and_bound_finds_every_points_nearest_segment_in_its_range():
+    """_nearest against every segment of each point's range, ranges and paths at random (fixed seed): the distance
+    within its tolerance (1e-12 of the scale), and, asked which, a segment at that distance."""
+    from simbench.analysis import _capsules, _nearest
+
+    rng = np.random.default_rng(14)
+    for n in (2, 3, 5, 17, 300, 1000):
+        path = _random_path(rng, n) if n > 16 else rng.normal(size=(n, 3))
+        tree = _capsules(path)
+        m = 200
+        points = path[rng.integers(0, n, m)] + rng.normal(size=(m, 3)) * rng.choice([1e-6, 1e-3, 0.1, 3.0], (m, 1))
+        first = rng.integers(0, n - 1, m)
+        last = np.minimum(first + rng.integers(0, n, m), n - 2)
+        order = np.lexsort((last, first))  # runs of equal ranges, as _deviation's blocks give them
+        points, first, last = points[order], first[order], last[order]
+        guess = np.minimum(first + rng.integers(0, 3, m), last)
+        exact = np.array([_segment_distances(path[f:l + 2], p).min() for p, f, l in zip(points, first, last)])
+        tol = 1e-12 * (1 + np.abs(path).max() + np.abs(points).max())
+        found, _ = _nearest(tree, points, first, last, guess)
+        assert np.all(np.abs(found - exact) <= 2 * tol), n
+        found, segment = _nearest(tree, points, first, last, guess, which=True)
+        assert np.all((first <= segment) & (segment <= last))
+        at = np.array([_segment_distances(path[s:s + 2], p)[0] for p, s in zip(points, segment)])
+        assert np.all(np.abs(found - exact) <= 2 * tol) and np.all(np.abs(at - exact) <= 2 * tol), n
+
+
+def test_deviation_near_reference_gives_what_the_k_d_tree_search_gave():
+    """deviation_near_reference against the k-d tree search it replaced, written out by brute force block by block
+    (_kd_tree_rule), on random paths (fixed seed) with points near them, off them and far from them."""
+    rng = np.random.default_rng(140)
+    for n, window in ((400, 60), (700, 250), (90, 200)):
+        path = _random_path(rng, n)
+        offset = rng.normal(size=(n, 3)) * rng.choice([0.0, 1e-7, 1e-3, 0.05, 2.0], (n, 1))
+        points = path[np.clip(np.arange(n) - rng.integers(0, 5, n), 0, n - 1)] + offset
+        got = deviation_near_reference(path, points, window)
+        for start in range(0, n, window):
+            stop = min(start + window, n)
+            stretch = path[max(start - window, 0):stop + window]
+            want = _kd_tree_rule(stretch, points[start:stop])
+            assert np.allclose(got[start:stop], want, rtol=0, atol=1e-11), (n, window, start)
+        whole = path_deviation(path, points)
+        assert np.allclose(whole, _kd_tree_rule(path, points), rtol=0, atol=1e-11)
+
+
+def test_a_plotted_series_keeps_its_look_at_the_figures_resolution():
+    """plots._envelope keeps, in every pixel column, the column's first, last, least and greatest sample, and the
+    ends of every gap (NaN), so that the drawn line has the same extent in every column."""
+    from simbench.plots import _envelope
+
+    rng = np.random.default_rng(7)
+    t = np.linspace(0, 10, 10_001)
+    y = np.cumsum(rng.normal(size=t.size))
+    y[rng.integers(0, t.size, 20)] += 300  # spikes one sample wide
+    y[4000:4100] = np.nan
+    y[7777] = np.nan
+    columns = 750
+    tk, yk = _envelope(t, y, columns)
+    assert len(tk) < len(t) / 2 and tk[0] == t[0] and tk[-1] == t[-1] and np.all(np.diff(tk) > 0)
+    size = -(-t.size // columns)
+    for c in range(0, t.size, size):
+        inside = (t[c] <= tk) & (tk <= t[min(c + size, t.size) - 1])
+        column = y[c:c + size]
+        if np.isfinite(column).any():
+            assert np.nanmax(yk[inside]) == np.nanmax(column) and np.nanmin(yk[inside]) == np.nanmin(column)
+    kept = np.isin(t, tk)
+    gap = np.isnan(y)
+    edges = np.flatnonzero(gap[1:] != gap[:-1])
+    assert kept[edges].all() and kept[edges + 1].all()
+    short = np.arange(100.0)
+    assert _envelope(short, short, columns)[0] is short

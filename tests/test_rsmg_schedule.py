@@ -67,16 +67,18 @@ def largest_minor(rows: np.ndarray, gripping: np.ndarray) -> np.ndarray:
 
 
 def grips(traj) -> tuple[np.ndarray, np.ndarray]:
-    """From the switches alone: which arms grip at each control sample (N, 4) and the point each holds (N, 4)."""
+    """From the switches alone: which arms grip at each control sample (N, 4) and the point each holds (N, 4, 3,
+    rotor frame; the paper's candidate by its letter where the switch names one of a, b, c)."""
     gripping = np.zeros((traj.t.size, S.ARMS), bool)
-    point = np.full((traj.t.size, S.ARMS), -1)
+    point = np.full((traj.t.size, S.ARMS, 3), np.nan)
     for on in (w for w in traj.switches if w.active):
         arm = on.detail["arm"] - 1
         off = min((w.t for w in traj.switches if not w.active and w.detail["arm"] == arm + 1 and w.t > on.t),
                   default=np.inf)
         rows = (traj.t >= on.t - 1e-9) & (traj.t < off - 1e-9)
         gripping[rows, arm] = True
-        point[rows, arm] = "abc".index(on.detail["to_point"])
+        letter = on.detail["to_point"]
+        point[rows, arm] = S.POINTS[arm, "abc".index(letter)] if letter in ("a", "b", "c") else on.detail["point"]
     return gripping, point
 
 
@@ -88,7 +90,7 @@ def check_plan(traj, task) -> float:
     # Each gripping arm's planned joints put its EM on its point of the commanded rotor.
     rotor = Rotation.from_quat(traj.series["rotor_quat_ref"][:, [1, 2, 3, 0]]).as_matrix()
     n, arm = np.nonzero(gripping)
-    held = np.einsum("nij,nj->ni", rotor[n], S.POINTS[arm, point[n, arm]])
+    held = np.einsum("nij,nj->ni", rotor[n], point[n, arm])
     assert np.abs(v[n, arm] - held).max() < 1e-3
     measure = largest_minor(np.cross(w, v), gripping)
     assert measure.min() >= task.det_a_min - 2e-3  # linear interpolation between the schedule's 5 ms steps
@@ -127,7 +129,8 @@ def test_random_motions_keep_det_a_and_the_band_over_the_whole_schedule():
 def test_four_gripping_arms_losing_rank_are_a_deadline():
     """With one set of points whose A loses rank midway for every choice, the schedule is refused, naming when, the
     arms, the measure and the floor; with every arm's rows firm, the same gammas are scheduled."""
-    task = round_robin.Task.model_validate({"motion": {"kind": "turns", "axis": [0, 0, 1], "turns": 1}})
+    task = round_robin.Task.model_validate({"motion": {"kind": "turns", "axis": [0, 0, 1], "turns": 1},
+                                            "contacts": "fixed"})
     n = 400
     gamma = np.full((S.ARMS, S.CANDIDATES, n), np.pi / 2)
     firm = np.broadcast_to(S.U[:, None, None, :], gamma.shape + (3,)).copy()

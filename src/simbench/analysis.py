@@ -16,9 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
-
-from simbench.budget import SEARCH_PAIRS
 
 from simbench.robots import Robot, Tolerance
 from simbench.sim import Recording
@@ -27,6 +24,8 @@ from simbench.trajectory import JointTrajectory
 _JUMP_FACTOR = 10.0
 _NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within this time of its reference
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
+_BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
+_LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
 
 
 @dataclass(frozen=True)
@@ -54,63 +53,9 @@ def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dic
 
 
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Distance of each point from the polyline `path`.
-
-    A point's nearest vertex, at distance r, bounds its distance from the path, and every point of a segment
-    lies within half the longest segment, h, of one of its ends; so only segments with an end within r + h of
-    the point can be nearer, and a k-d tree finds those ends. Far from the path (r > 100 h) the nearest vertex is
-    taken as is: it is then within h^2 / 2r < h / 200 of the exact distance.
-    """
-    keep = np.concatenate([[True], np.any(np.diff(path, axis=0) != 0, axis=1)])
-    vertices = _subdivided(path[keep])
-    if len(vertices) == 1:
-        return np.linalg.norm(points - vertices[0], axis=1)
-    tree = cKDTree(vertices)
-    best, _ = tree.query(points)
-    half = 0.5 * np.linalg.norm(np.diff(vertices, axis=0), axis=1).max()
-    close = np.flatnonzero(best <= 100 * half)
-    if close.size == 0:
-        return best
-    radius = best[close] + half + 1e-12
-    counts = tree.query_ball_point(points[close], radius, return_length=True)  # >= 1: the nearest vertex
-    # Points taken in batches of about SEARCH_PAIRS (point, vertex) pairs (a batch ends with the point that
-    # crosses the bound), so that memory stays bounded where many vertices crowd one place.
-    batch_of = (np.cumsum(counts) - counts) // SEARCH_PAIRS
-    for part in np.split(np.arange(close.size), np.flatnonzero(np.diff(batch_of)) + 1):
-        batch = close[part]
-        best[batch] = np.minimum(best[batch], _nearest_segment(tree, vertices, points[batch], radius[part]))
-    return best
-
-
-def _subdivided(vertices: np.ndarray) -> np.ndarray:
-    """The same polyline with its long segments cut into pieces no longer than the typical one (the median, or
-    1e-5 of the whole length if that is longer): one long segment among short ones (a jump in the plan) would
-    otherwise widen every point's search ball to it, and the search would grow with the square of the samples."""
-    if len(vertices) < 3:
-        return vertices
-    length = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
-    piece = max(float(np.median(length)), 1e-5 * float(length.sum()))
-    cuts = np.ceil(length / piece).astype(int)
-    if (cuts <= 1).all():
-        return vertices
-    # Vertex i followed by cuts[i] - 1 evenly spaced points towards vertex i + 1.
-    owner = np.repeat(np.arange(len(length)), cuts)
-    fraction = (np.arange(len(owner)) - np.repeat(np.cumsum(cuts) - cuts, cuts)) / cuts[owner]
-    points = vertices[owner] + fraction[:, None] * (vertices[owner + 1] - vertices[owner])
-    return np.concatenate([points, vertices[-1:]])
-
-
-def _nearest_segment(tree: cKDTree, vertices: np.ndarray, points: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """Each point's distance from the nearest of the segments that have an end within its radius."""
-    near = tree.query_ball_point(points, radius)
-    counts = np.fromiter(map(len, near), int, len(near))
-    vertex = np.concatenate(near).astype(int)
-    owner = np.repeat(np.arange(len(points)), counts)
-    last = len(vertices) - 2
-    distance = np.minimum(_segment_distance(vertices, np.clip(vertex - 1, 0, last), points[owner]),
-                          _segment_distance(vertices, np.minimum(vertex, last), points[owner]))
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    return np.minimum.reduceat(distance, first)
+    """Distance of each point from the polyline `path` (see `_deviation` for how it is searched)."""
+    n = len(points)
+    return _deviation(np.asarray(path, float), np.asarray(points, float), [(0, n, 0, len(path) - 1)])
 
 
 def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) -> np.ndarray:
@@ -118,20 +63,240 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) 
     (from `window` to twice that: the path is cut into blocks of `window` samples, each searched with its
     neighbours). A path that comes back to the same place later, a rotor turning many times say, then does not
     hide a point that is off its own stretch, and the search stays as cheap as on a path that never returns."""
+    n = len(points)
+    blocks = [(start, min(start + window, n), max(start - window, 0), min(start + 2 * window, len(path)) - 1)
+              for start in range(0, n, window)]
+    return _deviation(np.asarray(path, float), np.asarray(points, float), blocks, reference=True)
+
+
+def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int, int, int]],
+               reference: bool = False) -> np.ndarray:
+    """Distance of points[a:b] from the polyline path[first:last + 1], for each block (a, b, first, last).
+
+    Exact to about 1e-12 of the coordinates' scale: a branch and bound over a tree of the path's stretches of 2^l
+    segments (`_capsules`), each bounded by a capsule about its chord, so that each point examines a few stretches a
+    level (`_nearest`). `reference`: points[k] is planned at path[k], and the segment there gives the first bound.
+    Repeated samples are dropped first: the polyline is the same.
+
+    Far from its stretch of path (nearest vertex r > 100 h), a point's distance is the one the k-d tree search
+    that this replaced gave, from the nearest vertex of the stretch with its segments cut into pieces of at most
+    2h: within h^2 / 2r < h / 200 of the exact distance (`_far_rule`; where that is more than 1e-11 of the scale).
+    """
+    if len(path) == 0:
+        raise ValueError("path_deviation needs a path of at least one point")
+    reference = reference and len(points) <= len(path)
+    keep = np.concatenate([[True], np.any(path[1:] != path[:-1], axis=1)])  # repeated samples add nothing
+    index = np.cumsum(keep) - 1  # each sample's vertex among those kept
+    vertices = path[keep]
+    first = np.empty(len(points), int)
+    last = np.empty(len(points), int)
+    for a, b, lo, hi in blocks:
+        first[a:b], last[a:b] = index[lo], index[hi]
     out = np.empty(len(points))
-    for start in range(0, len(points), window):
-        stop = min(start + window, len(points))
-        stretch = path[max(start - window, 0):stop + window]
-        out[start:stop] = path_deviation(stretch, points[start:stop])
+    segment = np.full(len(points), -1)
+    single = first == last
+    out[single] = np.linalg.norm(points[single] - vertices[first[single]], axis=1)
+    todo = np.flatnonzero(~single)
+    if todo.size:
+        tree = _capsules(vertices)
+        for part in np.array_split(todo, -(-todo.size // _BATCH)):  # memory bounded on a long run
+            guess = np.clip(index[part], first[part], last[part] - 1) if reference else first[part]
+            out[part], segment[part] = _nearest(tree, points[part], first[part], last[part] - 1, guess)
+        lengths = np.sqrt(np.einsum("ij,ij->i", *(2 * [np.diff(vertices, axis=0)])))
+        for a, b, lo, hi in blocks:
+            _far_rule(tree, vertices, lengths, points, out, first, last, segment, a, b)
     return out
 
 
-def _segment_distance(vertices: np.ndarray, seg: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Distance of each point from the segment vertices[seg] -> vertices[seg + 1]."""
-    a, ab = vertices[seg], vertices[seg + 1] - vertices[seg]
-    rel = points - a
-    u = np.clip(np.einsum("ij,ij->i", rel, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-    return np.linalg.norm(rel - u[:, None] * ab, axis=1)
+def _distance(ax, ay, az, bx, by, bz, px, py, pz) -> np.ndarray:
+    """Distance of each point p from the segment a -> b (the point a where b = a), coordinates as separate
+    arrays."""
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    rx, ry, rz = px - ax, py - ay, pz - az
+    length2 = abx * abx + aby * aby + abz * abz
+    u = rx * abx + ry * aby + rz * abz
+    np.divide(u, length2, out=u, where=length2 > 0)
+    u[length2 <= 0] = 0.0
+    np.clip(u, 0.0, 1.0, out=u)
+    ex, ey, ez = rx - u * abx, ry - u * aby, rz - u * abz
+    return np.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+def _segment_distance(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance of each point (N, 3) from the segment a -> b (N, 3 each)."""
+    return _distance(*a.T, *b.T, *points.T)
+
+
+@dataclass(frozen=True)
+class _Capsules:
+    """A polyline's vertices (padded to 2^depth segments with copies of the last; x, y and z apart) and, for
+    every level l >= _LEAF, its stretches of 2^l segments each as a capsule: the chord a -> a + ab from its first
+    vertex to its last, and a radius r within which every point of the stretch lies of the chord. Level l's rows:
+    ax, ay, az, abx, aby, abz, 1 / |ab|^2 (0 for a stretch that closes), r and |ab| + 2 r (the stretch's points
+    are that near one another)."""
+
+    xyz: tuple[np.ndarray, np.ndarray, np.ndarray]
+    levels: list[np.ndarray | None]  # None below _LEAF
+    scale: float  # the largest coordinate
+
+
+def _capsules(vertices: np.ndarray) -> _Capsules:
+    """The capsule tree of a polyline of at least two vertices. A stretch's radius is its halves' larger plus the
+    distance of its middle vertex from its chord: its halves' chords lie within that of its own chord (a
+    segment's distance from a chord is greatest at one of its ends)."""
+    segments = len(vertices) - 1
+    depth = int(np.ceil(np.log2(segments))) if segments > 1 else 0
+    size = 1 << depth
+    padded = np.concatenate([vertices, np.repeat(vertices[-1:], size - segments, axis=0)])
+    x, y, z = (np.ascontiguousarray(c) for c in padded.T)
+    levels: list[np.ndarray | None] = [None] * _LEAF  # below _LEAF, stretches are searched segment by segment
+    radius = np.zeros(size)
+    for level in range(1, depth + 1):
+        step = 1 << level
+        ax, ay, az = x[0:size:step], y[0:size:step], z[0:size:step]
+        abx, aby, abz = x[step::step] - ax, y[step::step] - ay, z[step::step] - az
+        length2 = abx * abx + aby * aby + abz * abz
+        inverse = np.zeros_like(length2)
+        np.divide(1.0, length2, out=inverse, where=length2 > 0)
+        mx, my, mz = x[step // 2:size:step] - ax, y[step // 2:size:step] - ay, z[step // 2:size:step] - az
+        u = np.clip((mx * abx + my * aby + mz * abz) * inverse, 0.0, 1.0)
+        mx, my, mz = mx - u * abx, my - u * aby, mz - u * abz
+        radius = np.maximum(radius[0::2], radius[1::2]) + np.sqrt(mx * mx + my * my + mz * mz)
+        if level >= _LEAF:
+            levels.append(np.array([ax, ay, az, abx, aby, abz, inverse, radius, np.sqrt(length2) + 2 * radius]))
+    return _Capsules((x, y, z), levels, float(np.abs(vertices).max()))
+
+
+def _cover(first: int, last: int) -> list[tuple[int, int]]:
+    """The stretches (level, index) of a capsule tree that together are segments first..last, at most two a
+    level (a segment tree's query)."""
+    out, lo, hi, level = [], first, last + 1, 0
+    while lo < hi:
+        if lo & 1:
+            out.append((level, lo))
+            lo += 1
+        if hi & 1:
+            hi -= 1
+            out.append((level, hi))
+        lo, hi, level = lo >> 1, hi >> 1, level + 1
+    return out
+
+
+def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.ndarray, guess: np.ndarray,
+             which: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's distance from segments first..last of the tree's polyline (the same for runs of points), to
+    1e-12 of the coordinates' scale, and, if `which`, the segment at that distance (else `guess`).
+
+    Branch and bound, level by level from the largest stretches that make up a point's range (`_cover`) down to
+    stretches of 2^_LEAF segments, whose segments are then measured one by one: a stretch's capsule bounds its
+    distance from a point from below (the distance from its chord less its radius) and from above (plus the radius:
+    every point of the chord lies within the radius of the stretch). The first upper bound is the distance from
+    segment `guess` or the one before it. A stretch that cannot come nearer than the least upper bound so far is
+    dropped, the others split in two; to tell the segment, a stretch whose points all lie within the tolerance of
+    one another counts as its first segment, and otherwise a stretch is dropped only if it cannot come nearer by the
+    tolerance.
+    """
+    vx, vy, vz = tree.xyz
+    px, py, pz = (np.ascontiguousarray(c) for c in points.T)
+    count = len(points)
+    tol = 1e-12 * (1.0 + max(tree.scale, float(np.abs(points).max())))
+
+    def exact(k: np.ndarray, seg: np.ndarray) -> np.ndarray:
+        return _distance(vx[seg], vy[seg], vz[seg], vx[seg + 1], vy[seg + 1], vz[seg + 1], px[k], py[k], pz[k])
+
+    everyone = np.arange(count)
+    before = np.maximum(guess - 1, first)
+    bound, at_before = exact(everyone, guess), exact(everyone, before)
+    segment = np.where(at_before < bound, before, guess)
+    bound = np.minimum(bound, at_before)
+    found = [(everyone, segment, bound.copy())]  # exact distances met, for `which`
+    heads = np.flatnonzero(np.concatenate(([True], (first[1:] != first[:-1]) | (last[1:] != last[:-1]))))
+    fresh: dict[int, list[tuple[int, int, int]]] = {}
+    for a, b in zip(heads.tolist(), np.append(heads[1:], count).tolist()):
+        for level, node in _cover(int(first[a]), int(last[a])):
+            fresh.setdefault(level, []).append((a, b, node))
+    leaves = [(np.arange(a, b).repeat(1 << level), np.tile(np.arange(node << level, (node + 1) << level), b - a))
+              for level in range(_LEAF) for a, b, node in fresh.get(level, ())]  # small stretches at the ends
+    k = j = np.empty(0, int)
+    for level in range(len(tree.levels) - 1, _LEAF - 1, -1):
+        if level in fresh:
+            k = np.concatenate([k, *(np.arange(a, b) for a, b, _ in fresh[level])])
+            j = np.concatenate([j, *(np.full(b - a, node) for a, b, node in fresh[level])])
+        if k.size == 0:
+            continue
+        table = tree.levels[level]
+        assert table is not None
+        ax, ay, az, abx, aby, abz, inverse, radius, extent = table.take(j, axis=1)
+        rx, ry, rz = px[k] - ax, py[k] - ay, pz[k] - az
+        u = (rx * abx + ry * aby + rz * abz) * inverse
+        np.clip(u, 0.0, 1.0, out=u)
+        rx -= u * abx
+        ry -= u * aby
+        rz -= u * abz
+        d = np.sqrt(rx * rx + ry * ry + rz * rz)
+        np.minimum.at(bound, k, d + radius)
+        if which:
+            small = extent <= tol
+            if small.any():
+                seg = j[small] << level
+                dist = exact(k[small], seg)
+                np.minimum.at(bound, k[small], dist)
+                found.append((k[small], seg, dist))
+            keep = (d - radius <= bound[k] + tol) & ~small
+        else:
+            keep = d - radius < bound[k] - tol
+        k, j = k[keep], 2 * j[keep]
+        k, j = np.concatenate([k, k]), np.concatenate([j, j + 1])
+    span = 1 << (_LEAF - 1)  # the children of the last level's stretches, segment by segment
+    leaves.append((np.repeat(k, span), (j[:, None] * span + np.arange(span)).ravel()))
+    k, seg = (np.concatenate(parts) for parts in zip(*leaves))
+    if k.size:
+        dist = exact(k, seg)
+        np.minimum.at(bound, k, dist)
+        if which:
+            found.append((k, seg, dist))
+    if not which:
+        return bound, segment
+    k, seg, dist = (np.concatenate(parts) for parts in zip(*found))
+    order = np.lexsort((dist, k))
+    least = order[np.concatenate(([True], k[order[1:]] != k[order[:-1]]))]  # each point's nearest, k ascending
+    return dist[least], seg[least]
+
+
+def _far_rule(tree: _Capsules, vertices: np.ndarray, lengths: np.ndarray, points: np.ndarray, out: np.ndarray,
+              first: np.ndarray, last: np.ndarray, guess: np.ndarray, a: int, b: int) -> None:
+    """Where one of points[a:b] (searched on vertices first..last, the same for all) lies far from that stretch,
+    its distance as the k-d tree search that `_nearest` replaced gave it, in place in `out`: with the stretch's
+    long segments cut into pieces no longer than the typical one (the median, or 1e-5 of the whole length if
+    that is longer) and h half the longest piece, a point whose nearest piece end lies beyond 100 h took that
+    end's distance, within h^2 / 2r of the exact one; only where h^2 / 2r exceeds 1e-11 of the coordinates' scale
+    does it differ from the exact one here. `lengths`: the segments', `guess`: a segment near each point."""
+    if a == b or first[a] == last[a]:
+        return
+    length = lengths[first[a]:last[a]]
+    cuts = np.ones(len(length), int)
+    if len(length) >= 2:
+        cuts = np.maximum(np.ceil(length / max(float(np.median(length)), 1e-5 * float(length.sum()))), 1).astype(int)
+    half = 0.5 * float((length / cuts).max())
+    tol = 1e-11 * (1.0 + tree.scale)
+    far = a + np.flatnonzero((out[a:b] > 99.99 * half) & (half * half > 2 * tol * out[a:b]))
+    if far.size == 0:
+        return
+    exact, nearest = _nearest(tree, points[far], first[far], last[far] - 1, guess[far], which=True)
+    # The piece ends nearest each point: either side of its foot on its nearest segment and on the segments
+    # before and after that one.
+    p, ends = points[far], []
+    for shift in (-1, 0, 1):
+        seg = np.clip(nearest + shift, first[a], last[a] - 1)
+        start, end, n = vertices[seg], vertices[seg + 1], cuts[seg - first[a]]
+        ab = end - start
+        u = np.clip(np.einsum("ij,ij->i", p - start, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+        for step in (0, 1):
+            piece = np.minimum(np.floor(u * n).astype(int) + step, n)
+            at = np.where((piece == n)[:, None], end, start + (piece / n)[:, None] * ab)
+            ends.append(np.linalg.norm(p - at, axis=1))
+    nearest_end = np.min(ends, axis=0)
+    out[far] = np.where(nearest_end > 100 * half, nearest_end, exact)
 
 
 def _rms(x: np.ndarray, axis=0) -> np.ndarray:

@@ -13,7 +13,11 @@ type 2 singularities by smooth bumps whose parameters SLSQP finds.
      three derivatives vanish at both ends of the window (the role of S*(tau*) in eqs. 11-12, whose printed
      form is lost). (c_1, c_2, c_3) = (alpha, beta, gamma) is a unit direction and L the amplitude (rad);
      scipy's SLSQP chooses them to maximise the path's mean KCI less a small cost on L, subject to every
-     clearance staying above its margin over the whole path (sections 6-7).
+     clearance staying above its margin over the whole path (sections 6-7). SLSQP is given the gradients
+     analytically (project issue 14): the KCI's and each clearance's partial derivatives in the base angles and
+     in the platform's rotation (agile_eye.kci_partials, axis_gap_partials, _angle_partial), pulled back through
+     the estimate's own derivative (the network's by reverse mode, the exact FK's A^-1 B) and the bump; the KCI
+     is computed in closed form (agile_eye.kci_closed_form, within 1e-13 of agile_eye.kci).
   4. Repeat for the next violation, up to max_windows; then check the result with the exact FK.
 
 Two additions of ours (project issue 19):
@@ -41,6 +45,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Annotated, Literal
 
 import numpy as np
@@ -65,6 +70,7 @@ _MAX_AMPLITUDE = np.pi / 4
 _SEARCH_STEP = np.deg2rad(0.5)  # rotation angle between the states the global search checks along a motion
 _ENDS = 1e-6  # rad: how near the exact FK of the last joint sample must come to the goal orientation
 _ON_CURVE = 1e-6  # rad: a platform axis this near its base axis is on a singular curve
+_ANALYTIC_GRADIENTS = True  # SLSQP gets the analytic gradients of _WindowFit (off: its finite differences)
 
 
 class Obstacle(SimbenchModel):
@@ -153,15 +159,29 @@ def _obstacle_names(task: Task) -> list[str]:
     return [obstacle.name or f"obstacle{k + 1}" for k, obstacle in enumerate(task.obstacles)]
 
 
-def clearances(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict[str, np.ndarray]:
+def _centers(task: Task) -> list[np.ndarray]:
+    """Each obstacle's centre as a rotation matrix (3, 3), read-only (Orientation.matrix, computed once)."""
+    return [_matrix(o.center.convention, tuple(o.center.value)) for o in task.obstacles]
+
+
+@lru_cache(maxsize=256)
+def _matrix(convention: str, value: tuple[float, ...]) -> np.ndarray:
+    """Orientation.matrix of an orientation given by its fields, kept: scipy takes about 0.1 ms for one."""
+    out = Orientation.model_construct(convention=convention, value=list(value)).matrix()  # already validated
+    out.flags.writeable = False
+    return out
+
+
+def clearances(task: Task, theta: np.ndarray, rot: np.ndarray,
+               kci: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Clearance (rad) of each obstacle and of the singular curves along orientations (N, 3, 3), positive
-    outside, negative inside; and the KCI where the task sets a floor on it."""
+    outside, negative inside; and the KCI (agile_eye.kci_closed_form, or `kci` if given) where the task sets a
+    floor on it."""
     out = {}
     if task.kci_min > 0:
-        out["kci"] = agile_eye.kci(theta, rot)
-    for name, obstacle in zip(_obstacle_names(task), task.obstacles):
-        center = np.broadcast_to(obstacle.center.matrix(), rot.shape)
-        out[name] = rotation_angle(center, rot) - obstacle.radius
+        out["kci"] = agile_eye.kci_closed_form(theta, rot) if kci is None else kci
+    for name, obstacle, center in zip(_obstacle_names(task), task.obstacles, _centers(task)):
+        out[name] = rotation_angle(np.broadcast_to(center, rot.shape), rot) - obstacle.radius
     out["type2"] = agile_eye.axis_gaps(rot).min(axis=1)
     return out
 
@@ -188,6 +208,21 @@ class _Estimator:
             return self.network(theta, self.mode)
         return _platform(theta, anchor)[0]
 
+    def estimate(self, theta: np.ndarray, anchor: np.ndarray) -> tuple[np.ndarray, list | None]:
+        """The orientations, as calling this gives them, and what `pull` reuses (the network's layers)."""
+        if self.network is not None:
+            return self.network.forward(theta, self.mode)
+        return self(theta, anchor), None
+
+    def pull(self, theta: np.ndarray, rot: np.ndarray, layers: list | None, torque: np.ndarray) -> np.ndarray:
+        """The gradient in the base angles (N, 3) of quantities whose derivatives in the platform's rotation are
+        `torque` (N, 3), each at its own sample: torque^T (d omega / d theta) of the estimate, the network's own
+        derivative (reverse mode) or the exact FK's (A^-1 B, zero where A is singular)."""
+        if self.network is not None:
+            return self.network.rates_vjp(theta, self.mode, torque, layers, rot)
+        rates = np.nan_to_num(agile_eye.platform_rates(theta, rot), nan=0.0, posinf=0.0, neginf=0.0)
+        return np.einsum("nc,ncj->nj", torque, rates)
+
 
 def _score(plan: Plan, t: np.ndarray, estimate: _Estimator, anchor: np.ndarray,
            task: Task) -> tuple[float, dict[str, float]]:
@@ -197,7 +232,7 @@ def _score(plan: Plan, t: np.ndarray, estimate: _Estimator, anchor: np.ndarray,
     need = margins(task)
     clear = clearances(task, theta, rot)
     slack = {name: float(c.min() - need[name]) for name, c in clear.items()}
-    kci = clear["kci"] if "kci" in clear else agile_eye.kci(theta, rot)
+    kci = clear["kci"] if "kci" in clear else agile_eye.kci_closed_form(theta, rot)
     return float(kci.mean()), slack
 
 
@@ -224,39 +259,128 @@ class _Violation:
     rot: np.ndarray
 
 
+@dataclass
+class _Evaluation:
+    """A candidate window's path on the window's samples: joint angles, estimated orientations (and the network's
+    layers), clearances (N,) by name, the KCI with its terms, mean KCI and each clearance's worst minus its
+    margin; the gradients once asked."""
+
+    theta: np.ndarray
+    rot: np.ndarray
+    layers: list | None
+    clear: dict[str, np.ndarray]
+    kci: agile_eye.KciTerms
+    mean_kci: float
+    slack: dict[str, float]
+    gradients: tuple[np.ndarray, dict[str, np.ndarray]] | None = None
+
+
+def _angle_partial(center: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Derivative (N, 3) of the geodesic angle between `center` (3, 3) and orientations rot (N, 3, 3) in the
+    platform's rotation: cos = (tr(C^T R) - 1) / 2 and dR = [omega]x R give d cos = omega . m / 2, m the axial
+    vector of R C^T less its transpose."""
+    m = rot @ center.T
+    cos = (np.einsum("ij,nij->n", center, rot) - 1) / 2
+    axial = np.stack([m[:, 1, 2] - m[:, 2, 1], m[:, 2, 0] - m[:, 0, 2], m[:, 0, 1] - m[:, 1, 0]], axis=-1)
+    return -0.5 * axial / np.sqrt(np.maximum(1.0 - np.clip(cos, -1.0, 1.0) ** 2, 1e-300))[:, None]
+
+
 class _WindowFit:
     """SLSQP's problem for a new window at t0 (x = alpha, beta, gamma, L): the plan with it, judged on the
     window's own samples, since a window changes the path only within itself (`anchor`: the orientation at t0,
-    where the exact FK starts following the mode). Scores are cached, as the objective and every constraint
-    ask for the same x."""
+    where the exact FK starts following the mode). The plan without the window is evaluated once on those
+    samples; each x's path, estimate and clearances are cached, as the objective and every constraint ask for the
+    same x, and so are their gradients (analytic: the chain x -> theta -> estimated orientation -> clearance or
+    KCI, _gradients), asked for at the points already evaluated."""
 
     def __init__(self, plan: Plan, t0: float, task: Task, estimate: _Estimator, anchor: np.ndarray):
         self.plan, self.t0, self.task, self.estimate, self.anchor = plan, t0, task, estimate, anchor
         self.length = task.avoidance.window
         self.t = np.linspace(t0, t0 + self.length, _WINDOW_SAMPLES)
         self.share = self.length / plan.law.duration  # the window's part of the path's mean KCI
-        self.cache: dict[bytes, tuple[float, dict]] = {}
+        self.base = plan.theta(self.t)  # the plan without the new window: plan.with_window(w).theta(t) - offset
+        self.bump = bump((self.t - t0) / self.length)
+        self.need = margins(task)
+        self.centers = dict(zip(_obstacle_names(task), _centers(task)))
+        self.cache: dict[bytes, _Evaluation] = {}
 
     def window(self, x: np.ndarray) -> Window:
         """The window x stands for, its direction made a unit vector."""
         return Window(self.t0, self.length, x[:3] / max(np.linalg.norm(x[:3]), 1e-12), float(x[3]))
 
-    def score(self, x: np.ndarray) -> tuple[float, dict[str, float]]:
-        """_score of the plan with the window x."""
+    def evaluate(self, x: np.ndarray) -> _Evaluation:
+        """The path with the window x on the window's samples (as _score judges plan.with_window(window(x)))."""
         key = x.tobytes()
         if key not in self.cache:
-            self.cache[key] = _score(self.plan.with_window(self.window(x)), self.t, self.estimate, self.anchor,
-                                     self.task)
+            window = self.window(x)  # its offset, as Window.offset gives it, from the bump kept
+            theta = self.base + (window.amplitude * self.bump)[:, None] * window.direction
+            rot, layers = self.estimate.estimate(theta, self.anchor)
+            kci = agile_eye.kci_terms(theta, rot)
+            clear = clearances(self.task, theta, rot, kci.kci)
+            self.cache[key] = _Evaluation(theta, rot, layers, clear, kci, float(kci.kci.mean()),
+                                          {name: float(c.min() - self.need[name]) for name, c in clear.items()})
         return self.cache[key]
+
+    def score(self, x: np.ndarray) -> tuple[float, dict[str, float]]:
+        """_score of the plan with the window x."""
+        e = self.evaluate(x)
+        return e.mean_kci, e.slack
 
     def objective(self, x: np.ndarray) -> float:
         """What SLSQP minimises: -(the window's share of the path's mean KCI) + w L^2."""
         return -self.share * self.score(x)[0] + self.task.avoidance.deviation_weight * x[3] ** 2
 
+    def _gradients(self, x: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Gradients in x (4,) of the objective and of each constraint's worst clearance (at its worst sample).
+        Each quantity's partial derivatives in theta (platform held) and in the platform's rotation are pulled
+        back to theta through the estimate's own derivative (_Estimator.pull), then to x: theta = base +
+        L b(tau) n, n = d / |d| (d = x[:3]), so d theta / d d = L b (I - n n^T) / |d| and d theta / dL = b n."""
+        e = self.evaluate(x)
+        if e.gradients is None:
+            norm = max(np.linalg.norm(x[:3]), 1e-12)
+            n, amplitude = x[:3] / norm, float(x[3])
+            _, d_theta, d_omega = agile_eye.kci_partials(e.theta, e.rot, e.kci)
+            rows, direct, torque = [np.arange(len(self.t))], [d_theta], [d_omega]
+            for name, c in e.clear.items():  # each constraint at its worst sample
+                k = int(np.argmin(c))
+                rows.append(np.array([k]))
+                if name == "kci":
+                    direct.append(d_theta[k:k + 1])
+                    torque.append(d_omega[k:k + 1])
+                    continue
+                direct.append(np.zeros((1, 3)))
+                if name == "type2":
+                    gaps, d_gaps = agile_eye.axis_gap_partials(e.rot[k:k + 1])
+                    torque.append(d_gaps[:, int(np.argmin(gaps[0]))])
+                else:
+                    torque.append(_angle_partial(self.centers[name], e.rot[k:k + 1]))
+            index = np.concatenate(rows)
+            layers = None if e.layers is None else [layer[index] for layer in e.layers]
+            g_theta = np.concatenate(direct) + self.estimate.pull(e.theta[index], e.rot[index], layers,
+                                                                  np.concatenate(torque))
+            b = self.bump[index]
+            g_x = np.concatenate([amplitude * b[:, None] * (g_theta @ ((np.eye(3) - np.outer(n, n)) / norm)),
+                                  (b * (g_theta @ n))[:, None]], axis=1)
+            samples = len(self.t)
+            objective = -self.share * g_x[:samples].mean(axis=0)
+            objective[3] += 2 * self.task.avoidance.deviation_weight * amplitude
+            e.gradients = (objective, dict(zip(e.clear, g_x[samples:])))
+        return e.gradients
+
+    def objective_gradient(self, x: np.ndarray) -> np.ndarray:
+        """The objective's gradient (4,)."""
+        return self._gradients(x)[0]
+
     def constraints(self) -> list[dict]:
-        """(alpha, beta, gamma) a unit vector, and every clearance _SAFETY above its margin."""
-        return [{"type": "eq", "fun": lambda x: x[:3] @ x[:3] - 1.0}] + [
-            {"type": "ineq", "fun": lambda x, n=name: self.score(x)[1][n] - _SAFETY} for name in margins(self.task)]
+        """(alpha, beta, gamma) a unit vector, and every clearance _SAFETY above its margin, with their
+        gradients (finite differences by SLSQP where _ANALYTIC_GRADIENTS is off)."""
+        unit = {"type": "eq", "fun": lambda x: x[:3] @ x[:3] - 1.0}
+        keep = [{"type": "ineq", "fun": lambda x, n=name: self.score(x)[1][n] - _SAFETY} for name in self.need]
+        if _ANALYTIC_GRADIENTS:
+            unit["jac"] = lambda x: np.array([2 * x[0], 2 * x[1], 2 * x[2], 0.0])
+            for con, name in zip(keep, self.need):
+                con["jac"] = lambda x, n=name: self._gradients(x)[1][n]
+        return [unit] + keep
 
 
 def _optimise_window(plan: Plan, t0: float, worst: _Violation, task: Task, estimate: _Estimator,
@@ -272,6 +396,7 @@ def _optimise_window(plan: Plan, t0: float, worst: _Violation, task: Task, estim
         if best is not None and time.perf_counter() > deadline:
             break
         result = minimize(fit.objective, np.array([*seed, 0.2]), method="SLSQP",
+                          jac=fit.objective_gradient if _ANALYTIC_GRADIENTS else None,
                           bounds=[(-1, 1)] * 3 + [(0, _MAX_AMPLITUDE)], constraints=constraints,
                           options={"maxiter": 40, "ftol": 1e-6})
         slack = min(fit.score(result.x)[1].values()) - _SAFETY
@@ -351,10 +476,10 @@ def optimise(task: Task, law: TimeLaw, deadline: float = np.inf) -> tuple[Plan, 
     return plan, steps
 
 
-def _summary(task: Task, theta: np.ndarray, rot: np.ndarray) -> dict:
-    """KCI and clearances of a path, exact orientations given."""
-    kci = agile_eye.kci(theta, rot)
-    clear = {name: float(c.min()) for name, c in clearances(task, theta, rot).items()}
+def _summary(task: Task, theta: np.ndarray, rot: np.ndarray, kci: np.ndarray | None = None) -> dict:
+    """KCI and clearances of a path, exact orientations given (and its KCI, if at hand)."""
+    kci = agile_eye.kci_closed_form(theta, rot) if kci is None else kci
+    clear = {name: float(c.min()) for name, c in clearances(task, theta, rot, kci).items()}
     gaps = agile_eye.axis_gaps(rot).min(axis=0)
     return {"kci": {"mean": float(kci.mean()), "min": float(kci.min())}, "clearance": clear,
             "singular_curves": {f"v{i + 1} = +-u{i + 1}": float(g) for i, g in enumerate(gaps)}}
@@ -389,18 +514,20 @@ def _platform(theta: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndar
     """The exact FK followed along a joint path from the start orientation (N, 3, 3), and where it is
     undetermined (N,): base angles at which the platform can turn with the base locked (the FK's roots
     degenerate, on the type 2 singular surface). There the orientation before is held."""
-    rot = agile_eye.fk_track(theta, start)
+    rot = agile_eye.fk_follow(theta, start)  # fk_track's orientations, faster
     undetermined = ~np.isfinite(rot).all(axis=(1, 2))
     for k in np.flatnonzero(undetermined):
         rot[k] = rot[k - 1] if k else start
     return rot, undetermined
 
 
-def _crossings(t: np.ndarray, theta: np.ndarray, rot: np.ndarray, undetermined: np.ndarray) -> np.ndarray:
+def _crossings(t: np.ndarray, theta: np.ndarray, rot: np.ndarray, undetermined: np.ndarray,
+               det_a: np.ndarray | None = None) -> np.ndarray:
     """Times where a path passes the type 2 singular surface: det A changes sign between two samples, or the
     platform comes onto a singular curve (some v_i = +-u_i within _ON_CURVE; there the FK followed may go on in
-    either assembly mode, det A's sign then telling nothing) or where its orientation is undetermined."""
-    det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0])
+    either assembly mode, det A's sign then telling nothing) or where its orientation is undetermined. `det_a`:
+    det A along the path, if at hand."""
+    det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0]) if det_a is None else det_a
     on = (agile_eye.axis_gaps(rot).min(axis=1) < _ON_CURVE) | undetermined
     arrives = np.flatnonzero(on & ~np.concatenate([[False], on[:-1]]))
     flips = 1 + np.flatnonzero(np.sign(det_a[1:]) * np.sign(det_a[:-1]) < 0)
@@ -410,8 +537,9 @@ def _crossings(t: np.ndarray, theta: np.ndarray, rot: np.ndarray, undetermined: 
 def _check(task: Task, name: str, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray) -> _Checked:
     """Judge a joint path by the exact FK of its samples (independent of how it was planned)."""
     rot, undetermined = _platform(theta, task.start.matrix())
-    exact = _summary(task, theta, rot)
-    crossings = _crossings(t, theta, rot, undetermined)
+    terms = agile_eye.kci_terms(theta, rot)  # its rows a_i are A's (agile_eye.jacobians)
+    exact = _summary(task, theta, rot, terms.kci)
+    crossings = _crossings(t, theta, rot, undetermined, np.linalg.det(terms.a))
     goal_error = float(rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
     keeps = not _shortfalls(task, exact["clearance"])
     return _Checked(name, theta, theta_dot, rot, exact, crossings, goal_error,

@@ -19,7 +19,8 @@ learnt from inverse-kinematics samples the same way, with these changes, each fo
 
 The trained weights ship in `data/agile_eye_fk.npz` with their held-out error against the exact FK (degrees);
 inference is plain NumPy, and nothing trains at import. `python -m simbench train-fk` retrains them (it needs
-scikit-learn: `pip install -e '.[train]'`).
+scikit-learn: `pip install -e '.[train]'`). The planner's gradients take the estimate's derivative by reverse mode
+(LearntFK.forward, rates_vjp: one backward pass through Gram-Schmidt and the layers).
 """
 
 from __future__ import annotations
@@ -86,6 +87,24 @@ def to_rotation(out: np.ndarray) -> np.ndarray:
     return np.stack([c1, c2, np.cross(c1, c2)], axis=-1)
 
 
+def _rotation_vjp(out: np.ndarray, torque: np.ndarray, rot: np.ndarray | None = None) -> np.ndarray:
+    """The cotangent (N, 6) of network outputs for which g . d_out = torque . omega, omega (base frame) the
+    angular velocity of to_rotation(out) along d_out: Gram-Schmidt differentiated. With c1 = a / |a|,
+    b' = b - p c1 (p = c1 . b), c2 = b' / |b'|, c3 = c1 x c2 and dc_k = omega x c_k, omega's body components
+    are (dc2 . c3, -dc1 . c3, dc1 . c2), dc2 . c3 = (db . c3 - p dc1 . c3) / |b'| and dc1 = (1 - c1 c1^T) da / |a|;
+    with t = R^T torque: g_b = t_1 c3 / |b'|, g_a = (t_3 c2 - (t_2 + t_1 p / |b'|) c3) / |a| (perpendicular to
+    c1, so the projection drops). `rot`: to_rotation(out) if at hand."""
+    rot = to_rotation(out) if rot is None else rot
+    a, b = out[:, :3], out[:, 3:]
+    norm_a = np.linalg.norm(a, axis=1, keepdims=True)
+    c1, c2, c3 = rot[:, :, 0], rot[:, :, 1], rot[:, :, 2]
+    p = np.einsum("ij,ij->i", c1, b)[:, None]
+    norm_b = np.linalg.norm(b - p * c1, axis=1, keepdims=True)
+    t = np.einsum("nck,nc->nk", rot, torque)  # body components of the torque
+    g_a = (t[:, 2:3] * c2 - (t[:, 1:2] + t[:, 0:1] * p / norm_b) * c3) / norm_a
+    return np.concatenate([g_a, t[:, 0:1] * c3 / norm_b], axis=1)
+
+
 def targets(rot: np.ndarray) -> np.ndarray:
     """Network outputs (N, 6) for orientations: their first two columns."""
     return np.concatenate([rot[:, :, 0], rot[:, :, 1]], axis=1)
@@ -103,6 +122,23 @@ class Network:
             x = np.tanh(x @ w + b)
         return x @ self.weights[-1] + self.biases[-1]
 
+    def layers(self, x: np.ndarray) -> list[np.ndarray]:
+        """The input, every hidden layer's output and the output (as __call__ gives it), for vjp."""
+        out = [x]
+        for w, b in zip(self.weights[:-1], self.biases[:-1]):
+            x = np.tanh(x @ w + b)
+            out.append(x)
+        out.append(x @ self.weights[-1] + self.biases[-1])
+        return out
+
+    def vjp(self, layers: list[np.ndarray], g_out: np.ndarray) -> np.ndarray:
+        """The gradient in the inputs (N, in) of g_out . output (N, out), each row at its own input (reverse
+        mode through the layers of self.layers)."""
+        g = g_out @ self.weights[-1].T
+        for w, h in zip(reversed(self.weights[:-1]), reversed(layers[1:-1])):
+            g = (g * (1.0 - h * h)) @ w.T
+        return g
+
 
 @dataclass(frozen=True)
 class LearntFK:
@@ -114,6 +150,23 @@ class LearntFK:
     def __call__(self, theta: np.ndarray, mode: int) -> np.ndarray:
         """Estimated platform orientations (N, 3, 3) for base angles (N, 3) of working mode `mode`."""
         return to_rotation(self.networks[mode](features(np.atleast_2d(theta))))
+
+    def forward(self, theta: np.ndarray, mode: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The estimate (N, 3, 3), as calling this gives it, and the network's layers for rates_vjp."""
+        layers = self.networks[mode].layers(features(np.atleast_2d(theta)))
+        return to_rotation(layers[-1]), layers
+
+    def rates_vjp(self, theta: np.ndarray, mode: int, torque: np.ndarray, layers: list[np.ndarray] | None = None,
+                  rot: np.ndarray | None = None) -> np.ndarray:
+        """sum_c torque[n, c] rates[n, c, j] (N, 3), rates[n, :, j] the angular velocity (base frame) of the
+        estimate per unit rate of theta_j: the gradient in the base angles of anything whose derivative in the
+        platform's rotation is `torque` (N, 3), by reverse mode (`layers` and the estimate `rot` from forward, if
+        at hand)."""
+        theta = np.atleast_2d(theta)
+        net = self.networks[mode]
+        layers = net.layers(features(theta)) if layers is None else layers
+        g_x = net.vjp(layers, _rotation_vjp(layers[-1], torque, rot))
+        return g_x[:, :3] * np.cos(theta) - g_x[:, 3:] * np.sin(theta)  # d sin = cos, d cos = -sin
 
 
 @cache

@@ -9,10 +9,16 @@ holding), and while all four grip (the largest 3 x 3 minor, eqs. 36-39: four gri
 and then no swing rescues them, since each three of them is as weak). Eq. 46 puts rank loss at |det A| < 0.01;
 the schedule keeps this measure >= `det_a_min`, ours, since near 0.01 the rotor is held so loosely that it
 drifts by degrees. A motion for which no schedule keeps both is refused (RunError). Its
-next point is the next candidate in round-robin order (a -> b -> c -> a) whose gamma is inside the band when
-the arm gets there; while it swings (a quintic in theta and gamma, matching position, speed and acceleration
-at both ends) the other three arms hold the rotor, and only one arm swings at a time, so at least three always
-grip. A swing ends `approach_time` before the grip: the arm then
+next point, with `contacts: fixed` (the paper's scheme), is the next candidate in round-robin order (a -> b -> c
+-> a) whose gamma is inside the band when the arm gets there; with `contacts: general` (the default, issue 16)
+any point of the rotor the arm reaches, the one that keeps its gamma inside the band longest and the holding arms'
+|det A| highest over the coming motion (planners.rsmg_contacts), with the floor on |det A| rising with the
+rotor's speed and every hold and swing inside the joints' speed limits. A motion general contacts cannot follow
+is refused before it is simulated, with the limit that binds (the joints' speed, the time a re-grip takes, or
+|det A| and the band), its numbers, and a longer duration over which the same motion is scheduled. While an arm
+swings (a quintic in theta and gamma, matching position, speed and acceleration at both ends) the other three arms
+hold the rotor, and only one arm swings at a time, so at least three always grip. A swing ends `approach_time`
+before the grip: the arm then
 follows its next point, not yet gripping, so that its servos settle and the weld goes on where the plan has the
 point (ours: the paper switches the electromagnet on when the arm arrives; without the approach a long fast
 swing ends a millimetre or two off, and the gripping arms then fight over the rotor).
@@ -39,11 +45,14 @@ from itertools import combinations, product
 from typing import Annotated, Literal, NamedTuple
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 from scipy.spatial.transform import Rotation
 
 from simbench.api import Planner
 from simbench.errors import RunError
+from simbench.planners.rsmg_contacts import (CACHE_FLOATS, FIRM_CAP, FIRM_SPEED, SPEED_SHARE, BoundedCache,
+                                             FixedContacts, GeneralContacts, Lazy, LazyExit, Swing, angular_speed,
+                                             first_false)
 from simbench.robots import rsmg
 from simbench.rotations import matrix_to_quat
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
@@ -52,11 +61,20 @@ from simbench.trajectory import JointTrajectory, Switch, control_grid
 
 _STEP = 0.005  # s: the schedule's time step
 _FIT = 4  # schedule steps on each side of a swing from which its end states are fitted; a hold is longer
-_SEARCH = 2000  # most choices the schedule's search tries
+# Most choices the schedule's search tries. General contacts rarely back up: 300 tries beyond one a possible re-grip
+# (a swing's time apart), so that a long motion's hundreds of re-grips fit.
+_SEARCH = {"fixed": 2000, "general": 300}
 _EARLIER = 2  # earlier releases a swing apart that the search may try after the latest one, per next point
 _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this time
 _QUINTIC = TimeLaw("quintic", 1.0)
+_STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
+_SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
+# The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
+# paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
+# rises with the rotor's speed (GeneralContacts.floor) to keep a fast rotor within 1 deg of its command (at 0.15,
+# random motions at 73-175 deg/s, three arms holding near the floor, ran up to 1.9 deg off).
+_DET_A_MIN = {"fixed": 0.15, "general": 0.3}
 
 
 Turns = Annotated[float, Field(ge=-100, le=100)]  # a motion of more turns is a typo: it would run for hours
@@ -90,9 +108,16 @@ class Task(SimbenchModel):
     motion: Motion
     swing_time: seconds(0.01, 60.0) = 0.5
     approach_time: seconds(0.0, 60.0) = 0.1
-    det_a_min: Annotated[float, Field(gt=0, le=1)] = 0.15
+    det_a_min: Annotated[float, Field(gt=0, le=1)] | None = None  # default: _DET_A_MIN of the contacts
     regrip_feedback: bool = True
     gamma_margin: NonNegativeAngle = float(np.deg2rad(12.0))
+    contacts: Literal["general", "fixed"] = "general"
+
+    @model_validator(mode="after")
+    def _default_det_a_min(self) -> "Task":
+        if self.det_a_min is None:
+            object.__setattr__(self, "det_a_min", _DET_A_MIN[self.contacts])  # the model is frozen
+        return self
 
 
 @dataclass(frozen=True)
@@ -125,17 +150,9 @@ def _gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return theta, gamma
 
 
-def _first_false(ok: np.ndarray) -> np.ndarray:
-    """For each step along the last axis (and one past the end), the first step at or after it where `ok` is false
-    (the length if never)."""
-    n = ok.shape[-1]
-    first = np.minimum.accumulate(np.where(ok, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
-    return np.concatenate([first, np.full(ok.shape[:-1] + (1,), n)], axis=-1)
-
-
-def _grips(points: dict[int, int]) -> str:
+def _grips(points: dict[int, int], contacts) -> str:
     """Arms and the points they hold, as '1a 2b 3c 4a'."""
-    return " ".join(f"{a + 1}{'abc'[p]}" for a, p in sorted(points.items()))
+    return " ".join(f"{a + 1}{contacts.label(a, p)}" for a, p in sorted(points.items()))
 
 
 _Current = dict[int, tuple[int, int]]  # each arm's (point it holds, step it grips it from)
@@ -154,8 +171,16 @@ def _band(task: Task) -> tuple[float, float]:
 def _limits(task: Task) -> str:
     """What a refused schedule could not keep, for its RunError."""
     lo, hi = _band(task)
-    return (f"no schedule keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46) and every gripping gamma in "
-            f"({np.rad2deg(lo):.0f}, {np.rad2deg(hi):.0f}) deg (eq. 45 less the margin)")
+    return (f"no schedule keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46{_rising(task)}) and every gripping "
+            f"gamma in ({np.rad2deg(lo):.0f}, {np.rad2deg(hi):.0f}) deg (eq. 45 less the margin)")
+
+
+def _rising(task: Task) -> str:
+    """How general contacts raise the floor on |det A| with the rotor's speed (GeneralContacts.floor), in words."""
+    if task.contacts == "fixed" or task.det_a_min >= FIRM_CAP:
+        return ""
+    return (f"; with general contacts rising in proportion to the rotor's speed beyond "
+            f"{np.rad2deg(FIRM_SPEED):.0f} deg/s, up to {FIRM_CAP:g}")
 
 
 def _latest_and_earlier(works: np.ndarray, n_swing: int) -> list:
@@ -168,6 +193,11 @@ def _latest_and_earlier(works: np.ndarray, n_swing: int) -> list:
         if picked[-1] - r >= n_swing:
             picked.append(r)
     return picked
+
+
+def _det(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """|det [a; b; c]| row by row (N,)."""
+    return np.abs(np.einsum("ni,ni->n", a, np.cross(b, c)))
 
 
 class _Due(NamedTuple):
@@ -188,46 +218,66 @@ class _Due(NamedTuple):
 
 @dataclass
 class _Scheduler:
-    """The search of `schedule` on its grid: `rows` (4, 3, N, 3) every arm's row of A on every point, `next_bad`
-    (4, 3, N + 1) for each step the first at or after it where the arm's gamma on the point leaves the band, a
-    swing of n_swing steps whose last n_approach follow the next point. Caches the type A measures it meets."""
+    """The search of `schedule` on its grid: `contacts` (rsmg_contacts' FixedContacts or GeneralContacts) gives
+    every arm's row of A on every point and, for each step, the first at or after it where the arm's gamma on the
+    point leaves the band, and the points to try next; a swing of n_swing steps whose last n_approach follow the
+    next point. Caches the type A measures it meets."""
 
-    rows: np.ndarray
-    next_bad: np.ndarray
-    det_a_min: float
+    contacts: FixedContacts | GeneralContacts
+    det_a_min: float | np.ndarray  # the floor on the type A measure: one, or one a step
     n_swing: int
     n_approach: int
-    minors: dict[tuple[tuple[int, int], ...], np.ndarray] = field(default_factory=dict)
-    weak_steps: dict[tuple[int, ...], np.ndarray] = field(default_factory=dict)
+    budget: int = _SEARCH["fixed"]
+    minors: BoundedCache = field(default_factory=lambda: BoundedCache(CACHE_FLOATS))
+    weak_steps: BoundedCache = field(default_factory=lambda: BoundedCache(CACHE_FLOATS))
 
     @property
     def n(self) -> int:
         """Steps of the grid."""
-        return self.next_bad.shape[-1] - 1
+        return self.contacts.n
+
+    def next_bad(self, arm: int, k: int) -> np.ndarray:
+        """For each step (and one past the end), the first at or after it where `arm` on point k is outside the band."""
+        return self.contacts.next_bad(arm, k)
 
     def measure(self, points: dict[int, int], free: int | None = None) -> np.ndarray:
         """The type A measure (N,) of the arms on `points`, all gripping but `free`: rsmg.type_a_measure's, the
         largest |3 x 3 minor| of their rows of A (eqs. 36-39); NaN where an arm is out of reach (never firm)."""
         gripping = [(a, p) for a, p in sorted(points.items()) if a != free]
-        for three in combinations(gripping, 3):
-            if three not in self.minors:
-                a, b, c = (self.rows[i, p] for i, p in three)
-                self.minors[three] = np.abs(np.einsum("ni,ni->n", a, np.cross(b, c)))
-        return np.max([self.minors[three] for three in combinations(gripping, 3)], axis=0)
+        minors = [self.minor(three) for three in combinations(gripping, 3)]
+        if isinstance(self.contacts, FixedContacts):
+            return np.max(minors, axis=0)
+        return self.contacts.lazy(lambda first, stop: np.max([m[first:stop] for m in minors], axis=0))
+
+    def minor(self, three: tuple[tuple[int, int], ...]) -> np.ndarray | Lazy:
+        """|det| of three arms' rows of A on their points (N,) (eqs. 36-39): an array, or Lazy with general
+        contacts."""
+        if three in self.minors:
+            return self.minors[three]
+        rows = [self.contacts.rows(i, p) for i, p in three]
+        if isinstance(self.contacts, FixedContacts):
+            return self.minors.keep(three, _det(*rows))
+        return self.minors.keep(three, self.contacts.lazy(lambda first, stop: _det(*(r[first:stop] for r in rows))))
 
     def next_weak(self, points: dict[int, int]) -> np.ndarray:
         """For each step (and one past the end), the first step at or after it where the four arms gripping
         `points` have a measure under det_a_min."""
         key = tuple(points[i] for i in range(rsmg.ARMS))
-        if key not in self.weak_steps:
-            self.weak_steps[key] = _first_false(self.measure(points) >= self.det_a_min)
-        return self.weak_steps[key]
+        if key in self.weak_steps:
+            return self.weak_steps[key]
+        measure = self.measure(points)
+        if isinstance(self.contacts, FixedContacts):
+            return self.weak_steps.keep(key, first_false(measure >= self.det_a_min))
+        floor = np.broadcast_to(self.det_a_min, (self.n,))
+        firm = self.contacts.lazy(lambda first, stop: measure[first:stop] >= floor[first:stop])
+        return self.weak_steps.keep(key, LazyExit(firm))
 
     def holding_firmly(self, current: _Current, arm: int, earliest: int, latest: int) -> np.ndarray:
         """Whether the other arms, on their current points, keep |det A| >= det_a_min throughout a swing of
         `arm` released at each step from earliest to latest."""
         stop = min(latest + self.n_swing + 1, self.n)
-        firm = self.measure(_held(current), free=arm)[earliest:stop] >= self.det_a_min
+        floor = np.broadcast_to(self.det_a_min, (self.n,))[earliest:stop]
+        firm = self.measure(_held(current), free=arm)[earliest:stop] >= floor
         weak = np.concatenate([[0], np.cumsum(~firm)])
         release = np.arange(latest - earliest + 1)
         end = np.minimum(release + self.n_swing + 1, firm.size)
@@ -243,23 +293,28 @@ class _Scheduler:
         grip = release + n_swing
         firm = self.holding_firmly(current, arm, earliest, latest)[release - earliest]
         found = []
+        nexts = self.contacts.next_points(arm, _held(current), latest + n_swing)
         for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
-            for k in ((point + 1) % rsmg.CANDIDATES, (point + 2) % rsmg.CANDIDATES):
+            for k in nexts:
                 weak = self.next_weak(_held(current) | {arm: k})[grip]
-                ready = self.next_bad[arm, k, grip - self.n_approach] > grip  # inside the band from the approach on
-                lasts = np.minimum(self.next_bad[arm, k, grip], weak) > np.minimum(grip + hold, n - 1)
-                picked = _latest_and_earlier(release[firm & ready & lasts], n_swing)
+                bad = self.next_bad(arm, k)
+                ready = bad[grip - self.n_approach] > grip  # inside the band from the approach on
+                lasts = np.minimum(bad[grip], weak) > np.minimum(grip + hold, n - 1)
+                works = firm & ready & lasts
+                works[works] = self.contacts.swing_fits(arm, point, k, release[works])
+                picked = _latest_and_earlier(release[works], n_swing)
                 found += [(int(r), k) for r in picked if (int(r), k) not in found]
         return found
 
-    def next_choice(self, current: _Current, step: int) -> _Choice | list[Hold] | tuple[int, str]:
+    def next_choice(self, current: _Current, step: int) -> _Choice | list[Hold] | tuple[int, str, int]:
         """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
-        need let go again, or (step, why) if the schedule is stuck."""
+        need let go again, or (step, why, arm) if the schedule is stuck (arm -1 where A's rank sets the deadline)."""
         due = self.due(current, step)
         if isinstance(due, list):
             return due
         options = self.options(current, due)
-        return _Choice(current, options) if options else (due.step, self.stuck(due))
+        return _Choice(current, options) if options else (due.step, self.stuck(due),
+                                                          -1 if due.rank_loss else due.exits[0][1])
 
     def due(self, current: _Current, step: int) -> _Due | list[Hold]:
         """The first step from `step` where an arm must let go (see the module's docstring: the band's exits a
@@ -270,7 +325,7 @@ class _Scheduler:
         points = _held(current)
         while True:
             weak = int(self.next_weak(points)[step])
-            exits = sorted((int(self.next_bad[a, p, step]), a) for a, p in points.items())
+            exits = sorted((int(self.next_bad(a, p)[step]), a) for a, p in points.items())
             if exits[0][0] >= n and weak >= n:
                 return [Hold(a, p, since, n) for a, (p, since) in current.items()]
             band = min([e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n], default=n)
@@ -294,7 +349,8 @@ class _Scheduler:
     def stuck(self, due: _Due) -> str:
         """Why no arm can let go at `due`."""
         if due.rank_loss:
-            return (f"at t = {due.weak * _STEP:.3f} s the four gripping arms ({_grips(due.points)}) hold the rotor "
+            grips = _grips(due.points, self.contacts)
+            return (f"at t = {due.weak * _STEP:.3f} s the four gripping arms ({grips}) hold the rotor "
                     f"with a largest 3x3 minor of A of {self.measure(due.points)[due.weak]:.4f} and no arm can re-grip "
                     "before then")
         t, arm = f"at t = {due.step * _STEP:.3f} s", due.exits[0][1]
@@ -306,7 +362,7 @@ class _Scheduler:
     def search(self, current: _Current, budget: int) -> tuple[list[Hold] | None, list, int]:
         """Depth first from the initial grips: (holds or None, where it got stuck, tries spent)."""
         taken: list[_Choice] = []  # the choices on the way so far
-        stuck: list[tuple[int, str]] = []
+        stuck: list[tuple[int, str, int]] = []
         tries = 0
         found = self.next_choice(current, 0)
         while not isinstance(found, list):
@@ -326,39 +382,52 @@ class _Scheduler:
         return [Hold(a, *c.current[a], r) for c in taken for a, r in [c.taken]] + found, stuck, tries
 
     def search_from(self, starts: list[dict[int, int]]) -> tuple[list[Hold] | None, list, int]:
-        """`search` from each set of initial grips in turn, until one gives a schedule or _SEARCH tries are spent
-        in all: (holds or None, where it got stuck, tries spent)."""
+        """`search` from each set of initial grips in turn, until one gives a schedule or the budget's tries are
+        spent in all: (holds or None, where it got stuck, tries spent)."""
         stuck, tries = [], 0
         for start in starts:
-            holds, more, spent = self.search({a: (p, 0) for a, p in start.items()}, _SEARCH - tries)
+            holds, more, spent = self.search({a: (p, 0) for a, p in start.items()}, self.budget - tries)
             stuck, tries = stuck + more, tries + spent
-            if holds is not None or tries >= _SEARCH:
+            if holds is not None or tries >= self.budget:
                 return holds, stuck, tries
         return None, stuck, tries
 
     def lasting(self, start: dict[int, int]) -> int:
-        """Steps until the first arm leaves the band or the four arms' A falls under det_a_min."""
-        return min(int(self.next_weak(start)[0]), *(int(self.next_bad[a, p, 0]) for a, p in start.items()))
+        """Steps until the first arm leaves the band or the four arms' A falls under det_a_min (general contacts:
+        looking no further than their horizon, beyond which any start is as good)."""
+        if isinstance(self.contacts, FixedContacts):
+            return min(int(self.next_weak(start)[0]), *(int(self.next_bad(a, p)[0]) for a, p in start.items()))
+        stop = min(self.contacts.horizon, self.n)
+        floor = np.broadcast_to(self.det_a_min, (self.n,))[:stop]
+        weak = int(first_false(self.measure(start)[:stop] >= floor)[0])
+        return min(weak, *(min(int(self.next_bad(a, p)[0]), stop) for a, p in start.items()))
 
     def starts(self, limits: str) -> list[dict[int, int]]:
         """The initial grips to try, each holding firmly at t = 0: each arm on its point inside the band longest
         (the paper's start), then other sets of points, those whose A stays firm longest first."""
-        inside = [[k for k in range(rsmg.CANDIDATES) if self.next_bad[a, k, 0] > 0] for a in range(rsmg.ARMS)]
+        inside = [self.contacts.initial_points(a) for a in range(rsmg.ARMS)]
         for arm, ks in enumerate(inside):
             if not ks:
                 raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
-        first = {a: max(ks, key=lambda k: self.next_bad[a, k, 0]) for a, ks in enumerate(inside)}
-        starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if self.next_weak(s)[0] > 0]
+        first = {a: max(ks, key=lambda k: self.next_bad(a, k)[0]) for a, ks in enumerate(inside)}
+        if isinstance(self.contacts, FixedContacts):
+            starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if self.next_weak(s)[0] > 0]
+            lasting = {tuple(s.values()): self.lasting(s) for s in starts}
+        else:
+            lasting = {ks: self.lasting(dict(enumerate(ks))) for ks in product(*inside)}
+            starts = [dict(enumerate(ks)) for ks, steps in lasting.items() if steps > 0]
         if not starts:
             raise RunError(f"round robin: at t = 0 no set of contact points inside the gamma band holds the rotor "
                            f"firmly; {limits}")
-        starts.sort(key=lambda s: (s != first, -self.lasting(s)))
-        return starts
+        starts.sort(key=lambda s: (s != first, -lasting[tuple(s.values())]))
+        return starts if isinstance(self.contacts, FixedContacts) else starts[:_STARTS]
 
 
 def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_approach: int = 0) -> list[Hold]:
-    """Which point each arm holds when, on the schedule grid (section 4.1-4.3); RunError where no round-robin
-    choice keeps three arms gripping inside the band with A far from rank loss.
+    """Which point each arm holds when, on the schedule grid (section 4.1-4.3), with the paper's candidates (their
+    gammas (4, 3, N) and rows of A (4, 3, N, 3) given); RunError where no round-robin choice keeps three arms
+    gripping inside the band with A far from rank loss. General contacts go through the same search (`_search`),
+    their points ranked instead of taken in turn.
 
     Time advances until an arm must let go (its deadline, see the module's docstring). Its choices, in order of
     preference: the next candidate in round-robin order, then the one after (the paper's order of trial), each
@@ -375,14 +444,28 @@ def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_ap
     step one of them must have moved to another point: that is a deadline like a gamma's exit, and any arm may
     take it.
     """
-    lo, hi = _band(task)
-    next_bad = _first_false((gamma > lo) & (gamma < hi))  # NaN (out of reach) is never inside
-    scheduler = _Scheduler(rows, next_bad, task.det_a_min, n_swing, n_approach)
+    return _search(FixedContacts(gamma, rows, _band(task)), task, n_swing, n_approach)
+
+
+class _Stuck(RunError):
+    """No schedule: the message says where the search got furthest and why; `step` and `arm` say where (arm -1:
+    the four gripping arms' A, not one arm's band)."""
+
+    def __init__(self, message: str, step: int, arm: int):
+        super().__init__(message)
+        self.step, self.arm = step, arm
+
+
+def _search(contacts: FixedContacts | GeneralContacts, task: Task, n_swing: int, n_approach: int) -> list[Hold]:
+    """`schedule` on any contact points: the holds, or _Stuck."""
+    budget = _SEARCH["fixed"] if isinstance(contacts, FixedContacts) else _SEARCH["general"] + contacts.n // n_swing
+    scheduler = _Scheduler(contacts, contacts.floor(task.det_a_min), n_swing, n_approach, budget)
     limits = _limits(task)
     holds, stuck, tries = scheduler.search_from(scheduler.starts(limits))
     if holds is None:
-        why = max(stuck)[1] if stuck else "no schedule"
-        raise RunError(f"round robin: {why}; {limits}" + (" (search budget spent)" if tries >= _SEARCH else ""))
+        step, why, arm = max(stuck) if stuck else (0, "no schedule", -1)
+        raise _Stuck(f"round robin: {why}; {limits}" + (" (search budget spent)" if tries >= budget else ""),
+                     step, arm)
     return sorted(holds, key=lambda h: (h.arm, h.start))
 
 
@@ -396,7 +479,7 @@ def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.nda
     return np.polynomial.polynomial.polyval(t - t0, coef)
 
 
-def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], theta: np.ndarray, gamma: np.ndarray,
+def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContacts | GeneralContacts,
               grid: np.ndarray, n_approach: int) -> tuple[np.ndarray, np.ndarray]:
     """theta and gamma (N,) of one arm on the control grid t: the IK of its held points (from n_approach steps
     before each grip), quintic swings between. A swing's end states are fitted on the schedule grid (_FIT steps
@@ -408,10 +491,11 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], theta: np.ndarray, gam
         start, stop = max(h.start - n_approach, 0), min(h.end, grid.size - 1)
         span = grid[start:stop + 1]
         inside = (t >= span[0]) & (t <= span[-1]) if h.end >= grid.size else (t >= span[0]) & (t < grid[h.end])
-        th = np.unwrap(theta[arm, h.point, start:stop + 1])
+        theta, gamma = contacts.path(arm, h.point, start, stop + 1)
+        th = np.unwrap(theta)
         if held:  # keep theta on the turn nearest where the swing began
             th += 2 * np.pi * np.round((held[-1][1][-1] - th[0]) / (2 * np.pi))
-        ga = gamma[arm, h.point, start:stop + 1]
+        ga = gamma
         out_theta[inside] = np.interp(t[inside], span, th)
         out_gamma[inside] = np.interp(t[inside], span, ga)
         held.append((span, th, ga))
@@ -432,12 +516,11 @@ def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
 
 
 class _ScheduleGrid(NamedTuple):
-    """The schedule on its grid (times `grid`, _STEP apart): every arm's theta and gamma (4, 3, N) on every
-    candidate, the holds, and the steps of a swing's approach."""
+    """The schedule on its grid (times `grid`, _STEP apart): the contact points (every arm's theta and gamma on
+    each), the holds, and the steps of a swing's approach."""
 
     grid: np.ndarray
-    theta: np.ndarray
-    gamma: np.ndarray
+    contacts: FixedContacts | GeneralContacts
     holds: list[Hold]
     n_approach: int
 
@@ -449,39 +532,107 @@ def _rows(theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
                      for i in range(rsmg.ARMS)])
 
 
-def _schedule_grips(task: Task, law: TimeLaw, hold: float) -> _ScheduleGrid:
-    """The schedule grid, every arm's IK on every candidate along the rotor's motion there, and the grips
-    scheduled on it."""
+def _schedule_grips(task: Task, law: TimeLaw, hold: float, explain: bool = True,
+                    speed_share: float = SPEED_SHARE) -> _ScheduleGrid:
+    """The schedule grid, the contact points with every arm's IK on them along the rotor's motion there, and the
+    grips scheduled on it. A motion general contacts cannot follow is refused with why (`_refusal`) unless not
+    `explain`; `speed_share`: of the joints' speed limit that general contacts keep to."""
     grid = np.arange(int(np.ceil((law.duration + hold) / _STEP)) + 1) * _STEP
-    theta, gamma = _gammas(task.motion.orientation(law(grid, order=0)[0]))
+    rot = task.motion.orientation(law(grid, order=0)[0])
     n_approach = int(round(task.approach_time / _STEP))
     n_swing = max(1, int(round(task.swing_time / _STEP))) + n_approach
-    holds = schedule(gamma, _rows(theta, gamma), task, n_swing, n_approach)
-    return _ScheduleGrid(grid, theta, gamma, holds, n_approach)
+    if task.contacts == "fixed":
+        theta, gamma = _gammas(rot)
+        contacts = FixedContacts(gamma, _rows(theta, gamma), _band(task), theta)
+    else:
+        contacts = GeneralContacts(rot, _STEP, _band(task), Swing(n_swing, n_approach), speed_share)
+    try:
+        holds = _search(contacts, task, n_swing, n_approach)
+    except _Stuck as stuck:
+        if task.contacts == "fixed" or not explain:
+            raise
+        raise RunError(_refusal(task, law, hold, stuck, angular_speed(rot, _STEP))) from None
+    return _ScheduleGrid(grid, contacts, holds, n_approach)
+
+
+def _refusal(task: Task, law: TimeLaw, hold: float, stuck: _Stuck, speed: np.ndarray) -> str:
+    """Why general contacts cannot follow the motion (`speed`: the rotor's on the grid, rad/s), in physical terms
+    and numbers: where the search got furthest, which limit binds (`_cause`), and the shortest of a few longer
+    durations over which the same motion is scheduled."""
+    step = min(stuck.step, speed.size - 1)
+    head = (f"round robin (general contacts): no schedule follows this motion, which turns the rotor at up to "
+            f"{np.rad2deg(speed.max()):.0f} deg/s")
+    if step > 0:  # where the search got furthest
+        where = str(stuck).removeprefix("round robin: ").split("; no schedule")[0]
+        head += f" ({where}, the rotor turning at {np.rad2deg(speed[step]):.0f} deg/s there)"
+    for factor in _SLOWER:
+        slower = TimeLaw(law.name, law.duration * factor, law.accel_fraction)
+        try:
+            _schedule_grips(task, slower, hold, explain=False)
+        except RunError:
+            continue
+        peak = np.rad2deg(speed.max()) / factor  # the same path on a law stretched in time
+        works = (f"the same motion over timing.duration = {slower.duration:.3g} s (up to {peak:.0f} deg/s) is "
+                 "scheduled")
+        break
+    else:
+        works = f"nor is the same motion over {_SLOWER[-1]:g} times the duration"
+    return f"{head}; {_cause(task, law, hold)}; {works}"
+
+
+def _cause(task: Task, law: TimeLaw, hold: float) -> str:
+    """Which physical limit keeps general contacts from following the motion: the joints' speed (the motion is
+    scheduled with it lifted: the speed then asked for), the time a re-grip takes (scheduled with swings and
+    approaches twice as fast), or neither: the band and |det A| themselves."""
+    try:
+        sched = _schedule_grips(task, law, hold, explain=False, speed_share=np.inf)
+    except RunError:
+        pass
+    else:
+        qd = np.abs(np.gradient(_joint_paths(sched.grid, sched), _STEP, axis=0))
+        row, joint = np.unravel_index(np.argmax(qd), qd.shape)
+        if qd[row, joint] >= SPEED_SHARE * rsmg.QD_MAX[joint]:
+            return (f"the joints' speed limit binds: with it lifted the motion is scheduled, asking "
+                    f"{rsmg.JOINTS[joint]} for {qd[row, joint]:.1f} rad/s at t = {sched.grid[row]:.2f} s, more than "
+                    f"the {SPEED_SHARE:.0%} of its {rsmg.QD_MAX[joint]:.1f} rad/s limit that holds and swings keep to")
+    quick = task.model_copy(update={"swing_time": task.swing_time / 2, "approach_time": task.approach_time / 2})
+    swing = task.swing_time + task.approach_time
+    try:
+        _schedule_grips(quick, law, hold, explain=False, speed_share=np.inf)
+    except RunError:
+        lo, hi = (np.rad2deg(b) for b in _band(task))
+        return (f"neither the joints' speed nor the re-grips' time binds alone: no set of points keeps |det A| >= "
+                f"det_a_min = {task.det_a_min:g} (eq. 46{_rising(task)}) and every gripping gamma in ({lo:.0f}, "
+                f"{hi:.0f}) deg (eq. 45 less the margin) with one arm re-gripping at a time")
+    return (f"re-gripping binds: the points the arms can hold leave the gamma band (eq. 45) before the arms, one at "
+            f"a time and {swing:.2f} s a re-grip (swing_time + approach_time), have re-gripped in turn; at "
+            f"{swing / 2:.2f} s a re-grip (and joints without a speed limit) it is scheduled")
 
 
 def _joint_paths(t: np.ndarray, sched: _ScheduleGrid) -> np.ndarray:
     """q_ref (N, 8) on the control grid: every arm's theta, then every arm's gamma (_arm_path)."""
     q_ref = np.empty((t.size, 2 * rsmg.ARMS))
     for arm in range(rsmg.ARMS):
-        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, sched.holds, sched.theta, sched.gamma,
-                                                             sched.grid, sched.n_approach)
+        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, sched.holds, sched.contacts, sched.grid,
+                                                             sched.n_approach)
     return q_ref
 
 
-def _switches(holds: list[Hold], grid: np.ndarray) -> tuple[Switch, ...]:
-    """The electromagnets' switches in time order: on at each grip (from the point the arm held before), off at
-    each release."""
+def _switches(holds: list[Hold], grid: np.ndarray, contacts: FixedContacts | GeneralContacts) -> tuple[Switch, ...]:
+    """The electromagnets' switches in time order: on at each grip (from the point the arm held before; `point`:
+    the one it grips, a unit vector in the rotor's frame), off at each release."""
     switches = []
     for h in holds:
         previous = [p for p in holds if p.arm == h.arm and p.end <= h.start]
+        label = contacts.label(h.arm, h.point)
         switches.append(Switch(t=float(grid[h.start]), equality=f"grip{h.arm + 1}", active=True,
                                servo_group=h.arm + 1, detail={
-                                   "arm": h.arm + 1, "from_point": "abc"[previous[-1].point] if previous else None,
-                                   "to_point": "abc"[h.point]}))
+                                   "arm": h.arm + 1,
+                                   "from_point": contacts.label(h.arm, previous[-1].point) if previous else None,
+                                   "to_point": label, "point": contacts.point(h.arm, h.point).tolist()}))
         if h.end < grid.size:
             switches.append(Switch(t=float(grid[h.end]), equality=f"grip{h.arm + 1}", active=False,
-                                   servo_group=h.arm + 1, detail={"arm": h.arm + 1, "from_point": "abc"[h.point]}))
+                                   servo_group=h.arm + 1, detail={"arm": h.arm + 1, "from_point": label}))
     return tuple(sorted(switches, key=lambda w: w.t))
 
 
@@ -509,13 +660,14 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     quat = matrix_to_quat(rot)
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
-        "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": rsmg.CANDIDATES},
+        "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": sched.contacts.count},
+        "contacts": task.contacts,
         "grips": len(sched.holds) - rsmg.ARMS,
         "fewest_gripping": int(engaged.sum(axis=1).min()),
     }
     return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=np.gradient(q_ref, t, axis=0),
                            tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS), info=info,
-                           switches=_switches(sched.holds, sched.grid),
+                           switches=_switches(sched.holds, sched.grid, sched.contacts),
                            series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                            initial={"rotor": quat[0].tolist()}, feedback=feedback)
 

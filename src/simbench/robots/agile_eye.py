@@ -21,6 +21,8 @@ point AIM metres along it.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from simbench.api import Summary
@@ -146,6 +148,203 @@ def axis_gaps(rot: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(np.abs(np.einsum("ij,nij->ni", U, v)), 0.0, 1.0))
 
 
+# Fast forms and derivatives for the planner (project issue 14). Each gives what the function above it in this
+# file gives (fk_follow: fk_track's very orientations; kci_closed_form: kci's to about 1e-13), without a LAPACK
+# call per 3 x 3 matrix or a Python step per sample.
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis, broadcast (np.cross without its overhead)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _axes(theta: np.ndarray) -> np.ndarray:
+    """intermediate_axes(theta), the same arrays, filled in place of stacked."""
+    theta = np.atleast_2d(theta)
+    s, c = np.sin(theta), np.cos(theta)
+    w = np.zeros((len(theta), 3, 3))
+    w[:, 0, 0], w[:, 0, 1] = -s[:, 0], c[:, 0]
+    w[:, 1, 1], w[:, 1, 2] = -s[:, 1], c[:, 1]
+    w[:, 2, 0], w[:, 2, 2] = c[:, 2], -s[:, 2]
+    return w
+
+
+def _fk_all(theta: np.ndarray) -> np.ndarray:
+    """fk_all's solutions (N, 8, 3, 3), the same arrays by the same arithmetic, with fewer NumPy calls: each root's
+    base solution once, the sign flips as one broadcast product."""
+    w = _axes(theta)
+    a = np.broadcast_to(U[0], w[:, 0].shape)
+    b = _cross(w[:, 0], a)
+    a2, b2 = np.einsum("ij,ij->i", a, w[:, 1]), np.einsum("ij,ij->i", b, w[:, 1])
+    a3, b3 = np.einsum("ij,ij->i", a, w[:, 2]), np.einsum("ij,ij->i", b, w[:, 2])
+    k = np.einsum("ij,ij->i", w[:, 1], w[:, 2])
+    p, q, m = (a2 * a3 - b2 * b3) / 2, (a2 * b3 + a3 * b2) / 2, k - (a2 * a3 + b2 * b3) / 2
+    spread = np.arccos(np.clip(m / np.hypot(p, q), -1.0, 1.0))
+    angle = (np.arctan2(q, p)[:, None] + np.array([1.0, -1.0]) * spread[:, None]) / 2  # (N, 2 roots)
+    v1 = np.cos(angle)[..., None] * a[:, None] + np.sin(angle)[..., None] * b[:, None]
+    v2 = _cross(w[:, None, 1], v1)
+    with np.errstate(invalid="ignore", divide="ignore"):  # NaN where v1 is along w2: a degenerate root
+        v2 /= np.linalg.norm(v2, axis=2, keepdims=True)
+    base = np.stack([v1, v2, _cross(v1, v2)], axis=-1)  # (N, 2, 3, 3)
+    return (base[:, :, None] * _FLIPS[:, None, :]).reshape(len(base), 8, 3, 3)
+
+
+def fk_follow(theta: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """fk_track's orientations (N, 3, 3), the same arrays, faster: the solution followed is assumed to stay the
+    same one of the 8 over a stretch, its similarity to every solution at the next sample computed for the whole
+    stretch at once (the same sums fk_track's einsum makes), and the stretch ends where another is nearer."""
+    sols = _fk_all(theta)
+    count = len(sols)
+    flat = sols.reshape(count, 8, 9)
+    index = np.empty(count, int)
+    index[0] = np.argmax(_finite(np.einsum("kab,ab->k", sols[0], start)))
+    k, stretch = 0, 16
+    while k < count - 1:
+        end = min(count - 1, k + stretch)
+        current = index[k]
+        nearest = np.argmax(_finite(np.einsum("ka,kja->kj", flat[k:end, current], flat[k + 1:end + 1])), axis=1)
+        moves = np.flatnonzero(nearest != current)
+        stop = moves[0] if moves.size else end - k  # samples k + 1 .. k + stop keep the current solution
+        index[k + 1:k + 1 + stop] = current
+        if moves.size:
+            index[k + 1 + stop] = nearest[stop]
+            k, stretch = k + 1 + stop, 16
+        else:
+            k, stretch = end, 2 * stretch
+    return sols[np.arange(count), index]
+
+
+def _scaled_rows(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """w_i (N, 3, 3), v_i, a_i = w_i x v_i (the rows of A) and b_i = u_i . a_i (B's diagonal), rows per leg."""
+    w = _axes(theta)
+    v = np.reshape(rot, (-1, 3, 3)).transpose(0, 2, 1)
+    a = _cross(w, v)
+    return w, v, a, np.einsum("ij,nij->ni", U, a)
+
+
+def _gram(k: np.ndarray) -> np.ndarray:
+    """K K^T (N, 3, 3)."""
+    return k @ k.transpose(0, 2, 1)
+
+
+def _det3(m00, m01, m02, m11, m12, m22):
+    """Determinant of symmetric 3 x 3 matrices given by their upper triangles (N,) each."""
+    return m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02)
+
+
+def _extreme_eigenvalues(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The least and greatest eigenvalues (N,) of symmetric positive semi-definite G (N, 3, 3) in closed form
+    (Smith's trigonometric formula; the least from det G / (lambda_max lambda_mid) where that is the better
+    conditioned), and where G is a multiple of the identity (all three equal)."""
+    g00, g01, g02, g11, g12, g22 = g[:, 0, 0], g[:, 0, 1], g[:, 0, 2], g[:, 1, 1], g[:, 1, 2], g[:, 2, 2]
+    q = (g00 + g11 + g22) / 3
+    d0, d1, d2 = g00 - q, g11 - q, g22 - q
+    p = np.sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2 * (g01 * g01 + g02 * g02 + g12 * g12)) / 6)
+    r = _det3(d0, g01, g02, d1, g12, d2) / (2 * np.where(p > 1e-100, p, 1.0) ** 3)
+    phi = np.arccos(np.clip(r, -1.0, 1.0)) / 3
+    high = q + 2 * p * np.cos(phi)
+    low = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
+    mid = 3 * q - high - low
+    det = _det3(g00, g01, g02, g11, g12, g22)
+    low = np.where(low < 0.5 * mid, np.maximum(det, 0.0) / np.maximum(high * mid, 1e-300), low)
+    return low, high, p <= 1e-15 * q
+
+
+def _kci_of_gram(g: np.ndarray) -> np.ndarray:
+    """sqrt(lambda_min / lambda_max) of symmetric positive semi-definite G (N, 3, 3) in closed form."""
+    low, high, isotropic = _extreme_eigenvalues(g)
+    return np.where(isotropic, 1.0, np.sqrt(np.clip(low / np.maximum(high, 1e-300), 0.0, 1.0)))
+
+
+class KciTerms(NamedTuple):
+    """The KCI in closed form and the terms on the way (kci_terms), which kci_partials reuses: per leg (rows)
+    w_i, v_i, a_i = w_i x v_i and b_i = u_i . a_i (1 where the KCI is not defined), where it is (`ok`),
+    K = B^-1 A (rows a_i / b_i) and G = K K^T."""
+
+    w: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    ok: np.ndarray
+    k: np.ndarray
+    g: np.ndarray
+    kci: np.ndarray
+
+
+def kci_terms(theta: np.ndarray, rot: np.ndarray) -> KciTerms:
+    """kci (N,) in closed form, with its terms: 1 / cond(A^-1 B) = 1 / cond(B^-1 A), the rows of B^-1 A being
+    a_i / b_i, and the singular values from the eigenvalues of its Gram matrix. Where some b_i is near 0 (on or
+    near a singular curve; not `ok`) the KCI is kci_of's own, the same numbers as kci."""
+    w, v, a, b = _scaled_rows(theta, rot)
+    ok = np.abs(b).min(axis=1) > 1e-12 * np.abs(a).max(axis=(1, 2))
+    if ok.all():
+        k = a / b[:, :, None]
+        g = _gram(k)
+        return KciTerms(w, v, a, b, ok, k, g, _kci_of_gram(g))
+    # rare: LAPACK judges these as kci does (a vanishing b_i with A regular gives its rounding's ratio)
+    value = kci_of(a, b[:, :, None] * np.eye(3))
+    b = np.where(ok[:, None], b, 1.0)
+    k = a / b[:, :, None]
+    g = _gram(k)
+    value[ok] = _kci_of_gram(g[ok])
+    return KciTerms(w, v, a, b, ok, k, g, value)
+
+
+def kci_closed_form(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """kci (N,) in closed form (kci_terms), within about 1e-13 of kci without a LAPACK call per matrix but near
+    the singular curves."""
+    return kci_terms(theta, rot).kci
+
+
+def platform_rates(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """The platform's angular velocity (base frame) per unit rate of each base joint (N, 3, 3), column j for
+    theta_dot = e_j: A^-1 B (eqs. 4-7), the derivative of the exact FK. NaN where A is singular."""
+    _, _, a, b = _scaled_rows(theta, rot)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.linalg.solve(a, b[:, :, None] * np.eye(3))
+
+
+def kci_partials(theta: np.ndarray, rot: np.ndarray,
+                 terms: KciTerms | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The KCI (N,) in closed form (kci_closed_form), its partial derivatives in the base angles with the
+    platform held (N, 3), and in the platform's rotation (N, 3): d kci = d_theta . dtheta + d_omega . omega for
+    a small turn omega (base frame) of the platform. Along a path whose platform turns at `rates` (column j the
+    angular velocity per unit rate of theta_j: platform_rates for the exact FK), the gradient is d_theta +
+    rates^T d_omega. Reverse mode, with K = B^-1 A (rows k_i = a_i / b_i), G = K K^T and its eigenpairs
+    (lambda, e): d lambda / d k_i = 2 e_i K^T e; k_i = a_i / (u_i . a_i); a_i = w_i x v_i with dv_i = omega x v_i
+    and dw_i = u_i x w_i dtheta_i (the cross products then expanded into dot products). The partials are 0 where
+    some b_i is near 0 (not `ok`). `terms`: kci_terms(theta, rot) if at hand."""
+    w, v, _, b, ok, k, g, value = kci_terms(theta, rot) if terms is None else terms
+    lam, vec = np.linalg.eigh(np.where(ok[:, None, None], g, np.eye(3)))  # ascending; e_m = vec[:, :, m]
+    low, high = lam[:, 0], lam[:, 2]
+    ends = vec[:, :, [0, 2]]  # eigenvectors of lambda_min and lambda_max (N, 3 rows i, 2)
+    kt_e = ends.transpose(0, 2, 1) @ k  # K^T e as rows (N, 2, 3)
+    # d kci = kci / 2 (d lambda_min / lambda_min - d lambda_max / lambda_max)
+    weight = 0.5 * value[:, None] * np.stack([1.0 / np.maximum(low, 1e-300), -1.0 / np.maximum(high, 1e-300)],
+                                             axis=1)  # (N, 2)
+    d_k = 2 * (ends * weight[:, None, :]) @ kt_e  # d kci / d k_i (N, 3, 3)
+    d_a = (d_k - np.einsum("nia,nia->ni", d_k, k)[:, :, None] * U) / b[:, :, None]  # d kci / d a_i
+    v_w = np.einsum("nia,nia->ni", v, w)  # 0 for the exact FK, not quite for a learnt one
+    # sum_i v_i x (d_a_i x w_i) = sum_i d_a_i (v_i . w_i) - w_i (v_i . d_a_i)
+    d_omega = np.einsum("nia,ni->na", d_a, v_w) - np.einsum("nia,ni->na", w, np.einsum("nia,nia->ni", v, d_a))
+    # (v_i x d_a_i) . (u_i x w_i) = (v_i . u_i)(d_a_i . w_i) - (v_i . w_i)(d_a_i . u_i)
+    d_theta = (np.einsum("ia,nia->ni", U, v) * np.einsum("nia,nia->ni", d_a, w)
+               - v_w * np.einsum("ia,nia->ni", U, d_a))
+    live = (ok & (value > 0))[:, None]
+    return value, np.where(live, d_theta, 0.0), np.where(live, d_omega, 0.0)
+
+
+def axis_gap_partials(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """axis_gaps (N, 3) and their derivatives in the platform's rotation (N, 3 axes, 3): gap_i = arccos|u_i .
+    v_i| and dv_i = omega x v_i, so d gap_i = -sign(u_i . v_i) (v_i x u_i) . omega / sqrt(1 - (u_i . v_i)^2)."""
+    v = np.reshape(rot, (-1, 3, 3)).transpose(0, 2, 1)
+    dot = np.einsum("ij,nij->ni", U, v)
+    gaps = np.arccos(np.clip(np.abs(dot), 0.0, 1.0))
+    slope = -np.sign(dot) / np.sqrt(np.maximum(1.0 - dot**2, 1e-300))
+    return gaps, slope[:, :, None] * _cross(v, U)
+
+
 def assemble(theta: np.ndarray, rot: np.ndarray | None = None) -> dict[str, float]:
     """Passive joint angles closing every leg for base angles theta (3,) and platform orientation rot (the FK
     solution nearest home if not given), in the MJCF's convention: each body's frame is the world frame at the
@@ -174,13 +373,16 @@ def _platform(rec) -> np.ndarray:
 
 
 def measures(rec) -> dict[str, np.ndarray]:
-    """KCI, the angle to the nearest singular curve, det A and the loop-closure error along a recording."""
+    """KCI, the angle to the nearest singular curve, det A and the loop-closure error along a recording: the KCI
+    in closed form (kci_terms: within 1e-12 of kci_of's two SVDs a sample) and det A as the triple product of
+    its rows."""
     rot = _platform(rec)
-    a, b = jacobians(rec.q, rot)
+    terms = kci_terms(rec.q, rot)
+    a = terms.a
+    det_a = np.einsum("ni,ni->n", a[:, 0], _cross(a[:, 1], a[:, 2]))
     closure = np.maximum(np.linalg.norm(rec.sensors["tip2"] - rec.sensors["mount2"], axis=1),
                          np.linalg.norm(rec.sensors["tip3"] - rec.sensors["mount3"], axis=1))
-    return {"kci": kci_of(a, b), "singular_gap": axis_gaps(rot).min(axis=1), "det_a": np.linalg.det(a),
-            "closure_error": closure}
+    return {"kci": terms.kci, "singular_gap": axis_gaps(rot).min(axis=1), "det_a": det_a, "closure_error": closure}
 
 
 def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:

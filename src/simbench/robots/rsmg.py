@@ -143,9 +143,9 @@ def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     """
     best = np.zeros(len(rows))
     for drop in range(ARMS):
-        keep = [i for i in range(ARMS) if i != drop]
-        det = np.abs(np.linalg.det(rows[:, keep]))
-        usable = engaged[:, keep].all(axis=1)
+        i, j, k = (arm for arm in range(ARMS) if arm != drop)
+        det = np.abs(np.einsum("ni,ni->n", rows[:, i], _cross(rows[:, j], rows[:, k])))  # the triple product
+        usable = engaged[:, [i, j, k]].all(axis=1)
         best = np.where(usable, np.maximum(best, det), best)
     return best
 
@@ -155,9 +155,23 @@ def gripping(rec) -> np.ndarray:
     return np.stack([rec.eq_active[f"grip{i + 1}"] for i in range(ARMS)], axis=1).astype(bool)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis (np.cross without its overhead)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
 def _rows(rec) -> np.ndarray:
+    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once: jacobian_rows' (eqs. 12, 24-27, 34) expanded.
+    With v_i = Rodrigues(w_i, gamma_i) of the folded axis cos(BETA) w_i + sin(BETA) (u_i - cos(ALPHA) w_i) /
+    sin(ALPHA), and w_i . u_i = cos(ALPHA), a_i = sin(BETA) [(c st + s cos(ALPHA) ct) x_i + (s cos(ALPHA) st - c ct)
+    y_i - s sin(ALPHA) u_i], with c, s = cos, sin gamma_i and ct, st = cos, sin theta_i (within 1e-15 of
+    jacobian_rows')."""
     theta, gamma = rec.q[:, :ARMS], rec.q[:, ARMS:]
-    return np.stack([jacobian_rows(i, theta[:, i], gamma[:, i])[0] for i in range(ARMS)], axis=1)
+    ct, st, c, s = np.cos(theta), np.sin(theta), np.cos(gamma), np.sin(gamma)
+    s_cos = np.cos(ALPHA) * s
+    along_x, along_y, along_u = c * st + s_cos * ct, s_cos * st - c * ct, -np.sin(ALPHA) * s
+    return np.sin(BETA) * (along_x[..., None] * X_REF + along_y[..., None] * Y_REF + along_u[..., None] * U)
 
 
 def _type_b_gap(gamma: np.ndarray, engaged: np.ndarray) -> np.ndarray:

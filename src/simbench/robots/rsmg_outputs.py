@@ -75,7 +75,9 @@ def _regrip_event(rec, rot: np.ndarray, release, grip) -> dict:
     k = int(np.clip(np.searchsorted(rec.t, grip.t - 1e-9), 1, len(rec.t) - 2))
     tip = rec.sensors[f"em{arm}_tip"]
     jump = float(np.linalg.norm(tip[k + 1] - 2 * tip[k] + tip[k - 1]))
-    point = rot[k] @ POINTS[arm - 1, "abc".index(grip.detail["to_point"])] * RADIUS
+    held = grip.detail.get("point")  # the point gripped (rotor frame), or the paper's candidate by its letter
+    point = rot[k] @ (np.asarray(held) if held is not None else POINTS[arm - 1, "abc".index(grip.detail["to_point"])])
+    point = point * RADIUS
     return {"t_start": release.t, "t_end": grip.t, "kind": "switch",
             "detail": {"arm": arm, "from_point": grip.detail["from_point"], "to_point": grip.detail["to_point"],
                        "contact_jump": jump, "grip_offset": float(np.linalg.norm(tip[k] - point))}}
@@ -90,18 +92,17 @@ def paint(model, rec, row: int) -> None:
 
 def plots(traj, rec, result, folder: Path) -> list[str]:
     """gamma of every arm against time with its switches (paper 001's Fig. 11 is arm 1's)."""
-    import matplotlib.pyplot as plt
+    from simbench.plots import save_png, time_panels
 
     engaged = gripping(rec)
-    fig, axes = plt.subplots(ARMS, 1, figsize=(8, 7), sharex=True)
+    fig, axes = time_panels(ARMS, 8, 7)
+    axes = axes[:, 0]
     for arm, ax in enumerate(axes):
         _plot_gamma(ax, rec, arm, engaged[:, arm], result.extra["switch_events"])
     axes[0].legend(loc="upper right", fontsize=8)
-    axes[0].set_title("gamma of each arm (red: re-grips; dotted: the 10-170 deg band)")
+    axes[0].set_title("gamma of each arm (red: re-grips; dotted: the 10-170 deg band)", y=1.0)
     axes[-1].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(folder / "gamma.png", dpi=110)
-    plt.close(fig)
+    save_png(fig, folder / "gamma.png")
     return ["gamma.png"]
 
 
@@ -109,8 +110,10 @@ def _plot_gamma(ax, rec, arm: int, engaged: np.ndarray, switch_events: list[dict
     """Arm `arm`'s gamma (deg) on `ax`: green while it grips, grey while it swings, its re-grips in red and the
     band of eq. 45 dotted."""
     g = np.rad2deg(rec.q[:, ARMS + arm])
-    ax.plot(rec.t, np.where(engaged, g, np.nan), color="tab:green", lw=1.2, label="gripping")
-    ax.plot(rec.t, np.where(engaged, np.nan, g), color="tab:gray", lw=1.0, label="swinging")
+    from simbench.plots import time_line
+
+    time_line(ax, rec.t, np.where(engaged, g, np.nan), color="tab:green", lw=1.2, label="gripping")
+    time_line(ax, rec.t, np.where(engaged, np.nan, g), color="tab:gray", lw=1.0, label="swinging")
     for bound in np.rad2deg(GAMMA_BAND):
         ax.axhline(bound, color="k", ls=":", lw=0.8)
     for e in switch_events:

@@ -59,10 +59,15 @@ def jacobian(q: np.ndarray) -> np.ndarray:
 def manipulability(q: np.ndarray) -> np.ndarray:
     """Yoshikawa's measure sqrt(det(J J^T)) of the 3x4 position Jacobian; zero where cos q3 = 0.
 
-    Taken as the product of J's singular values: the square root of a near-zero determinant would magnify its
-    rounding error to about 1e-9.
+    In closed form: by Cauchy-Binet det(J J^T) is the sum of the squares of J's 3 x 3 minors, which (in the frame
+    of the radial, tangential and vertical directions, L = q4 + d4) are -L^2 s3 c3, L c3^2, L^2 c3 and 0, so that
+    the measure is |c3| L sqrt(L^2 (1 + s3^2) + c3^2): no square root of a near-zero determinant (whose rounding
+    error it would magnify to about 1e-9), and within 1e-15 of the product of J's singular values.
     """
-    return np.prod(np.linalg.svd(jacobian(q), compute_uv=False), axis=-1)
+    q = np.atleast_2d(q)
+    reach = q[:, 3] + D4
+    c3, s3 = np.cos(q[:, 2]), np.sin(q[:, 2])
+    return np.abs(c3) * np.abs(reach) * np.sqrt(reach * reach * (1.0 + s3 * s3) + c3 * c3)
 
 
 def axis_distance(q: np.ndarray) -> np.ndarray:

@@ -1,0 +1,136 @@
+"""The analysis against the simulation on every shipped scenario, and the demo's plots (project issue 14).
+
+Per scenario, planned once, then in alternation: the simulation as `simbench.evaluate`'s `simulate` stage makes it
+(`sim.simulate` with the scenario's controller, then `sim.commanded`) and the analysis as its `analyse` stage makes
+it (`analysis.analyse` and `verdict.run_verdict` on that recording); the ratio is the median of the pairwise
+ratios, so that a busy machine slows both alike. Target: at most 0.5 on every scenario.
+
+The demo's plots: `plots.write_plots` and the robot's own plots into a fresh folder, as `simbench.run` draws them
+(median of PLOT_REPEATS). Target: at most 0.3 s.
+
+BEFORE holds the same figures for the code of commit 0ca0635, measured by this module (run on a copy of that
+revision's src/) on the same machine on the same day, just before the figures after.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.common import interleaved, shipped
+from simbench.analysis import analyse
+from simbench.plant import Plant
+from simbench.plots import write_plots
+from simbench.resources import scenarios_dir
+from simbench.robots import Tolerance
+from simbench.sim import commanded, simulate
+from simbench.verdict import run_verdict
+
+REPEATS = 5
+PLOT_REPEATS = 7
+PLOTS = "spherical_arm/demo"
+# Commit 0ca0635, measured by this module on 2026-11-23 (AMD EPYC, 2 cores, shared with other work) just before
+# the figures after in BENCHMARKS.md:
+# scenario: (simulate ms, analyse ms, median ratio); and the demo's plots in s.
+BEFORE = {
+    "agile_eye/avoidance": (99.3, 329.6, 3.31),
+    "agile_eye/through_singularity": (81.2, 2964.9, 41.34),
+    "puma600/circle": (27.5, 60.6, 2.25),
+    "puma600/line": (31.8, 65.7, 2.03),
+    "puma600/weld_seam": (35.3, 73.5, 2.34),
+    "puma600/wrist_singularity": (21.7, 49.0, 2.26),
+    "rsmg/three_turns": (450.8, 279.9, 0.60),
+    "rsmg/tumble": (321.6, 204.6, 0.61),
+    "spherical_arm/case1": (27.7, 66.4, 2.50),
+    "spherical_arm/case1_joint_move": (25.0, 63.4, 2.59),
+    "spherical_arm/case2": (26.7, 70.2, 2.59),
+    "spherical_arm/case2_forward_twin": (25.1, 62.0, 2.49),
+    "spherical_arm/case3": (25.1, 65.9, 2.60),
+    "spherical_arm/case4": (40.8, 92.5, 2.48),
+    "spherical_arm/demo": (35.6, 96.4, 2.77),
+}
+BEFORE_PLOTS = 1.693
+
+
+def measure_scenario(name: str) -> dict:
+    """Median simulate and analyse times of one shipped scenario and the median of their pairwise ratios."""
+    sc = shipped(name)
+    robot, sim, a = sc.robot_def, sc.sim, sc.analysis
+    plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation,
+                       sc.controller_def.from_scenario(sc).actuation)
+    planned = sc.planner_def.plan(sc, robot, float(plant.model.opt.timestep))
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    done = {}
+
+    def simulate_stage():
+        rec = simulate(plant, planned, sc.controller_def.from_scenario(sc), settle=sim.settle)
+        done["run"] = commanded(planned, rec), rec
+
+    def analyse_stage():
+        traj, rec = done["run"]
+        run_verdict(robot, traj, analyse(robot, traj, rec, near=near, margin=margin), a, sc.expect)
+
+    simulate_stage()
+    t_sim, t_ana = interleaved(simulate_stage, analyse_stage, REPEATS)
+    return {"scenario": name, "samples": int(planned.t.size), "simulate": float(np.median(t_sim)),
+            "analyse": float(np.median(t_ana)), "ratio": float(np.median(t_ana / t_sim))}
+
+
+def measure_plots(name: str = PLOTS) -> dict:
+    """Median seconds of the scenario's plots, drawn as `simbench.run` draws them."""
+    sc = shipped(name)
+    from simbench import evaluate
+
+    ev = evaluate(sc)
+    robot = sc.robot_def
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(PLOT_REPEATS + 1):  # the first warms matplotlib's caches (fonts, glyphs)
+            folder = Path(tmp) / f"plots{i}"
+            start = time.perf_counter()
+            names = write_plots(robot, ev.trajectory, ev.recording, ev.analysis, folder)
+            names += robot.plots(ev.trajectory, ev.recording, ev.analysis, folder)
+            times.append(time.perf_counter() - start)
+    return {"scenario": name, "plots": len(names), "seconds": float(np.median(times[1:]))}
+
+
+def measure() -> dict:
+    """Every shipped scenario, and the demo's plots."""
+    names = [str(p.relative_to(scenarios_dir()).with_suffix("")) for p in sorted(scenarios_dir().glob("*/*.yaml"))]
+    return {"scenarios": [measure_scenario(name) for name in names], "plots": measure_plots()}
+
+
+def markdown(result: dict) -> str:
+    """The result as a BENCHMARKS.md section."""
+    rows = []
+    for r in result["scenarios"]:
+        before = BEFORE.get(r["scenario"])
+        was = f"{before[1]:.1f} / {before[0]:.1f} = {before[2]:.2f}" if before else "-"
+        rows.append(f"| `{r['scenario']}` | {r['samples']:,} | {1e3 * r['simulate']:.1f} | {1e3 * r['analyse']:.1f} | "
+                    f"{r['ratio']:.2f} | {was} |")
+    worst = max(result["scenarios"], key=lambda r: r["ratio"])
+    p = result["plots"]
+    return "\n".join([
+        f"### Analysis against simulation, and the demo's plots ({REPEATS} interleaved pairs a scenario)",
+        "",
+        "`python -m benchmarks.bench_analysis`. Before: commit 0ca0635 measured by this module (on a copy of its "
+        "src/), on the same machine the same day.",
+        "",
+        "| scenario | samples | simulate ms (median) | analyse ms (median) | analyse / simulate (median of pairs) | "
+        "before: analyse / simulate ms = ratio |",
+        "|---|---|---|---|---|---|",
+        *rows,
+        "",
+        f"Target: analysis at most 0.5 of the simulation on every scenario; the largest ratio is "
+        f"{worst['ratio']:.2f} (`{worst['scenario']}`).",
+        "",
+        f"Plots of `{p['scenario']}` ({p['plots']} PNGs, median of {PLOT_REPEATS}): {p['seconds']:.3f} s "
+        f"(before {BEFORE_PLOTS:.3f} s). Target: at most 0.3 s.",
+    ])
+
+
+if __name__ == "__main__":
+    print(markdown(measure()))

@@ -1,0 +1,505 @@
+"""Where the RSMG's arms grip the rotor (paper 001, section 4): the candidate contact points of the round robin.
+
+The rotor is a steel ball, and an electromagnet (EM) can grip it anywhere it reaches. The paper's surviving text
+names three candidate points per arm (a, b, c, Fig. 10) but not where they sit; simbench put them 120 deg apart on
+a great circle (rsmg.POINTS). `FixedContacts` is that scheme: an arm that lets go takes the next of its three in
+round-robin order. `GeneralContacts` (`contacts: general`) offers every arm a dense set of points over the whole
+rotor (a Fibonacci sphere, _DENSE points about 10 deg apart) and, at each re-grip, ranks those it can reach by how
+long they keep the arm's gamma inside eq. 45's band and how firmly (|det A|, eqs. 36-39, 46) the arms holding the
+rotor hold it with the new point over the coming motion.
+
+Both answer the schedule's questions (planners.round_robin._Scheduler) the same way: for each arm and point, on the
+schedule's grid, the first step from each step at which the point leaves the band (`next_bad`), the arm's row of A
+(`rows`), its base angle and gamma (`path`), the points to try next, best first (`next_points`), and the floor on
+the holding arms' |det A| (`floor`). The fixed three come as whole arrays; general contacts' arrays are `Lazy`,
+computed block by block as the search reads them, so that planning grows with the motion's length, not with its
+square (ten minutes of tumbling: 227 re-grips planned in 28 s).
+
+The band in gamma is a band in the angle d between the EM axis v_i and the arm's axis u_i (eqs. 10-11 and the
+spherical triangle u_i, w_i, v_i): cos d = cos ALPHA cos BETA + sin ALPHA sin BETA cos gamma, whatever theta. In the
+rotor's frame the arm's axis is a_i(t) = R(t)^T u_i, a path over the rotor's surface, and a point p is usable while
+the angle between p and a_i(t) stays in the band: a spherical annulus about a_i(t). So one matrix product ranks
+every point of the dense set at once (`dwell`); the exact IK (eqs. 12-23) then checks the few points tried.
+
+General contacts also keep the plan inside the joints' speed limits (rsmg.QD_MAX): a point held is usable only while
+following it needs no joint faster than SPEED_SHARE of its limit, and a swing whose quintic would outrun a joint
+is not taken; and they hold a fast rotor more firmly (`GeneralContacts.floor`). The fixed scheme is the paper's
+and is left as it was: its plan's speeds are checked by the run.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import NamedTuple
+
+import numpy as np
+
+from simbench.robots import rsmg
+
+_DENSE = 400  # points of the dense candidate set: neighbours about 10 deg apart
+_SHORTLIST = 4  # points tried a re-grip, best first
+_APART = np.deg2rad(25.0)  # the shortlist's points at least this far apart from one another
+SPEED_SHARE = 0.9  # a hold or a swing asks a joint for at most this share of its speed limit
+_HORIZON = 8  # swings (with their approach): the dwell beyond which a point is as good as any longer one
+_FIRM_WEIGHT = 2.0  # the firmness's weight in a point's score against its dwell (both about 0-1)
+CACHE_FLOATS = 5e7  # floats that a cache of arrays along the grid may hold (400 MB); the oldest go first
+_QUINTIC_SAMPLES = 41  # where a swing's quintic's speed is checked
+# The floor on |det A| general contacts keep: the task's det_a_min up to FIRM_SPEED of the rotor, then in proportion
+# to its speed, up to FIRM_CAP (see GeneralContacts.floor).
+FIRM_SPEED = np.deg2rad(150.0)  # rad/s
+FIRM_CAP = 0.5
+_FIRM_STRIDE = 4  # schedule steps between the samples a point's firmness is ranked on
+_LAZY_BLOCK = 1024  # schedule steps in a block of a Lazy array
+_BLOCK_STEPS = 256  # schedule steps in a cached block of the dense set's band test
+_BLOCK_SAMPLES = 64  # firmness samples in a cached block of the dense set's rows of A
+
+
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """n nearly evenly spread unit vectors (n, 3): the golden-angle spiral."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = np.pi * (1.0 + np.sqrt(5.0)) * k
+    r = np.sqrt(1.0 - z**2)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def cos_d(gamma: np.ndarray) -> np.ndarray:
+    """cos of the angle between the EM axis and the arm's axis at gamma: cos ALPHA cos BETA + sin ALPHA sin BETA cos
+    gamma (the spherical triangle u_i, w_i, v_i, sides ALPHA and BETA about the angle gamma at w_i)."""
+    return np.cos(rsmg.ALPHA) * np.cos(rsmg.BETA) + np.sin(rsmg.ALPHA) * np.sin(rsmg.BETA) * np.cos(gamma)
+
+
+def first_false(ok: np.ndarray) -> np.ndarray:
+    """For each step along the last axis (and one past the end), the first step at or after it where `ok` is false
+    (the length if never)."""
+    n = ok.shape[-1]
+    first = np.minimum.accumulate(np.where(ok, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
+    return np.concatenate([first, np.full(ok.shape[:-1] + (1,), n)], axis=-1)
+
+
+def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
+    """The rotor's angular speed (N,) in rad/s along orientations (N, 3, 3) sampled `step` s apart."""
+    rel = np.einsum("nji,njk->nik", rot[:-1], rot[1:])  # R_k^T R_k+1
+    cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+    speed = np.arccos(cos) / step
+    return np.concatenate([speed, speed[-1:]]) if speed.size else np.zeros(len(rot))
+
+
+class BoundedCache(OrderedDict):
+    """A cache dropping its oldest entries once they hold more than `floats` numbers."""
+
+    def __init__(self, floats: float):
+        super().__init__()
+        self.floats, self.held = floats, 0
+
+    def keep(self, key, value):
+        """Keep value under key (an array counts its size, anything else 1); return it."""
+        self[key] = value
+        self.held += _floats(value)
+        while self.held > self.floats and len(self) > 1:
+            _, old = self.popitem(last=False)
+            self.held -= _floats(old)
+        return value
+
+
+def _floats(value) -> int:
+    """What a cached value counts against its cache's bound: an array's size, anything else 1."""
+    return value.size if isinstance(value, np.ndarray) else 1
+
+
+class Lazy:
+    """An array along the grid (n steps, any trailing shape) computed block by block when first read, the blocks
+    kept in a shared BoundedCache: what keeps general contacts' planning linear in the motion's length (a point held
+    a few seconds costs a few blocks, not the whole grid). make(first, stop) computes steps first to stop. Reads as
+    an array does: lazy[step], lazy[steps], lazy[first:stop]."""
+
+    _tags = iter(range(1 << 62))
+
+    def __init__(self, n: int, make, cache: BoundedCache, size: int = _LAZY_BLOCK):
+        self.n, self.make, self.cache, self.size, self.tag = n, make, cache, size, next(Lazy._tags)
+
+    def block(self, b: int) -> np.ndarray:
+        """Block b: steps b * size to (b + 1) * size (fewer at the end)."""
+        key = (self.tag, b)
+        if key in self.cache:
+            return self.cache[key]
+        return self.cache.keep(key, self.make(b * self.size, min((b + 1) * self.size, self.n)))
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            first, stop, _ = index.indices(self.n)
+            if stop <= first:
+                return self.block(0)[:0]
+            parts = [self.block(b) for b in range(first // self.size, (stop - 1) // self.size + 1)]
+            whole = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            offset = (first // self.size) * self.size
+            return whole[first - offset:stop - offset]
+        steps = np.asarray(index)
+        if steps.ndim == 0:
+            return self.block(int(steps) // self.size)[int(steps) % self.size]
+        blocks = steps // self.size
+        first = self.block(int(blocks.flat[0])) if steps.size else self.block(0)
+        out = np.empty(steps.shape + first.shape[1:], first.dtype)
+        for b in np.unique(blocks):
+            here = blocks == b
+            out[here] = self.block(int(b))[steps[here] - b * self.size]
+        return out
+
+
+class LazyExit:
+    """first_false of a Lazy of booleans, block by block: for each step (and one past the end, n), the first at or
+    after it where `ok` is false (n if never); read as first_false's array is (exit[step], exit[steps])."""
+
+    def __init__(self, ok: Lazy):
+        self.ok, self.n, self.size = ok, ok.n, ok.size
+        self._from_start: dict[int, int] = {}  # block -> the first false at or after its first step
+
+    def _local(self, b: int) -> np.ndarray:
+        """first_false within block b (its length where none)."""
+        key = (self.ok.tag, b, "exit")
+        if key in self.ok.cache:
+            return self.ok.cache[key]
+        return self.ok.cache.keep(key, first_false(self.ok.block(b)))
+
+    def _from(self, b: int) -> int:
+        """The first false at or after block b's first step."""
+        pending = []
+        while b * self.size < self.n and b not in self._from_start:
+            local = self._local(b)
+            if local[0] < len(local) - 1:
+                self._from_start[b] = b * self.size + int(local[0])
+                break
+            pending.append(b)
+            b += 1
+        found = self._from_start.get(b, self.n)
+        for p in pending:
+            self._from_start[p] = found
+        return found
+
+    def __getitem__(self, index):
+        steps = np.asarray(index)
+        flat = np.atleast_1d(steps).ravel()
+        out = np.full(flat.shape, self.n, dtype=np.int64)
+        inside = flat < self.n
+        blocks = flat // self.size
+        for b in np.unique(blocks[inside]):
+            here = inside & (blocks == b)
+            local = self._local(int(b))
+            found = local[flat[here] - b * self.size]
+            ahead = found >= len(local) - 1  # none left in this block: the first from the next one on
+            out[here] = np.where(ahead, self._from(int(b) + 1), b * self.size + found)
+        return int(out[0]) if steps.ndim == 0 else out.reshape(steps.shape)
+
+
+class FixedContacts:
+    """The paper's scheme: each arm's three points (a, b, c), the next in round-robin order tried first. Built from
+    every arm's gamma (4, 3, N) and rows of A (4, 3, N, 3) on every point along the grid (and theta, for a plan)."""
+
+    def __init__(self, gamma: np.ndarray, rows: np.ndarray, band: tuple[float, float],
+                 theta: np.ndarray | None = None):
+        self.gamma, self._rows, self.theta = gamma, rows, theta
+        self._next_bad = first_false((gamma > band[0]) & (gamma < band[1]))  # NaN (out of reach) is never inside
+        self.count = gamma.shape[1]
+
+    @property
+    def n(self) -> int:
+        """Steps of the grid."""
+        return self.gamma.shape[-1]
+
+    def next_bad(self, arm: int, k: int) -> np.ndarray:
+        return self._next_bad[arm, k]
+
+    def rows(self, arm: int, k: int) -> np.ndarray:
+        return self._rows[arm, k]
+
+    def path(self, arm: int, k: int, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """theta and gamma of the arm holding point k at steps first to stop."""
+        return self.theta[arm, k, first:stop], self.gamma[arm, k, first:stop]
+
+    def point(self, arm: int, k: int) -> np.ndarray:
+        return rsmg.POINTS[arm, k]
+
+    def label(self, arm: int, k: int) -> str:
+        return "abc"[k]
+
+    def initial_points(self, arm: int) -> list[int]:
+        """The points the arm may grip at t = 0: those inside the band then."""
+        return [k for k in range(self.count) if self._next_bad[arm, k, 0] > 0]
+
+    def next_points(self, arm: int, held: dict[int, int], grip: int) -> list[int]:
+        """The next point in round-robin order, then the one after (the paper's order of trial)."""
+        return [(held[arm] + 1) % self.count, (held[arm] + 2) % self.count]
+
+    def swing_fits(self, arm: int, k_from: int, k_to: int, release: np.ndarray) -> np.ndarray:
+        """Any: the paper's scheme has no limit on a swing (its plan's speeds are the run's to check)."""
+        return np.ones(release.shape, bool)
+
+    def floor(self, det_a_min: float) -> float:
+        """The floor on the holding arms' type A measure: det_a_min throughout."""
+        return det_a_min
+
+
+class Swing(NamedTuple):
+    """A swing on the schedule grid: its steps in all, the last `approach` following the next point."""
+
+    steps: int
+    approach: int
+
+
+class GeneralContacts:
+    """Any point of the rotor an arm reaches: a dense set (_DENSE points), ranked at each re-grip (module docstring).
+    `rot` (N, 3, 3): the commanded orientations on the grid, `step` s apart; `band`: gamma's (lo, hi)."""
+
+    def __init__(self, rot: np.ndarray, step: float, band: tuple[float, float], swing: Swing,
+                 speed_share: float = SPEED_SHARE):
+        self.rot, self.step, self.band, self.swing = rot, step, band, swing
+        self.dense = fibonacci_sphere(_DENSE)
+        self.count = _DENSE
+        self.axes = np.einsum("nji,aj->ani", rot, rsmg.U)  # a_i(t) = R(t)^T u_i, (4, N, 3)
+        self.cos_band = (cos_d(band[1]), cos_d(band[0]))  # cos d falls as gamma rises
+        self.qd_limit = speed_share * rsmg.QD_MAX[0]
+        self.horizon = _HORIZON * swing.steps
+        self._cache = BoundedCache(CACHE_FLOATS)
+
+    @property
+    def n(self) -> int:
+        """Steps of the grid."""
+        return len(self.rot)
+
+    def _cached(self, key, make):
+        return self._cache[key] if key in self._cache else self._cache.keep(key, make())
+
+    def lazy(self, make) -> Lazy:
+        """A Lazy array along this grid, its blocks in this object's cache."""
+        return Lazy(self.n, make, self._cache)
+
+    def angles(self, arm: int, k: int) -> Lazy:
+        """theta and gamma (N, 2) of the arm holding point k along the grid (eqs. 12-23), computed as read."""
+        def make(first: int, stop: int) -> np.ndarray:
+            return np.stack(rsmg.ik(arm, self.rot[first:stop] @ self.dense[k]), axis=1)
+        return self._cached(("angles", arm, k), lambda: self.lazy(make))
+
+    def path(self, arm: int, k: int, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """theta and gamma of the arm holding point k at steps first to stop."""
+        both = self.angles(arm, k)[first:stop]
+        return both[:, 0], both[:, 1]
+
+    def rows(self, arm: int, k: int) -> Lazy:
+        """The arm's row of A holding point k (N, 3) (eqs. 34-35), computed as read."""
+        def make(first: int, stop: int) -> np.ndarray:
+            both = self.angles(arm, k)[first:stop]
+            return rsmg.jacobian_rows(arm, both[:, 0], both[:, 1])[0]
+        return self._cached(("rows", arm, k), lambda: self.lazy(make))
+
+    def next_bad(self, arm: int, k: int) -> LazyExit:
+        """For each step, the first at or after it where holding point k puts gamma outside the band (eq. 45 less
+        the margin) or asks theta or gamma for more than SPEED_SHARE of its speed limit."""
+        def make(first: int, stop: int) -> np.ndarray:
+            lo, hi = max(first - 1, 0), min(stop + 1, self.n)  # a step either side for the rates at the ends
+            both = self.angles(arm, k)[lo:hi]
+            theta, gamma = both[:, 0], both[:, 1]
+            ok = (gamma > self.band[0]) & (gamma < self.band[1])
+            if ok.any() and len(ok) > 1:
+                speed = np.maximum(np.abs(np.gradient(np.unwrap(np.nan_to_num(theta)), self.step)),
+                                   np.abs(np.gradient(np.nan_to_num(gamma), self.step)))
+                ok &= speed < self.qd_limit
+            return ok[first - lo:first - lo + stop - first]
+        return self._cached(("next_bad", arm, k), lambda: LazyExit(self.lazy(make)))
+
+    def point(self, arm: int, k: int) -> np.ndarray:
+        return self.dense[k]
+
+    def floor(self, det_a_min: float) -> np.ndarray:
+        """The floor on the holding arms' type A measure at each step (N,): det_a_min while the rotor turns at up to
+        FIRM_SPEED, then rising in proportion to its speed, up to FIRM_CAP (never under det_a_min). The rotor's
+        error is the servos' lag, which grows with its speed, carried to the rotor through A^-1 (eq. 33:
+        omega = -A^-1 B theta_dot): a faster rotor must be held more firmly to stay as near its command. In trials
+        with a floor of 0.15, five of 50 random motions (at 73-175 deg/s, three arms holding near the floor) ran
+        1.0-1.9 deg off their command; with 0.3 alone, at 350 deg/s four arms holding at 0.4 ran 1.7 deg off; with
+        this floor every one scheduled at up to 930 deg/s stayed within 0.93 deg (benchmarks/bench_rsmg_contacts)."""
+        speed = angular_speed(self.rot, self.step)
+        return np.maximum(det_a_min, np.minimum(FIRM_CAP, det_a_min * speed / FIRM_SPEED))
+
+    def label(self, arm: int, k: int) -> str:
+        return f"p{k}"
+
+    def _blocks(self, name: str, arm: int, lo: int, hi: int, size: int, make) -> np.ndarray:
+        """Items lo to hi (exclusive) along the second axis of a per-arm array over the dense set, from cached blocks
+        of `size` items: make(arm, first, stop) computes one."""
+        parts = [self._cached((name, arm, b), lambda b=b: make(arm, b * size, (b + 1) * size))
+                 for b in range(lo // size, (hi - 1) // size + 1)]
+        whole = np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
+        return whole[:, lo - (lo // size) * size:hi - (lo // size) * size]
+
+    def _inside(self, arm: int, first: int, stop: int) -> np.ndarray:
+        """Whether each point of the dense set is inside the arm's band at steps first to stop (K, steps): the cos
+        of its angle to the arm's axis a_i(t) within the band's (module docstring)."""
+        c = self.dense @ self.axes[arm, first:min(stop, self.n)].T
+        return (c > self.cos_band[0]) & (c < self.cos_band[1])
+
+    def _dense_rows(self, arm: int, first: int, stop: int) -> np.ndarray:
+        """Every point of the dense set's row of A for the arm (K, samples, 3) at the firmness samples (every
+        _FIRM_STRIDE-th step) first to stop (sample indices)."""
+        steps = np.arange(first, stop) * _FIRM_STRIDE
+        steps = steps[steps < self.n]
+        return row_of_a(arm, np.einsum("nij,kj->kni", self.rot[steps], self.dense))
+
+    def dwell(self, arm: int, start: int) -> np.ndarray:
+        """For every point of the dense set, the first step from `start` (up to start + the horizon) where it is
+        outside the arm's band, by the angle to the arm's axis a_i(t) (module docstring), (K,)."""
+        def make():
+            stop = min(start + self.horizon, self.n)
+            return start + first_false(self._blocks("dense_inside", arm, start, stop, _BLOCK_STEPS, self._inside))[:, 0]
+        return self._cached(("dwell", arm, start), make)
+
+    def initial_points(self, arm: int) -> list[int]:
+        """The points to try at t = 0: the longest inside the band, a shortlist far apart."""
+        exits = self.dwell(arm, 0)
+        inside = np.flatnonzero(exits > 0)
+        return _spread(self.dense, inside, exits[inside].astype(float))
+
+    def next_points(self, arm: int, held: dict[int, int], grip: int) -> list[int]:
+        """The points for `arm` to grip at step `grip`, best first: each inside the band from its approach on for
+        at least a swing after the grip, scored by how long it stays inside (up to the horizon: the dwell, 0-1)
+        and how firmly the arms would then hold the rotor (the firmness: the least |det A| of the new point with
+        each two of the other three, the arms that hold while the third swings, eq. 46, over the window it holds,
+        as a share of the largest a determinant of three rows of length sin BETA can be)."""
+        start = max(grip - self.swing.approach, 0)
+        until = self.dwell(arm, start)
+        usable = np.flatnonzero((until > grip + self.swing.steps) | (until >= self.n))
+        if not usable.size:
+            return []
+        stop = np.minimum(until[usable], min(grip + self.horizon, self.n))
+        dwell = (stop - grip) / max(min(self.horizon, self.n - grip), 1)
+        firm = self._firmness(arm, held, usable, grip, stop)
+        return _spread(self.dense, usable, dwell + _FIRM_WEIGHT * np.minimum(firm, 1.0))
+
+    def _firmness(self, arm: int, held: dict[int, int], usable: np.ndarray, grip: int, stop: np.ndarray) -> np.ndarray:
+        """For each usable point (stop: each one's step of leaving, past the grip), the least |det A| of it with
+        each two of the other arms' rows, from the grip until it leaves, as a share of sin(BETA)^3 (rows w x v have
+        length sin BETA); on every _FIRM_STRIDE-th step."""
+        first, last = grip // _FIRM_STRIDE, (int(stop.max()) - 1) // _FIRM_STRIDE + 1
+        row = self._blocks("dense_rows", arm, first, last, _BLOCK_SAMPLES, self._dense_rows)[usable]  # (P, J, 3)
+        steps = np.arange(first, last) * _FIRM_STRIDE
+        others = [self.rows(a, k)[steps] for a, k in sorted(held.items()) if a != arm]
+        least = np.full(row.shape[:2], np.inf)
+        for i in range(len(others)):
+            for j in range(i + 1, len(others)):
+                least = np.minimum(least, np.abs(np.einsum("kni,ni->kn", row, np.cross(others[i], others[j]))))
+        held_then = steps[None, :] < stop[:, None]  # each point's samples before it leaves
+        least = np.where(held_then, np.nan_to_num(least, nan=0.0), np.inf).min(axis=1)
+        return least / np.sin(rsmg.BETA) ** 3
+
+    def swing_fits(self, arm: int, k_from: int, k_to: int, release: np.ndarray) -> np.ndarray:
+        """Whether the swing from point k_from, let go at each step of `release`, to point k_to (a quintic in theta
+        and gamma matching value, rate and acceleration at both ends, as planned) keeps both joints under
+        SPEED_SHARE of their limit."""
+        release = np.asarray(release)
+        end = release + self.swing.steps - self.swing.approach
+        ok = (release >= 1) & (end + 1 < self.n)
+        fits = np.zeros(release.shape, bool)
+        if not ok.any():
+            return fits
+        release, end = release[ok], end[ok]
+        h = (self.swing.steps - self.swing.approach) * self.step
+        peak = np.zeros(release.shape)
+        before, after = self.angles(arm, k_from), self.angles(arm, k_to)
+        for joint in range(2):
+            a, b = _Column(before, joint), _Column(after, joint)
+            a0, b0 = a[release], b[end]
+            if joint == 0:  # theta goes the shorter way round (the plan keeps it on the nearest turn)
+                b0 = a0 + np.angle(np.exp(1j * (b0 - a0)))
+            start = np.stack([a0, *_rates(a, release, self.step, joint == 0)], axis=1)
+            finish = np.stack([b0, *_rates(b, end, self.step, joint == 0)], axis=1)
+            peak = np.maximum(peak, _quintic_peak(start, finish, h))
+        fits[ok] = np.nan_to_num(peak, nan=np.inf) < self.qd_limit
+        return fits
+
+
+def row_of_a(arm: int, v: np.ndarray) -> np.ndarray:
+    """The arm's row of A, w_i x v_i (eq. 34), for EM axes v (..., 3) in the base frame, in closed form: the w_i at
+    ALPHA from u_i and BETA from v_i (eqs. 10-11), w = a u + b v + c (u x v) with a + b (u.v) = cos ALPHA,
+    a (u.v) + b = cos BETA, |w| = 1, and c > 0 (the root with gamma in (0, 180) deg, the one rsmg.ik keeps); NaN
+    out of reach. The same as rsmg.jacobian_rows of rsmg.ik's solution, without solving for theta and gamma."""
+    u = rsmg.U[arm]
+    cuv = v @ u
+    den = 1.0 - cuv**2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a = (np.cos(rsmg.ALPHA) - np.cos(rsmg.BETA) * cuv) / den
+        b = (np.cos(rsmg.BETA) - np.cos(rsmg.ALPHA) * cuv) / den
+        c2 = (1.0 - a**2 - b**2 - 2 * a * b * cuv) / den
+        c = np.where(c2 >= 0, np.sqrt(np.abs(c2)), np.nan)
+    w = a[..., None] * u + b[..., None] * v + c[..., None] * np.cross(u, v)
+    return np.cross(w, v)
+
+
+class _Column:
+    """One column of a Lazy (N, 2), read by steps."""
+
+    def __init__(self, lazy: Lazy, column: int):
+        self.lazy, self.column = lazy, column
+
+    def __getitem__(self, steps):
+        return self.lazy[steps][..., self.column]
+
+
+def _rates(y: np.ndarray, at: np.ndarray, step: float, angle: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Rate and acceleration of samples y at indices `at` (central differences; an angle unwrapped)."""
+    before, here, after = y[at - 1], y[at], y[at + 1]
+    if angle:
+        before = here - np.angle(np.exp(1j * (here - before)))
+        after = here + np.angle(np.exp(1j * (after - here)))
+    return (after - before) / (2 * step), (after - 2 * here + before) / step**2
+
+
+def _quintic_peak(start: np.ndarray, end: np.ndarray, h: float) -> np.ndarray:
+    """The largest |rate| (M,) of quintics over [0, h] meeting (value, rate, acceleration) start (M, 3) at 0 and
+    end (M, 3) at h."""
+    a = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 2, 0, 0, 0],
+                  [1, h, h**2, h**3, h**4, h**5], [0, 1, 2 * h, 3 * h**2, 4 * h**3, 5 * h**4],
+                  [0, 0, 2, 6 * h, 12 * h**2, 20 * h**3]], float)
+    coef = np.linalg.solve(a, np.concatenate([start, end], axis=1).T)  # (6, M)
+    t = np.linspace(0.0, h, _QUINTIC_SAMPLES)
+    powers = np.stack([np.zeros_like(t)] + [(i + 1) * t**i for i in range(5)])  # d/dt of t^0..t^5
+    return np.abs(coef.T @ powers).max(axis=1)
+
+
+def _spread(points: np.ndarray, candidates: np.ndarray, score: np.ndarray) -> list[int]:
+    """Up to _SHORTLIST of the candidates (indices into points, `score` one a candidate), best score first, each at
+    least _APART from those before it."""
+    picked: list[int] = []
+    for i in np.argsort(-score, kind="stable"):
+        k = int(candidates[i])
+        if all(points[k] @ points[j] < np.cos(_APART) for j in picked):
+            picked.append(k)
+            if len(picked) == _SHORTLIST:
+                break
+    return picked
+
+
+def random_motions(n: int, seed: int, contacts: str = "general") -> list[dict]:
+    """n `round_robin` scenario documents (SI units) nobody tuned for, what the tests and the benchmark draw: every
+    other one (at random) turns about a uniform random axis, 1 to 5 turns either way; the rest tumble, 1 to 3 spin
+    turns about a uniform random rotor axis while it precesses 0.5 to 2 turns about another, either way; each over
+    a uniform 6 to 30 s on the shipped scenarios' trapezoidal law, with the task's defaults otherwise."""
+    rng = np.random.default_rng(seed)
+
+    def axis() -> list[float]:
+        v = rng.normal(size=3)
+        return (v / np.linalg.norm(v)).tolist()
+
+    def turns(lo: float, hi: float) -> float:
+        return float(rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi))
+
+    out = []
+    for i in range(n):
+        if rng.random() < 0.5:
+            motion = {"kind": "turns", "axis": axis(), "turns": turns(1, 5)}
+        else:
+            motion = {"kind": "tumble", "spin_axis": axis(), "spin_turns": turns(1, 3), "precession_axis": axis(),
+                      "precession_turns": turns(0.5, 2)}
+        out.append({"name": f"rsmg_motion_{seed}_{i}", "robot": "rsmg", "planner": "round_robin",
+                    "task": {"motion": motion, "contacts": contacts},
+                    "timing": {"law": "trapezoidal", "accel_fraction": 0.1, "duration": round(rng.uniform(6, 30), 2),
+                               "hold": 0.5}})
+    return out
