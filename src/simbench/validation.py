@@ -11,6 +11,7 @@ import errno
 import os
 import re
 import stat
+import typing
 from pathlib import Path
 from typing import Any
 
@@ -185,15 +186,30 @@ def format_loc(loc: tuple) -> str:
 
 
 def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
-    """Field names of the model found by following loc from cls (for 'did you mean')."""
-    model = cls
+    """Field names of the model found by following pydantic's error location `loc` from cls (for 'did you
+    mean'): through list items (an index), optional and union members (a union member's class name picks it) and
+    the members of lists and mappings of models; where a union's member is not named, the fields of all of them."""
+    models = [cls]
     for part in loc:
-        field = model.model_fields.get(part) if isinstance(part, str) else None
-        annotation = getattr(field, "annotation", None)
-        if not (isinstance(annotation, type) and issubclass(annotation, BaseModel)):
-            return []
-        model = annotation
-    return list(model.model_fields)
+        if isinstance(part, int):
+            continue
+        named = [m for m in models if m.__name__ == part]
+        if named:
+            models = named
+            continue
+        fields = [m.model_fields[part] for m in models if part in m.model_fields]
+        if not fields and len(models) > 1:
+            continue  # a tag pydantic puts in the location of a tagged union's member
+        models = [m for f in fields for m in _models_in(f.annotation)]
+    return list(dict.fromkeys(name for m in models for name in m.model_fields))
+
+
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    """The pydantic models an annotation holds: itself, or the members of its Optional, Union, Annotated, list or
+    dict."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
 
 
 def _field_loc(loc, document: Any) -> tuple:
