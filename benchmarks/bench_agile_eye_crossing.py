@@ -91,15 +91,20 @@ def verify(task, q_ref: np.ndarray) -> dict:
             "goal_error": float(rotation_angle(rot[-1:], goal[None])[0])}
 
 
+def task_scenario(k: int, section: dict, duration: float = DURATION):
+    """Random task k (its `task:` section) as an avoidance_4567 scenario on the 4-5-6-7 law."""
+    raw = {"robot": "agile_eye", "planner": "avoidance_4567", "task": section,
+           "timing": {"law": "4567", "duration": duration, "hold": 0.0}}
+    return parse_scenario(raw, f"task {k}")
+
+
 def measure() -> dict:
     """Plan every task; outcome, planning time and the independent check of each."""
     robot = agile_eye.ROBOT
     dt = float(Plant.load(robot).model.opt.timestep)
     rows = []
     for k, section in enumerate(tasks()):
-        raw = {"robot": "agile_eye", "planner": "avoidance_4567", "task": section,
-               "timing": {"law": "4567", "duration": DURATION, "hold": 0.0}}
-        sc = parse_scenario(raw, f"task {k}")
+        sc = task_scenario(k, section)
         start = time.perf_counter()
         try:
             traj = sc.planner_def.plan(sc, robot, dt)

@@ -36,14 +36,13 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from benchmarks.bench_agile_eye_crossing import _quat, plain_path_crosses, verify  # noqa: E402
+from benchmarks.bench_agile_eye_crossing import _quat, plain_path_crosses, task_scenario, verify  # noqa: E402
 from benchmarks.common import interleaved, shipped  # noqa: E402
 from simbench.errors import RunError  # noqa: E402
 from simbench.planners import avoidance_4567, learnt_fk  # noqa: E402
 from simbench.plant import Plant  # noqa: E402
 from simbench.robots import agile_eye  # noqa: E402
 from simbench.rotations import rotation_angle  # noqa: E402
-from simbench.scenario import parse_scenario  # noqa: E402
 from simbench.sim import commanded, simulate  # noqa: E402
 from simbench.timing import TimeLaw  # noqa: E402
 
@@ -158,9 +157,7 @@ def measure_tasks(plan=avoidance_4567.plan) -> list[dict]:
     simulation()  # warm-up
     rows = []
     for k, section in enumerate(tasks()):
-        raw = {"robot": "agile_eye", "planner": "avoidance_4567", "task": section,
-               "timing": {"law": "4567", "duration": DURATION, "hold": 0.0}}
-        sc = parse_scenario(raw, f"task {k}")
+        sc = task_scenario(k, section, DURATION)
         start = time.perf_counter()
         simulation()
         pace = time.perf_counter() - start
