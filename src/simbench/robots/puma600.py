@@ -26,6 +26,7 @@ import numpy as np
 
 from simbench.robots import REVOLUTE, SingularSet, Tolerance
 from simbench.robots.serial import SerialArm
+from simbench.robots.small_eigen import extreme_eigenvalues, gram
 
 A2, A3, D3, D4 = 0.432, 0.02, 0.149, 0.432
 D6 = 0.056  # wrist centre to tool flange along z6 (PUMA 560 flange)
@@ -211,45 +212,63 @@ def wrist_gap(q: np.ndarray) -> np.ndarray:
 _LENGTH = A2 + D4  # scales the Jacobian's linear rows so that its condition number has no units
 
 
-def _scaled_jacobian(q: np.ndarray) -> np.ndarray:
-    """The tool Jacobian (N, 6, 6) with its linear rows divided by a2 + d4: `jacobian`'s chain, with the
-    coordinates of each axis and origin as arrays over the samples (no 3 x 3 product a sample)."""
+def _frame3_columns(q: np.ndarray) -> list[tuple]:
+    """The columns of the tool Jacobian in frame 3's coordinates, linear rows divided by a2 + d4: R_03^T on both
+    row blocks, so the same singular values as `jacobian`'s, in closed form (no chain of 3 x 3 products a
+    sample). Each column is six entries, arrays over the samples or the constants 0.0 and 1.0.
+
+    In frame 3 the axes are z1 = (-s23, -c23, 0), z2 = z3 = (0, 0, 1), z4 = (0, 1, 0), z5 = (s4, 0, c4) and
+    z6 = (-c4 s5, c5, s4 s5); the wrist centre is (a3, d4, 0), the tool t = wrist centre + TOOL_z z6, the shoulder
+    (origins 1 and 2) (-a2 c3, a2 s3, -d3); column i is (z_i x (t - o_i) / (a2 + d4), z_i)."""
     q = np.atleast_2d(q)
-    one, zero = np.ones(len(q)), np.zeros(len(q))
-    cols = [[one, zero, zero], [zero, one, zero], [zero, zero, one]]  # columns of the rotation so far
-    pos = [zero, zero, zero]
-    origins, axes = [], []
-    for i in range(6):
-        ca, sa = round(np.cos(_ALPHA[i])), round(np.sin(_ALPHA[i]))  # 0 or +-1
-        c, s = np.cos(q[:, i]), np.sin(q[:, i])
-        pos = [p + r * _A[i] for p, r in zip(pos, cols[0])] if _A[i] else pos
-        y = [ca * r1 + sa * r2 if sa else r1 for r1, r2 in zip(cols[1], cols[2])]  # Rx(alpha)
-        z = [ca * r2 - sa * r1 if sa else r2 for r1, r2 in zip(cols[1], cols[2])]
-        cols = [[c * x0 + s * y0 for x0, y0 in zip(cols[0], y)], [c * y0 - s * x0 for x0, y0 in zip(cols[0], y)], z]
-        pos = [p + r * _D[i] for p, r in zip(pos, z)] if _D[i] else pos
-        origins.append(pos)
-        axes.append(z)
-    tool = [p + r * TOOL[2] for p, r in zip(pos, axes[5])]
-    columns = []
-    for o, z in zip(origins, axes):
-        arm = [t - p for t, p in zip(tool, o)]
-        linear = [(z[1] * arm[2] - z[2] * arm[1]) / _LENGTH, (z[2] * arm[0] - z[0] * arm[2]) / _LENGTH,
-                  (z[0] * arm[1] - z[1] * arm[0]) / _LENGTH]
-        columns.append(np.stack(linear + z))
-    return np.ascontiguousarray(np.stack(columns, axis=1).transpose(2, 0, 1))
+    c3, s3, c4, s4, c5, s5 = (f(q[:, i]) for i in (2, 3, 4) for f in (np.cos, np.sin))
+    c23, s23 = np.cos(q[:, 1] + q[:, 2]), np.sin(q[:, 1] + q[:, 2])
+    tool = TOOL[2] / _LENGTH
+    x6, y6, z6 = -c4 * s5, c5, s4 * s5
+    tx, ty, tz = A3 / _LENGTH + tool * x6, D4 / _LENGTH + tool * y6, tool * z6  # t
+    ux, uy, uz = tx + A2 / _LENGTH * c3, ty - A2 / _LENGTH * s3, tz + D3 / _LENGTH  # t - o1
+    return [(-c23 * uz, s23 * uz, c23 * ux - s23 * uy, -s23, -c23, 0.0),
+            (-uy, ux, 0.0, 0.0, 0.0, 1.0), (-ty, tx, 0.0, 0.0, 0.0, 1.0),
+            (tool * z6, 0.0, -tool * x6, 0.0, 1.0, 0.0),
+            (-tool * c4 * c5, -tool * s5, tool * s4 * c5, s4, 0.0, c4),
+            (0.0, 0.0, 0.0, x6, y6, z6)]
+
+
+def frame3_jacobian(q: np.ndarray) -> np.ndarray:
+    """The tool Jacobian (N, 6, 6) in frame 3's coordinates with its linear rows divided by a2 + d4."""
+    columns = [np.stack(np.broadcast_arrays(*column), -1) for column in _frame3_columns(q)]
+    return np.stack(np.broadcast_arrays(*columns), -1)
+
+
+def manipulability(q: np.ndarray) -> np.ndarray:
+    """|det J| of the tool Jacobian with its linear rows divided by a2 + d4: a2 |H r s5| / (a2 + d4)^3, with the
+    elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (moving the reference point
+    to the wrist centre leaves det J alone and makes J block triangular: arm block times wrist block)."""
+    q = np.atleast_2d(q)
+    c2, s2, c3, s3 = (f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin))
+    h = A3 * s3 + D4 * c3
+    r = c2 * (A2 + A3 * c3 - D4 * s3) - s2 * h
+    return A2 * np.abs(h * r * np.sin(q[:, 4])) / _LENGTH**3
+
+
+def condition(q: np.ndarray) -> np.ndarray:
+    """Condition number of the tool Jacobian with its linear rows divided by a2 + d4: its extreme singular values
+    as the square roots of J^T J's extreme eigenvalues (`small_eigen`, to 1e-15 of the largest, as LAPACK's);
+    from J's SVD where the condition number comes out over 1000 (the least singular value then off by more than
+    1e-9 of itself) or the iteration did not settle."""
+    q = np.atleast_2d(q)
+    low, high, settled = extreme_eigenvalues(gram(_frame3_columns(q)))
+    sv = np.sqrt(np.maximum(np.stack([high, low], -1), 0.0))
+    near = np.flatnonzero(~settled | (sv[:, 0] > 1e3 * sv[:, 1]))
+    if near.size:
+        sv[near] = np.linalg.svd(frame3_jacobian(q[near]), compute_uv=False)[:, [0, -1]]
+    return sv[:, 0] / np.maximum(sv[:, 1], 1e-300)
 
 
 def measures(q: np.ndarray) -> dict[str, np.ndarray]:
     """Manipulability and condition number of the tool Jacobian (linear rows divided by a2 + d4), and the
-    three singularity gaps. The singular values as the square roots of J^T J's eigenvalues, which LAPACK finds
-    in half the time of J's own, to 1e-16 of the largest squared; so, where the condition number comes out over
-    1000 (the least singular value then off by more than 1e-10 of itself), from J's SVD as before."""
-    jac = _scaled_jacobian(q)
-    sv = np.sqrt(np.maximum(np.linalg.eigvalsh(jac.transpose(0, 2, 1) @ jac), 0.0))[:, ::-1]
-    near = np.flatnonzero(sv[:, 0] > 1e3 * sv[:, -1])
-    if near.size:
-        sv[near] = np.linalg.svd(jac[near], compute_uv=False)
-    return {"manipulability": np.prod(sv, axis=-1), "condition": sv[:, 0] / np.maximum(sv[:, -1], 1e-300),
+    three singularity gaps."""
+    return {"manipulability": manipulability(q), "condition": condition(q),
             "shoulder_gap": shoulder_gap(q), "elbow_gap": elbow_gap(q), "wrist_gap": wrist_gap(q)}
 
 
