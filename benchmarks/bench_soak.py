@@ -6,9 +6,13 @@ first, and memory grows only with what is recorded. Measured:
   - each run in a fresh process (`simbench.run`, no video): wall time and peak resident memory, for the soak
     and for its first minute alone (the same motion, 60 s), so that the memory a recorded sample costs is
     (peak_600 - peak_60) / (samples_600 - samples_60);
-  - per minute of the soak: the largest rotor error and closure error, and the largest and mean kinetic energy
-    (MuJoCo's, at every 10th recorded state, with velocities from consecutive recorded positions);
-  - the same soak open loop (`regrip_feedback: false`, the paper's scheme without the grip feedback), per minute.
+  - the soak at its recording stride (`sim.record_every` in the yaml) and recorded whole (stride 1): peak
+    memory, the time to write the outputs (plots and timeseries), and whether the report's errors and events
+    are the same;
+  - per minute of the soak recorded whole: the largest rotor error and closure error, and the largest and mean
+    kinetic energy (MuJoCo's, at every 10th recorded state, with velocities from consecutive recorded positions);
+  - the same soak open loop (`regrip_feedback: false`, the paper's scheme without the grip feedback), per minute
+    of its strided timeseries (maxima over every k-th sample).
 """
 
 from __future__ import annotations
@@ -26,6 +30,9 @@ import yaml
 SOAK = Path(__file__).with_name("soak_rsmg.yaml")
 MINUTE = 60.0
 _STRIDE = 10  # recorded samples between kinetic energy evaluations
+# What the report says of the run's errors and events: the same at any recording stride.
+FOUND = ("status", "samples", "tracking", "singularity_events", "limit_events", "switch_events", "warnings",
+         "rotor_error_max", "closure_error_max", "fewest_gripping", "gripping_gamma")
 
 _CHILD = """
 import json, resource, sys, time
@@ -38,9 +45,13 @@ print(json.dumps({"wall": time.perf_counter() - start,
 """
 
 
-def _variant(folder: Path, name: str, minutes: float | None = None, feedback: bool = True) -> Path:
-    """The soak scenario, cut to `minutes` (the same rates) or open loop, written into folder."""
+def _variant(folder: Path, name: str, minutes: float | None = None, feedback: bool = True,
+             every: int | None = None) -> Path:
+    """The soak scenario, cut to `minutes` (the same rates), open loop, or at another recording stride, written
+    into folder."""
     doc = yaml.safe_load(SOAK.read_text())
+    if every is not None:
+        doc["sim"] = {**doc.get("sim", {}), "record_every": every}
     if minutes is not None:
         scale = minutes * MINUTE / doc["timing"]["duration"]
         doc["timing"]["duration"] *= scale
@@ -86,13 +97,15 @@ def _per_minute(t: np.ndarray, values: np.ndarray, reduce=np.max) -> list[float]
 
 
 def measure() -> dict:
-    """The soak, its first minute alone and its open-loop twin; per-minute maxima and memory."""
+    """The soak at its stride and whole, its first minute alone and its open-loop twin; per-minute maxima and
+    memory."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         soak = _run(SOAK, tmp / "soak")
+        whole = _run(_variant(tmp, "whole", every=1), tmp / "whole")
         short = _run(_variant(tmp, "first_minute", minutes=1.0), tmp / "short")
         open_loop = _run(_variant(tmp, "open_loop", feedback=False), tmp / "open")
-        with np.load(tmp / "soak" / "timeseries.npz") as ts:
+        with np.load(tmp / "whole" / "timeseries.npz") as ts:
             t, qpos = ts["t"], ts["qpos"]
             rotor, closure = ts["rotor_error"], ts["closure_error"]
             energy = kinetic_energy(qpos, float(t[1] - t[0]))
@@ -102,14 +115,22 @@ def measure() -> dict:
     report = soak["report"]
     return {
         "status": report["status"], "samples": report["samples"], "duration": report["duration"],
+        "record_every": report["record_every"],
         "switches": 2 * len(report["switch_events"]), "grips": len(report["switch_events"]),
         "singularity_events": len(report["singularity_events"]), "warnings": len(report["warnings"]),
-        "wall": soak["wall"], "stages": report["wall_time"],
+        "wall": soak["wall"], "stages": report["wall_time"], "whole_wall": whole["wall"],
+        "whole_stages": whole["report"]["wall_time"], "peak_rss_whole": whole["peak_rss"],
+        "differ": [key for key in FOUND if report.get(key) != whole["report"].get(key)],
         "peak_rss": soak["peak_rss"], "peak_rss_short": short["peak_rss"], "samples_short": short["report"]["samples"],
         "rotor": _per_minute(t, rotor), "closure": _per_minute(t, closure),
         "energy": _per_minute(t[1::_STRIDE], energy), "energy_mean": _per_minute(t[1::_STRIDE], energy, np.mean),
         "open_rotor": open_rotor, "open_closure": open_closure, "open_status": open_loop["report"]["status"],
     }
+
+
+def _outputs(stages: dict) -> float:
+    """Seconds spent writing the outputs: the plots and the timeseries."""
+    return stages["plots"] + stages["write"]
 
 
 def markdown(r: dict) -> str:
@@ -127,17 +148,29 @@ def markdown(r: dict) -> str:
         f"{r['wall']:.1f} s in all (simulate {r['stages']['simulate']:.1f} s, analyse {r['stages']['analyse']:.1f} "
         f"s, plots {r['stages']['plots']:.1f} s, write {r['stages']['write']:.1f} s).",
         "",
-        "Each minute's largest value (and the kinetic energy's mean), with the grip feedback (the default) and open "
-        "loop (`regrip_feedback: false`). The kinetic energy's peaks are the swings (a base joint at up to 12 rad/s):",
+        "Each minute's largest value (and the kinetic energy's mean), with the grip feedback (the default; recorded "
+        "whole) and open loop (`regrip_feedback: false`; over the stride's samples). The kinetic energy's peaks are "
+        "the swings (a base joint at up to 12 rad/s):",
         "",
         "| minute | rotor error (deg) | closure error (um) | kinetic energy, max (mJ) | mean (mJ) | "
         "open loop: rotor error (deg) | open loop: closure error (um) |",
         "|---|---|---|---|---|---|---|",
         *rows,
         "",
+        f"Recording stride {r['record_every']} (`sim.record_every`) against the soak recorded whole, one run "
+        f"each in a fresh process: peak resident {r['peak_rss'] / 2**20:.0f} MiB against "
+        f"{r['peak_rss_whole'] / 2**20:.0f} MiB; outputs written (plots, timeseries) in "
+        f"{_outputs(r['stages']):.1f} s (plots {r['stages']['plots']:.1f} s, timeseries {r['stages']['write']:.1f} "
+        f"s) against {_outputs(r['whole_stages']):.1f} s; wall {r['wall']:.1f} s against {r['whole_wall']:.1f} s "
+        f"(plan {r['stages']['plan']:.1f} and {r['whole_stages']['plan']:.1f} s, simulate "
+        f"{r['stages']['simulate']:.1f} and {r['whole_stages']['simulate']:.1f} s). The report's errors and events "
+        + ("are the same (" + ", ".join(FOUND) + ")." if not r["differ"] else
+           "differ in " + ", ".join(r["differ"]) + "."),
+        "",
         f"Memory: peak resident {r['peak_rss'] / 2**20:.0f} MiB for the soak, {r['peak_rss_short'] / 2**20:.0f} "
-        f"MiB for its first minute alone: memory grows with the recording, {per_sample:.0f} bytes a sample (state, "
-        "sensors, controls, references, the analysis series, and the compressed timeseries being written).",
+        f"MiB for its first minute alone (both at stride {r['record_every']}): memory grows with the run, "
+        f"{per_sample:.0f} bytes a sample (the plan, the columns the analysis reads at every sample, the analysis "
+        "series).",
     ])
 
 

@@ -11,6 +11,12 @@ Two figures say what limits the ratio, both measured in the same run:
   forked processes): this virtual machine's two cores do not make two of one, and how far they fall short
   changes from minute to minute.
 The timings are taken in turn, REPEATS times, and each figure is the median.
+
+Efficiency (issue 14): control steps simulated per second by the same sweep on 2 worker processes (timed whole,
+as above) against two cores of raw `mujoco.rollout` on the same model: two forked processes, each stepping half
+of the sweep's runs (their plans' commands, settling included, one `rollout` call per run, from the plan's first
+pose) for the same total number of steps. Both are timed in turn, EFFICIENCY_REPEATS times; the figure is the
+median of the pairwise ratios. Target: at least 0.5.
 """
 
 from __future__ import annotations
@@ -20,12 +26,18 @@ import tempfile
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import yaml
+from mujoco import rollout
 
+from simbench import pipeline
+from simbench.plant import Plant
+from simbench.scenario import parse_scenario
 from simbench.sweep import load_sweep, run_sweep
 
 REPEATS = 7
+EFFICIENCY_REPEATS = 5
 _BURN = 20_000_000  # loop iterations of one unit of pure CPU work (about a second)
 RUNS = 100
 SPEC = {"base": "spherical_arm/case1", "outputs": "none",
@@ -55,6 +67,11 @@ def _seconds(fn) -> float:
 
 
 def measure() -> dict:
+    """Both measurements: the speed-up (measure_speedup) and the efficiency (measure_efficiency)."""
+    return {**measure_speedup(), "efficiency": measure_efficiency()}
+
+
+def measure_speedup() -> dict:
     """Median seconds of the sweep with 1 and 2 workers and of its serial part, and the median pairwise
     speed-ups of the sweep and of the reference workload."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -88,7 +105,12 @@ def measure() -> dict:
 
 
 def markdown(r: dict) -> str:
-    """The result as a BENCHMARKS.md section."""
+    """The results as BENCHMARKS.md sections."""
+    return speedup_markdown(r) + "\n\n" + efficiency_markdown(r["efficiency"])
+
+
+def speedup_markdown(r: dict) -> str:
+    """The speed-up as a BENCHMARKS.md section."""
     return "\n".join([
         f"### Sweep: 2 processes against 1 ({r['runs']} runs of `spherical_arm/case1`, {REPEATS} rounds in turn)",
         "",
@@ -102,6 +124,81 @@ def markdown(r: dict) -> str:
         f"the speed-up on two free cores at {r['amdahl']:.2f}.  ",
         f"The reference workload (pure CPU work, nothing shared) on 2 processes against 1 in the same rounds: "
         f"{r['reference_speedup']:.2f}: the machine's two cores are not two of one.",
+    ])
+
+
+def _raw_run(scenario) -> tuple[mujoco.MjModel, np.ndarray, np.ndarray]:
+    """One run as raw rollout input: the plant's model, its state at the plan's first pose, and every step's
+    command as simbench steps it (the first command held while settling, then the plan's)."""
+    ev = pipeline.evaluate(scenario)
+    sim = scenario.sim
+    plant = Plant.load(scenario.robot_def, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation)
+    data = mujoco.MjData(plant.model)
+    data.qpos[:] = plant.initial_qpos(ev.trajectory.q_ref[0])
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(plant.model, full))
+    mujoco.mj_getState(plant.model, data, state, full)
+    ctrl = ev.recording.ctrl
+    n_settle = int(round(sim.settle / plant.model.opt.timestep))
+    return plant.model, state, np.concatenate([np.repeat(ctrl[:1], n_settle, axis=0), ctrl[:-1]])
+
+
+_RAW: list = []  # the runs' rollout inputs, inherited by the forked raw processes
+
+
+def _roll(share: int) -> None:
+    """Every other run of _RAW from `share`, each in one rollout call."""
+    for model, state, ctrl in _RAW[share::2]:
+        rollout.rollout(model, mujoco.MjData(model), state[None], ctrl[None],
+                        control_spec=int(mujoco.mjtState.mjSTATE_CTRL))
+
+
+def _raw_two_cores() -> None:
+    """Every run of _RAW, half in each of two forked processes."""
+    ctx = multiprocessing.get_context("fork")
+    procs = [ctx.Process(target=_roll, args=(share,)) for share in (0, 1)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join()
+
+
+def measure_efficiency() -> dict:
+    """Median steps per second of the sweep on 2 workers and of raw rollout on two cores (the same steps), and
+    the median pairwise ratio of the two."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "bench.yaml"
+        path.write_text(yaml.safe_dump(SPEC))
+        sweep = load_sweep(path)
+        _RAW[:] = [_raw_run(parse_scenario(v.document, v.id)) for v in sweep.variants]
+        steps = sum(len(ctrl) for _, _, ctrl in _RAW)
+        count = iter(range(1_000_000))
+        jobs = {"sweep": lambda: run_sweep(sweep, Path(tmp) / f"out{next(count)}", workers=2),
+                "raw": _raw_two_cores}
+        for fn in jobs.values():  # warm-up
+            fn()
+        times = {name: [] for name in jobs}
+        for _ in range(EFFICIENCY_REPEATS):
+            for name, fn in jobs.items():
+                times[name].append(_seconds(fn))
+    t = {name: np.array(v) for name, v in times.items()}
+    return {"runs": RUNS, "steps": steps, "sweep_steps_s": float(steps / np.median(t["sweep"])),
+            "raw_steps_s": float(steps / np.median(t["raw"])), "ratio": float(np.median(t["raw"] / t["sweep"]))}
+
+
+def efficiency_markdown(r: dict) -> str:
+    """The efficiency result as a BENCHMARKS.md section."""
+    return "\n".join([
+        f"### Sweep efficiency: 2 workers against two cores of raw `mujoco.rollout` ({r['runs']} runs of "
+        f"`spherical_arm/case1`, {r['steps']} control steps, {EFFICIENCY_REPEATS} rounds in turn)",
+        "",
+        "| | steps/s (median) |",
+        "|---|---|",
+        f"| sweep, 2 worker processes (`run_sweep`, outputs: none, table and plots included) | "
+        f"{r['sweep_steps_s']:,.0f} |",
+        f"| raw `mujoco.rollout`, 2 forked processes, the same steps | {r['raw_steps_s']:,.0f} |",
+        "",
+        f"Efficiency (median of pairwise ratios): {r['ratio']:.2f}. Target: at least 0.5.",
     ])
 
 

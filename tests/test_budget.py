@@ -38,12 +38,14 @@ def write(tmp_path, doc: dict, name: str = "scenario"):
     return path
 
 
+@pytest.mark.parametrize("every", [1, 10])
 @pytest.mark.parametrize(("robot", "name", "duration"), CALIBRATION)
-def test_estimate_is_within_a_factor_of_what_a_run_allocates(robot, name, duration):
-    """The estimated peak against tracemalloc's peak of evaluate() (both above the start), within 1/1.5 to 2;
-    the samples exactly as the plan has them."""
+def test_estimate_is_within_a_factor_of_what_a_run_allocates(robot, name, duration, every):
+    """The estimated peak against tracemalloc's peak of evaluate() (both above the start), within 1/1.5 to 2,
+    recorded whole and with a recording stride; the samples exactly as the plan has them."""
     path = scenario_file(robot, name)
-    sc = parse_scenario(scaled(path, **{"timing.duration": duration}), str(path), default_name=name)
+    doc = scaled(path, **{"timing.duration": duration, "sim.record_every": every})
+    sc = parse_scenario(doc, str(path), default_name=name)
     compiled_scene(str(sc.robot_def.scene))  # compiled once per process: not the run's own allocation
     est = budget.estimate(budget.Ask.of(sc))
     tracemalloc.start()

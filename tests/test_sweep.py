@@ -209,7 +209,7 @@ BAD_SWEEPS = [
                                                                        "not a field path"),
     ("unknown field", {"base": CASE1, "grid": {"sim.timestpe": [0.001]}},
      "grid.sim.timestpe: unknown field (expected one of: timestep, settle, velocity_feedforward, kp, kv, "
-     "force_limits, gravity_compensation); did you mean 'timestep'?"),
+     "force_limits, gravity_compensation, record_every); did you mean 'timestep'?"),
     ("unknown section", {"base": CASE1, "grid": {"simulation.timestep": [0.001]}},
      "grid.simulation.timestep: 'simulation' is an unknown field"),
     ("index beyond the list", {"base": CASE1, "grid": {"task.goal[4]": [1]}},

@@ -9,6 +9,8 @@ motors: force = ctrl, within the same force limits, so a controller's commands a
 from __future__ import annotations
 
 import copy
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
 from typing import Literal
@@ -21,6 +23,9 @@ from simbench.errors import RegistryError
 
 FORCE_SENSOR = "simbench/force/"  # prefix of the actuator-force sensors added to every scene (scene_spec)
 Actuation = Literal["position", "torque"]
+
+# While plants are reused (reused_plants): the last Plant built and the arguments it was built from; else None.
+_kept: list[tuple[tuple, Plant]] | None = None
 
 
 @dataclass(frozen=True)
@@ -43,7 +48,20 @@ class Plant:
         """The robot's compiled scene (a fresh copy: a run changes its model), with the timestep and the position
         servos' gains (one per joint) where given, without force limits if asked, without the bodies' gravity
         compensation (`gravcomp`: the controller's gravity feed-forward) if asked, and with the joints'
-        actuators made motors if `actuation` is "torque"."""
+        actuators made motors if `actuation` is "torque". Within reused_plants() the same arguments as the last
+        call's give that call's Plant, model and all."""
+        key = (robot, timestep, _items(kp), _items(kv), force_limits, gravity_compensation, actuation)
+        if _kept and _kept[0][0] == key:
+            return _kept[0][1]
+        plant = cls._build(robot, timestep, kp, kv, force_limits, gravity_compensation, actuation)
+        if _kept is not None:
+            _kept[:] = [(key, plant)]
+        return plant
+
+    @classmethod
+    def _build(cls, robot: Robot, timestep: float | None, kp: list[float] | None, kv: list[float] | None,
+               force_limits: bool, gravity_compensation: bool, actuation: Actuation) -> "Plant":
+        """load() for a Plant not kept: a fresh copy of the compiled scene, set up as asked."""
         model = copy.copy(compiled_scene(str(robot.scene)))
         if timestep is not None:
             model.opt.timestep = timestep
@@ -93,6 +111,26 @@ class Plant:
         m = self.model
         return {"kp": m.actuator_gainprm[self.actuators, 0].tolist(),
                 "kv": (-m.actuator_biasprm[self.actuators, 2]).tolist()}
+
+
+@contextmanager
+def reused_plants() -> Iterator[None]:
+    """Within the block, Plant.load asked again with the last call's arguments returns that call's Plant instead
+    of building a fresh copy (the model copied, its actuators found): for callers that leave the model as it is,
+    such as a sweep's runs, one after another in a worker (simulate copies the model before a switch edits it).
+    Only the last Plant is kept, so between runs a process holds the one model it held during the last; it is
+    let go when the block ends."""
+    global _kept
+    outer, _kept = _kept, []
+    try:
+        yield
+    finally:
+        _kept = outer
+
+
+def _items(values: list[float] | None) -> tuple[float, ...] | None:
+    """Per-joint values as a hashable, comparable key part."""
+    return None if values is None else tuple(values)
 
 
 def _actuator_of(model: mujoco.MjModel, robot: Robot, joint: int) -> int:

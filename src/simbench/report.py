@@ -54,6 +54,7 @@ def _head(scenario, timestep: float, source: str | None) -> dict:
         "duration": timing.duration,
         "hold": timing.hold,
         "settle": scenario.sim.settle,
+        "record_every": scenario.sim.record_every,  # timeseries.npz keeps every record_every-th sample and the last
         "time_law": timing.law,
     }
 
@@ -102,8 +103,9 @@ def write_report(report: dict, path: Path) -> None:
 
 
 def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis | None, path: Path) -> None:
-    """Write timeseries.npz, in one step: one row per control sample, SI units, radians. A run that failed (no
-    analysis) has the rows recorded up to the failure, and the plan's over the same times."""
+    """Write timeseries.npz, in one step: one row per control sample (per kept sample, where the run was recorded
+    with a stride and thinned: simbench.pipeline.thinned), SI units, radians. A run that failed (no analysis) has
+    the rows recorded up to the failure, and the plan's over the same times."""
     rows = rec.t.size
     arrays = {
         "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),

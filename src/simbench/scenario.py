@@ -58,7 +58,8 @@ class Sim(SimbenchModel):
     file's units). `force_limits: false` lifts the servos' force limits (ideal actuators), to tell what the plan
     asks from what the motors can give; stiff gains without limits can make the integration diverge.
     `gravity_compensation: false` removes the controller's gravity feed-forward (the models' body `gravcomp`), so
-    that the servos carry the arm's weight as a plain PD would."""
+    that the servos carry the arm's weight as a plain PD would. `record_every: k` thins a long run's timeseries
+    to every k-th sample (and the last); the report's errors and events are still found from every sample."""
 
     timestep: seconds(1e-5, 0.01) | None = None
     settle: seconds(0.0, 10.0) = 0.2
@@ -67,6 +68,7 @@ class Sim(SimbenchModel):
     kv: Gains | None = None
     force_limits: bool = True
     gravity_compensation: bool = True
+    record_every: Annotated[int, Field(ge=1, le=1_000_000)] = 1
 
 
 class Thresholds(SimbenchModel):

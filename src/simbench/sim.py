@@ -35,7 +35,11 @@ from simbench.trajectory import JointTrajectory
 
 @dataclass(frozen=True)
 class Recording:
-    """The simulated run on the trajectory's time grid: row k is the state at t[k] (t = 0 after settling)."""
+    """The simulated run on the trajectory's time grid: row k is the state at t[k] (t = 0 after settling).
+
+    With a recording stride (sim.record_every), qpos, qd and ctrl hold only the rows `kept` (every k-th and the
+    last); t, q, tool, force, sensors and eq_active hold every row, since the analysis reads them. `thinned`
+    gives every column at the kept rows."""
 
     t: np.ndarray
     qpos: np.ndarray
@@ -51,20 +55,32 @@ class Recording:
     eq_active: dict = field(default_factory=dict)
     q_ref: np.ndarray | None = None  # the references as commanded, where the plan's feedback revised them
     qd_ref: np.ndarray | None = None
+    kept: np.ndarray | None = None  # the rows of qpos, qd and ctrl; None: every row
+
+    def thinned(self) -> Recording:
+        """The recording at its kept rows only, every column: what the outputs of a strided run show."""
+        if self.kept is None:
+            return self
+        k = self.kept
+        return replace(self, t=self.t[k], q=self.q[k], tool=self.tool[k], force=self.force[k],
+                       sensors={name: v[k] for name, v in self.sensors.items()},
+                       eq_active={name: v[k] for name, v in self.eq_active.items()},
+                       q_ref=None if self.q_ref is None else self.q_ref[k],
+                       qd_ref=None if self.qd_ref is None else self.qd_ref[k], kept=None)
 
 
 def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None = None, settle: float = 0.2,
-             progress: bool = False) -> Recording:
+             progress: bool = False, record_every: int = 1) -> Recording:
     """Settle at traj's first reference, then track it with `controller` (default: the servo with velocity
-    feed-forward), applying the planned switches at their steps; one recorded row per control sample. The
-    plant's model is copied, since switching edits it. PhysicsError if the physics fails on the way,
-    ControlError if the controller does."""
+    feed-forward), applying the planned switches at their steps; one recorded row per control sample, whole at
+    every `record_every`-th and the last (Recording.kept). Where the plan switches, the plant's model is copied,
+    since switching edits it. PhysicsError if the physics fails on the way, ControlError if the controller does."""
     if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {plant.model.opt.timestep}")
     controller = controller if controller is not None else Servo()
     controller.bind(plant, traj)
     with quiet_mujoco():
-        return _Run(plant, traj, controller, settle).go(progress)
+        return _Run(plant, traj, controller, settle, record_every).go(progress)
 
 
 def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
@@ -75,8 +91,8 @@ def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
 class _Run:
     """One simulation: the model and data, the recorded rows, the stepper, and the references as revised."""
 
-    def __init__(self, plant: Plant, traj: JointTrajectory, controller: Controller, settle: float):
-        self.plant, self.traj, self.controller = plant, traj, controller
+    def __init__(self, plant: Plant, traj: JointTrajectory, controller: Controller, settle: float, every: int):
+        self.plant, self.traj, self.controller, self.every = plant, traj, controller, every
         self.ctrl = controller.open_loop()  # (N, nu), or None for a closed-loop controller
         if self.ctrl is not None:
             _check_finite(self.ctrl, traj)
@@ -84,10 +100,11 @@ class _Run:
         self.first_state = np.empty(mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
         mujoco.mj_getState(self.model, self.data, self.first_state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         n_settle = int(round(settle / self.model.opt.timestep))
-        self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1)
+        q_columns = state_slices(self.model)["mjSTATE_QPOS"].start + plant.qpos_adr
+        self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state)
         self.stepper: OpenLoop | ClosedLoop
         if self.ctrl is not None:
-            self.rows.controls[:] = np.concatenate([np.repeat(self.ctrl[:1], n_settle, axis=0), self.ctrl[:-1]])
+            self.rows.controls[:n_settle], self.rows.controls[n_settle:] = self.ctrl[0], self.ctrl[:-1]
             self.stepper = OpenLoop(self.model)
         else:
             self.stepper = ClosedLoop(plant, controller)
@@ -109,7 +126,7 @@ class _Run:
 
     def go(self, progress: bool) -> Recording:
         """Step every segment between switches; the Recording, or PhysicsError with the one up to the fault."""
-        n_settle, n = self.rows.n_settle, len(self.rows.states)
+        n_settle, n = self.rows.n_settle, len(self.rows.controls)
         bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle}) + [n]
         done = 0
         with tqdm(total=n, desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
@@ -124,8 +141,8 @@ class _Run:
                 raise self._failure(fault) from None
             self.eq_active[-1] = self.data.eq_active
             mujoco.mj_forward(self.model, self.data)
-        readings = np.concatenate([self.rows.sensors[n_settle:], self.data.sensordata[None]])
-        return self._record(readings)
+        self.rows.sensors[-1] = self.data.sensordata
+        return self._record(self.rows.sensors[n_settle:])
 
     def _switch(self, k: int) -> None:
         """Apply the switches planned at sample k, and the plan's feedback on each."""
@@ -169,19 +186,19 @@ class _Run:
         """The Recording of the first len(readings) samples. Row 0 is the state at the end of settling (the
         start state itself when there is no settling); row r > 0 is the state after step r - 1. MuJoCo computes
         sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state."""
-        plant, model, n_settle = self.plant, self.model, self.rows.n_settle
-        rows = len(readings)
-        start = self.rows.states[n_settle - 1] if n_settle else self.first_state
-        track = np.concatenate([start[None], self.rows.states[n_settle:n_settle + rows - 1]])
+        plant, model, rows = self.plant, self.model, len(readings)
+        kept = self.rows.kept[self.rows.kept < rows]
+        states = self.rows.states[:len(kept)]
         sl = state_slices(model)
-        qpos, qvel = track[:, sl["mjSTATE_QPOS"]], track[:, sl["mjSTATE_QVEL"]]
+        qpos, qvel = states[:, sl["mjSTATE_QPOS"]], states[:, sl["mjSTATE_QVEL"]]
+        ctrl = self._commands(rows)
         recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
-        return Recording(t=self.traj.t[:rows].copy(), qpos=qpos, q=qpos[:, plant.qpos_adr],
-                         qd=qvel[:, plant.dof_adr], ctrl=self._commands(rows),
-                         tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
-                         warnings=tuple(self.warnings), sensors=recorded,
+        return Recording(t=self.traj.t[:rows].copy(), qpos=qpos, q=self.rows.q[:rows], qd=qvel[:, plant.dof_adr],
+                         ctrl=ctrl if self.every == 1 else ctrl[kept], tool=recorded.pop(plant.robot.tool_sensor),
+                         timestep=float(model.opt.timestep), warnings=tuple(self.warnings), sensors=recorded,
                          eq_active={model.equality(i).name: self.eq_active[:rows, i] for i in range(model.neq)},
                          force=readings[:, plant.force_sensors], force_limit=plant.force_limit(),
+                         kept=None if self.every == 1 else kept,
                          **({} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}))
 
     def _commands(self, rows: int) -> np.ndarray:

@@ -1,7 +1,8 @@
 """The stepping loops: from the current state through a stretch of control steps, recording every state.
 
-Both fill the same rows (`Rows`): the full physics state after each step and the sensors MuJoCo computed during
-it (before integrating, so at the state the step started from), and the command that drove it.
+Both fill the same rows (`Rows`): the sensors MuJoCo computed during each step (before integrating, so at the
+state the step started from) and the command that drove it; the joint positions after each step, and the full
+physics state after the steps whose rows the recording keeps (all, or every k-th with a recording stride).
 
 - `OpenLoop`: the commands are known beforehand (a controller's `open_loop`); the steps run in C through
   `mujoco.rollout`, in chunks. After each chunk the run is checked (simbench.faults); a chunk that went wrong is
@@ -35,20 +36,55 @@ FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
 @dataclass(frozen=True)
 class Rows:
-    """A run's recorded steps: states (n, nstate) after each step, sensors (n, nsensordata) during it, controls
-    (n, nu) that drove it; n_settle of them settle before the plan's first sample."""
+    """A run's steps as recorded: the sensors MuJoCo computed during each step (n + 1, nsensordata; the last row
+    is the final state's) and the command that drove it (n, nu), n_settle of them settling before the plan's
+    first sample; and for each recorded row (row r is the state after step n_settle + r - 1, row 0 the state at
+    the end of settling) its joint positions q, and its full physics state where the row is one of `kept`.
+    The steppers write up to _CHUNK states into `scratch` and then `keep` them, so that a long run with a
+    recording stride never holds every step's state."""
 
-    states: np.ndarray
     sensors: np.ndarray
     controls: np.ndarray
+    q: np.ndarray  # (rows, dof): every recorded row's joint positions
+    states: np.ndarray  # (len(kept), nstate): the full state of the kept rows
+    kept: np.ndarray  # the recorded rows whose full state is kept, ascending
+    q_columns: np.ndarray  # where the joint positions sit in a full state vector
+    scratch: np.ndarray  # (_CHUNK, nstate): the states of the steps not yet kept
     n_settle: int
     t0: float  # the simulated time of the plan's first sample
 
     @classmethod
-    def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int) -> "Rows":
-        n = n_settle + n_track
-        return cls(states=np.empty((n, mujoco.mj_stateSize(model, FULL))), sensors=np.empty((n, model.nsensordata)),
-                   controls=np.empty((n, model.nu)), n_settle=n_settle, t0=n_settle * model.opt.timestep)
+    def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int, every: int = 1,
+              q_columns: np.ndarray | None = None, start: np.ndarray | None = None) -> "Rows":
+        """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
+        (kept_rows), the joint positions at `q_columns` of the state (none by default); `start`: row 0's state
+        when there is no settling."""
+        n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
+        q_columns = np.zeros(0, int) if q_columns is None else q_columns
+        kept = kept_rows(n_track + 1, every)
+        rows = cls(sensors=np.empty((n + 1, model.nsensordata)), controls=np.empty((n, model.nu)),
+                   q=np.empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
+                   q_columns=q_columns, scratch=np.empty((min(_CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
+                   t0=n_settle * model.opt.timestep)
+        if start is not None:
+            rows.q[0], rows.states[0] = start[q_columns], start
+        return rows
+
+    def keep(self, first: int, stop: int) -> None:
+        """Record steps first..stop-1, whose states are scratch[:stop - first]: every row's q, the kept rows'
+        state."""
+        r = np.arange(first, stop) - self.n_settle + 1
+        tracked = r >= 0
+        chunk, r = self.scratch[:stop - first][tracked], r[tracked]
+        self.q[r] = chunk[:, self.q_columns]
+        slot = np.minimum(np.searchsorted(self.kept, r), len(self.kept) - 1)
+        hit = self.kept[slot] == r
+        self.states[slot[hit]] = chunk[hit]
+
+
+def kept_rows(n: int, every: int) -> np.ndarray:
+    """The rows a recording of n rows keeps whole with stride `every`: 0, every, 2 every, ... and the last."""
+    return np.unique(np.append(np.arange(0, n, every), n - 1))
 
 
 def state_slices(model: mujoco.MjModel) -> dict[str, slice]:
@@ -90,14 +126,16 @@ class OpenLoop:
             end = min(k + _CHUNK, stop)
             try:
                 rollout.rollout(model, data, self.state[None], rows.controls[None, k:end], control_spec=ctrl_spec,
-                                initial_warmstart=warmstart[None], state=rows.states[None, k:end],
+                                initial_warmstart=warmstart[None], state=rows.scratch[None, :end - k],
                                 sensordata=rows.sensors[None, k:end])
                 stopped = False
             except mujoco.FatalError:  # MuJoCo gave up (out of arena memory): found again when replayed
                 stopped = True
-            if stopped or self._went_wrong(model, data, rows.states[k:end]):
+            if stopped or self._went_wrong(model, data, rows.scratch[:end - k]):
                 step, cause = _locate(model, data, self.state, warmstart, rows.controls[k:end])
+                rows.keep(k, k + step)  # the steps before the one at fault
                 raise Fault(k + step, cause)
+            rows.keep(k, end)
             found += _warning_rows(data, rows.t0)
             if progress is not None:
                 progress.update(end - k)
@@ -143,6 +181,21 @@ class ClosedLoop:
             progress=None) -> list[dict]:
         """Steps first..stop-1, each commanded by the controller, from data's current state; the warnings met.
         Fault at the first step at fault, CommandFault at the first bad command."""
+        found, size, base = [], len(rows.scratch), first
+        try:
+            for base in range(first, stop, size):  # a scratch's worth of steps at a time
+                end = min(base + size, stop)
+                found += self._steps(model, data, rows, base, end, progress)
+                rows.keep(base, end)
+        except Fault as fault:
+            rows.keep(base, fault.step)  # the steps before the one at fault
+            raise
+        return found
+
+    def _steps(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
+               progress) -> list[dict]:
+        """Steps first..stop-1 (at most a scratch's worth): their states into rows.scratch, their sensors and
+        commands into rows; the warnings met."""
         found = []
         qpos_adr, dof_adr, dt, n_settle = self.plant.qpos_adr, self.plant.dof_adr, model.opt.timestep, rows.n_settle
         qpos, qvel, warned = data.qpos, data.qvel, data.warning.number  # views, read after every step
@@ -155,7 +208,7 @@ class ClosedLoop:
                 mujoco.mj_step2(model, data)  # forces, acceleration, integration
             except mujoco.FatalError as err:
                 raise Fault(i, fatal_cause(err)) from None
-            mujoco.mj_getState(model, data, rows.states[i], FULL)
+            mujoco.mj_getState(model, data, rows.scratch[i - first], FULL)
             rows.sensors[i] = data.sensordata
             if warned.any() or not np.abs(qvel).max() <= MAX_SPEED:  # NaN fails the comparison too
                 found += self._check(model, data, i, rows.t0)

@@ -44,9 +44,10 @@ def switch_steps(model: mujoco.MjModel, traj: JointTrajectory) -> np.ndarray:
 
 
 def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
-    """A copy of the plant's model (switching edits it) and data posed at the plan's first reference (passive
-    joints assembled, the plan's `initial` joints set, the switches at step 0 applied), and each switch's step."""
-    model = copy.copy(plant.model)
+    """The plant's model (a copy where the plan switches: switching edits it; the model itself otherwise, which
+    nothing else in a run writes) and data posed at the plan's first reference (passive joints assembled, the
+    plan's `initial` joints set, the switches at step 0 applied), and each switch's step."""
+    model = copy.copy(plant.model) if traj.switches else plant.model
     data = mujoco.MjData(model)
     data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
     for name, value in traj.initial.items():

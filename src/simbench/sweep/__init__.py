@@ -53,7 +53,7 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
         columns = table.columns(list(rows.values()), sweep.params)
         with store.writing():  # a full disk here keeps the rows: the same command writes the table again
             summary = _write_results(sweep, columns, out, resumed=len(sweep.variants) - len(todo), backend=backend,
-                                     start=start)
+                                     start=start, workers=min(workers, execute.cpu_count()))
     return SweepResult(out, columns, summary, summary["resumed"])
 
 
@@ -69,12 +69,13 @@ def _collect(store: Store, outcomes: Iterable[tuple[int, dict]], rows: dict[int,
 
 
 def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed: int, backend: str,
-                   start: float) -> dict:
-    """Write the table, its plots and summary.json (with the runs resumed, where they ran and the wall time since
-    `start`); the summary."""
+                   start: float, workers: int) -> dict:
+    """Write the table, its plots (`workers` figures at once) and summary.json (with the runs resumed, where they
+    ran and the wall time since `start`); the summary."""
     table.write_csv(columns, out / "results.csv")
     table.write_parquet(columns, out / "results.parquet")
-    plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots")
+    plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots",
+                                     workers)
     summary = {**table.summary(columns, sweep.spec.plots), "resumed": resumed, "backend": backend,
                "wall_time": round(time.perf_counter() - start, 3),
                "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots],

@@ -3,8 +3,9 @@ processes on this machine, on a Ray cluster) that all yield the same outcomes.
 
 A run never raises: bad input, a failed run and an unexpected exception each become an outcome with a status
 and a one-line error, so a sweep's table has a row for every run. On this machine the runs go to worker
-processes forked from this one (nothing to import again); a run that kills its worker (a crash in native code,
-the kernel's OOM killer) is a `crashed` row, the worker is replaced, and the other runs go on.
+processes forked from this one (nothing to import again), each keeping the Plant it built for a run for the
+next run that asks for the same (simbench.plant.reused_plants); a run that kills its worker (a crash in native
+code, the kernel's OOM killer) is a `crashed` row, the worker is replaced, and the other runs go on.
 """
 
 from __future__ import annotations
@@ -14,11 +15,13 @@ import os
 import signal
 import threading
 import time
+from collections import deque
 from collections.abc import Iterable, Iterator
 from multiprocessing import connection
 from typing import Any
 
 from simbench.errors import RunError, ScenarioError
+from simbench.plant import reused_plants
 
 # Report keys that describe the run rather than measure it.
 _NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duration", "hold", "settle", "time_law",
@@ -96,37 +99,46 @@ def crashed(reason: str) -> dict:
 
 
 def in_this_process(tasks: Iterable[Task]) -> Iterator[tuple[int, dict]]:
-    """Each run in turn, here."""
-    for index, kwargs in tasks:
-        yield index, run_variant(**kwargs)
+    """Each run in turn, here, reusing the Plant of the run before when it is the same."""
+    with reused_plants():
+        for index, kwargs in tasks:
+            yield index, run_variant(**kwargs)
 
 
 def in_processes(tasks: Iterable[Task], workers: int) -> Iterator[tuple[int, dict]]:
     """Up to `workers` runs at a time in worker processes forked from this one; outcomes as they finish. A worker
-    that dies takes only its own run with it (a `crashed` outcome) and is replaced. On an interrupt the workers
-    are stopped and no outcome is made up for their runs."""
+    that dies takes only its own run with it (a `crashed` outcome) and is replaced. A worker is given its next
+    run as soon as it answers, before its outcome is handed on (and recorded), so it never waits on that. On an
+    interrupt the workers are stopped and no outcome is made up for their runs."""
     ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    todo = list(tasks)
+    todo = deque(tasks)
     idle = [_Worker(ctx) for _ in range(min(workers, len(todo)))]
     busy: dict[Any, _Worker] = {}
     try:
-        while todo or busy:
-            while todo and idle:
-                worker = idle.pop()
-                worker.give(*todo.pop(0))
-                busy[worker.conn] = worker
+        _dispatch(todo, idle, busy)
+        while busy:
             for conn in connection.wait(list(busy)):
                 worker = busy.pop(conn)
+                index = worker.index
                 try:
                     outcome = conn.recv()
                     idle.append(worker)
                 except EOFError:  # the worker died in the middle of its run
                     outcome = crashed(f"its worker process died (exit code {worker.stop()})")
                     idle.append(_Worker(ctx))
-                yield worker.index, outcome
+                _dispatch(todo, idle, busy)
+                yield index, outcome
     finally:
         for worker in idle + list(busy.values()):
             worker.stop()
+
+
+def _dispatch(todo: deque, idle: list, busy: dict) -> None:
+    """Give the next runs to idle workers, in run order, while there are both."""
+    while todo and idle:
+        worker = idle.pop()
+        worker.give(*todo.popleft())
+        busy[worker.conn] = worker
 
 
 class _Worker:
@@ -170,17 +182,18 @@ def _die_with(parent: int) -> None:
 
 
 def _serve(conn, parent: int) -> None:
-    """A worker's loop: run each variant received until the pipe closes. The parent alone answers Ctrl-C and
-    SIGTERM; the worker dies with it."""
+    """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before when
+    it is the same. The parent alone answers Ctrl-C and SIGTERM; the worker dies with it."""
     _die_with(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    while True:
-        try:
-            kwargs = conn.recv()
-        except EOFError:
-            return
-        conn.send(run_variant(**kwargs))
+    with reused_plants():
+        while True:
+            try:
+                kwargs = conn.recv()
+            except EOFError:
+                return
+            conn.send(run_variant(**kwargs))
 
 
 def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[int, dict]]:

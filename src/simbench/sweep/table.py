@@ -13,6 +13,7 @@ import csv
 import io
 import json
 import math
+import multiprocessing
 from pathlib import Path
 from typing import Any
 
@@ -115,28 +116,47 @@ def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
 
 
 def write_plots(table: dict[str, list], params: list[str], grid: list[str], metrics: list[str],
-                folder: Path) -> tuple[list[str], list[str]]:
+                folder: Path, workers: int = 1) -> tuple[list[str], list[str]]:
     """One figure per metric (a panel per parameter: runs that kept every promise as dots, runs that broke one
     as orange dots, failed ones as crosses along the bottom), and a heat map over the first two numeric grid
-    parameters. Returns (files written, notes on what could not be plotted)."""
-    written, notes = [], []
+    parameters; up to `workers` figures at once (_draw). Returns (files written, notes on what could not be
+    plotted)."""
+    figures, notes = [], []
     status = np.array(table["status"])
     axes = {p: _axis(table[p]) for p in params}
     plotted = [p for p in params if axes[p] is not None][:_MAX_PARAM_PANELS]
     notes += [f"parameter {p} is not plotted (vector values or too many categories)" for p in params
               if axes[p] is None]
     numeric_grid = [p for p in grid if axes[p] is not None and axes[p][1] is None]
+    for metric in metrics:
+        if metric not in table:
+            notes.append(f"no metric '{metric}' in the results (plots: expects a column of results.csv)")
+            continue
+        y = np.array([v if isinstance(v, (int, float)) else np.nan for v in table[metric]], float)
+        if plotted:
+            figures.append((_scatter, (metric, y, status, plotted, axes)))
+        if len(numeric_grid) >= 2:
+            figures.append((_heatmap, (metric, y, np.isin(status, FINISHED), numeric_grid[:2], table)))
     with staged_folder(folder) as tmp:
-        for metric in metrics:
-            if metric not in table:
-                notes.append(f"no metric '{metric}' in the results (plots: expects a column of results.csv)")
-                continue
-            y = np.array([v if isinstance(v, (int, float)) else np.nan for v in table[metric]], float)
-            if plotted:
-                written.append(_scatter(metric, y, status, plotted, axes, tmp))
-            if len(numeric_grid) >= 2:
-                written.append(_heatmap(metric, y, np.isin(status, FINISHED), numeric_grid[:2], table, tmp))
+        written = _draw(figures, tmp, workers)
     return written, notes
+
+
+def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
+    """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in
+    one thread, so where there are more figures than one and `workers` > 1 they are drawn at once in processes
+    forked from this one (the same pixels: the same code on the same state), which shortens the serial end of
+    a sweep."""
+    jobs = [(draw, (*args, folder)) for draw, args in figures]
+    processes = min(workers, len(jobs))
+    if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return [draw(*args) for draw, args in jobs]
+    with multiprocessing.get_context("fork").Pool(processes) as pool:
+        return pool.starmap(_call, jobs)
+
+
+def _call(draw, args: tuple) -> str:
+    return draw(*args)
 
 
 def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], axes: dict, folder: Path) -> str:

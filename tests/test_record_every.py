@@ -1,0 +1,115 @@
+"""sim.record_every: a long run's timeseries thinned to every k-th sample (and the last), while the report's errors
+and events still come from every sample. The truth for each stride is the same run recorded whole (stride 1)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+from test_sim import ClosedServo, Scripted, planned, shipped
+
+import simbench
+from conftest import scenario_file
+from simbench import stepping
+from simbench.controllers import Servo
+from simbench.errors import ControlError
+from simbench.scenario import parse_scenario
+from simbench.sim import simulate
+
+_HEAVY = ("qpos", "qd", "ctrl")  # the columns a stride thins in the Recording itself
+_EVERY_ROW = ("t", "q", "tool", "force")  # and those the analysis reads at every row
+
+
+def _rows(n: int, k: int) -> np.ndarray:
+    """0, k, 2k, ... below n, and n - 1."""
+    return np.array(sorted(set(range(0, n, k)) | {n - 1}))
+
+
+def _strided(robot: str, name: str, k: int) -> simbench.Scenario:
+    """A shipped scenario recorded with stride k."""
+    raw = yaml.safe_load(scenario_file(robot, name).read_text())
+    raw["sim"] = {**raw.get("sim", {}), "record_every": k}
+    return parse_scenario(raw, f"{robot}/{name}", default_name=name)
+
+
+@pytest.mark.parametrize("robot, name, k", [("rsmg", "three_turns", 10), ("spherical_arm", "case1", 7),
+                                            ("puma600", "line", 3)])
+def test_a_stride_keeps_the_whole_runs_rows_and_reports_the_same(evaluated, robot, name, k):
+    """The kept rows of qpos, qd and ctrl are the stride-1 run's rows [::k] and its last, bit for bit; the
+    columns the analysis reads, and so the tracking maxima, the events and the robot's report (the RSMG's
+    re-grips, closure and rotor errors), are those of every row."""
+    _, whole = evaluated(robot, name)
+    thin = simbench.evaluate(_strided(robot, name, k))
+    rows = _rows(whole.recording.t.size, k)
+    assert np.array_equal(thin.recording.kept, rows)
+    for column in _HEAVY:
+        assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)[rows]), column
+    for column in _EVERY_ROW:
+        assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)), column
+    assert thin.analysis.tracking == whole.analysis.tracking
+    assert thin.analysis.singularity_events == whole.analysis.singularity_events
+    assert thin.analysis.limit_events == whole.analysis.limit_events
+    assert json.dumps(thin.analysis.extra, default=str) == json.dumps(whole.analysis.extra, default=str)
+
+
+def test_the_outputs_of_a_stride_are_the_whole_runs_at_the_kept_rows(tmp_path):
+    """timeseries.npz at stride k holds every array of the stride-1 run's at rows [::k] and the last; report.json
+    says the stride and reports the same samples, errors and events."""
+    k = 25
+    whole = simbench.run(_strided("rsmg", "three_turns", 1), out=tmp_path / "whole", video=False)
+    thin = simbench.run(_strided("rsmg", "three_turns", k), out=tmp_path / "thin", video=False)
+    rows = _rows(whole.report["samples"], k)
+    with np.load(tmp_path / "whole" / "timeseries.npz") as a, np.load(tmp_path / "thin" / "timeseries.npz") as b:
+        assert sorted(a.files) == sorted(b.files)
+        for name in a.files:
+            expected = a[name] if name == "joints" else a[name][rows]
+            assert np.array_equal(b[name], expected), name
+    assert (whole.report["record_every"], thin.report["record_every"]) == (1, k)
+    for key in ("samples", "tracking", "singularity_events", "limit_events", "switch_events", "closure_error_max",
+                "rotor_error_max", "status"):
+        assert thin.report[key] == whole.report[key], key
+
+
+@pytest.mark.parametrize("controller", [Servo, ClosedServo])
+def test_a_stride_across_many_chunks_of_either_stepper(monkeypatch, controller):
+    """With chunks of 97 steps (the open-loop rollout's and the closed-loop scratch's), a stride of 10 keeps the
+    same rows as a whole recording, for the rollout in C and for the controller asked every step."""
+    plant, traj = planned(shipped("spherical_arm", "case1", duration=1.0))
+    whole = simulate(plant, traj, controller())
+    monkeypatch.setattr(stepping, "_CHUNK", 97)
+    thin = simulate(plant, traj, controller(), record_every=10)
+    rows = _rows(whole.t.size, 10)
+    for column in _HEAVY:
+        assert np.array_equal(getattr(thin, column), getattr(whole, column)[rows]), column
+    assert np.array_equal(thin.q, whole.q) and np.array_equal(thin.force, whole.force)
+
+
+def test_a_failed_run_with_a_stride_keeps_the_strided_rows_before_the_failure():
+    """A bad command at sample 250: the recording has every row's q before it, and the state of the kept rows
+    among them, as a whole recording of the same failure has them."""
+    plant, traj = planned(shipped("spherical_arm", "case1", duration=1.0), "torque")
+    caught = []
+    for k in (1, 20):
+        with pytest.raises(ControlError) as err:
+            simulate(plant, traj, Scripted(lambda nu: np.full(nu, np.nan), at=250), settle=0.05, record_every=k)
+        caught.append(err.value.recording)
+    whole, thin = caught
+    assert np.array_equal(thin.t, whole.t) and np.array_equal(thin.q, whole.q)
+    assert np.array_equal(thin.kept, np.arange(0, 250, 20))
+    assert np.array_equal(thin.qpos, whole.qpos[::20])
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "1.5", "x"])
+def test_a_bad_stride_is_refused_in_one_line_naming_the_field(tmp_path, value):
+    """Not a whole number of at least 1: exit 2 before anything runs, one line naming sim.record_every."""
+    raw = scenario_file("spherical_arm", "case1").read_text() + f"sim: {{record_every: {value}}}\n"
+    path = tmp_path / "bad.yaml"
+    path.write_text(raw)
+    done = subprocess.run([sys.executable, "-m", "simbench", "run", str(path), "--out", str(tmp_path / "out"),
+                           "--no-video"], capture_output=True, text=True)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "sim.record_every" in lines[0], done.stderr
+    assert not (tmp_path / "out").exists()
