@@ -44,14 +44,16 @@ def _malloc_trim():
 
 
 _MALLOC_TRIM = _malloc_trim()
+_TRIM_SAMPLES = 100_000  # control samples from which a run gives its freed heap back after a stage
 
 
-def _give_back_memory() -> None:
-    """Return the memory a stage freed to the system. Planning a long run allocates and frees many arrays
-    smaller than glibc's mmap threshold (which it raises as large ones are freed); the heap keeps those pages,
-    and the next stage's arrays then stack on top of them in the peak resident size (the ten-minute soak: 260 MB
-    of the 440 MB held after planning two minutes of it)."""
-    if _MALLOC_TRIM is not None:
+def _give_back_memory(samples: int) -> None:
+    """Return the memory a stage of a long run freed to the system. Planning a long run allocates and frees many
+    arrays smaller than glibc's mmap threshold (which it raises as large ones are freed); the heap keeps those
+    pages, and the next stage's arrays then stack on top of them in the peak resident size (the ten-minute soak:
+    260 MB of the 440 MB held after planning two minutes of it). A short run (under _TRIM_SAMPLES) frees a few
+    MB, and the trim would cost it a millisecond or two (a sweep's runs: 2 % of each)."""
+    if _MALLOC_TRIM is not None and samples >= _TRIM_SAMPLES:
         _MALLOC_TRIM(0)
 
 
@@ -126,12 +128,12 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
                            controller.actuation)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
-        _give_back_memory()
+        _give_back_memory(len(traj.t))
     with watch.stage("simulate"):
         rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every)
         traj = commanded(traj, rec)
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
-        _give_back_memory()
+        _give_back_memory(len(traj.t))
     with watch.stage("analyse"):
         a = scenario.analysis
         result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
