@@ -118,3 +118,15 @@ def test_singular_sets_are_where_mujocos_jacobian_loses_rank(plant, kind):
     assert sets[kind].distance[0] < 1e-6
     assert all(s.distance[0] > 1 for name, s in sets.items() if name != kind)
     assert P.measures(q[None])["manipulability"][0] < 1e-9
+
+
+def test_shoulder_gap_is_the_wrist_sites_distance_from_the_shoulder_singular_plane(plant):
+    """|r| = |c1 Px + s1 Py| read off MuJoCo's wrist-centre site (base frame), for random q: the closed form
+    without q1 that puma600.shoulder_gap uses is that distance."""
+    model, data = plant.model, mujoco.MjData(plant.model)
+    base = model.body("base").id
+    for q in np.random.default_rng(21).uniform(-np.pi, np.pi, (40, 6)):
+        data.qpos[plant.qpos_adr] = q
+        mujoco.mj_kinematics(model, data)
+        p = data.xmat[base].reshape(3, 3).T @ (data.site("wrist_center").xpos - data.xpos[base])
+        assert P.shoulder_gap(q[None])[0] == pytest.approx(abs(np.cos(q[0]) * p[0] + np.sin(q[0]) * p[1]), abs=1e-9)

@@ -191,10 +191,12 @@ def ik(position: np.ndarray, rotation: np.ndarray, config: np.ndarray) -> np.nda
 
 
 def shoulder_gap(q: np.ndarray) -> np.ndarray:
-    """|r| (m): the wrist centre's distance from the plane where the shoulder is singular (r = 0)."""
+    """|r| (m): the wrist centre's distance from the plane where the shoulder is singular (r = c1 Px + s1 Py = 0).
+    With eq. 1's Px and Py (wrist_center) the d3 terms cancel and r = c2 (a2 + a3 c3 - d4 s3) - s2 (a3 s3 + d4 c3),
+    free of q1."""
     q = np.atleast_2d(q)
-    p = wrist_center(q)
-    return np.abs(np.cos(q[:, 0]) * p[:, 0] + np.sin(q[:, 0]) * p[:, 1])
+    c2, s2, c3, s3 = (f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin))
+    return np.abs(c2 * (A2 + A3 * c3 - D4 * s3) - s2 * (A3 * s3 + D4 * c3))
 
 
 def elbow_gap(q: np.ndarray) -> np.ndarray:
