@@ -274,3 +274,20 @@ def test_the_compare_command_prints_the_table_and_refuses_a_typo_in_one_line(tmp
     assert code == 0 and printed == (tmp_path / "c" / "comparison.md").read_text() + "\n" + \
         f"table, plots and index.html in {tmp_path / 'c'}\n"
     assert (tmp_path / "c" / "index.html").is_file()
+
+
+def test_compare_of_a_strided_scenario_reads_speeds_at_the_kept_states(tmp_path):
+    """With sim.record_every, a recording keeps qd at every k-th state only: the comparison still draws its speed
+    plot, and its simulated speed share is the largest over those states of the run recorded whole (whose rows
+    they are, bit for bit)."""
+    doc = yaml.safe_load(WRIST.read_text())
+    doc["sim"] = {**doc.get("sim", {}), "record_every": 7}
+    strided = tmp_path / "strided.yaml"
+    strided.write_text(yaml.safe_dump(doc))
+    result = compare(strided, ["decoupled_path"], None, tmp_path / "out")
+    with open(tmp_path / "out" / "comparison.csv") as f:
+        share = float(next(csv.DictReader(f))["qd_share_max_simulated"])
+    assert "plots/joint_speeds.png" in result.files
+    whole = simbench.evaluate(WRIST).recording
+    kept = np.union1d(np.arange(0, len(whole.t), 7), [len(whole.t) - 1])
+    assert share == pytest.approx(float((np.abs(whole.qd[kept]) / P.ROBOT.qd_max).max()), rel=1e-12)

@@ -194,7 +194,7 @@ def row(run: MethodRun) -> dict:
     for j, name in enumerate(robot.joints):
         out[f"qd_share_{name}"] = float(peak[j] / robot.qd_max[j])
     out["qd_share_max"] = float((peak / robot.qd_max).max())
-    out["qd_share_max_simulated"] = float((np.abs(rec.qd) / robot.qd_max).max())
+    out["qd_share_max_simulated"] = float((np.abs(rec.thinned().qd) / robot.qd_max).max())  # at the kept states
     for sset in singular_sets(run):
         out[f"singular_min_{sset.name}"] = float(sset.distance.min())
     for prefix, events in (("singular_events", ev.analysis.singularity_events),
@@ -359,7 +359,8 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[st
         for r in ran:
             ev = r.evaluation
             ax.plot(ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2, label=r.label)
-            ax.plot(ev.recording.t, ev.recording.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--", alpha=0.7)
+            rec = ev.recording.thinned()  # qd is kept at every record_every-th state
+            ax.plot(rec.t, rec.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--", alpha=0.7)
         for sign in (-1, 1):
             ax.axhline(sign * robot.qd_max[j] * scale, color="k", ls=":", lw=0.8)
         ax.set_ylabel(f"{robot.joints[j]} ({unit})")
