@@ -514,7 +514,7 @@ def _platform(theta: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndar
     """The exact FK followed along a joint path from the start orientation (N, 3, 3), and where it is
     undetermined (N,): base angles at which the platform can turn with the base locked (the FK's roots
     degenerate, on the type 2 singular surface). There the orientation before is held."""
-    rot = agile_eye.fk_follow(theta, start)  # fk_track's orientations, faster
+    rot = agile_eye.fk_track(theta, start)
     undetermined = ~np.isfinite(rot).all(axis=(1, 2))
     for k in np.flatnonzero(undetermined):
         rot[k] = rot[k - 1] if k else start

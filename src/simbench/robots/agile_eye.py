@@ -28,6 +28,7 @@ import numpy as np
 from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 from simbench.rotations import axis_rotation, canonical, quat_to_matrix, rotation_angle
+from simbench.vectors import cross, triple
 
 U = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # rows: u1, u2, u3
 LINE_OF_SIGHT = np.ones(3) / np.sqrt(3.0)
@@ -46,10 +47,11 @@ def intermediate_axes(theta: np.ndarray) -> np.ndarray:
     """w_i (N, 3, 3), one per row, for base angles theta (N, 3)."""
     theta = np.atleast_2d(theta)
     s, c = np.sin(theta), np.cos(theta)
-    zero = np.zeros(len(theta))
-    return np.stack([np.stack([-s[:, 0], c[:, 0], zero], -1),
-                     np.stack([zero, -s[:, 1], c[:, 1]], -1),
-                     np.stack([c[:, 2], zero, -s[:, 2]], -1)], axis=1)
+    w = np.zeros((len(theta), 3, 3))
+    w[:, 0, 0], w[:, 0, 1] = -s[:, 0], c[:, 0]
+    w[:, 1, 1], w[:, 1, 2] = -s[:, 1], c[:, 1]
+    w[:, 2, 0], w[:, 2, 2] = c[:, 2], -s[:, 2]
+    return w
 
 
 def ik(rot: np.ndarray, mode: np.ndarray | int = 0) -> np.ndarray:
@@ -62,28 +64,26 @@ def ik(rot: np.ndarray, mode: np.ndarray | int = 0) -> np.ndarray:
 
 
 def fk_all(theta: np.ndarray) -> np.ndarray:
-    """All 8 platform orientations (N, 8, 3, 3) for base angles (N, 3): two families, each with its sign flips.
+    """All 8 platform orientations (N, 8, 3, 3) for base angles (N, 3): two families (the two roots), each with its
+    sign flips, every root's base solution computed once and the flips applied as one broadcast product.
 
     NaN where the two roots do not exist (never for the Agile Eye's orthogonal axes) or are degenerate.
     """
     w = intermediate_axes(theta)
     a = np.broadcast_to(U[0], w[:, 0].shape)
-    b = np.cross(w[:, 0], a)
+    b = cross(w[:, 0], a)
     a2, b2 = np.einsum("ij,ij->i", a, w[:, 1]), np.einsum("ij,ij->i", b, w[:, 1])
     a3, b3 = np.einsum("ij,ij->i", a, w[:, 2]), np.einsum("ij,ij->i", b, w[:, 2])
     k = np.einsum("ij,ij->i", w[:, 1], w[:, 2])
     p, q, m = (a2 * a3 - b2 * b3) / 2, (a2 * b3 + a3 * b2) / 2, k - (a2 * a3 + b2 * b3) / 2
     spread = np.arccos(np.clip(m / np.hypot(p, q), -1.0, 1.0))
-    out = []
-    for root in (1.0, -1.0):
-        angle = (np.arctan2(q, p) + root * spread) / 2
-        v1 = np.cos(angle)[:, None] * a + np.sin(angle)[:, None] * b
-        v2 = np.cross(w[:, 1], v1)
-        with np.errstate(invalid="ignore", divide="ignore"):  # NaN where v1 is along w2: a degenerate root
-            v2 /= np.linalg.norm(v2, axis=1, keepdims=True)
-        base = np.stack([v1, v2, np.cross(v1, v2)], axis=-1)
-        out += [base * flip for flip in _FLIPS]
-    return np.stack(out, axis=1)
+    angle = (np.arctan2(q, p)[:, None] + np.array([1.0, -1.0]) * spread[:, None]) / 2  # (N, 2 roots)
+    v1 = np.cos(angle)[..., None] * a[:, None] + np.sin(angle)[..., None] * b[:, None]
+    v2 = cross(w[:, None, 1], v1)
+    with np.errstate(invalid="ignore", divide="ignore"):  # NaN where v1 is along w2: a degenerate root
+        v2 /= np.linalg.norm(v2, axis=2, keepdims=True)
+    base = np.stack([v1, v2, cross(v1, v2)], axis=-1)  # (N, 2, 3, 3)
+    return (base[:, :, None] * _FLIPS[:, None, :]).reshape(len(base), 8, 3, 3)
 
 
 def _finite(score: np.ndarray) -> np.ndarray:
@@ -101,16 +101,29 @@ def fk_nearest(theta: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 def fk_track(theta: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """Platform orientations along a joint path (N, 3, 3), each the FK solution nearest the one before,
-    beginning nearest `start`: the assembly mode followed continuously."""
+    """Platform orientations along a joint path (N, 3, 3), each the FK solution nearest the one before (largest
+    trace of R_i^T R_j), beginning nearest `start`: the assembly mode followed continuously. The solution followed
+    is assumed to stay the same one of the 8 over a stretch, its similarity to every solution at the next sample
+    computed for the whole stretch at once, and the stretch ends where another is nearer."""
     sols = fk_all(theta)
-    # similarity[k, i, j]: how near solution i at sample k is to solution j at sample k + 1 (trace of R_i^T R_j)
-    similarity = _finite(np.einsum("kiab,kjab->kij", sols[:-1], sols[1:]))
-    index = np.empty(len(sols), int)
+    count = len(sols)
+    flat = sols.reshape(count, 8, 9)
+    index = np.empty(count, int)
     index[0] = np.argmax(_finite(np.einsum("kab,ab->k", sols[0], start)))
-    for k in range(len(sols) - 1):
-        index[k + 1] = np.argmax(similarity[k, index[k]])
-    return sols[np.arange(len(sols)), index]
+    k, stretch = 0, 16
+    while k < count - 1:
+        end = min(count - 1, k + stretch)
+        current = index[k]
+        nearest = np.argmax(_finite(np.einsum("ka,kja->kj", flat[k:end, current], flat[k + 1:end + 1])), axis=1)
+        moves = np.flatnonzero(nearest != current)
+        stop = moves[0] if moves.size else end - k  # samples k + 1 .. k + stop keep the current solution
+        index[k + 1:k + 1 + stop] = current
+        if moves.size:
+            index[k + 1 + stop] = nearest[stop]
+            k, stretch = k + 1 + stop, 16
+        else:
+            k, stretch = end, 2 * stretch
+    return sols[np.arange(count), index]
 
 
 def fk(theta: np.ndarray) -> np.ndarray:
@@ -120,10 +133,7 @@ def fk(theta: np.ndarray) -> np.ndarray:
 
 def jacobians(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A (N, 3, 3) with rows (w_i x v_i) and B = diag(u_i . (w_i x v_i)) (N, 3, 3): A omega = B theta_dot."""
-    w = intermediate_axes(theta)
-    v = np.reshape(rot, (-1, 3, 3)).transpose(0, 2, 1)  # rows v_i
-    a = np.cross(w, v)
-    b = np.einsum("ij,nij->ni", U, a)
+    _, _, a, b = _scaled_rows(theta, rot)
     return a, b[:, :, None] * np.eye(3)
 
 
@@ -149,77 +159,14 @@ def axis_gaps(rot: np.ndarray) -> np.ndarray:
 
 
 # Fast forms and derivatives for the planner (project issue 14). Each gives what the function above it in this
-# file gives (fk_follow: fk_track's very orientations; kci_closed_form: kci's to about 1e-13), without a LAPACK
+# file gives (kci_closed_form: kci's to about 1e-13), without a LAPACK
 # call per 3 x 3 matrix or a Python step per sample.
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis, broadcast (np.cross without its overhead)."""
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
-
-
-def _axes(theta: np.ndarray) -> np.ndarray:
-    """intermediate_axes(theta), the same arrays, filled in place of stacked."""
-    theta = np.atleast_2d(theta)
-    s, c = np.sin(theta), np.cos(theta)
-    w = np.zeros((len(theta), 3, 3))
-    w[:, 0, 0], w[:, 0, 1] = -s[:, 0], c[:, 0]
-    w[:, 1, 1], w[:, 1, 2] = -s[:, 1], c[:, 1]
-    w[:, 2, 0], w[:, 2, 2] = c[:, 2], -s[:, 2]
-    return w
-
-
-def _fk_all(theta: np.ndarray) -> np.ndarray:
-    """fk_all's solutions (N, 8, 3, 3), the same arrays by the same arithmetic, with fewer NumPy calls: each root's
-    base solution once, the sign flips as one broadcast product."""
-    w = _axes(theta)
-    a = np.broadcast_to(U[0], w[:, 0].shape)
-    b = _cross(w[:, 0], a)
-    a2, b2 = np.einsum("ij,ij->i", a, w[:, 1]), np.einsum("ij,ij->i", b, w[:, 1])
-    a3, b3 = np.einsum("ij,ij->i", a, w[:, 2]), np.einsum("ij,ij->i", b, w[:, 2])
-    k = np.einsum("ij,ij->i", w[:, 1], w[:, 2])
-    p, q, m = (a2 * a3 - b2 * b3) / 2, (a2 * b3 + a3 * b2) / 2, k - (a2 * a3 + b2 * b3) / 2
-    spread = np.arccos(np.clip(m / np.hypot(p, q), -1.0, 1.0))
-    angle = (np.arctan2(q, p)[:, None] + np.array([1.0, -1.0]) * spread[:, None]) / 2  # (N, 2 roots)
-    v1 = np.cos(angle)[..., None] * a[:, None] + np.sin(angle)[..., None] * b[:, None]
-    v2 = _cross(w[:, None, 1], v1)
-    with np.errstate(invalid="ignore", divide="ignore"):  # NaN where v1 is along w2: a degenerate root
-        v2 /= np.linalg.norm(v2, axis=2, keepdims=True)
-    base = np.stack([v1, v2, _cross(v1, v2)], axis=-1)  # (N, 2, 3, 3)
-    return (base[:, :, None] * _FLIPS[:, None, :]).reshape(len(base), 8, 3, 3)
-
-
-def fk_follow(theta: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """fk_track's orientations (N, 3, 3), the same arrays, faster: the solution followed is assumed to stay the
-    same one of the 8 over a stretch, its similarity to every solution at the next sample computed for the whole
-    stretch at once (the same sums fk_track's einsum makes), and the stretch ends where another is nearer."""
-    sols = _fk_all(theta)
-    count = len(sols)
-    flat = sols.reshape(count, 8, 9)
-    index = np.empty(count, int)
-    index[0] = np.argmax(_finite(np.einsum("kab,ab->k", sols[0], start)))
-    k, stretch = 0, 16
-    while k < count - 1:
-        end = min(count - 1, k + stretch)
-        current = index[k]
-        nearest = np.argmax(_finite(np.einsum("ka,kja->kj", flat[k:end, current], flat[k + 1:end + 1])), axis=1)
-        moves = np.flatnonzero(nearest != current)
-        stop = moves[0] if moves.size else end - k  # samples k + 1 .. k + stop keep the current solution
-        index[k + 1:k + 1 + stop] = current
-        if moves.size:
-            index[k + 1 + stop] = nearest[stop]
-            k, stretch = k + 1 + stop, 16
-        else:
-            k, stretch = end, 2 * stretch
-    return sols[np.arange(count), index]
-
 
 def _scaled_rows(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """w_i (N, 3, 3), v_i, a_i = w_i x v_i (the rows of A) and b_i = u_i . a_i (B's diagonal), rows per leg."""
-    w = _axes(theta)
+    w = intermediate_axes(theta)
     v = np.reshape(rot, (-1, 3, 3)).transpose(0, 2, 1)
-    a = _cross(w, v)
+    a = cross(w, v)
     return w, v, a, np.einsum("ij,nij->ni", U, a)
 
 
@@ -342,7 +289,7 @@ def axis_gap_partials(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     dot = np.einsum("ij,nij->ni", U, v)
     gaps = np.arccos(np.clip(np.abs(dot), 0.0, 1.0))
     slope = -np.sign(dot) / np.sqrt(np.maximum(1.0 - dot**2, 1e-300))
-    return gaps, slope[:, :, None] * _cross(v, U)
+    return gaps, slope[:, :, None] * cross(v, U)
 
 
 def assemble(theta: np.ndarray, rot: np.ndarray | None = None) -> dict[str, float]:
@@ -379,7 +326,7 @@ def measures(rec) -> dict[str, np.ndarray]:
     rot = _platform(rec)
     terms = kci_terms(rec.q, rot)
     a = terms.a
-    det_a = np.einsum("ni,ni->n", a[:, 0], _cross(a[:, 1], a[:, 2]))
+    det_a = triple(a[:, 0], a[:, 1], a[:, 2])
     closure = np.maximum(np.linalg.norm(rec.sensors["tip2"] - rec.sensors["mount2"], axis=1),
                          np.linalg.norm(rec.sensors["tip3"] - rec.sensors["mount3"], axis=1))
     return {"kci": terms.kci, "singular_gap": axis_gaps(rot).min(axis=1), "det_a": det_a, "closure_error": closure}

@@ -32,6 +32,7 @@ import numpy as np
 
 from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
+from simbench.vectors import triple
 
 ALPHA = np.deg2rad(70.0)
 BETA = np.deg2rad(70.0)
@@ -144,7 +145,7 @@ def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     best = np.zeros(len(rows))
     for drop in range(ARMS):
         i, j, k = (arm for arm in range(ARMS) if arm != drop)
-        det = np.abs(np.einsum("ni,ni->n", rows[:, i], _cross(rows[:, j], rows[:, k])))  # the triple product
+        det = np.abs(triple(rows[:, i], rows[:, j], rows[:, k]))
         usable = engaged[:, [i, j, k]].all(axis=1)
         best = np.where(usable, np.maximum(best, det), best)
     return best
@@ -153,12 +154,6 @@ def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
 def gripping(rec) -> np.ndarray:
     """Which arms grip (their welds on) at each recorded sample (N, 4), bool."""
     return np.stack([rec.eq_active[f"grip{i + 1}"] for i in range(ARMS)], axis=1).astype(bool)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis (np.cross without its overhead)."""
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def _rows(rec) -> np.ndarray:
