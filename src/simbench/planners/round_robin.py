@@ -58,6 +58,7 @@ from simbench.rotations import matrix_to_quat
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, Switch, control_grid
+from simbench.vectors import triple
 
 _STEP = 0.005  # s: the schedule's time step
 _FIT = 4  # schedule steps on each side of a swing from which its end states are fitted; a hold is longer
@@ -195,11 +196,6 @@ def _latest_and_earlier(works: np.ndarray, n_swing: int) -> list:
     return picked
 
 
-def _det(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """|det [a; b; c]| row by row (N,)."""
-    return np.abs(np.einsum("ni,ni->n", a, np.cross(b, c)))
-
-
 class _Due(NamedTuple):
     """A step where an arm must let go: what the arms hold then, the first step the four arms' type A measure is
     under det_a_min, the arms' (exit step, arm) from the band, soonest first, and whether A's rank loss (any arm
@@ -256,8 +252,9 @@ class _Scheduler:
             return self.minors[three]
         rows = [self.contacts.rows(i, p) for i, p in three]
         if isinstance(self.contacts, FixedContacts):
-            return self.minors.keep(three, _det(*rows))
-        return self.minors.keep(three, self.contacts.lazy(lambda first, stop: _det(*(r[first:stop] for r in rows))))
+            return self.minors.keep(three, np.abs(triple(*rows)))
+        return self.minors.keep(three, self.contacts.lazy(
+            lambda first, stop: np.abs(triple(*(r[first:stop] for r in rows)))))
 
     def next_weak(self, points: dict[int, int]) -> np.ndarray:
         """For each step (and one past the end), the first step at or after it where the four arms gripping
