@@ -190,13 +190,20 @@ def ik(position: np.ndarray, rotation: np.ndarray, config: np.ndarray) -> np.nda
     return np.concatenate([q123, wrist_angles(q123, rotation, config[:, 2])], axis=1)
 
 
+def _elbow_and_shoulder(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The elbow's H = a3 s3 + d4 c3 (0: arm stretched or folded) and the shoulder's r = c2 (a2 + a3 c3 - d4 s3)
+    - s2 H (the wrist centre's c1 Px + s1 Py, eq. 1; 0: shoulder singular), (N,) each."""
+    q = np.atleast_2d(q)
+    c2, s2, c3, s3 = (f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin))
+    h = A3 * s3 + D4 * c3
+    return h, c2 * (A2 + A3 * c3 - D4 * s3) - s2 * h
+
+
 def shoulder_gap(q: np.ndarray) -> np.ndarray:
     """|r| (m): the wrist centre's distance from the plane where the shoulder is singular (r = c1 Px + s1 Py = 0).
     With eq. 1's Px and Py (wrist_center) the d3 terms cancel and r = c2 (a2 + a3 c3 - d4 s3) - s2 (a3 s3 + d4 c3),
     free of q1."""
-    q = np.atleast_2d(q)
-    c2, s2, c3, s3 = (f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin))
-    return np.abs(c2 * (A2 + A3 * c3 - D4 * s3) - s2 * (A3 * s3 + D4 * c3))
+    return np.abs(_elbow_and_shoulder(q)[1])
 
 
 def elbow_gap(q: np.ndarray) -> np.ndarray:
@@ -247,9 +254,7 @@ def manipulability(q: np.ndarray) -> np.ndarray:
     elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (moving the reference point
     to the wrist centre leaves det J alone and makes J block triangular: arm block times wrist block)."""
     q = np.atleast_2d(q)
-    c2, s2, c3, s3 = (f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin))
-    h = A3 * s3 + D4 * c3
-    r = c2 * (A2 + A3 * c3 - D4 * s3) - s2 * h
+    h, r = _elbow_and_shoulder(q)
     return A2 * np.abs(h * r * np.sin(q[:, 4])) / _LENGTH**3
 
 
