@@ -196,7 +196,7 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
 class RSMG(Robot):
     """simbench.api.Robot of the RSMG (paper 001), whose rotor pose depends on the gripped points: no fk of the
     joints alone. Its report entries, video colours and plot are rsmg_outputs', imported when first asked for (it
-    imports this module, and only its plot needs matplotlib)."""
+    imports this module, and only its plot needs simbench.plots)."""
 
     def __init__(self):
         super().__init__(

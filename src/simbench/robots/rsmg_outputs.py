@@ -1,8 +1,8 @@
 """What the RSMG (simbench.robots.rsmg) adds to a run's outputs: report entries, the re-grips as switch events,
 its electromagnets coloured by state in the video, and a plot of every arm's gamma (paper 001's Fig. 11).
 
-The robot's hooks (RSMG.summary, .paint, .plots) call these. matplotlib is imported only when the plot is drawn:
-the analysis and the video need none of it.
+The robot's hooks (RSMG.summary, .paint, .plots) call these. The plotting (simbench.plots) is imported only when
+the plot is drawn: the analysis and the video need none of it.
 """
 
 from __future__ import annotations
