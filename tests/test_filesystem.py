@@ -31,7 +31,7 @@ import yaml
 from conftest import scenario_file
 
 import simbench
-from simbench import atomic, chart, destination, pipeline, validation
+from simbench import atomic, chart, destination, pipeline, report, validation
 from simbench.cli import main
 from simbench.errors import (OutputError, PhysicsError, RunError, ScenarioError, name_max, os_words, printable,
                              shown)
@@ -383,7 +383,7 @@ def _quick_plots(robot, traj, rec, result, folder):
 
 # stage: (where its fault goes, the lowest write it calls, the path the line names relative to out or "")
 SAVE_PNG = (chart.Figure, "save", lambda args: args[1])  # (figure, file name)
-SAVEZ = (np, "savez_compressed", lambda args: args[0])  # (open file, ...)
+SAVEZ = (report, "savez_fast", lambda args: args[0])  # (open file, arrays)
 WRITE_TEXT = (Path, "write_text", lambda args: args[0])  # (path, text)
 RUN_STAGES = {
     "plots": ((pipeline, "write_plots"), SAVE_PNG, ""),

@@ -4,9 +4,10 @@ Why not matplotlib's own drawing: a run's five PNGs took 0.7 s through matplotli
 ticks and laying out and rendering text, against the tens of milliseconds of the physics (issue 14). This module
 draws the same figures with Pillow, on a canvas twice the size reduced at the end (so lines and text come out
 smoothed), and takes from matplotlib all that decides how a plot reads: the limits (the data's extent with 5 %
-margins, the locator's `nonsingular` for a flat series), the tick positions (`MaxNLocator` with AutoLocator's steps and as many
-bins as matplotlib gives an axis of that length), the tick labels and their offset (`ScalarFormatter`), the line
-styles' dash patterns, the colours and the DejaVu Sans font.
+margins, the locator's `nonsingular` for a flat series), the tick positions (`MaxNLocator` with AutoLocator's
+steps and as many bins as matplotlib gives an axis of that length), the tick labels and their offset
+(`ScalarFormatter`), the line styles' dash patterns, the colours and the DejaVu Sans font. The 3-D box is seen
+orthographically (matplotlib's is in perspective).
 
 A `Panel` answers the matplotlib `Axes` calls simbench's plots make (`plot`, `axhline`, `axvline`, `axvspan`,
 `annotate`, `set_xlabel`, `set_ylabel`, `set_title`, `set_ylim`, `grid`, `legend`), with the same arguments, so
@@ -104,10 +105,22 @@ def _dashes(points: np.ndarray, pattern: tuple[float, ...]) -> list[np.ndarray]:
     return np.split(xy, np.flatnonzero(np.diff(dash)) + 1)
 
 
+def _distinct(points: np.ndarray) -> np.ndarray:
+    """A polyline's vertices less those in the same canvas pixel as the one before (a long series drawn at the
+    picture's resolution: no change a pixel can show, at half an output pixel)."""
+    if len(points) < 3:
+        return points
+    cell = np.round(points)
+    moved = np.concatenate([[True], (cell[1:] != cell[:-1]).any(axis=1)])
+    moved[-1] = True
+    return points[moved]
+
+
 def _polyline(draw: ImageDraw.ImageDraw, points: np.ndarray, color, lw: float, style: str) -> None:
     """A polyline (n, 2, canvas pixels) in a matplotlib line style; gaps (NaN) left blank."""
     width, fill = _width(lw), _rgb(color)
     for run in _runs(points):
+        run = _distinct(run)
         pieces = _dashes(run, tuple(lw * _PT * d for d in _DASHES[style])) if style in _DASHES else [run]
         for piece in pieces:
             draw.line(piece.ravel().tolist(), fill=fill, width=width, joint="curve" if width > 2 else None)

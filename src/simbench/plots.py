@@ -175,7 +175,7 @@ def plot_path(traj: JointTrajectory, rec: Recording, path: Path) -> None:
     """The planned path and the simulated tool trace in 3-D, with the method's waypoints."""
     fig = Figure(6.5, 6)
     ax = fig.box3d((0.15 * DPI, 0.15 * DPI, (6.5 - 0.3) * DPI, (6 - 0.2) * DPI))
-    ref, tool = _trace(traj.tool_ref * 1e3), _trace(rec.tool * 1e3)
+    ref, tool = traj.tool_ref * 1e3, rec.tool * 1e3
     ax.plot(*ref.T, "--", color="tab:blue", lw=2, label="planned")
     ax.plot(*tool.T, color="tab:red", lw=1, label="simulated tool")
     if traj.waypoints:
@@ -186,19 +186,6 @@ def plot_path(traj: JointTrajectory, rec: Recording, path: Path) -> None:
     ax.set_zlabel("z (mm)")
     ax.legend(loc="upper left", fontsize=8)
     save_png(fig, path)
-
-
-def _trace(points: np.ndarray) -> np.ndarray:
-    """A 3-D polyline with the vertices it does not need at the figure's resolution left out: each axis scaled to
-    its own extent (as the 3-D box draws it), Ramer-Douglas-Peucker within 1e-3 of that (simbench.render.simplify),
-    and each axis' least and greatest kept (the same limits)."""
-    from simbench.render import simplify
-
-    if len(points) < 3:
-        return points
-    extent = np.ptp(points, axis=0)
-    keep = simplify(points / np.where(extent > 0, extent, 1.0), 1e-3)
-    return points[np.union1d(keep, np.concatenate([points.argmin(axis=0), points.argmax(axis=0)]))]
 
 
 def write_plots(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, folder: Path) -> list[str]:

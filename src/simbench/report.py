@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import platform
+import zipfile
 from pathlib import Path
 
 import mujoco
@@ -115,5 +116,15 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
     arrays.update({name: series[:rows] for name, series in traj.series.items()})
     if result is not None:
         arrays.update(result.series)
-    with staged_file(path) as tmp, open(tmp, "wb") as f:  # a file, not a name: NumPy would append .npz to one
-        np.savez_compressed(f, **arrays)
+    with staged_file(path) as tmp, open(tmp, "wb") as f:
+        savez_fast(f, arrays)
+
+
+def savez_fast(f, arrays: dict[str, np.ndarray]) -> None:
+    """`arrays` into the open file f as np.savez_compressed writes them (np.load reads it alike), deflated at
+    zlib's fastest level instead of its default: a long run's timeseries written in about a third of the time,
+    the file some 10-20 % larger (issue 14)."""
+    with zipfile.ZipFile(f, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1, allowZip64=True) as archive:
+        for name, value in arrays.items():
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)

@@ -84,7 +84,8 @@ class Rows:
 
 def kept_rows(n: int, every: int) -> np.ndarray:
     """The rows a recording of n rows keeps whole with stride `every`: 0, every, 2 every, ... and the last."""
-    return np.unique(np.append(np.arange(0, n, every), n - 1))
+    rows = np.arange(0, n, every)
+    return rows if rows.size == 0 or rows[-1] == n - 1 else np.append(rows, n - 1)
 
 
 def state_slices(model: mujoco.MjModel) -> dict[str, slice]:

@@ -14,7 +14,8 @@ along the timed path, not only at its nd points, so the reference stays on the l
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 from pydantic import Field
@@ -42,7 +43,8 @@ class Task(SimbenchModel):
 
 @dataclass(frozen=True)
 class Line:
-    """One run of the method: the configurations, their tool points and the branch choices."""
+    """One run of the method: the configurations, their tool points and the branch choices; and the geometry on
+    the check grid of each nd asked (_check_geometry), solved once per line."""
 
     q_init: np.ndarray
     q_goal: np.ndarray
@@ -51,11 +53,20 @@ class Line:
     backward_start: bool
     flip_at: float | None
     forward_only: bool
+    _checked: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def points(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Line points X(s) (eqs. 21-22) and the linear q2(s) (eq. 24)."""
-        x = self.x_init + s[:, None] * (self.x_goal - self.x_init)
-        return x, self.q_init[1] + s * (self.q_goal[1] - self.q_init[1])
+        return np.ascontiguousarray(self.coordinates(s).T), self.lift(s)
+
+    def coordinates(self, s: np.ndarray) -> np.ndarray:
+        """x, y, z of the line points X(s) (eqs. 21-22) as rows (3, N): a coordinate at a time, as an (N, 1) by (3,)
+        broadcast costs ten times as much."""
+        return self.x_init[:, None] + (self.x_goal - self.x_init)[:, None] * s
+
+    def lift(self, s: np.ndarray) -> np.ndarray:
+        """The linear q2(s) (eq. 24)."""
+        return self.q_init[1] + s * (self.q_goal[1] - self.q_init[1])
 
     def backward(self, s: np.ndarray) -> np.ndarray:
         """Whether each sample takes the backward branch (q3 > 90 deg, eq. 28)."""
@@ -65,52 +76,67 @@ class Line:
         return flipped ^ self.backward_start
 
 
-def _azimuth_of_travel(line_x: np.ndarray, x_init: np.ndarray, x_goal: np.ndarray) -> np.ndarray:
-    """atan2(y, x) of each point (eq. 23); on the lift axis itself, the direction the line heads in."""
-    azimuth = np.arctan2(line_x[:, 1], line_x[:, 0])
-    on_axis = np.hypot(line_x[:, 0], line_x[:, 1]) < 1e-15
-    heading = x_goal[:2] - x_init[:2]
-    return np.where(on_axis, np.arctan2(heading[1], heading[0]), azimuth)
+def _azimuth_of_travel(x: np.ndarray, y: np.ndarray, d: np.ndarray, line: Line) -> np.ndarray:
+    """atan2(y, x) of each point (eq. 23), d its distance from the lift axis; on the axis itself, the direction the
+    line heads in."""
+    azimuth = np.arctan2(y, x)
+    heading = line.x_goal[:2] - line.x_init[:2]
+    azimuth[d < 1e-15] = np.arctan2(heading[1], heading[0])
+    return azimuth
 
 
-def _solve(line: Line, s: np.ndarray, backward: np.ndarray) -> dict[str, np.ndarray]:
-    """Joint values at path parameters s on the given branches (eqs. 23-28), q1 not yet unwrapped."""
-    x, q2_lin = line.points(s)
-    d = np.hypot(x[:, 0], x[:, 1])
-    h_lin = x[:, 2] - q2_lin - D1
+def _geometry(line: Line, s: np.ndarray) -> dict[str, np.ndarray]:
+    """What the method gives at path parameters s on either branch (eqs. 23-27): the point's z, q2, q4, the forward
+    branch's azimuth and elevation, where eq. 27 holds q4 at 0 (`repaired`) and the unrepaired pivot height."""
+    x, y, z = line.coordinates(s)
+    d = np.hypot(x, y)
+    h_lin = z - line.lift(s) - D1
     q4 = np.hypot(d, h_lin) - D4  # eq. 26
     repaired = q4 < -_LIMIT_TOL
-    h = np.where(repaired, np.sqrt(np.clip(D4**2 - d**2, 0.0, None)), h_lin)  # eq. 27: q4 = 0, q2 moves
-    elevation = np.arctan2(h, d)  # eq. 25
-    azimuth = _azimuth_of_travel(x, line.x_init, line.x_goal)
-    q = np.stack([np.where(backward, azimuth - np.pi, azimuth),  # eq. 28
-                  x[:, 2] - D1 - h,
-                  np.where(backward, np.pi - elevation, elevation),
-                  np.where(repaired, 0.0, np.clip(q4, 0.0, None))], axis=-1)
-    return {"q": q, "x": x, "repaired": repaired, "h_lin": h_lin}
+    h = h_lin.copy()
+    h[repaired] = np.sqrt(np.clip(D4**2 - d[repaired] ** 2, 0.0, None))  # eq. 27: q4 = 0, q2 moves
+    q4 = np.clip(q4, 0.0, None)
+    q4[repaired] = 0.0
+    return {"z": z, "q2": z - D1 - h, "q4": q4, "azimuth": _azimuth_of_travel(x, y, d, line),
+            "elevation": np.arctan2(h, d), "repaired": repaired, "h_lin": h_lin}  # eq. 25
+
+
+def _configurations(geometry: dict[str, np.ndarray], backward: np.ndarray) -> np.ndarray:
+    """Joint values (N, 4) on the given branches (eq. 28), q1 not yet unwrapped."""
+    azimuth, elevation = geometry["azimuth"], geometry["elevation"]
+    return np.stack([np.where(backward, azimuth - np.pi, azimuth), geometry["q2"],
+                     np.where(backward, np.pi - elevation, elevation), geometry["q4"]], axis=-1)
+
+
+def _solve(line: Line, s: np.ndarray, backward: np.ndarray) -> np.ndarray:
+    """Joint values at path parameters s on the given branches (eqs. 23-28), q1 not yet unwrapped."""
+    return _configurations(_geometry(line, s), backward)
+
+
+def _pinned(line: Line, s: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """q with its samples at s = 0 set to the initial configuration itself (in place)."""
+    q[s == 0] = line.q_init
+    return q
 
 
 def _unwrap_q1(q: np.ndarray, q1_init: float) -> np.ndarray:
-    """q1 made continuous along the samples, starting from the initial configuration's own value."""
-    q = q.copy()
-    q1 = np.unwrap(np.concatenate([[q1_init], q[:, 0]]))[1:]
-    q[:, 0] = q1
+    """q with q1 made continuous along the samples (in place), starting from the initial configuration's own
+    value."""
+    q[:, 0] = np.unwrap(np.concatenate([[q1_init], q[:, 0]]))[1:]
     return q
 
 
 def evaluate(line: Line, s: np.ndarray) -> np.ndarray:
     """Configurations (N, 4) at path parameters s; s = 0 is the initial configuration itself."""
     s = np.asarray(s, float)
-    q = _solve(line, s, line.backward(s))["q"]
-    q[s == 0] = line.q_init
-    return _unwrap_q1(q, line.q_init[0])
+    return _unwrap_q1(_pinned(line, s, _solve(line, s, line.backward(s))), line.q_init[0])
 
 
 def derivative(line: Line, s: np.ndarray) -> np.ndarray:
     """dq/ds (N, 4), each sample differenced on its own branch."""
     s = np.asarray(s, float)
     backward = line.backward(s)
-    return rate(lambda x: _solve(line, x, backward)["q"], s, np.array(KINDS) == REVOLUTE)
+    return rate(lambda x: _solve(line, x, backward), s, np.array(KINDS) == REVOLUTE)
 
 
 def build(q_init: np.ndarray, q_goal: np.ndarray) -> Line:
@@ -128,14 +154,37 @@ def build(q_init: np.ndarray, q_goal: np.ndarray) -> Line:
     backward_start = bool(np.cos(np.arctan2(leaving[1], leaving[0]) - q_init[0]) < 0)
     line = Line(q_init, q_goal, x_init, x_goal, backward_start, flip_at, forward_only=False)
     grid = _check_grid()
-    q3 = evaluate(line, grid)[:, 2]
-    if line.backward(grid[1:]).any() and np.any((q3 < LOWER[2] - _LIMIT_TOL) | (q3 > UPPER[2] + _LIMIT_TOL)):
-        line = replace(line, forward_only=True)
+    if line.backward(grid[1:]).any():
+        q3 = _checked_configurations(line)[:, 2]
+        if np.any((q3 < LOWER[2] - _LIMIT_TOL) | (q3 > UPPER[2] + _LIMIT_TOL)):
+            line = replace(line, forward_only=True)
     return line
 
 
+@lru_cache(maxsize=8)
 def _check_grid(nd: int = 11) -> np.ndarray:
-    return np.union1d(np.linspace(0.0, 1.0, _CHECK_SAMPLES), np.linspace(0.0, 1.0, nd))
+    """The path samples on which the branch rule and the workspace test are decided: _CHECK_SAMPLES evenly
+    spaced, and the method's nd points. Kept (read-only) as every plan asks for the same."""
+    grid = np.union1d(np.linspace(0.0, 1.0, _CHECK_SAMPLES), np.linspace(0.0, 1.0, nd))
+    grid.flags.writeable = False
+    return grid
+
+
+def _check_geometry(line: Line, nd: int = 11) -> dict[str, np.ndarray]:
+    """_geometry on the check grid of nd, solved once per line (read-only): the branch rule (build) and the
+    workspace test (exit_reasons) both need it, and it does not depend on the branches they choose."""
+    if nd not in line._checked:
+        geometry = _geometry(line, _check_grid(nd))
+        for value in geometry.values():
+            value.flags.writeable = False
+        line._checked[nd] = geometry
+    return line._checked[nd]
+
+
+def _checked_configurations(line: Line, nd: int = 11) -> np.ndarray:
+    """Configurations on the check grid of nd on the line's branches, q1 not unwrapped; s = 0 is q_init."""
+    s = _check_grid(nd)
+    return _pinned(line, s, _configurations(_check_geometry(line, nd), line.backward(s)))
 
 
 def _limit_tests(q: np.ndarray) -> list[tuple[np.ndarray, str]]:
@@ -149,14 +198,14 @@ def _limit_tests(q: np.ndarray) -> list[tuple[np.ndarray, str]]:
     return tests
 
 
-def _eq27_jumps(sol: dict[str, np.ndarray]) -> np.ndarray:
+def _eq27_jumps(geometry: dict[str, np.ndarray]) -> np.ndarray:
     """Where eq. 27 makes q2 and q3 step (N,): the unrepaired sample of each boundary of the q4 = 0 region that
     lies below the pivot (h < 0)."""
-    rep = sol["repaired"]
+    rep = geometry["repaired"]
     edge = np.flatnonzero(rep[1:] != rep[:-1])
     outside = np.where(rep[edge], edge + 1, edge)  # the unrepaired sample of each boundary pair
     jump = np.zeros(rep.shape, bool)
-    jump[outside[sol["h_lin"][outside] < 0]] = True
+    jump[outside[geometry["h_lin"][outside] < 0]] = True
     return jump
 
 
@@ -168,15 +217,13 @@ def exit_reasons(line: Line, nd: int = 11) -> list[dict]:
     says lies inside); in its place the method's own failures are tested: any joint limit broken, and the jump
     eq. 27 makes when the tool leaves the q4 = 0 region below the pivot (case 4's printed start).
     """
-    s = _check_grid(nd)
-    sol = _solve(line, s, line.backward(s))
-    q, x = sol["q"], sol["x"]
-    q[s == 0] = line.q_init
+    s, geometry = _check_grid(nd), _check_geometry(line, nd)
+    q = _checked_configurations(line, nd)
     dq3 = line.q_goal[2] - line.q_init[2]
-    tests = [((line.q_init[2] > np.pi / 2) & (dq3 > 0) & (x[:, 2] < D1), "q3_init > 90 deg, dq3 > 0 and z < d1"),
+    tests = [((line.q_init[2] > np.pi / 2) & (dq3 > 0) & (geometry["z"] < D1), "q3_init > 90 deg, dq3 > 0 and z < d1"),
              (q[:, 2] < LOWER[2] - _LIMIT_TOL, "q3 < -75 deg"),
              *_limit_tests(q),
-             (_eq27_jumps(sol), "eq. 27 jump: the tool leaves the q4 = 0 region below the pivot (q2 and q3 step)")]
+             (_eq27_jumps(geometry), "eq. 27 jump: the tool leaves the q4 = 0 region below the pivot (q2 and q3 step)")]
     reasons = [{"s": float(s[np.argmax(mask)]), "condition": condition} for mask, condition in tests if np.any(mask)]
     return sorted(reasons, key=lambda r: r["s"])
 

@@ -254,7 +254,10 @@ def manipulability(q: np.ndarray) -> np.ndarray:
     elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (moving the reference point
     to the wrist centre leaves det J alone and makes J block triangular: arm block times wrist block)."""
     q = np.atleast_2d(q)
-    h, r = _elbow_and_shoulder(q)
+    return _manipulability(q, *_elbow_and_shoulder(q))
+
+
+def _manipulability(q: np.ndarray, h: np.ndarray, r: np.ndarray) -> np.ndarray:
     return A2 * np.abs(h * r * np.sin(q[:, 4])) / _LENGTH**3
 
 
@@ -275,8 +278,10 @@ def condition(q: np.ndarray) -> np.ndarray:
 def measures(q: np.ndarray) -> dict[str, np.ndarray]:
     """Manipulability and condition number of the tool Jacobian (linear rows divided by a2 + d4), and the
     three singularity gaps."""
-    return {"manipulability": manipulability(q), "condition": condition(q),
-            "shoulder_gap": shoulder_gap(q), "elbow_gap": elbow_gap(q), "wrist_gap": wrist_gap(q)}
+    q = np.atleast_2d(q)
+    h, r = _elbow_and_shoulder(q)
+    return {"manipulability": _manipulability(q, h, r), "condition": condition(q),
+            "shoulder_gap": np.abs(r), "elbow_gap": elbow_gap(q), "wrist_gap": wrist_gap(q)}
 
 
 def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
