@@ -139,3 +139,27 @@ def test_time_line_keeps_every_peak_of_a_long_series(tmp_path):
     column = left + (t[123_457] - chart._view(0.0, 100.0)[0]) / np.ptp(chart._view(0.0, 100.0)) * (right - left)
     near = dark[round(peak_row) - 1:round(peak_row) + 2, round(column) - 2:round(column) + 3]
     assert near.any()
+
+
+def test_gaps_and_infinite_values_are_left_out_of_the_limits_and_the_line(tmp_path):
+    """NaN and infinite samples are not drawn and do not widen the limits (matplotlib's behaviour); a series with
+    nothing finite, a lone sample and a panel with only a horizontal line still make a picture."""
+    t = np.linspace(0.0, 10.0, 1001)
+    y = np.sin(t)
+    y[100:200] = np.nan
+    y[500] = np.inf
+    y[600] = -np.inf
+    fig, axes = time_panels(3, WIDTH, 2 * HEIGHT)
+    first, second, third = axes[:, 0]
+    time_line(first, t, y, color="k")
+    time_line(first, t, np.full_like(t, np.nan), color="tab:red", label="nothing")
+    second.plot([5.0], [2.0], color="k")
+    third.axhline(0.5, color="k")
+    fig.save(tmp_path / "gaps.png")
+    assert np.allclose(first._ylimits(), chart._view(-1.0, 1.0), atol=1e-6)
+    assert np.allclose(chart._view(*first.data_x()), chart._view(0.0, 10.0))
+    picture = np.asarray(Image.open(tmp_path / "gaps.png").convert("L"))
+    left, top, right, bottom = (round(c) for c in first.rect)
+    x0, x1 = chart._view(0.0, 10.0)
+    gap = [round(left + (s - x0) / (x1 - x0) * (right - left)) for s in (1.2, 1.8)]
+    assert (picture[top + 2:bottom - 2, gap[0]:gap[1]] > 200).all()  # nothing drawn across the gap but the grid

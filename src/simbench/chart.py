@@ -146,6 +146,16 @@ def _text(canvas: Image.Image, xy: tuple[float, float], text: str, size_pt: floa
     canvas.paste(fill, (round(x), round(y)), mask)
 
 
+def _extent(arrays: list[np.ndarray]) -> tuple[float, float] | None:
+    """The least and greatest finite value in these arrays (NaN and infinite values are not drawn, as in
+    matplotlib), or None if there is none."""
+    finite = [a[np.isfinite(a)] for a in arrays]
+    finite = [a for a in finite if a.size]
+    if not finite:
+        return None
+    return float(min(a.min() for a in finite)), float(max(a.max() for a in finite))
+
+
 def _view(lo: float, hi: float) -> tuple[float, float]:
     """Axis limits for data spanning [lo, hi], as matplotlib's autoscale makes them."""
     lo, hi = MaxNLocator().nonsingular(lo, hi)
@@ -255,15 +265,13 @@ class Panel:
 
     def data_x(self) -> tuple[float, float]:
         """The extent of what is drawn along x (lines, vertical lines, spans)."""
-        xs = [v for x0, x1, *_ in self.spans for v in (x0, x1)]
-        xs += [v for ln in self.lines if np.isfinite(ln.x).any() for v in (np.nanmin(ln.x), np.nanmax(ln.x))]
-        return (min(xs), max(xs)) if xs else (0.0, 1.0)
+        return _extent([np.array([x0, x1]) for x0, x1, *_ in self.spans] + [ln.x for ln in self.lines]) or (0.0, 1.0)
 
     def _ylimits(self) -> tuple[float, float]:
         if self.ylim is not None:
             return self.ylim
-        ys = [v for ln in self.lines if np.isfinite(ln.y).any() for v in (np.nanmin(ln.y), np.nanmax(ln.y))]
-        return _view(min(ys), max(ys)) if ys else (0.0, 1.0)
+        extent = _extent([ln.y for ln in self.lines])
+        return _view(*extent) if extent else (0.0, 1.0)
 
     def draw(self, canvas: Image.Image, xlim: tuple[float, float]) -> None:
         """Everything of this panel onto the figure's canvas, over x limits `xlim`."""
@@ -470,7 +478,7 @@ class Box3D:
         """The box (back panes, grid, ticks, labels), the lines and points, and the legend onto the canvas."""
         points = [np.column_stack([ln.x, ln.y, z]) for ln, z in zip(self.lines, self.z)]
         every = np.concatenate(points)
-        limits = np.array([_view(lo, hi) for lo, hi in zip(np.nanmin(every, axis=0), np.nanmax(every, axis=0))])
+        limits = np.array([_view(*(_extent([every[:, i]]) or (0.0, 1.0))) for i in range(3)])
         rows = _projection()
         corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], float)
         flat = (corners * _ASPECT) @ rows[:2].T
