@@ -168,3 +168,46 @@ def test_a_bad_action_is_exit_1_with_the_time(act, when, cause, tmp_path, capsys
     assert code == 1 and len(lines) == 1 and lines[0].startswith(f"run failed: control failed {when}: {cause}")
     report = json.loads((out / "report.json").read_text())
     assert report["status"] == "failed" and report["failure"]["cause"] == cause
+
+
+def test_the_servo_redoes_only_the_revised_rows_and_a_controller_without_revise_rows_still_hears_of_them():
+    """Servo.revise_rows(k0, k1) leaves its commands equal to those of the references revised whole (the rows
+    outside k0..k1 were the same), for random spans; a controller that defines only `revise` gets the change
+    through the default `revise_rows`."""
+    from dataclasses import replace
+
+    from simbench.api import Controller
+    from simbench.controllers import Servo
+
+    scenario = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
+    plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
+    traj = scenario.planner_def.plan(scenario, scenario.robot_def, float(plant.model.opt.timestep))
+    rng = np.random.default_rng(5)
+    servo, whole = Servo(), Servo()
+    servo.bind(plant, traj)
+    whole.bind(plant, traj)
+    q_ref, qd_ref = traj.q_ref.copy(), traj.qd_ref.copy()
+    for _ in range(12):
+        k0 = int(rng.integers(0, len(q_ref) - 1))
+        k1 = int(rng.integers(k0 + 1, min(k0 + 2000, len(q_ref)) + 1))
+        q_ref[k0:k1] += rng.normal(scale=0.01, size=(k1 - k0, q_ref.shape[1]))
+        qd_ref[k0:k1] += rng.normal(scale=0.01, size=(k1 - k0, q_ref.shape[1]))
+        servo.revise_rows(k0, k1, q_ref, qd_ref)
+        whole.revise(k0, q_ref, qd_ref)
+        assert np.array_equal(servo.open_loop(), whole.open_loop())
+    fresh = Servo()
+    fresh.bind(plant, replace(traj, q_ref=q_ref, qd_ref=qd_ref))  # every row from the revised references
+    assert np.array_equal(servo.open_loop(), fresh.open_loop())
+
+    class Heard(Controller):
+        name, description = "heard", "records what revise is told"
+
+        def commands(self, state):
+            return np.zeros(plant.model.nu)
+
+        def revise(self, k0, q_ref, qd_ref):
+            self.told = (k0, q_ref)
+
+    heard = Heard()
+    heard.revise_rows(7, 9, q_ref, qd_ref)
+    assert heard.told[0] == 7 and heard.told[1] is q_ref

@@ -285,6 +285,12 @@ class Controller(ABC):
         """The plan's feedback changed the references from row k0 on (an RSMG arm re-solving its hold):
         q_ref and qd_ref are the whole revised references."""
 
+    def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
+        """As `revise`, told that only rows k0 to k1 - 1 changed, the rows after as they were: what the
+        simulation calls, so that a controller holding commands computed ahead redoes only those rows (a long
+        run re-grips hundreds of times). By default `revise(k0, q_ref, qd_ref)`."""
+        self.revise(k0, q_ref, qd_ref)
+
     def gains(self) -> dict[str, Any]:
         """What report.json says of this controller after `bind`: its gains and choices, SI units."""
         return {}

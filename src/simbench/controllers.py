@@ -52,8 +52,11 @@ class Servo(Controller):
         return self._ctrl[min(state.k, len(self._ctrl) - 1)]
 
     def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
+        self.revise_rows(k0, len(q_ref), q_ref, qd_ref)
+
+    def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
         assert self._ctrl is not None, "bind() first"
-        self._ctrl[k0:] = self.targets(q_ref[k0:], qd_ref[k0:])
+        self._ctrl[k0:k1] = self.targets(q_ref[k0:k1], qd_ref[k0:k1])
 
     def gains(self) -> dict[str, Any]:
         assert self._plant is not None, "bind() first"

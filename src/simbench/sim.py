@@ -163,7 +163,7 @@ class _Run:
         q_ref[k0:k1, columns] = q
         hi = min(k1 + 1, len(q_ref))  # the rate just after the change moves too; rows before k0 have been used
         qd_ref[k0:hi, columns] = np.gradient(q_ref[k0:hi, columns], traj.dt, axis=0)
-        self.controller.revise(k0, q_ref, qd_ref)
+        self.controller.revise_rows(k0, hi, q_ref, qd_ref)
         self.revised = q_ref, qd_ref
         if self.ctrl is not None:
             self.ctrl = self.controller.open_loop()
