@@ -66,9 +66,9 @@ def _width(lw: float) -> int:
 
 
 def _style(fmt: str | None, ls: str | None) -> str:
-    """The line style of a matplotlib format string ('--', ':', '-.', '-') or ls argument."""
+    """The line style of a matplotlib format string ('--', 'k:', '-.', '-') or ls argument."""
     for style in ("--", "-.", ":", "-"):
-        if (ls or fmt or "-").startswith(style):
+        if style in (ls or fmt or "-"):
             return style
     return "-"
 
