@@ -52,7 +52,7 @@ from simbench.api import Planner
 from simbench.errors import RunError
 from simbench.planners.rsmg_contacts import (CACHE_FLOATS, FIRM_CAP, FIRM_SPEED, SPEED_SHARE, BoundedCache,
                                              FixedContacts, GeneralContacts, Lazy, LazyExit, Swing, angular_speed,
-                                             first_false)
+                                             exit_upto, first_false, first_out)
 from simbench.robots import rsmg
 from simbench.rotations import matrix_to_quat
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
@@ -70,6 +70,7 @@ _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this tim
 _QUINTIC = TimeLaw("quintic", 1.0)
 _STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
 _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
+_CHUNK = 65536  # control samples turned into quaternions at a time (_quaternions)
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 # The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
 # paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
@@ -291,17 +292,28 @@ class _Scheduler:
         firm = self.holding_firmly(current, arm, earliest, latest)[release - earliest]
         found = []
         nexts = self.contacts.next_points(arm, _held(current), latest + n_swing)
-        for hold in ((rsmg.ARMS - 1) * n_swing, n_swing):
+        holds = ((rsmg.ARMS - 1) * n_swing, n_swing)
+        limit = int(np.minimum(grip + holds[0], n - 1).max(initial=0)) + 1  # beyond the longest hold wanted
+        ahead = {k: self.ahead(current, arm, k, grip, limit) for k in nexts}
+        for hold in holds:
             for k in nexts:
-                weak = self.next_weak(_held(current) | {arm: k})[grip]
-                bad = self.next_bad(arm, k)
-                ready = bad[grip - self.n_approach] > grip  # inside the band from the approach on
-                lasts = np.minimum(bad[grip], weak) > np.minimum(grip + hold, n - 1)
-                works = firm & ready & lasts
+                ready, leaves = ahead[k]
+                works = firm & ready & (leaves > np.minimum(grip + hold, n - 1))
                 works[works] = self.contacts.swing_fits(arm, point, k, release[works])
                 picked = _latest_and_earlier(release[works], n_swing)
                 found += [(int(r), k) for r in picked if (int(r), k) not in found]
         return found
+
+    def ahead(self, current: _Current, arm: int, k: int, grip: np.ndarray,
+              limit: int) -> tuple[np.ndarray, np.ndarray]:
+        """For `arm` gripping point k at each step of `grip` while the others hold on: whether k is inside the band
+        from the swing's approach on, and the first step from the grip where k leaves the band or the four arms'
+        A falls under det_a_min, or `limit` if none is before it (the exits are only compared with steps under
+        `limit`: looking no further spares the blocks of general contacts beyond)."""
+        weak = exit_upto(self.next_weak(_held(current) | {arm: k}), grip, limit)
+        bad = self.next_bad(arm, k)
+        ready = exit_upto(bad, grip - self.n_approach, limit) > grip
+        return ready, np.minimum(exit_upto(bad, grip, limit), weak)
 
     def next_choice(self, current: _Current, step: int) -> _Choice | list[Hold] | tuple[int, str, int]:
         """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
@@ -396,8 +408,8 @@ class _Scheduler:
             return min(int(self.next_weak(start)[0]), *(int(self.next_bad(a, p)[0]) for a, p in start.items()))
         stop = min(self.contacts.horizon, self.n)
         floor = np.broadcast_to(self.det_a_min, (self.n,))[:stop]
-        weak = int(first_false(self.measure(start)[:stop] >= floor)[0])
-        return min(weak, *(min(int(self.next_bad(a, p)[0]), stop) for a, p in start.items()))
+        weak = int(first_out(self.measure(start)[:stop] >= floor))
+        return min(weak, *(exit_upto(self.next_bad(a, p), 0, stop) for a, p in start.items()))
 
     def starts(self, limits: str) -> list[dict[int, int]]:
         """The initial grips to try, each holding firmly at t = 0: each arm on its point inside the band longest
@@ -487,7 +499,7 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
     for h in mine:
         start, stop = max(h.start - n_approach, 0), min(h.end, grid.size - 1)
         span = grid[start:stop + 1]
-        inside = (t >= span[0]) & (t <= span[-1]) if h.end >= grid.size else (t >= span[0]) & (t < grid[h.end])
+        inside = _span(t, span[0], span[-1], closed=True) if h.end >= grid.size else _span(t, span[0], grid[h.end])
         theta, gamma = contacts.path(arm, h.point, start, stop + 1)
         th = np.unwrap(theta)
         if held:  # keep theta on the turn nearest where the swing began
@@ -498,12 +510,19 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
         held.append((span, th, ga))
     for (a, (span_a, th_a, ga_a)), (b, (span_b, th_b, ga_b)) in zip(zip(mine, held), zip(mine[1:], held[1:])):
         t0, t1 = grid[a.end], grid[b.start - n_approach]
-        swing = (t >= t0) & (t < t1)
+        swing = _span(t, t0, t1)
         for series, before, after in ((out_theta, th_a, th_b), (out_gamma, ga_a, ga_b)):
             start = _state(span_a[-_FIT - 1:], before[-_FIT - 1:], t0)
             end = _state(span_b[:_FIT + 1], after[:_FIT + 1], t1)
             series[swing] = _quintic(t[swing], t0, t1, start, end)
     return out_theta, out_gamma
+
+
+def _span(t: np.ndarray, start: float, stop: float, closed: bool = False) -> slice:
+    """The samples of increasing times t from `start` to `stop` (included if `closed`) as a slice: the mask
+    (t >= start) & (t < stop), found by bisection, not by a pass over all samples for every hold (a ten-minute run:
+    hundreds of holds, 600,000 samples)."""
+    return slice(int(np.searchsorted(t, start)), int(np.searchsorted(t, stop, "right" if closed else "left")))
 
 
 def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
@@ -638,7 +657,7 @@ def _engaged(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarray:
     engaged = np.zeros((t.size, rsmg.ARMS), bool)
     for h in holds:
         stop = grid[h.end] if h.end < grid.size else np.inf
-        engaged[(t >= grid[h.start]) & (t < stop), h.arm] = True
+        engaged[_span(t, grid[h.start], stop), h.arm] = True
     return engaged
 
 
@@ -654,7 +673,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     engaged = _engaged(t, sched.holds, sched.grid)
     feedback = _RegripFeedback(rot, q_ref, sched.holds, sched.grid, dt, round(task.swing_time / dt)) \
         if task.regrip_feedback else None
-    quat = matrix_to_quat(rot)
+    quat = _quaternions(rot)
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
         "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": sched.contacts.count},
@@ -662,11 +681,26 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
         "grips": len(sched.holds) - rsmg.ARMS,
         "fewest_gripping": int(engaged.sum(axis=1).min()),
     }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=np.gradient(q_ref, t, axis=0),
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=_joint_rates(q_ref, t),
                            tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS), info=info,
                            switches=_switches(sched.holds, sched.grid, sched.contacts),
                            series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                            initial={"rotor": quat[0].tolist()}, feedback=feedback)
+
+
+def _quaternions(rot: np.ndarray) -> np.ndarray:
+    """matrix_to_quat of orientations (N, 3, 3), _CHUNK at a time: scipy's temporaries for all of a long run's
+    samples at once (600,000 in the ten-minute soak) would be seven times the quaternions, planning's peak."""
+    return np.concatenate([matrix_to_quat(rot[i:i + _CHUNK]) for i in range(0, len(rot), _CHUNK)])
+
+
+def _joint_rates(q_ref: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """np.gradient(q_ref, t, axis=0), a joint at a time: the same numbers, without temporaries of three and a half
+    times q_ref for all joints at once (on the soak's 600,000 samples, 135 MB)."""
+    qd_ref = np.empty_like(q_ref)
+    for joint in range(q_ref.shape[1]):
+        qd_ref[:, joint] = np.gradient(q_ref[:, joint], t)
+    return qd_ref
 
 
 class _RegripFeedback:

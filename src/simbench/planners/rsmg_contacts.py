@@ -13,7 +13,7 @@ schedule's grid, the first step from each step at which the point leaves the ban
 (`rows`), its base angle and gamma (`path`), the points to try next, best first (`next_points`), and the floor on
 the holding arms' |det A| (`floor`). The fixed three come as whole arrays; general contacts' arrays are `Lazy`,
 computed block by block as the search reads them, so that planning grows with the motion's length, not with its
-square (ten minutes of tumbling: 227 re-grips planned in 28 s).
+square (ten minutes of tumbling: 227 re-grips planned in 14 s).
 
 The band in gamma is a band in the angle d between the EM axis v_i and the arm's axis u_i (eqs. 10-11 and the
 spherical triangle u_i, w_i, v_i): cos d = cos ALPHA cos BETA + sin ALPHA sin BETA cos gamma, whatever theta. In the
@@ -35,6 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from simbench.robots import rsmg
+from simbench.vectors import cross
 
 _DENSE = 400  # points of the dense candidate set: neighbours about 10 deg apart
 _SHORTLIST = 4  # points tried a re-grip, best first
@@ -42,7 +43,7 @@ _APART = np.deg2rad(25.0)  # the shortlist's points at least this far apart from
 SPEED_SHARE = 0.9  # a hold or a swing asks a joint for at most this share of its speed limit
 _HORIZON = 8  # swings (with their approach): the dwell beyond which a point is as good as any longer one
 _FIRM_WEIGHT = 2.0  # the firmness's weight in a point's score against its dwell (both about 0-1)
-CACHE_FLOATS = 5e7  # floats that a cache of arrays along the grid may hold (400 MB); the oldest go first
+CACHE_FLOATS = 1e7  # floats that a cache of arrays along the grid may hold (80 MB); the least recently read go first
 _QUINTIC_SAMPLES = 41  # where a swing's quintic's speed is checked
 # The floor on |det A| general contacts keep: the task's det_a_min up to FIRM_SPEED of the rotor, then in proportion
 # to its speed, up to FIRM_CAP (see GeneralContacts.floor).
@@ -77,6 +78,13 @@ def first_false(ok: np.ndarray) -> np.ndarray:
     return np.concatenate([first, np.full(ok.shape[:-1] + (1,), n)], axis=-1)
 
 
+def first_out(ok: np.ndarray) -> np.ndarray:
+    """first_false(ok)[..., 0] alone: the first step along the last axis where `ok` is false (the length if never),
+    without first_false's pass over every later step."""
+    n = ok.shape[-1]
+    return np.where(ok.all(axis=-1), n, ok.argmin(axis=-1)) if n else np.zeros(ok.shape[:-1], np.int64)
+
+
 def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
     """The rotor's angular speed (N,) in rad/s along orientations (N, 3, 3) sampled `step` s apart."""
     rel = np.einsum("nji,njk->nik", rot[:-1], rot[1:])  # R_k^T R_k+1
@@ -86,7 +94,8 @@ def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
 
 
 class BoundedCache(OrderedDict):
-    """A cache dropping its oldest entries once they hold more than `floats` numbers."""
+    """A cache dropping its oldest entries once they hold more than `floats` numbers (read through `fetch`: those
+    least recently read)."""
 
     def __init__(self, floats: float):
         super().__init__()
@@ -100,6 +109,14 @@ class BoundedCache(OrderedDict):
             _, old = self.popitem(last=False)
             self.held -= _floats(old)
         return value
+
+    def fetch(self, key, make):
+        """The value under key, or make()'s kept there; either way now the newest entry, the last to go (the search
+        moves on in time, and what it read last it reads again: the held points' blocks)."""
+        if key in self:
+            self.move_to_end(key)
+            return self[key]
+        return self.keep(key, make())
 
 
 def _floats(value) -> int:
@@ -120,10 +137,7 @@ class Lazy:
 
     def block(self, b: int) -> np.ndarray:
         """Block b: steps b * size to (b + 1) * size (fewer at the end)."""
-        key = (self.tag, b)
-        if key in self.cache:
-            return self.cache[key]
-        return self.cache.keep(key, self.make(b * self.size, min((b + 1) * self.size, self.n)))
+        return self.cache.fetch((self.tag, b), lambda: self.make(b * self.size, min((b + 1) * self.size, self.n)))
 
     def __getitem__(self, index):
         if isinstance(index, slice):
@@ -140,10 +154,17 @@ class Lazy:
         blocks = steps // self.size
         first = self.block(int(blocks.flat[0])) if steps.size else self.block(0)
         out = np.empty(steps.shape + first.shape[1:], first.dtype)
-        for b in np.unique(blocks):
+        for b in _distinct(blocks):
             here = blocks == b
             out[here] = self.block(int(b))[steps[here] - b * self.size]
         return out
+
+
+def _distinct(blocks: np.ndarray) -> np.ndarray:
+    """The distinct blocks a read touches, in order: np.unique's, without its sort where they are one (most reads)."""
+    if blocks.size and blocks.min() == blocks.max():
+        return blocks.reshape(-1)[:1]
+    return np.unique(blocks)
 
 
 class LazyExit:
@@ -156,39 +177,61 @@ class LazyExit:
 
     def _local(self, b: int) -> np.ndarray:
         """first_false within block b (its length where none)."""
-        key = (self.ok.tag, b, "exit")
-        if key in self.ok.cache:
-            return self.ok.cache[key]
-        return self.ok.cache.keep(key, first_false(self.ok.block(b)))
+        return self.ok.cache.fetch((self.ok.tag, b, "exit"), lambda: first_false(self.ok.block(b)))
 
-    def _from(self, b: int) -> int:
-        """The first false at or after block b's first step."""
+    def _from(self, b: int, limit: int) -> int:
+        """The first false at or after block b's first step, or `limit` if there is none before it (the blocks
+        from `limit` on are then not computed)."""
         pending = []
-        while b * self.size < self.n and b not in self._from_start:
+        while b * self.size < min(limit, self.n) and b not in self._from_start:
             local = self._local(b)
             if local[0] < len(local) - 1:
                 self._from_start[b] = b * self.size + int(local[0])
                 break
             pending.append(b)
             b += 1
+        if b not in self._from_start and b * self.size < self.n:
+            return limit  # not looked beyond: nothing to remember
         found = self._from_start.get(b, self.n)
         for p in pending:
             self._from_start[p] = found
-        return found
+        return min(found, limit)
 
     def __getitem__(self, index):
+        return self.upto(index, self.n)
+
+    def upto(self, index, limit: int):
+        """min(self[index], limit), computing no block from `limit` on beyond those holding the steps: all that a
+        test of the exit against a bound under `limit` needs (round_robin's choices look a few swings ahead, not
+        to where a point leaves the band)."""
         steps = np.asarray(index)
-        flat = np.atleast_1d(steps).ravel()
+        if steps.ndim == 0:
+            return self._one(int(steps), limit)
+        flat = steps.ravel()
         out = np.full(flat.shape, self.n, dtype=np.int64)
         inside = flat < self.n
         blocks = flat // self.size
-        for b in np.unique(blocks[inside]):
+        for b in _distinct(blocks[inside]):
             here = inside & (blocks == b)
             local = self._local(int(b))
             found = local[flat[here] - b * self.size]
             ahead = found >= len(local) - 1  # none left in this block: the first from the next one on
-            out[here] = np.where(ahead, self._from(int(b) + 1), b * self.size + found)
-        return int(out[0]) if steps.ndim == 0 else out.reshape(steps.shape)
+            out[here] = np.where(ahead, self._from(int(b) + 1, limit), b * self.size + found)
+        return np.minimum(out, limit).reshape(steps.shape)
+
+    def _one(self, step: int, limit: int) -> int:
+        """upto of a single step, without the arrays (the search's deadlines and its starts read one at a time)."""
+        if step >= self.n:
+            return min(self.n, limit)
+        b, at = divmod(step, self.size)
+        local = self._local(b)
+        found = int(local[at])
+        return min(self._from(b + 1, limit) if found >= len(local) - 1 else b * self.size + found, limit)
+
+
+def exit_upto(exit: np.ndarray | LazyExit, steps: np.ndarray, limit: int) -> np.ndarray:
+    """min(exit[steps], limit) of a first_false array or a LazyExit (LazyExit.upto)."""
+    return exit.upto(steps, limit) if isinstance(exit, LazyExit) else np.minimum(exit[steps], limit)
 
 
 class FixedContacts:
@@ -267,17 +310,31 @@ class GeneralContacts:
         return len(self.rot)
 
     def _cached(self, key, make):
-        return self._cache[key] if key in self._cache else self._cache.keep(key, make())
+        return self._cache.fetch(key, make)
 
     def lazy(self, make) -> Lazy:
         """A Lazy array along this grid, its blocks in this object's cache."""
         return Lazy(self.n, make, self._cache)
 
+    def _ik(self, arm: int, k: int, steps) -> np.ndarray:
+        """theta and gamma (steps, 2) of the arm holding point k at grid steps `steps` (a slice or indices), eqs.
+        12-23."""
+        return np.stack(rsmg.ik(arm, self.rot[steps] @ self.dense[k]), axis=1)
+
     def angles(self, arm: int, k: int) -> Lazy:
         """theta and gamma (N, 2) of the arm holding point k along the grid (eqs. 12-23), computed as read."""
         def make(first: int, stop: int) -> np.ndarray:
-            return np.stack(rsmg.ik(arm, self.rot[first:stop] @ self.dense[k]), axis=1)
+            return self._ik(arm, k, slice(first, stop))
         return self._cached(("angles", arm, k), lambda: self.lazy(make))
+
+    def _around(self, arm: int, k: int, first: int, stop: int) -> np.ndarray:
+        """angles(arm, k) at steps first - 1 to stop + 1 (those inside the grid): the blocks of first to stop, and
+        the step either side solved on its own, not with its block (which the search, reading the blocks of
+        next_bad, would otherwise solve for one step: a third of the IK). The two steps are solved together even
+        where one is not wanted: NumPy's product of a single row by a vector rounds unlike a row of a longer one."""
+        edges = self._ik(arm, k, [max(first - 1, 0), min(stop, self.n - 1)])
+        return np.concatenate([edges[:1]] * (first > 0) + [self.angles(arm, k)[first:stop]] +
+                              [edges[1:]] * (stop < self.n))
 
     def path(self, arm: int, k: int, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         """theta and gamma of the arm holding point k at steps first to stop."""
@@ -288,15 +345,15 @@ class GeneralContacts:
         """The arm's row of A holding point k (N, 3) (eqs. 34-35), computed as read."""
         def make(first: int, stop: int) -> np.ndarray:
             both = self.angles(arm, k)[first:stop]
-            return rsmg.jacobian_rows(arm, both[:, 0], both[:, 1])[0]
+            return rsmg.a_row(arm, both[:, 0], both[:, 1])
         return self._cached(("rows", arm, k), lambda: self.lazy(make))
 
     def next_bad(self, arm: int, k: int) -> LazyExit:
         """For each step, the first at or after it where holding point k puts gamma outside the band (eq. 45 less
         the margin) or asks theta or gamma for more than SPEED_SHARE of its speed limit."""
         def make(first: int, stop: int) -> np.ndarray:
-            lo, hi = max(first - 1, 0), min(stop + 1, self.n)  # a step either side for the rates at the ends
-            both = self.angles(arm, k)[lo:hi]
+            lo = max(first - 1, 0)  # a step either side for the rates at the ends
+            both = self._around(arm, k, first, stop)
             theta, gamma = both[:, 0], both[:, 1]
             ok = (gamma > self.band[0]) & (gamma < self.band[1])
             if ok.any() and len(ok) > 1:
@@ -323,10 +380,11 @@ class GeneralContacts:
     def label(self, arm: int, k: int) -> str:
         return f"p{k}"
 
-    def _blocks(self, name: str, arm: int, lo: int, hi: int, size: int, make) -> np.ndarray:
+    def _blocks(self, name: str, arm: int, lo: int, hi: int, size: int, make, points=slice(None)) -> np.ndarray:
         """Items lo to hi (exclusive) along the second axis of a per-arm array over the dense set, from cached blocks
-        of `size` items: make(arm, first, stop) computes one."""
-        parts = [self._cached((name, arm, b), lambda b=b: make(arm, b * size, (b + 1) * size))
+        of `size` items: make(arm, first, stop) computes one; of the dense set's `points` only (taken from each
+        block before they are joined)."""
+        parts = [self._cached((name, arm, b), lambda b=b: make(arm, b * size, (b + 1) * size))[points]
                  for b in range(lo // size, (hi - 1) // size + 1)]
         whole = np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
         return whole[:, lo - (lo // size) * size:hi - (lo // size) * size]
@@ -349,7 +407,7 @@ class GeneralContacts:
         outside the arm's band, by the angle to the arm's axis a_i(t) (module docstring), (K,)."""
         def make():
             stop = min(start + self.horizon, self.n)
-            return start + first_false(self._blocks("dense_inside", arm, start, stop, _BLOCK_STEPS, self._inside))[:, 0]
+            return start + first_out(self._blocks("dense_inside", arm, start, stop, _BLOCK_STEPS, self._inside))
         return self._cached(("dwell", arm, start), make)
 
     def initial_points(self, arm: int) -> list[int]:
@@ -379,13 +437,13 @@ class GeneralContacts:
         each two of the other arms' rows, from the grip until it leaves, as a share of sin(BETA)^3 (rows w x v have
         length sin BETA); on every _FIRM_STRIDE-th step."""
         first, last = grip // _FIRM_STRIDE, (int(stop.max()) - 1) // _FIRM_STRIDE + 1
-        row = self._blocks("dense_rows", arm, first, last, _BLOCK_SAMPLES, self._dense_rows)[usable]  # (P, J, 3)
+        row = self._blocks("dense_rows", arm, first, last, _BLOCK_SAMPLES, self._dense_rows, usable)  # (P, J, 3)
         steps = np.arange(first, last) * _FIRM_STRIDE
         others = [self.rows(a, k)[steps] for a, k in sorted(held.items()) if a != arm]
         least = np.full(row.shape[:2], np.inf)
         for i in range(len(others)):
             for j in range(i + 1, len(others)):
-                least = np.minimum(least, np.abs(np.einsum("kni,ni->kn", row, np.cross(others[i], others[j]))))
+                least = np.minimum(least, np.abs(np.einsum("kni,ni->kn", row, cross(others[i], others[j]))))
         held_then = steps[None, :] < stop[:, None]  # each point's samples before it leaves
         least = np.where(held_then, np.nan_to_num(least, nan=0.0), np.inf).min(axis=1)
         return least / np.sin(rsmg.BETA) ** 3
@@ -403,14 +461,16 @@ class GeneralContacts:
         release, end = release[ok], end[ok]
         h = (self.swing.steps - self.swing.approach) * self.step
         peak = np.zeros(release.shape)
-        before, after = self.angles(arm, k_from), self.angles(arm, k_to)
+        # theta and gamma a step before, at and a step after the release and the swing's end, (3, M, 2): one read
+        before = self.angles(arm, k_from)[np.stack([release - 1, release, release + 1])]
+        after = self.angles(arm, k_to)[np.stack([end - 1, end, end + 1])]
         for joint in range(2):
-            a, b = _Column(before, joint), _Column(after, joint)
-            a0, b0 = a[release], b[end]
+            a, b = before[..., joint], after[..., joint]
+            a0, b0 = a[1], b[1]
             if joint == 0:  # theta goes the shorter way round (the plan keeps it on the nearest turn)
                 b0 = a0 + np.angle(np.exp(1j * (b0 - a0)))
-            start = np.stack([a0, *_rates(a, release, self.step, joint == 0)], axis=1)
-            finish = np.stack([b0, *_rates(b, end, self.step, joint == 0)], axis=1)
+            start = np.stack([a0, *_rates(a, self.step, joint == 0)], axis=1)
+            finish = np.stack([b0, *_rates(b, self.step, joint == 0)], axis=1)
             peak = np.maximum(peak, _quintic_peak(start, finish, h))
         fits[ok] = np.nan_to_num(peak, nan=np.inf) < self.qd_limit
         return fits
@@ -429,23 +489,15 @@ def row_of_a(arm: int, v: np.ndarray) -> np.ndarray:
         b = (np.cos(rsmg.BETA) - np.cos(rsmg.ALPHA) * cuv) / den
         c2 = (1.0 - a**2 - b**2 - 2 * a * b * cuv) / den
         c = np.where(c2 >= 0, np.sqrt(np.abs(c2)), np.nan)
-    w = a[..., None] * u + b[..., None] * v + c[..., None] * np.cross(u, v)
-    return np.cross(w, v)
+    normal = cross(u, v)
+    w = np.stack([a * u[j] + b * v[..., j] + c * normal[..., j] for j in range(3)], axis=-1)
+    return cross(w, v)
 
 
-class _Column:
-    """One column of a Lazy (N, 2), read by steps."""
-
-    def __init__(self, lazy: Lazy, column: int):
-        self.lazy, self.column = lazy, column
-
-    def __getitem__(self, steps):
-        return self.lazy[steps][..., self.column]
-
-
-def _rates(y: np.ndarray, at: np.ndarray, step: float, angle: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Rate and acceleration of samples y at indices `at` (central differences; an angle unwrapped)."""
-    before, here, after = y[at - 1], y[at], y[at + 1]
+def _rates(y: np.ndarray, step: float, angle: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Rate and acceleration (M,) at the middle of samples y (3, M) a step apart (central differences; an angle
+    unwrapped)."""
+    before, here, after = y
     if angle:
         before = here - np.angle(np.exp(1j * (here - before)))
         after = here + np.angle(np.exp(1j * (after - here)))

@@ -32,7 +32,7 @@ import numpy as np
 
 from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
-from simbench.vectors import triple
+from simbench.vectors import cross, triple
 
 ALPHA = np.deg2rad(70.0)
 BETA = np.deg2rad(70.0)
@@ -70,22 +70,29 @@ QD_MAX = np.full(2 * ARMS, 4 * np.pi)  # 2 turns/s: a small direct-drive motor's
 
 
 def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
-    """w_i (N, 3) for base angles theta (N,) of arm `arm` (eq. 12)."""
-    theta = np.asarray(theta, float)[..., None]
-    return np.cos(ALPHA) * U[arm] + np.sin(ALPHA) * (np.cos(theta) * X_REF[arm] + np.sin(theta) * Y_REF[arm])
+    """w_i (N, 3) for base angles theta (N,) of arm `arm` (eq. 12). Component by component: a product of (N, 1)
+    by (3,) costs NumPy a loop of three a row, which the IK's inner loops pay for."""
+    theta = np.asarray(theta, float)
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.cos(ALPHA) * U[arm, j] + np.sin(ALPHA) * (c * X_REF[arm, j] + s * Y_REF[arm, j])
+                     for j in range(3)], axis=-1)
 
 
 def folded(arm: int, w: np.ndarray) -> np.ndarray:
-    """The EM axis with gamma = 0: w turned by BETA back towards u_i, in their plane."""
-    toward_u = (U[arm] - np.cos(ALPHA) * w) / np.sin(ALPHA)
-    return np.cos(BETA) * w + np.sin(BETA) * toward_u
+    """The EM axis with gamma = 0: w turned by BETA back towards u_i, in their plane (component by component, as
+    upper_axis)."""
+    toward_u = [(U[arm, j] - np.cos(ALPHA) * w[..., j]) / np.sin(ALPHA) for j in range(3)]
+    return np.stack([np.cos(BETA) * w[..., j] + np.sin(BETA) * toward_u[j] for j in range(3)], axis=-1)
 
 
 def _rotate(axis: np.ndarray, angle: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """Rodrigues: vector (N, 3) turned about unit axis (N, 3) by angle (N,)."""
-    c, s = np.cos(angle)[..., None], np.sin(angle)[..., None]
-    dot = np.einsum("...i,...i->...", axis, vector)[..., None]
-    return vector * c + np.cross(axis, vector) * s + axis * dot * (1 - c)
+    """Rodrigues: vector (N, 3) turned about unit axis (N, 3) by angle (N,) (component by component, as
+    upper_axis)."""
+    c, s = np.cos(angle), np.sin(angle)
+    dot = np.einsum("...i,...i->...", axis, vector)
+    normal = cross(axis, vector)
+    return np.stack([vector[..., j] * c + normal[..., j] * s + axis[..., j] * dot * (1 - c) for j in range(3)],
+                    axis=-1)
 
 
 def em_axis(arm: int, theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
@@ -100,7 +107,7 @@ def gamma_of(arm: int, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
     v0 = folded(arm, w)
     # Both lie on the cone of half-angle BETA about w: compare their parts normal to w.
     along = np.einsum("...i,...i->...", v0, w) * np.einsum("...i,...i->...", v, w)
-    return np.arctan2(np.einsum("...i,...i->...", np.cross(v0, v), w), np.einsum("...i,...i->...", v0, v) - along)
+    return np.arctan2(np.einsum("...i,...i->...", cross(v0, v), w), np.einsum("...i,...i->...", v0, v) - along)
 
 
 def ik(arm: int, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +120,8 @@ def ik(arm: int, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", divide="ignore"):
         s = np.arcsin(g4 / rho)
     roots = (s - delta, np.pi - s - delta)  # eqs. 21-22
-    gammas = [gamma_of(arm, th, v) for th in roots]
+    both = gamma_of(arm, np.concatenate(roots), np.concatenate([v, v]))  # both roots' in one pass: half the calls
+    gammas = (both[:len(v)], both[len(v):])
     first = gammas[0] > 0
     theta = np.angle(np.exp(1j * np.where(first, roots[0], roots[1])))
     gamma = np.where(first, gammas[0], gammas[1])
@@ -132,8 +140,13 @@ def jacobian_rows(arm: int, theta: np.ndarray, gamma: np.ndarray) -> tuple[np.nd
     """Row of A, (w_i x v_i) (N, 3), and diagonal entry of B, (w_i x u_i) . v_i (N,) (eqs. 34-35)."""
     w = upper_axis(arm, theta)
     v = em_axis(arm, theta, gamma)
-    a = np.cross(w, v)
-    return a, np.einsum("...i,...i->...", np.cross(w, U[arm]), v)
+    return cross(w, v), np.einsum("...i,...i->...", cross(w, U[arm]), v)
+
+
+def a_row(arm: int, theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+    """Row of A alone, w_i x v_i (N, 3) (eq. 34): jacobian_rows' first, without B's entry, which ranking contact
+    points (planners.rsmg_contacts) does not use."""
+    return cross(upper_axis(arm, theta), em_axis(arm, theta, gamma))
 
 
 def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
