@@ -211,3 +211,23 @@ def test_the_servo_redoes_only_the_revised_rows_and_a_controller_without_revise_
     heard = Heard()
     heard.revise_rows(7, 9, q_ref, qd_ref)
     assert heard.told[0] == 7 and heard.told[1] is q_ref
+
+
+def test_computed_torque_redoes_the_planned_acceleration_only_where_the_revised_rows_reach():
+    """On the RSMG (constrained: the acceleration's feed-forward is taken each step), revise_rows over random
+    spans leaves qdd_ref bit-identical to np.gradient of the whole revised qd_ref."""
+    scenario = with_control("rsmg", "three_turns", controller="computed_torque")
+    plant = Plant.load(scenario.robot_def, scenario.sim.timestep, actuation="torque")
+    traj = scenario.planner_def.plan(scenario, scenario.robot_def, float(plant.model.opt.timestep))
+    ct = ComputedTorque()
+    ct.bind(plant, traj)
+    assert ct.tau_ff is None
+    rng = np.random.default_rng(8)
+    q_ref, qd_ref = traj.q_ref.copy(), traj.qd_ref.copy()
+    n = len(q_ref)
+    for k0, k1 in [(0, 1), (0, 3), (n - 1, n), (n - 3, n), *((int(a), int(a) + int(rng.integers(1, 500)))
+                                                              for a in rng.integers(1, n - 600, 10))]:
+        q_ref[k0:k1] += rng.normal(scale=0.01, size=(k1 - k0, q_ref.shape[1]))
+        qd_ref[k0:k1] += rng.normal(scale=0.01, size=(k1 - k0, q_ref.shape[1]))
+        ct.revise_rows(k0, k1, q_ref, qd_ref)
+        assert np.array_equal(ct.qdd_ref, np.gradient(qd_ref, float(plant.model.opt.timestep), axis=0)), (k0, k1)

@@ -109,6 +109,19 @@ class ComputedTorque(Controller):
         if self.tau_ff is not None:
             self.tau_ff[k0:] = self._inverse_dynamics(q_ref[k0:], qd_ref[k0:])
 
+    def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
+        """As `revise` where the acceleration is measured each step (a constrained mechanism: the RSMG's re-grips),
+        the planned acceleration redone only at the rows k0 - 1 to k1 that np.gradient's differences of the
+        changed rows reach: the same numbers as over the whole references. A serial arm's feed-forward: `revise`."""
+        n = len(qd_ref)
+        lo, hi = max(k0 - 2, 0), min(k1 + 2, n)  # the differences at rows k0 - 1 .. k1, each with its neighbours
+        if self.tau_ff is not None or hi - lo < 2:
+            self.revise(k0, q_ref, qd_ref)
+            return
+        self.q_ref, self.qd_ref = q_ref, qd_ref
+        a, b = max(k0 - 1, 0), min(k1 + 1, n)
+        self.qdd_ref[a:b] = np.gradient(qd_ref[lo:hi], float(self.plant.model.opt.timestep), axis=0)[a - lo:b - lo]
+
     def gains(self) -> dict[str, Any]:
         feedforward = ("effective inertia x planned acceleration + bias forces at the measured state "
                        "(constrained mechanism)" if self.constrained
