@@ -260,3 +260,21 @@ def test_grip_feedback_re_solves_each_hold_for_the_point_really_gripped(evaluate
     open_loop = scenario.model_copy(update={"task": scenario.task.model_copy(update={"regrip_feedback": False})})
     drifted = simbench.evaluate(open_loop).analysis.series["rotor_error"][-1]
     assert drifted > 10 * final and drifted > np.deg2rad(0.1)
+
+
+def test_the_type_a_measure_is_each_samples_own_however_the_samples_are_chunked(monkeypatch):
+    """The measures build A a chunk of samples at a time (memory on long runs): on random joints and grips the
+    type A measure equals the largest |3 x 3 minor| of A from jacobian_rows, sample by sample, for chunks smaller
+    and larger than the run."""
+    rng = np.random.default_rng(21)
+    q = rng.uniform(-2 * np.pi, 2 * np.pi, (3001, 2 * S.ARMS))
+    engaged = rng.random((3001, S.ARMS)) < 0.8
+    rows = np.stack([S.jacobian_rows(arm, q[:, arm], q[:, S.ARMS + arm])[0] for arm in range(S.ARMS)], axis=1)
+    want = np.zeros(len(q))
+    for drop in range(S.ARMS):
+        three = [arm for arm in range(S.ARMS) if arm != drop]
+        det = np.abs(np.linalg.det(rows[:, three]))
+        want = np.where(engaged[:, three].all(axis=1), np.maximum(want, det), want)
+    for chunk in (1, 7, 1000, 1 << 16):
+        monkeypatch.setattr(S, "_CHUNK", chunk)
+        assert np.allclose(S._type_a(q, engaged), want, rtol=0, atol=1e-14)

@@ -67,6 +67,7 @@ KINDS = (REVOLUTE,) * (2 * ARMS)
 LOWER = np.full(2 * ARMS, -np.inf)
 UPPER = np.full(2 * ARMS, np.inf)
 QD_MAX = np.full(2 * ARMS, 4 * np.pi)  # 2 turns/s: a small direct-drive motor's speed, the base joints' and gammas'
+_CHUNK = 1 << 16  # samples whose A is built at once by the measures: memory bounded on a long run
 
 
 def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
@@ -169,13 +170,13 @@ def gripping(rec) -> np.ndarray:
     return np.stack([rec.eq_active[f"grip{i + 1}"] for i in range(ARMS)], axis=1).astype(bool)
 
 
-def _rows(rec) -> np.ndarray:
-    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once: jacobian_rows' (eqs. 12, 24-27, 34) expanded.
+def _rows(q: np.ndarray) -> np.ndarray:
+    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once, from joints q (N, 8): jacobian_rows' (eqs. 12, 24-27, 34) expanded.
     With v_i = Rodrigues(w_i, gamma_i) of the folded axis cos(BETA) w_i + sin(BETA) (u_i - cos(ALPHA) w_i) /
     sin(ALPHA), and w_i . u_i = cos(ALPHA), a_i = sin(BETA) [(c st + s cos(ALPHA) ct) x_i + (s cos(ALPHA) st - c ct)
     y_i - s sin(ALPHA) u_i], with c, s = cos, sin gamma_i and ct, st = cos, sin theta_i (within 1e-15 of
     jacobian_rows')."""
-    theta, gamma = rec.q[:, :ARMS], rec.q[:, ARMS:]
+    theta, gamma = q[:, :ARMS], q[:, ARMS:]
     ct, st, c, s = np.cos(theta), np.sin(theta), np.cos(gamma), np.sin(gamma)
     s_cos = np.cos(ALPHA) * s
     along_x, along_y, along_u = c * st + s_cos * ct, s_cos * st - c * ct, -np.sin(ALPHA) * s
@@ -191,14 +192,23 @@ def _type_b_gap(gamma: np.ndarray, engaged: np.ndarray) -> np.ndarray:
 def measures(rec) -> dict[str, np.ndarray]:
     """The type A measure (largest 3 x 3 minor of A over the gripping arms) and the type B gap."""
     engaged = gripping(rec)
-    return {"type_a": type_a_measure(_rows(rec), engaged), "type_b_gap": _type_b_gap(rec.q[:, ARMS:], engaged)}
+    return {"type_a": _type_a(rec.q, engaged), "type_b_gap": _type_b_gap(rec.q[:, ARMS:], engaged)}
+
+
+def _type_a(q: np.ndarray, engaged: np.ndarray) -> np.ndarray:
+    """type_a_measure of the recorded joints (N,), _CHUNK samples at a time: each sample's own numbers, without
+    temporaries of a dozen times A for all of a long run's samples at once (250 MB on the ten-minute soak)."""
+    out = np.empty(len(q))
+    for a in range(0, len(q), _CHUNK):
+        out[a:a + _CHUNK] = type_a_measure(_rows(q[a:a + _CHUNK]), engaged[a:a + _CHUNK])
+    return out
 
 
 def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
     """Type A: |det A1| and |det A2| (every 3 x 3 minor over the gripping arms) under 0.01 (eq. 46). Type B: a
     gripping arm's gamma within 10 deg of 0 or 180 deg (eq. 45). The paper's own thresholds, not `tol`."""
     engaged = gripping(rec)
-    type_a = type_a_measure(_rows(rec), engaged)
+    type_a = _type_a(rec.q, engaged)
     type_b = _type_b_gap(rec.q[:, ARMS:], engaged)
     return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01", type_a / DET_A_MIN,
                         {"det": type_a}),
