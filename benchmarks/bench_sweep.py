@@ -31,6 +31,7 @@ import numpy as np
 import yaml
 from mujoco import rollout
 
+from benchmarks.common import interleaved
 from simbench import pipeline
 from simbench.plant import Plant
 from simbench.scenario import parse_scenario
@@ -173,17 +174,10 @@ def measure_efficiency() -> dict:
         _RAW[:] = [_raw_run(parse_scenario(v.document, v.id)) for v in sweep.variants]
         steps = sum(len(ctrl) for _, _, ctrl in _RAW)
         count = iter(range(1_000_000))
-        jobs = {"sweep": lambda: run_sweep(sweep, Path(tmp) / f"out{next(count)}", workers=2),
-                "raw": _raw_two_cores}
-        for fn in jobs.values():  # warm-up
-            fn()
-        times = {name: [] for name in jobs}
-        for _ in range(EFFICIENCY_REPEATS):
-            for name, fn in jobs.items():
-                times[name].append(_seconds(fn))
-    t = {name: np.array(v) for name, v in times.items()}
-    return {"runs": RUNS, "steps": steps, "sweep_steps_s": float(steps / np.median(t["sweep"])),
-            "raw_steps_s": float(steps / np.median(t["raw"])), "ratio": float(np.median(t["raw"] / t["sweep"]))}
+        t_sweep, t_raw = interleaved(lambda: run_sweep(sweep, Path(tmp) / f"out{next(count)}", workers=2),
+                                     _raw_two_cores, EFFICIENCY_REPEATS)
+    return {"runs": RUNS, "steps": steps, "sweep_steps_s": float(steps / np.median(t_sweep)),
+            "raw_steps_s": float(steps / np.median(t_raw)), "ratio": float(np.median(t_raw / t_sweep))}
 
 
 def efficiency_markdown(r: dict) -> str:

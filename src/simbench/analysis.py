@@ -122,11 +122,6 @@ def _distance(ax, ay, az, bx, by, bz, px, py, pz) -> np.ndarray:
     return np.sqrt(ex * ex + ey * ey + ez * ez)
 
 
-def _segment_distance(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Distance of each point (N, 3) from the segment a -> b (N, 3 each)."""
-    return _distance(*a.T, *b.T, *points.T)
-
-
 @dataclass(frozen=True)
 class _Capsules:
     """A polyline's vertices (padded to 2^depth segments with copies of the last; x, y and z apart) and, for

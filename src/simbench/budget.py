@@ -16,9 +16,11 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   simulating and analysing peak at 1.5 R (spherical arm), 1.8 R (RSMG), 3.0 R (PUMA 600: its eight IK branches)
   and 3.5-4.2 R (Agile Eye: its planner): taken as 2.5 R. Writing the outputs (plots, the compressed timeseries)
   peaks at 4.65, 4.38, 4.31 and 3.27 R: taken as 4.5 R.
-  The analysis adds its search of the planned path near each sample (simbench.analysis.path_deviation): each
-  sample against the path's vertices within its distance of the path plus the typical segment's length, about
-  200 B a pair (183-218 measured), in batches of at most SEARCH_PAIRS pairs. The pairs crowd where the path
+  The analysis adds its search of the planned path near each sample (simbench.analysis.path_deviation). This
+  model is the k-d tree search's that it used until issue 14, kept as the estimate (the capsule tree that
+  replaced it works on at most 32,768 samples at a time): each sample against the path's vertices within its
+  distance of the path plus the typical segment's length, about 200 B a pair (183-218 measured), in batches of
+  at most SEARCH_PAIRS pairs. The pairs crowd where the path
   crawls, at the ends of the time law: measured 2.9 a sample (PUMA 600 line, trapezoidal), 3.8 (RSMG
   three_turns, trapezoidal), 5.7 (spherical arm case1, quintic): taken as 4; under the 4-5-6-7 law, whose ends
   crawl longest, they grow with the samples: 16.7 a sample for 17,001 samples and 30.0 for 41,001 (Agile Eye
@@ -68,7 +70,7 @@ _KEPT_FACTOR = 1.1  # what is held while the analysis searches the path
 _PAIR_BYTES = 200.0
 _PAIRS_PER_SAMPLE = 4.0  # and, for the 4-5-6-7 law, _CROWDING x the samples where that is more
 _CROWDING = 0.001
-SEARCH_PAIRS = 1 << 20  # (sample, vertex) pairs simbench.analysis.path_deviation examines at once: ~250 MB
+SEARCH_PAIRS = 1 << 20  # (sample, vertex) pairs the modelled path search holds at once: ~250 MB
 _STEP_SECONDS = 0.13e-6  # a column a step
 _SAMPLE_SECONDS = 10e-6
 _PAIR_SECONDS = 1.2e-6
