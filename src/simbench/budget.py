@@ -29,14 +29,17 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   arm case1 for 40 and 120 s: 49, 145 against 34, 100; RSMG three_turns for 30 s: 69 against 50; PUMA 600 line
   for 30 s: 44 against 57 (tests/test_budget.py holds three of them within 1/1.5 to 2). With the outputs written: 100 MB against 103 MB (case1, 60 s). The
   process's resident size grows 1.2-1.4 times what it allocates (its allocator's slack), on top of its
-  ~160 MB of libraries: hence the limit is half of what the machine has.
+  libraries (~90 MB at import, ~150 MB once a planner's scipy and the plots' matplotlib are loaded): hence the
+  limit is half of what the machine has.
   A recording stride (sim.record_every = k) keeps the full physics state and qd (nstate + dof columns) of every
   k-th sample only, R_k = 8 (columns - nstate - dof + (nstate + dof) / k) a sample, and writes every k-th: the
   run holds R_k instead of R (planning and analysing still work at every sample: 1.5 R + R_k; measured at
   stride 10 against stride 1, MB: spherical arm 37 against 41, RSMG 86 against 94, Agile Eye 33 against 35), and
   writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k).
 - Time: stepping 0.13 us per column per step (measured 4.4-17 us a step), planning and analysing 10 us a
-  sample and 1.2 us a searched pair, writing the outputs 2 s (the plots) and 30 us a sample (13-32 measured);
+  sample and 1.2 us a searched pair, writing the outputs 0.5 s (the plots, with matplotlib's import) and 20 us
+  a written row (measured 2026-11-23 on the shipped scenarios: 0.18-0.57 s in all; 7 us a row for the spherical
+  arm's 120 s, 19-21 for the RSMG's, whose rows are widest);
   a video frame on Mesa's llvmpipe 10 ms + 40 ns a pixel (`fast`: 25 ms at 640x480, 97 ms at 1920x1080) or
   100 ms + 120 ns a pixel (`pretty`: 125 and 346 ms). A GPU renders faster: the time is a rough guide.
 - Disk: the timeseries 0.75 R a sample compressed (0.66-0.70 measured), the plots 1 MB, the MP4 200 B + 0.0005 B
@@ -74,7 +77,7 @@ SEARCH_PAIRS = 1 << 20  # (sample, vertex) pairs the modelled path search holds 
 _STEP_SECONDS = 0.13e-6  # a column a step
 _SAMPLE_SECONDS = 10e-6
 _PAIR_SECONDS = 1.2e-6
-_OUTPUT_SECONDS = (2.0, 30e-6)  # fixed, a sample
+_OUTPUT_SECONDS = (0.5, 20e-6)  # fixed, a written row
 _FRAME_SECONDS = {"fast": (10e-3, 40e-9), "pretty": (100e-3, 120e-9)}  # fixed, a pixel
 _START_SECONDS = 0.5
 _FRAMES_QUEUED = 6  # frames alive at once while rendering (simbench.render: the encoder's queue and two more)

@@ -24,10 +24,7 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
 import numpy as np
-from matplotlib.colors import to_rgb
-from matplotlib.ticker import MaxNLocator, ScalarFormatter
 from PIL import Image, ImageDraw, ImageFont
 
 DPI = 110
@@ -39,12 +36,22 @@ _TICK_SIZE, _TICK_PAD, _LABEL_PT, _TITLE_PT = 3.5, 3.5, 10.0, 12.0  # pt (matplo
 _FRAME_PT = 0.8  # spines and ticks, pt
 _GRID = "#b0b0b0"
 _DASHES = {"--": (3.7, 1.6), ":": (1.0, 1.65), "-.": (6.4, 1.6, 1.0, 1.6)}  # in line widths, as matplotlib's
-_CYCLE = [c["color"] for c in matplotlib.rcParams["axes.prop_cycle"]]
+
+
+@functools.cache
+def _cycle() -> list[str]:
+    """matplotlib's default colour cycle. matplotlib is imported when a figure is first drawn, not with this
+    module: a run without plots (a sweep's, simbench.evaluate) does not pay its 17 MB and 0.14 s."""
+    import matplotlib
+
+    return [c["color"] for c in matplotlib.rcParams["axes.prop_cycle"]]
 
 
 @functools.cache
 def _font(size_pt: float) -> ImageFont.FreeTypeFont:
     """DejaVu Sans (matplotlib's default font, from its own data) at `size_pt` on the canvas."""
+    import matplotlib
+
     return ImageFont.truetype(str(Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"),
                               max(1, round(size_pt * _PT)))
 
@@ -52,6 +59,8 @@ def _font(size_pt: float) -> ImageFont.FreeTypeFont:
 @functools.cache
 def _rgb(color, alpha: float = 1.0) -> tuple[int, int, int]:
     """An opaque colour: `color` (any matplotlib colour) at `alpha` over white."""
+    from matplotlib.colors import to_rgb
+
     r, g, b = (round(255 * (alpha * c + 1.0 - alpha)) for c in to_rgb(color))
     return r, g, b
 
@@ -158,6 +167,8 @@ def _extent(arrays: list[np.ndarray]) -> tuple[float, float] | None:
 
 def _view(lo: float, hi: float) -> tuple[float, float]:
     """Axis limits for data spanning [lo, hi], as matplotlib's autoscale makes them."""
+    from matplotlib.ticker import MaxNLocator
+
     lo, hi = MaxNLocator().nonsingular(lo, hi)
     pad = _MARGIN * (hi - lo)
     return lo - pad, hi + pad
@@ -166,6 +177,8 @@ def _view(lo: float, hi: float) -> tuple[float, float]:
 def ticks(lo: float, hi: float, length_pt: float, per_label_pt: float) -> tuple[np.ndarray, list[str], str]:
     """Tick positions within [lo, hi], their labels and the axis' offset text, as matplotlib's AutoLocator and
     ScalarFormatter make them for an axis `length_pt` long (bins: one a `per_label_pt`, at most 9)."""
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
+
     bins = max(min(int(length_pt // per_label_pt), 9), 1)
     tol = 1e-10 * (hi - lo)
     locs = np.asarray(MaxNLocator(nbins=bins, steps=_STEPS).tick_values(lo, hi))
@@ -220,7 +233,7 @@ class Panel:
 
     def plot(self, x, y, fmt: str | None = None, **kwargs) -> None:
         """A line y(x) (matplotlib's Axes.plot: format '--', ':', '-.'; color, lw, ls, label)."""
-        color, lw, style, label = _line_args(fmt, kwargs, _CYCLE[len(self.lines) % len(_CYCLE)])
+        color, lw, style, label = _line_args(fmt, kwargs, _cycle()[len(self.lines) % len(_cycle())])
         self.lines.append(_Line(np.asarray(x, float), np.asarray(y, float), color, lw, style, label))
 
     def axhline(self, y: float, color="k", ls: str = "-", lw: float = 1.5, label: str | None = None) -> None:
@@ -452,7 +465,7 @@ class Box3D:
 
     def plot(self, x, y, z, fmt: str | None = None, **kwargs) -> None:
         """A 3-D polyline (matplotlib's Axes3D.plot)."""
-        color, lw, style, label = _line_args(fmt, kwargs, _CYCLE[len(self.lines) % len(_CYCLE)])
+        color, lw, style, label = _line_args(fmt, kwargs, _cycle()[len(self.lines) % len(_cycle())])
         self.lines.append(_Line(np.asarray(x, float), np.asarray(y, float), color, lw, style, label))
         self.z.append(np.asarray(z, float))
 

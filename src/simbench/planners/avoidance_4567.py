@@ -50,12 +50,10 @@ from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
-from scipy.optimize import minimize
 
 from simbench.planners import learnt_fk
 from simbench.api import Decoration, Planner
 from simbench.errors import RunError
-from simbench.planners import so3_search
 from simbench.robots import agile_eye
 from simbench.rotations import matrix_to_quat, rotation_angle
 from simbench.schema import NonNegativeAngle, Orientation, PositiveAngle, SimbenchModel, Weight, seconds
@@ -389,6 +387,8 @@ def _optimise_window(plan: Plan, t0: float, worst: _Violation, task: Task, estim
     every clearance kept. Each seed direction (_seeds, at the violation's worst instant) is tried (no further one
     once the clock passes `deadline`); the best feasible result wins (else the one that misses least). Returns
     the window and whether it is feasible."""
+    from scipy.optimize import minimize  # imported when planned, not when registered (47 MB, 0.4 s)
+
     fit = _WindowFit(plan, t0, task, estimate, anchor)
     constraints = fit.constraints()
     best = None
@@ -550,6 +550,8 @@ def _search(task: Task, law: TimeLaw, t: np.ndarray, deadline: float) -> tuple[_
     """The global search's path timed on the control grid and checked, or None; and what the search did.
     The orientation path R(sigma) is timed as sigma = length S(t / T), S the 4-5-6-7 law (eq. 8), so the
     platform is at rest with no acceleration or jerk at both ends; the joints are its IK in the working mode."""
+    from simbench.planners import so3_search  # OMPL, imported when a search is planned
+
     start, goal = task.start.matrix(), task.goal.matrix()
     clock = time.perf_counter()
 

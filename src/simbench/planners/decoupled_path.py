@@ -29,7 +29,6 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
-from scipy.spatial.transform import Rotation, Slerp
 
 from simbench.api import Planner
 from simbench.errors import RunError
@@ -147,6 +146,8 @@ class Task(SimbenchModel):
         start = self.orientation.matrix()
         if self.orientation_end is None:
             return np.broadcast_to(start, (len(s), 3, 3)).copy()
+        from scipy.spatial.transform import Rotation, Slerp  # imported when planned, not when registered
+
         ends = Rotation.from_matrix([start, self.orientation_end.matrix()])
         return Slerp([0.0, 1.0], ends)(np.clip(s, 0.0, 1.0)).as_matrix()
 

@@ -46,7 +46,6 @@ from typing import Annotated, Literal, NamedTuple
 
 import numpy as np
 from pydantic import Field, model_validator
-from scipy.spatial.transform import Rotation
 
 from simbench.api import Planner
 from simbench.errors import RunError
@@ -96,6 +95,8 @@ class Motion(SimbenchModel):
 
     def orientation(self, s: np.ndarray) -> np.ndarray:
         """R (N, 3, 3) at path parameters s in [0, 1]."""
+        from scipy.spatial.transform import Rotation  # imported when planned, not when registered
+
         s = np.asarray(s, float)[:, None]
         if self.kind == "turns":
             return Rotation.from_rotvec(2 * np.pi * self.turns * s * np.array(self.axis)).as_matrix()
