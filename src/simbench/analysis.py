@@ -142,8 +142,7 @@ def _capsules(vertices: np.ndarray) -> _Capsules:
     segments = len(vertices) - 1
     depth = int(np.ceil(np.log2(segments))) if segments > 1 else 0
     size = 1 << depth
-    padded = np.concatenate([vertices, np.repeat(vertices[-1:], size - segments, axis=0)])
-    x, y, z = (np.ascontiguousarray(c) for c in padded.T)
+    x, y, z = (np.concatenate([c, np.repeat(c[-1], size - segments)]) for c in vertices.T)  # padded, apart
     levels: list[np.ndarray | None] = [None] * _LEAF  # below _LEAF, stretches are searched segment by segment
     radius = np.zeros(size)
     for level in range(1, depth + 1):
@@ -197,7 +196,13 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
     tol = 1e-12 * (1.0 + max(tree.scale, float(np.abs(points).max())))
 
     def exact(k: np.ndarray, seg: np.ndarray) -> np.ndarray:
-        return _distance(vx[seg], vy[seg], vz[seg], vx[seg + 1], vy[seg + 1], vz[seg + 1], px[k], py[k], pz[k])
+        """Each point k's distance from its segment seg, _BATCH pairs at a time: the leaves' pairs, some ten a
+        point, at once would take a dozen temporaries of them (35 MB more a batch on the ten-minute soak)."""
+        out = np.empty(len(k))
+        for a in range(0, len(k), _BATCH):
+            i, s = k[a:a + _BATCH], seg[a:a + _BATCH]
+            out[a:a + _BATCH] = _distance(vx[s], vy[s], vz[s], vx[s + 1], vy[s + 1], vz[s + 1], px[i], py[i], pz[i])
+        return out
 
     everyone = np.arange(count)
     before = np.maximum(guess - 1, first)
@@ -338,11 +343,12 @@ def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict,
     return summary, series
 
 
-def singularity_events(robot: Robot, rec: Recording, tol: Tolerance) -> list[dict]:
+def singularity_events(robot: Robot, rec: Recording, tol: Tolerance, measures: dict | None = None) -> list[dict]:
     """Spans where the recorded state lies near each of the robot's singular sets, with how near at the closest
-    sample."""
+    sample; `measures`: the robot's of this recording, if already computed (Robot.singular_sets_from)."""
     t, events = rec.t, []
-    for sset in robot.singular_sets(rec, tol):
+    sets = robot.singular_sets(rec, tol) if measures is None else robot.singular_sets_from(rec, tol, measures)
+    for sset in sets:
         for span in spans(sset.distance <= 1.0):
             i = span[0] + int(np.argmin(sset.distance[span[0]:span[1] + 1]))
             detail = {"family": sset.family, "condition": sset.condition, "t_closest": float(t[i]),
@@ -387,9 +393,8 @@ def _joint_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
 
 def _velocity_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     t, events = traj.t, []
-    too_fast = np.abs(traj.qd_ref) > robot.qd_max
-    for j, name in enumerate(robot.joints):
-        for span in spans(too_fast[:, j]):
+    for j, name in enumerate(robot.joints):  # a joint at a time: no (N, dof) temporaries on a long run
+        for span in spans(np.abs(traj.qd_ref[:, j]) > robot.qd_max[j]):
             seg = np.abs(traj.qd_ref[span[0]:span[1] + 1, j])
             events.append(_event(t, span, "velocity_limit", {
                 "joint": name, "limit": float(robot.qd_max[j]), "worst": float(seg.max())}))
@@ -400,11 +405,12 @@ def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | No
     """Steps of the plan farther than ten samples at the speed limit; with the recorded path deviation, what each
     cost: how far and how long the tool left the path."""
     t, events = traj.t, []
-    step = np.diff(traj.q_ref, axis=0)
-    jump = np.abs(step) > _JUMP_FACTOR * robot.qd_max * traj.dt
+    limit = _JUMP_FACTOR * robot.qd_max * traj.dt
+    # a joint at a time, the steps as np.diff gives them: no (N, dof) temporaries on a long run
+    jump = np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))], axis=1)
     for k in np.flatnonzero(jump.any(axis=1)):
         detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[k])],
-                  "step": step[k].tolist(),
+                  "step": (traj.q_ref[k + 1] - traj.q_ref[k]).tolist(),
                   "s": [float(traj.s[k]), float(traj.s[k + 1])],
                   "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1])}
         if deviation is not None:
@@ -422,9 +428,8 @@ def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | No
 def _saturation_events(robot: Robot, rec: Recording) -> list[dict]:
     """Spans where a joint's actuator force sits at its bound (within a part in a million)."""
     events = []
-    at_bound = np.abs(rec.force) >= rec.force_limit * (1 - 1e-6)
-    for j, name in enumerate(robot.joints):
-        for span in spans(at_bound[:, j]):
+    for j, name in enumerate(robot.joints):  # a joint at a time: no (N, dof) temporaries on a long run
+        for span in spans(np.abs(rec.force[:, j]) >= rec.force_limit[j] * (1 - 1e-6)):
             events.append(_event(rec.t, span, "actuator_saturation", {
                 "joint": name, "limit": float(rec.force_limit[j]),
                 "force": float(rec.force[span[0], j]),
@@ -454,7 +459,7 @@ def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance
     summary, series = tracking(robot, traj, rec)
     measures = robot.measures(rec)
     series.update(measures)
-    singular = singularity_events(robot, rec, near)
+    singular = singularity_events(robot, rec, near, measures)
     extra, events, more = robot.summary(traj, rec, series)
     series.update(more)
     singular = sorted(singular + events, key=lambda e: (e["t_start"], e["kind"]))

@@ -170,6 +170,12 @@ class Robot(ABC):
     def singular_sets(self, rec: Recording, tol: Tolerance) -> list[SingularSet]:
         """The mechanism's singular sets along a run, each with its distance normalised by `tol`."""
 
+    def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
+        """`singular_sets(rec, tol)` where this robot's `measures(rec)` are already computed: the analysis computes
+        them first. The default ignores them; a robot whose sets are made of its measures (a gap, a determinant)
+        overrides it so as not to compute them twice. Its sets must be those `singular_sets` gives."""
+        return self.singular_sets(rec, tol)
+
     def assemble(self, q: Array) -> dict[str, float]:
         """The passive joints' values (by joint name) that close the chain at actuated joint values q (dof,)."""
         return {}

@@ -13,31 +13,28 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   2 dof) and the Recording (t, the full physics state, q, qd, force, ctrl, every sensor: 1 + nstate + 3 dof + nu +
   nsensordata; simbench.sim._Run._record), 8 * columns = R bytes: measured 388, 588, 1023 and 530 B a sample kept
   after simulating for the spherical arm, PUMA 600, RSMG and Agile Eye against R = 368, 568, 904 and 488. Planning,
-  simulating and analysing peak at 1.5 R (spherical arm), 1.8 R (RSMG), 3.0 R (PUMA 600: its eight IK branches)
-  and 3.5-4.2 R (Agile Eye: its planner): taken as 2.5 R. Writing the outputs (plots, the compressed timeseries)
-  peaks at 4.65, 4.38, 4.31 and 3.27 R: taken as 4.5 R.
-  The analysis adds its search of the planned path near each sample (simbench.analysis.path_deviation). This
-  model is the k-d tree search's that it used until issue 14, kept as the estimate (the capsule tree that
-  replaced it works on at most 32,768 samples at a time): each sample against the path's vertices within its
-  distance of the path plus the typical segment's length, about 200 B a pair (183-218 measured), in batches of
-  at most SEARCH_PAIRS pairs. The pairs crowd where the path
-  crawls, at the ends of the time law: measured 2.9 a sample (PUMA 600 line, trapezoidal), 3.8 (RSMG
-  three_turns, trapezoidal), 5.7 (spherical arm case1, quintic): taken as 4; under the 4-5-6-7 law, whose ends
-  crawl longest, they grow with the samples: 16.7 a sample for 17,001 samples and 30.0 for 41,001 (Agile Eye
-  through_singularity, 8 and 20 s): taken as 0.001 x the samples. Estimated against tracemalloc's peak of
-  evaluate() (MB): Agile Eye through_singularity (0.5 ms) for 8 and 20 s: 67, 232 against 73, 268; spherical
-  arm case1 for 40 and 120 s: 49, 145 against 34, 100; RSMG three_turns for 30 s: 69 against 50; PUMA 600 line
-  for 30 s: 44 against 57 (tests/test_budget.py holds three of them within 1/1.5 to 2). With the outputs written: 100 MB against 103 MB (case1, 60 s). The
+  simulating and analysing peak at (tracemalloc's peak of evaluate(), 2026-11-23, recorded whole) 2.4 R
+  (spherical arm case1, 40 s), 2.2 R (120 s), 2.2 R (RSMG three_turns, 30 s), 3.3 R (Agile Eye
+  through_singularity, 8 s: its planner's fixed cost), 2.3 R (20 s): taken as 2.8 R. The analysis' search of
+  the planned path near each sample (simbench.analysis.path_deviation) adds no term of its own: its capsule tree
+  is a few columns of the path, and it searches 32,768 samples at a time. Writing the outputs (plots, the
+  compressed timeseries) peaks at 4.65, 4.38, 4.31 and 3.27 R: taken as 4.5 R. Estimated against tracemalloc's
+  peak of evaluate() (MB): spherical arm case1 for 40 and 120 s: 42, 124 against 35, 97; RSMG three_turns for
+  30 s: 78 against 61; Agile Eye through_singularity (0.5 ms) for 8 and 20 s: 24, 57 against 27, 45
+  (tests/test_budget.py holds three of them within 1/1.5 to 2). With the outputs written: 100 MB against 103 MB
+  (case1, 60 s). The
   process's resident size grows 1.2-1.4 times what it allocates (its allocator's slack), on top of its
   libraries (~90 MB at import, ~150 MB once a planner's scipy and the plots' matplotlib are loaded): hence the
   limit is half of what the machine has.
   A recording stride (sim.record_every = k) keeps the full physics state and qd (nstate + dof columns) of every
   k-th sample only, R_k = 8 (columns - nstate - dof + (nstate + dof) / k) a sample, and writes every k-th: the
-  run holds R_k instead of R (planning and analysing still work at every sample: 1.5 R + R_k; measured at
-  stride 10 against stride 1, MB: spherical arm 37 against 41, RSMG 86 against 94, Agile Eye 33 against 35), and
+  run holds R_k instead of R (planning and analysing still work at every sample: 1.8 R + R_k; measured at
+  stride 10 against stride 1, MB: spherical arm 30 against 35, RSMG 51 against 61, Agile Eye 24 against 27), and
   writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k).
 - Time: stepping 0.13 us per column per step (measured 4.4-17 us a step), planning and analysing 10 us a
-  sample and 1.2 us a searched pair, writing the outputs 0.5 s (the plots, with matplotlib's import) and 20 us
+  sample and 1.2 us a searched pair (the pairs of the k-d tree search the analysis used until issue 14, kept as
+  the estimate, which runs high: 4 a sample, and 0.001 x the samples a sample under the 4-5-6-7 law, whose ends
+  crawl longest), writing the outputs 0.5 s (the plots, with matplotlib's import) and 20 us
   a written row (measured 2026-11-23 on the shipped scenarios: 0.18-0.57 s in all; 7 us a row for the spherical
   arm's 120 s, 19-21 for the RSMG's, whose rows are widest);
   a video frame on Mesa's llvmpipe 10 ms + 40 ns a pixel (`fast`: 25 ms at 640x480, 97 ms at 1920x1080) or
@@ -67,13 +64,10 @@ TIME_LIMIT = 24 * 3600.0  # s
 NOTE_MEMORY = 1e9  # bytes: a run estimated above this (or NOTE_SECONDS) gets a note of its cost
 NOTE_SECONDS = 300.0
 
-_RUN_FACTOR = 2.5  # peak of planning, simulating and analysing, in retained bytes a sample
+_RUN_FACTOR = 2.8  # peak of planning, simulating and analysing, in retained bytes a sample
 _OUTPUT_FACTOR = 4.5  # peak while writing the outputs
-_KEPT_FACTOR = 1.1  # what is held while the analysis searches the path
-_PAIR_BYTES = 200.0
-_PAIRS_PER_SAMPLE = 4.0  # and, for the 4-5-6-7 law, _CROWDING x the samples where that is more
+_PAIRS_PER_SAMPLE = 4.0  # the time model's path search: and, for the 4-5-6-7 law, _CROWDING x the samples
 _CROWDING = 0.001
-SEARCH_PAIRS = 1 << 20  # (sample, vertex) pairs the modelled path search holds at once: ~250 MB
 _STEP_SECONDS = 0.13e-6  # a column a step
 _SAMPLE_SECONDS = 10e-6
 _PAIR_SECONDS = 1.2e-6
@@ -173,8 +167,7 @@ def estimate(ask: Ask) -> Estimate:
     rows = n / ask.record_every  # written
     held = 8.0 * (ask.columns - ask.strided + ask.strided / ask.record_every)  # a sample, while writing
     pairs = n * max(_PAIRS_PER_SAMPLE, _CROWDING * n if ask.law == "4567" else 0.0)
-    memory = max((_RUN_FACTOR * kept - kept + held) * (n + n_settle),
-                 _KEPT_FACTOR * held * n + _PAIR_BYTES * min(pairs, SEARCH_PAIRS))
+    memory = (_RUN_FACTOR * kept - kept + held) * (n + n_settle)
     seconds = (_START_SECONDS + _STEP_SECONDS * ask.columns * (n + n_settle)
                + (_SAMPLE_SECONDS + ask.plan_seconds) * n
                + _PAIR_SECONDS * pairs)

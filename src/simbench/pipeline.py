@@ -13,6 +13,7 @@ it.
 from __future__ import annotations
 
 import ctypes
+import gc
 import os
 import time
 from contextlib import contextmanager
@@ -51,9 +52,13 @@ def _give_back_memory(samples: int) -> None:
     """Return the memory a stage of a long run freed to the system. Planning a long run allocates and frees many
     arrays smaller than glibc's mmap threshold (which it raises as large ones are freed); the heap keeps those
     pages, and the next stage's arrays then stack on top of them in the peak resident size (the ten-minute soak:
-    260 MB of the 440 MB held after planning two minutes of it). A short run (under _TRIM_SAMPLES) frees a few
-    MB, and the trim would cost it a millisecond or two (a sweep's runs: 2 % of each)."""
+    260 MB of the 440 MB held after planning two minutes of it). The cyclic garbage is collected first: the
+    planner leaves some (40 MB of small arrays on the ten-minute soak) that the interpreter's own collection
+    would free only later, after the next stage's arrays have stacked on top of it. A short run (under
+    _TRIM_SAMPLES) frees a few MB, and the collection and trim would cost it a few milliseconds (a sweep's
+    runs)."""
     if _MALLOC_TRIM is not None and samples >= _TRIM_SAMPLES:
+        gc.collect()
         _MALLOC_TRIM(0)
 
 
@@ -133,6 +138,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
         rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every)
         traj = commanded(traj, rec)
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
+        del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them
         _give_back_memory(len(traj.t))
     with watch.stage("analyse"):
         a = scenario.analysis

@@ -84,8 +84,11 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
 
 
 def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
-    """The plan with the references the run really commanded: its own, or those its feedback revised."""
-    return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref)
+    """The plan with the references the run really commanded: its own, or those its feedback revised. Revised
+    ones come without the feedback, which is spent: simulating them again should not revise them twice, and the
+    feedback holds the plan's own arrays (the RSMG's: its references and rotor orientations, 80 MB on the
+    ten-minute soak), which the analysis after a run does not need."""
+    return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref, feedback=None)
 
 
 class _Run:
@@ -101,11 +104,11 @@ class _Run:
         mujoco.mj_getState(self.model, self.data, self.first_state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         n_settle = int(round(settle / self.model.opt.timestep))
         q_columns = state_slices(self.model)["mjSTATE_QPOS"].start + plant.qpos_adr
-        self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state)
+        self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state,
+                               controls=self.ctrl is None)
         self.stepper: OpenLoop | ClosedLoop
         if self.ctrl is not None:
-            self.rows.controls[:n_settle], self.rows.controls[n_settle:] = self.ctrl[0], self.ctrl[:-1]
-            self.stepper = OpenLoop(self.model)
+            self.stepper = OpenLoop(self.model, self.ctrl)
         else:
             self.stepper = ClosedLoop(plant, controller)
         # eq_active[r]: the constraints in force from row r's time on (after the switches at that step).
@@ -126,7 +129,7 @@ class _Run:
 
     def go(self, progress: bool) -> Recording:
         """Step every segment between switches; the Recording, or PhysicsError with the one up to the fault."""
-        n_settle, n = self.rows.n_settle, len(self.rows.controls)
+        n_settle, n = self.rows.n_settle, len(self.rows.sensors) - 1
         bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle}) + [n]
         done = 0
         with tqdm(total=n, desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
@@ -153,7 +156,7 @@ class _Run:
 
     def _revise(self, change: tuple | None) -> None:
         """Apply a feedback change (k0, columns, q) to the references (copies of the plan's at the first change),
-        to the controller, and to the open-loop commands still to be stepped (row i drives step i)."""
+        and to the controller (whose open-loop commands the steps still to come then take)."""
         if change is None:
             return
         k0, columns, q = change
@@ -165,10 +168,8 @@ class _Run:
         qd_ref[k0:hi, columns] = np.gradient(q_ref[k0:hi, columns], traj.dt, axis=0)
         self.controller.revise_rows(k0, hi, q_ref, qd_ref)
         self.revised = q_ref, qd_ref
-        if self.ctrl is not None:
-            self.ctrl = self.controller.open_loop()
-            upcoming = self.rows.controls[self.rows.n_settle:]
-            upcoming[k0:min(hi, len(upcoming))] = self.ctrl[k0:min(hi, len(upcoming))]
+        if isinstance(self.stepper, OpenLoop):
+            self.ctrl = self.stepper.planned = self.controller.open_loop()
 
     def _failure(self, fault: Fault) -> PhysicsError:
         """The error for a fault at a step, with the recording of every sound row before it: a step whose result
@@ -197,7 +198,7 @@ class _Run:
                          ctrl=ctrl if self.every == 1 else ctrl[kept], tool=recorded.pop(plant.robot.tool_sensor),
                          timestep=float(model.opt.timestep), warnings=tuple(self.warnings), sensors=recorded,
                          eq_active={model.equality(i).name: self.eq_active[:rows, i] for i in range(model.neq)},
-                         force=readings[:, plant.force_sensors], force_limit=plant.force_limit(),
+                         force=readings[:, _columns(plant.force_sensors)], force_limit=plant.force_limit(),
                          kept=None if self.every == 1 else kept,
                          **({} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}))
 
@@ -208,6 +209,14 @@ class _Run:
             return self.ctrl[:rows]
         given = self.rows.controls[self.rows.n_settle:self.rows.n_settle + rows]
         return np.concatenate([given, given[-1:]])[:rows] if len(given) else self.rows.controls[:0]
+
+
+def _columns(index: np.ndarray) -> slice | np.ndarray:
+    """Columns `index` as a slice where they are consecutive (every shipped scene's actuator forces), so that
+    a recording's column is a view of the sensor rows, not an (N, dof) copy of them; else the index itself."""
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
 
 
 def _check_finite(ctrl: np.ndarray, traj: JointTrajectory) -> None:

@@ -37,14 +37,15 @@ FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 @dataclass(frozen=True)
 class Rows:
     """A run's steps as recorded: the sensors MuJoCo computed during each step (n + 1, nsensordata; the last row
-    is the final state's) and the command that drove it (n, nu), n_settle of them settling before the plan's
-    first sample; and for each recorded row (row r is the state after step n_settle + r - 1, row 0 the state at
-    the end of settling) its joint positions q, and its full physics state where the row is one of `kept`.
+    is the final state's) and the command that drove it (n, nu; none where an open-loop controller's own array
+    holds them), n_settle of them settling before the plan's first sample; and for each recorded row (row r is
+    the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, and its
+    full physics state where the row is one of `kept`.
     The steppers write up to _CHUNK states into `scratch` and then `keep` them, so that a long run with a
     recording stride never holds every step's state."""
 
     sensors: np.ndarray
-    controls: np.ndarray
+    controls: np.ndarray  # (n, nu), or (0, nu) where the commands are not kept here
     q: np.ndarray  # (rows, dof): every recorded row's joint positions
     states: np.ndarray  # (len(kept), nstate): the full state of the kept rows
     kept: np.ndarray  # the recorded rows whose full state is kept, ascending
@@ -55,14 +56,15 @@ class Rows:
 
     @classmethod
     def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int, every: int = 1,
-              q_columns: np.ndarray | None = None, start: np.ndarray | None = None) -> "Rows":
+              q_columns: np.ndarray | None = None, start: np.ndarray | None = None, controls: bool = True) -> "Rows":
         """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
         (kept_rows), the joint positions at `q_columns` of the state (none by default); `start`: row 0's state
-        when there is no settling."""
+        when there is no settling. `controls`: whether the rows keep every step's command (not where an
+        open-loop controller's array has them all: a second (n, nu) copy, 37 MB on the ten-minute soak)."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
         q_columns = np.zeros(0, int) if q_columns is None else q_columns
         kept = kept_rows(n_track + 1, every)
-        rows = cls(sensors=np.empty((n + 1, model.nsensordata)), controls=np.empty((n, model.nu)),
+        rows = cls(sensors=np.empty((n + 1, model.nsensordata)), controls=np.empty((n if controls else 0, model.nu)),
                    q=np.empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
                    q_columns=q_columns, scratch=np.empty((min(_CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
                    t0=n_settle * model.opt.timestep)
@@ -109,15 +111,24 @@ def _warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
 
 
 class OpenLoop:
-    """Precomputed commands stepped through `mujoco.rollout`, chunk by chunk."""
+    """Precomputed commands stepped through `mujoco.rollout`, chunk by chunk: rows.controls, or where `planned`
+    is given, an open-loop controller's commands per sample (N, nu), read from it without a copy in the rows."""
 
-    def __init__(self, model: mujoco.MjModel):
+    def __init__(self, model: mujoco.MjModel, planned: np.ndarray | None = None):
         self.slices = state_slices(model)
         self.state = np.empty(mujoco.mj_stateSize(model, FULL))
+        self.planned = planned
+
+    def commands(self, rows: Rows, first: int, stop: int) -> np.ndarray:
+        """The commands of steps first..stop-1: rows.controls', or step i's is sample i - n_settle's of
+        `planned`, the first sample's while settling."""
+        if self.planned is None:
+            return rows.controls[first:stop]
+        return self.planned[np.maximum(np.arange(first, stop) - rows.n_settle, 0)]
 
     def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
             progress=None) -> list[dict]:
-        """Steps first..stop-1 with rows.controls, from data's current state; the warnings met. Data is left at
+        """Steps first..stop-1 with their commands, from data's current state; the warnings met. Data is left at
         the last state. Fault at the first step at fault."""
         found, k = [], first
         ctrl_spec = int(mujoco.mjtState.mjSTATE_CTRL)
@@ -125,15 +136,16 @@ class OpenLoop:
             mujoco.mj_getState(model, data, self.state, FULL)
             warmstart = data.qacc_warmstart.copy()
             end = min(k + _CHUNK, stop)
+            controls = self.commands(rows, k, end)
             try:
-                rollout.rollout(model, data, self.state[None], rows.controls[None, k:end], control_spec=ctrl_spec,
+                rollout.rollout(model, data, self.state[None], controls[None], control_spec=ctrl_spec,
                                 initial_warmstart=warmstart[None], state=rows.scratch[None, :end - k],
                                 sensordata=rows.sensors[None, k:end])
                 stopped = False
             except mujoco.FatalError:  # MuJoCo gave up (out of arena memory): found again when replayed
                 stopped = True
             if stopped or self._went_wrong(model, data, rows.scratch[:end - k]):
-                step, cause = _locate(model, data, self.state, warmstart, rows.controls[k:end])
+                step, cause = _locate(model, data, self.state, warmstart, controls)
                 rows.keep(k, k + step)  # the steps before the one at fault
                 raise Fault(k + step, cause)
             rows.keep(k, end)

@@ -194,7 +194,11 @@ def _elbow_and_shoulder(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The elbow's H = a3 s3 + d4 c3 (0: arm stretched or folded) and the shoulder's r = c2 (a2 + a3 c3 - d4 s3)
     - s2 H (the wrist centre's c1 Px + s1 Py, eq. 1; 0: shoulder singular), (N,) each."""
     q = np.atleast_2d(q)
-    c2, s2, c3, s3 = (f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin))
+    return _elbow_and_shoulder_of(*(f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin)))
+
+
+def _elbow_and_shoulder_of(c2: np.ndarray, s2: np.ndarray, c3: np.ndarray, s3: np.ndarray) -> tuple:
+    """`_elbow_and_shoulder` from the cosines and sines of q2 and q3."""
     h = A3 * s3 + D4 * c3
     return h, c2 * (A2 + A3 * c3 - D4 * s3) - s2 * h
 
@@ -230,7 +234,12 @@ def _frame3_columns(q: np.ndarray) -> list[tuple]:
     z6 = (-c4 s5, c5, s4 s5); the wrist centre is (a3, d4, 0), the tool t = wrist centre + TOOL_z z6, the shoulder
     (origins 1 and 2) (-a2 c3, a2 s3, -d3); column i is (z_i x (t - o_i) / (a2 + d4), z_i)."""
     q = np.atleast_2d(q)
-    c3, s3, c4, s4, c5, s5 = (f(q[:, i]) for i in (2, 3, 4) for f in (np.cos, np.sin))
+    return _frame3_columns_of(q, *(f(q[:, i]) for i in (2, 3, 4) for f in (np.cos, np.sin)))
+
+
+def _frame3_columns_of(q: np.ndarray, c3: np.ndarray, s3: np.ndarray, c4: np.ndarray, s4: np.ndarray,
+                       c5: np.ndarray, s5: np.ndarray) -> list[tuple]:
+    """`_frame3_columns` from q (N, 6) and the cosines and sines of q3, q4 and q5."""
     c23, s23 = np.cos(q[:, 1] + q[:, 2]), np.sin(q[:, 1] + q[:, 2])
     tool = TOOL[2] / _LENGTH
     x6, y6, z6 = -c4 * s5, c5, s4 * s5
@@ -254,11 +263,11 @@ def manipulability(q: np.ndarray) -> np.ndarray:
     elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (moving the reference point
     to the wrist centre leaves det J alone and makes J block triangular: arm block times wrist block)."""
     q = np.atleast_2d(q)
-    return _manipulability(q, *_elbow_and_shoulder(q))
+    return _manipulability(*_elbow_and_shoulder(q), np.sin(q[:, 4]))
 
 
-def _manipulability(q: np.ndarray, h: np.ndarray, r: np.ndarray) -> np.ndarray:
-    return A2 * np.abs(h * r * np.sin(q[:, 4])) / _LENGTH**3
+def _manipulability(h: np.ndarray, r: np.ndarray, s5: np.ndarray) -> np.ndarray:
+    return A2 * np.abs(h * r * s5) / _LENGTH**3
 
 
 def condition(q: np.ndarray) -> np.ndarray:
@@ -267,7 +276,12 @@ def condition(q: np.ndarray) -> np.ndarray:
     from J's SVD where the condition number comes out over 1000 (the least singular value then off by more than
     1e-9 of itself) or the iteration did not settle."""
     q = np.atleast_2d(q)
-    low, high, settled = extreme_eigenvalues(gram(_frame3_columns(q)))
+    return _condition(q, _frame3_columns(q))
+
+
+def _condition(q: np.ndarray, columns: list[tuple]) -> np.ndarray:
+    """`condition` of q (N, 6) whose `_frame3_columns` are given."""
+    low, high, settled = extreme_eigenvalues(gram(columns))
     sv = np.sqrt(np.maximum(np.stack([high, low], -1), 0.0))
     near = np.flatnonzero(~settled | (sv[:, 0] > 1e3 * sv[:, 1]))
     if near.size:
@@ -277,16 +291,29 @@ def condition(q: np.ndarray) -> np.ndarray:
 
 def measures(q: np.ndarray) -> dict[str, np.ndarray]:
     """Manipulability and condition number of the tool Jacobian (linear rows divided by a2 + d4), and the
-    three singularity gaps."""
+    three singularity gaps. Each cosine and sine of a joint angle is taken once (at some 40 us apiece, NumPy's
+    sin and cos cost as much as the rest of a measure), and is the same number as the measure's own function
+    takes."""
     q = np.atleast_2d(q)
-    h, r = _elbow_and_shoulder(q)
-    return {"manipulability": _manipulability(q, h, r), "condition": condition(q),
-            "shoulder_gap": np.abs(r), "elbow_gap": elbow_gap(q), "wrist_gap": wrist_gap(q)}
+    c2, s2, c3, s3, c4, s4, c5, s5 = (f(q[:, i]) for i in (1, 2, 3, 4) for f in (np.cos, np.sin))
+    h, r = _elbow_and_shoulder_of(c2, s2, c3, s3)
+    return {"manipulability": _manipulability(h, r, s5),
+            "condition": _condition(q, _frame3_columns_of(q, c3, s3, c4, s4, c5, s5)),
+            "shoulder_gap": np.abs(r), "elbow_gap": elbow_gap(q), "wrist_gap": np.abs(np.arcsin(s5))}
 
 
 def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
     """Shoulder (r = 0), elbow (arm stretched or folded) and wrist (q5 = 0) singularities."""
-    shoulder, elbow, wrist = shoulder_gap(q), elbow_gap(q), wrist_gap(q)
+    return _sets(shoulder_gap(q), elbow_gap(q), wrist_gap(q), tol)
+
+
+def sets_of_measures(found: dict[str, np.ndarray], tol: Tolerance) -> list[SingularSet]:
+    """`singular_sets` from the gaps `measures` found (the same numbers, not computed again)."""
+    return _sets(found["shoulder_gap"], found["elbow_gap"], found["wrist_gap"], tol)
+
+
+def _sets(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, tol: Tolerance) -> list[SingularSet]:
+    """The three sets of the three gaps."""
     return [
         SingularSet("shoulder", "PUMA", "wrist centre on the shoulder-singular plane (r = c1 Px + s1 Py = 0)",
                     shoulder / tol.length, {"r": shoulder}),
@@ -305,7 +332,7 @@ class Puma600(SerialArm):
             description="PUMA 600 6-DOF arm with a welding torch (decoupled, spherical wrist)",
             paper="002: joint time histories for line and circle paths of a decoupled arm",
             joints=JOINTS, kinds=KINDS, lower=LOWER, upper=UPPER, qd_max=QD_MAX,
-            fk=fk, measures=measures, singular_sets=singular_sets,
+            fk=fk, measures=measures, singular_sets=singular_sets, sets_of_measures=sets_of_measures,
         )
 
 

@@ -208,8 +208,11 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
     """Type A: |det A1| and |det A2| (every 3 x 3 minor over the gripping arms) under 0.01 (eq. 46). Type B: a
     gripping arm's gamma within 10 deg of 0 or 180 deg (eq. 45). The paper's own thresholds, not `tol`."""
     engaged = gripping(rec)
-    type_a = _type_a(rec.q, engaged)
-    type_b = _type_b_gap(rec.q[:, ARMS:], engaged)
+    return _sets(_type_a(rec.q, engaged), _type_b_gap(rec.q[:, ARMS:], engaged))
+
+
+def _sets(type_a: np.ndarray, type_b: np.ndarray) -> list[SingularSet]:
+    """The two sets of the type A measure and the type B gap."""
     return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01", type_a / DET_A_MIN,
                         {"det": type_a}),
             SingularSet("typeB", "type B (boundary, det B = 0)", "a gripping arm's gamma within 10 deg of 0 or 180",
@@ -244,6 +247,9 @@ class RSMG(Robot):
 
     def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
         return singular_sets(rec, tol)
+
+    def singular_sets_from(self, rec, tol: Tolerance, measures: dict[str, np.ndarray]) -> list[SingularSet]:
+        return _sets(measures["type_a"], measures["type_b_gap"])  # the measures are the sets' gaps
 
     def summary(self, traj, rec, series: dict) -> Summary:
         from simbench.robots import rsmg_outputs

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from simbench.api import Summary
-from simbench.robots.rsmg import ARMS, GAMMA_BAND, POINTS, RADIUS, gripping
+from simbench.robots.rsmg import _CHUNK, ARMS, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.rotations import quat_to_matrix, rotation_angle
 
 _GRIPPING_RGBA = [0.2, 0.85, 0.3, 1.0]  # an EM that grips: green
@@ -23,38 +23,49 @@ def summary(traj, rec, series: dict) -> Summary:
     """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped."""
     engaged = gripping(rec)
     gamma = rec.q[:, ARMS:]
-    rot = quat_to_matrix(rec.sensors["rotor_quat"])
-    error = rotation_angle(quat_to_matrix(traj.series["rotor_quat_ref"]), rot)
+    error, closure = _rotor_errors(traj, rec, engaged)
     held = gamma[engaged]
-    closure = _closure_error(rec, rot, engaged)
     report = {
         "rotor_error_max": float(error.max()),
         "closure_error_max": float(closure.max()),
         "fewest_gripping": int(engaged.sum(axis=1).min()),
         "gripping_gamma": {"min": float(held.min()), "max": float(held.max())},
-        "switch_events": _switch_events(traj, rec, rot),
+        "switch_events": _switch_events(traj, rec),
     }
-    extra = {"gamma": gamma.copy(), "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"].copy(),
+    # gamma and rotor_quat as views of the recording, which the run keeps anyway (copies: 37 MB on the soak)
+    extra = {"gamma": gamma, "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"],
              "rotor_error": error, "closure_error": closure}
     return Summary(report, [], extra)
 
 
-def _closure_error(rec, rot: np.ndarray, engaged: np.ndarray) -> np.ndarray:
-    """How far each gripping EM's tip has moved on the rotor since it gripped (the weld's violation: the loop
-    through the arm and the rotor failing to close), the largest over the arms (N,), in m."""
-    closure = np.zeros(rec.t.size)
-    for arm in range(ARMS):
-        on_rotor = np.einsum("nji,nj->ni", rot, rec.sensors[f"em{arm + 1}_tip"])  # R^T tip, in the rotor's frame
-        grip = engaged[:, arm] & ~np.concatenate([[False], engaged[:-1, arm]])  # the rows where it grips
-        since = np.maximum.accumulate(np.where(grip, np.arange(rec.t.size), 0))
-        drift = np.linalg.norm(on_rotor - on_rotor[since], axis=1)
-        closure = np.maximum(closure, np.where(engaged[:, arm], drift, 0.0))
-    return closure
+def _rotor_errors(traj, rec, engaged: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rotor's error (its angle from the planned orientation) and the closure error (how far each gripping
+    EM's tip has moved on the rotor since it gripped: the weld's violation, the loop through the arm and the rotor
+    failing to close; the largest over the arms, in m), (N,) each. _CHUNK samples at a time, each sample's own
+    numbers: the rotor's matrices for all of a long run's samples at once, planned and recorded, and each arm's tip
+    in the rotor's frame would be 130 MB of temporaries on the ten-minute soak. `anchor`: each arm's tip in the
+    rotor's frame at its last grip before the chunk."""
+    quat, planned = rec.sensors["rotor_quat"], traj.series["rotor_quat_ref"]
+    error, closure = np.empty(rec.t.size), np.zeros(rec.t.size)
+    grips = engaged & ~np.concatenate([np.zeros((1, ARMS), bool), engaged[:-1]])  # the rows where each arm grips
+    anchor = np.zeros((ARMS, 3))
+    for a in range(0, rec.t.size, _CHUNK):
+        b = min(a + _CHUNK, rec.t.size)
+        rot = quat_to_matrix(quat[a:b])
+        error[a:b] = rotation_angle(quat_to_matrix(planned[a:b]), rot)
+        for arm in range(ARMS):
+            on_rotor = np.einsum("nji,nj->ni", rot, rec.sensors[f"em{arm + 1}_tip"][a:b])  # R^T tip
+            since = np.maximum.accumulate(np.where(grips[a:b, arm], np.arange(b - a), -1))  # -1: before the chunk
+            gripped = on_rotor[np.maximum(since, 0)]
+            gripped[since < 0] = anchor[arm]
+            drift = np.linalg.norm(on_rotor - gripped, axis=1)
+            closure[a:b] = np.maximum(closure[a:b], np.where(engaged[a:b, arm], drift, 0.0))
+            anchor[arm] = gripped[-1]
+    return error, closure
 
 
-def _switch_events(traj, rec, rot: np.ndarray) -> list[dict]:
-    """One event a re-grip (an arm's release, then its grip); the initial grips are none. `rot`: the recorded
-    rotor orientations."""
+def _switch_events(traj, rec) -> list[dict]:
+    """One event a re-grip (an arm's release, then its grip); the initial grips are none."""
     events = []
     releases = {}
     for sw in traj.switches:
@@ -62,11 +73,11 @@ def _switch_events(traj, rec, rot: np.ndarray) -> list[dict]:
         if not sw.active:
             releases[arm] = sw
         elif arm in releases:
-            events.append(_regrip_event(rec, rot, releases[arm], sw))
+            events.append(_regrip_event(rec, releases[arm], sw))
     return events
 
 
-def _regrip_event(rec, rot: np.ndarray, release, grip) -> dict:
+def _regrip_event(rec, release, grip) -> dict:
     """The re-grip from switch `release` to switch `grip` of one arm: the arm, the points; the grip's snap (the
     EM tip's jump in the step after the weld goes on, beyond what its motion before carried it: the second
     difference of its position); and the grip's offset (how far the EM tip is from the planned contact point
@@ -76,7 +87,8 @@ def _regrip_event(rec, rot: np.ndarray, release, grip) -> dict:
     tip = rec.sensors[f"em{arm}_tip"]
     jump = float(np.linalg.norm(tip[k + 1] - 2 * tip[k] + tip[k - 1]))
     held = grip.detail.get("point")  # the point gripped (rotor frame), or the paper's candidate by its letter
-    point = rot[k] @ (np.asarray(held) if held is not None else POINTS[arm - 1, "abc".index(grip.detail["to_point"])])
+    rot = quat_to_matrix(rec.sensors["rotor_quat"][k])[0]  # the recorded rotor's orientation there
+    point = rot @ (np.asarray(held) if held is not None else POINTS[arm - 1, "abc".index(grip.detail["to_point"])])
     point = point * RADIUS
     return {"t_start": release.t, "t_end": grip.t, "kind": "switch",
             "detail": {"arm": arm, "from_point": grip.detail["from_point"], "to_point": grip.detail["to_point"],

@@ -28,9 +28,12 @@ def _total(terms: list):
 
 def gram(columns: list[tuple]) -> Entries:
     """J^T J of the matrices whose columns are given, each a tuple of entries: arrays over the samples, or
-    constants (floats), whose zeros are skipped."""
+    constants (floats), whose zeros are skipped and whose ones multiply nothing (x * 1.0 is x)."""
+    def product(x, y):
+        return y if isinstance(x, float) and x == 1.0 else x if isinstance(y, float) and y == 1.0 else x * y
+
     def dot(u: tuple, v: tuple):
-        return _total([x * y for x, y in zip(u, v) if not (isinstance(x, float) and x == 0.0)
+        return _total([product(x, y) for x, y in zip(u, v) if not (isinstance(x, float) and x == 0.0)
                        and not (isinstance(y, float) and y == 0.0)])
     n = len(columns)
     upper = {(i, j): dot(columns[i], columns[j]) for i in range(n) for j in range(i, n)}
@@ -39,7 +42,8 @@ def gram(columns: list[tuple]) -> Entries:
 
 def tridiagonal(a: Entries) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Diagonal and squared off-diagonal of a tridiagonal matrix similar to the symmetric a (changed in place):
-    Householder reflections H = I - beta v v^T clear column k below its subdiagonal, for k = 0 .. n - 3."""
+    Householder reflections H = I - beta v v^T clear column k below its subdiagonal, for k = 0 .. n - 3. Sums
+    accumulate in place, in the order of their terms (the arrays are what take the time, not the calls)."""
     n = len(a)
     e2 = []
     for k in range(n - 2):
@@ -50,16 +54,28 @@ def tridiagonal(a: Entries) -> tuple[list[np.ndarray], list[np.ndarray]]:
         vv = norm2 - 2 * alpha * x[0] + alpha * alpha  # v . v
         beta = np.divide(2.0, vv, out=np.zeros_like(vv), where=vv > 0)
         rows = range(k + 1, n)
-        p = [beta * _total([a[i][j] * vj for j, vj in zip(rows, v)]) for i in rows]
-        half_k = 0.5 * beta * _total([pi * vi for pi, vi in zip(p, v)])
+        p = [_dot([a[i][j] for j in rows], v) for i in rows]
+        for pi in p:
+            pi *= beta
+        half_k = 0.5 * beta * _dot(p, v)
         w = [pi - half_k * vi for pi, vi in zip(p, v)]
         for i, vi, wi in zip(rows, v, w):
             for j, vj, wj in zip(rows, v, w):
                 if j >= i:
-                    a[i][j] = a[j][i] = a[i][j] - vi * wj - wi * vj
+                    update = a[i][j] - vi * wj
+                    update -= wi * vj
+                    a[i][j] = a[j][i] = update
         e2.append(norm2)
     e2.append(a[n - 1][n - 2] ** 2)
     return [a[i][i] for i in range(n)], e2
+
+
+def _dot(u: list[np.ndarray], v: list[np.ndarray]) -> np.ndarray:
+    """u . v, a new array: the products added in order, as `_total` adds them."""
+    total = u[0] * v[0]
+    for x, y in zip(u[1:], v[1:]):
+        total += x * y
+    return total
 
 
 def laguerre_step(d: list[np.ndarray], e2: list[np.ndarray], x: np.ndarray) -> np.ndarray:
