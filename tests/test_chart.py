@@ -25,15 +25,31 @@ def _series(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     return t, y
 
 
-def _matplotlib(t: np.ndarray, y: np.ndarray, rect_px: tuple[float, float, float, float]):
-    """matplotlib's own axes of the same size and place on a figure of the same size, drawn: (x limits, y limits,
-    x ticks in view, y ticks in view, y tick labels, y offset text)."""
+def _drawn_axes(t: np.ndarray, y: np.ndarray, rect_px: tuple[float, float, float, float], yscale: str = "linear"):
+    """matplotlib's own axes of y(t) at the same size and place on a figure of the same size, drawn."""
     fig = MplFigure(figsize=(WIDTH, HEIGHT), dpi=chart.DPI)
     FigureCanvasAgg(fig)
     left, top, right, bottom = (v / chart.DPI for v in rect_px)
     ax = fig.add_axes((left / WIDTH, 1 - bottom / HEIGHT, (right - left) / WIDTH, (bottom - top) / HEIGHT))
     ax.plot(t, y)
+    ax.set_yscale(yscale)
     fig.canvas.draw()
+    return ax
+
+
+def _panel(t: np.ndarray, y: np.ndarray, yscale: str = "linear") -> tuple[chart.Panel, float, float]:
+    """A one-panel figure of y(t), and the panel's width and height in pt."""
+    _, axes = time_panels(1, WIDTH, HEIGHT)
+    panel = axes[0, 0]
+    panel.plot(t, y)
+    panel.set_yscale(yscale)
+    return panel, *((panel.rect[i + 2] - panel.rect[i]) / chart.DPI * 72 for i in (0, 1))
+
+
+def _matplotlib(t: np.ndarray, y: np.ndarray, rect_px: tuple[float, float, float, float]):
+    """matplotlib's own axes of the same size and place on a figure of the same size: (x limits, y limits, x
+    ticks in view, y ticks in view, y tick labels, y offset text)."""
+    ax = _drawn_axes(t, y, rect_px)
     xlim, ylim = ax.get_xlim(), ax.get_ylim()
 
     def inside(locs, lim):
@@ -49,19 +65,78 @@ def test_limits_ticks_and_labels_are_matplotlibs_on_random_series():
     rng = np.random.default_rng(14)
     for _ in range(40):
         t, y = _series(rng)
-        fig, axes = time_panels(1, WIDTH, HEIGHT)
-        panel = axes[0, 0]
-        panel.plot(t, y)
+        panel, width_pt, height_pt = _panel(t, y)
         xlim = chart._view(*panel.data_x())
         ylim = panel._ylimits()
-        width_pt = (panel.rect[2] - panel.rect[0]) / chart.DPI * 72
-        height_pt = (panel.rect[3] - panel.rect[1]) / chart.DPI * 72
         xt, _, _ = chart.ticks(*xlim, width_pt, 3 * chart._LABEL_PT)
         yt, ylabels, yoffset = chart.ticks(*ylim, height_pt, 2 * chart._LABEL_PT)
         m_xlim, m_ylim, m_xt, m_yt, m_labels, m_offset = _matplotlib(t, y, panel.rect)
         assert np.allclose(xlim, m_xlim, rtol=1e-12, atol=0) and np.allclose(ylim, m_ylim, rtol=1e-12, atol=0)
         assert np.allclose(xt, m_xt) and np.allclose(yt, m_yt), (xt, m_xt, yt, m_yt)
         assert ylabels == m_labels and yoffset == m_offset
+
+
+def _positive_series(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A random positive time series for a log axis: spanning from a tenth of a decade to eight, at any scale,
+    flat now and then (on a power of ten or not)."""
+    t = np.linspace(0.0, rng.uniform(0.5, 60.0), 400)
+    walk = np.cumsum(rng.normal(size=t.size))
+    span = 10.0 ** rng.uniform(-1, np.log10(8))
+    y = 10.0 ** (rng.uniform(-6, 4) + span * (walk - walk.min()) / max(np.ptp(walk), 1e-12))
+    if rng.random() < 0.1:
+        y[:] = 10.0 ** rng.integers(-4, 3) if rng.random() < 0.5 else y[0]
+    return t, y
+
+
+def _matplotlib_log(t: np.ndarray, y: np.ndarray, rect_px: tuple[float, float, float, float]):
+    """matplotlib's own log y axis of the same size and place: (y limits, major ticks in view, their labels,
+    minor ticks in view, their labels)."""
+    ax = _drawn_axes(t, y, rect_px, "log")
+    lo, hi = ax.get_ylim()
+    found = []
+    for minor in (False, True):
+        pairs = [(loc, label.get_text()) for loc, label in zip(ax.get_yticks(minor=minor),
+                                                                ax.get_yticklabels(minor=minor))
+                 if lo * (1 - 1e-10) <= loc <= hi * (1 + 1e-10)]
+        found += [np.array([p[0] for p in pairs]), [p[1] for p in pairs]]
+    return (lo, hi), *found
+
+
+def test_a_log_axis_has_matplotlibs_limits_ticks_and_labels_on_random_series():
+    """set_yscale('log'): the limits, the major and minor ticks and their labels (mathtext, labelled minors on
+    an axis of few decades) of matplotlib's own log axis, on 40 random positive series."""
+    rng = np.random.default_rng(25)
+    for _ in range(40):
+        t, y = _positive_series(rng)
+        panel, _, height_pt = _panel(t, y, "log")
+        ylim = panel._ylimits()
+        major, labels, minor, minor_labels = chart.log_ticks(*ylim, height_pt, 2 * chart._LABEL_PT)
+        m_ylim, m_major, m_labels, m_minor, m_minor_labels = _matplotlib_log(t, y, panel.rect)
+        assert np.allclose(ylim, m_ylim, rtol=1e-12, atol=0), (ylim, m_ylim)
+        assert np.allclose(major, m_major, rtol=1e-12) and labels == m_labels, (major, m_major, labels, m_labels)
+        assert np.allclose(minor, m_minor, rtol=1e-12) and minor_labels == m_minor_labels, (minor, m_minor)
+
+
+def test_a_log_axis_places_its_lines_and_writes_its_exponents(tmp_path):
+    """On a log axis from 10^-3 to 10^3, horizontal lines at 10^-2 and 10^2 are drawn at the rows the decades
+    map them to (within a pixel), values at or below 0 are not drawn, and a mathtext label is read as its base
+    and exponent."""
+    fig, axes = time_panels(1, WIDTH, HEIGHT)
+    panel = axes[0, 0]
+    panel.set_yscale("log")
+    panel.set_ylim(1e-3, 1e3)
+    panel.plot([0.0, 10.0], [1e-2, 1e-2], color="k")
+    panel.plot([0.0, 10.0], [1e2, 1e2], color="k")
+    panel.plot([0.0, 10.0], [0.0, -1.0], color="k")  # not drawn
+    picture = fig.render()
+    left, top, right, bottom = (round(v) for v in panel.rect)
+    inside = _dark(picture)[top + 3:bottom - 3, left + 3:right - 3]
+    rows = np.flatnonzero(inside.mean(axis=1) > 0.5) + 3
+    height = bottom - top
+    expected = [height * (3 - 2) / 6, height * (3 + 2) / 6]  # 10^2 and 10^-2, from the top
+    assert len(rows) >= 2 and all(min(abs(rows - e)) <= 1.0 for e in expected), (rows, expected)
+    found = chart._MATH.fullmatch("$\\mathdefault{2\\times10^{-3}}$")
+    assert found is not None and (found["mantissa"], found["exponent"]) == ("2\\times", "-3")
 
 
 def _dark(picture: Image.Image) -> np.ndarray:

@@ -10,7 +10,9 @@ steps and as many bins as matplotlib gives an axis of that length), the tick lab
 orthographically (matplotlib's is in perspective).
 
 A `Panel` answers the matplotlib `Axes` calls simbench's plots make (`plot`, `axhline`, `axvline`, `axvspan`,
-`annotate`, `set_xlabel`, `set_ylabel`, `set_title`, `set_ylim`, `grid`, `legend`), with the same arguments, so
+`annotate`, `set_xlabel`, `set_ylabel`, `set_title`, `set_ylim`, `set_yscale`, `grid`, `legend`), with the same
+arguments (a log y axis with matplotlib's `LogLocator` ticks, major and minor, and `LogFormatterSciNotation`
+labels, written as matplotlib's mathtext writes them: 10 with a raised exponent), so
 that a robot's own plots (`simbench.plots.time_panels`) read as matplotlib code does; a `Box3D` draws a 3-D
 trace (`plot`, `scatter`) seen as matplotlib's default 3-D view (elevation 30 deg, azimuth -60 deg). Calls are
 recorded and drawn when the figure is saved, once the limits are known.
@@ -19,9 +21,11 @@ recorded and drawn when the figure is saved, once the limits are known.
 from __future__ import annotations
 
 import functools
+import math
+import re
 import struct
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,13 +37,15 @@ _PT = DPI / 72 * _SCALE  # canvas pixels a point
 _MARGIN = 0.05  # of the data's extent, either side (matplotlib's axes.xmargin and ymargin)
 _STEPS = [1, 2, 2.5, 5, 10]  # matplotlib's AutoLocator
 _TICK_SIZE, _TICK_PAD, _LABEL_PT, _TITLE_PT = 3.5, 3.5, 10.0, 12.0  # pt (matplotlib's defaults)
+_MINOR_TICK = 2.0  # pt: a minor tick's length (matplotlib's ytick.minor.size)
+_SUPERSCRIPT = (0.7, 0.45)  # a mathtext exponent's size and the rise of its baseline, in the label's font size
 _FRAME_PT = 0.8  # spines and ticks, pt
 _GRID = "#b0b0b0"
 _DASHES = {"--": (3.7, 1.6), ":": (1.0, 1.65), "-.": (6.4, 1.6, 1.0, 1.6)}  # in line widths, as matplotlib's
 
 
 @functools.cache
-def _cycle() -> list[str]:
+def color_cycle() -> list[str]:
     """matplotlib's default colour cycle. matplotlib is imported when a figure is first drawn, not with this
     module: a run without plots (a sweep's, simbench.evaluate) does not pay its 17 MB and 0.14 s."""
     import matplotlib
@@ -155,6 +161,25 @@ def _text(canvas: Image.Image, xy: tuple[float, float], text: str, size_pt: floa
     canvas.paste(fill, (round(x), round(y)), mask)
 
 
+def _tick_text(canvas: Image.Image, xy: tuple[float, float], label: str, size_pt: float) -> None:
+    """A y tick label right of xy's x, its middle at xy's y: plain text, or matplotlib's mathtext of a log axis'
+    label ('$\\mathdefault{2\\times10^{-3}}$') as "2×10" with the exponent raised and smaller."""
+    found = _MATH.fullmatch(label)
+    if found is None:
+        _text(canvas, xy, label, size_pt, "rm")
+        return
+    base = found["mantissa"].replace("\\times", "\u00d7") + "10"
+    exponent = found["exponent"].replace("-", "\u2212")
+    small = size_pt * _SUPERSCRIPT[0]
+    x = xy[0] - _font(small).getlength(exponent)
+    baseline = xy[1] + 0.35 * size_pt * _PT  # the digits' middle at xy's y
+    _text(canvas, (x, baseline), base, size_pt, "rs")
+    _text(canvas, (x, baseline - _SUPERSCRIPT[1] * size_pt * _PT), exponent, small, "ls")
+
+
+_MATH = re.compile(r"\$\\mathdefault\{(?P<mantissa>(?:[0-9.]+\\times)?)10\^\{(?P<exponent>-?[0-9]+)\}\}\$")
+
+
 def _extent(arrays: list[np.ndarray]) -> tuple[float, float] | None:
     """The least and greatest finite value in these arrays (NaN and infinite values are not drawn, as in
     matplotlib), or None if there is none."""
@@ -172,6 +197,47 @@ def _view(lo: float, hi: float) -> tuple[float, float]:
     lo, hi = MaxNLocator().nonsingular(lo, hi)
     pad = _MARGIN * (hi - lo)
     return lo - pad, hi + pad
+
+
+def _view_log(lo: float, hi: float) -> tuple[float, float]:
+    """Log-axis limits for positive data spanning [lo, hi], as matplotlib's autoscale makes them: a flat series
+    widened to the powers of ten either side (LogLocator.nonsingular), then margins of 5 % of the decades."""
+    if lo == hi:
+        lo, hi = _decade(lo, -1), _decade(hi, 1)
+    a, b = np.log10(lo), np.log10(hi)
+    pad = _MARGIN * (b - a)
+    return float(10.0 ** (a - pad)), float(10.0 ** (b + pad))
+
+
+def _decade(x: float, direction: int) -> float:
+    """The nearest power of ten below (direction -1) or above (+1) x > 0, x itself excluded."""
+    power = 10.0 ** (math.floor(math.log10(x)) if direction < 0 else math.ceil(math.log10(x)))
+    return power * 10.0 ** direction if power == x else power
+
+
+def log_ticks(lo: float, hi: float, length_pt: float, per_label_pt: float
+              ) -> tuple[np.ndarray, list[str], np.ndarray, list[str]]:
+    """Major and minor tick positions within [lo, hi] of a log axis `length_pt` long and their labels ('' for a
+    minor tick left unlabelled), as matplotlib's log scale makes them: `LogLocator` (at most one tick a
+    `per_label_pt`, 2 to 9) for both, minor ticks at a major one's place dropped, `LogFormatterSciNotation`
+    labelling majors and, on an axis of few decades, some minors."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator
+
+    count = int(np.clip(int(length_pt // per_label_pt), 2, 9))
+    major = LogLocator(numticks=count).tick_values(lo, hi)
+    minor = LogLocator(subs="auto", numticks=count).tick_values(lo, hi)
+    span = np.log10(hi) - np.log10(lo)
+    if major.size and minor.size:
+        minor = minor[~np.isclose(np.log10(minor)[:, None], np.log10(major)[None, :], atol=1e-5 * span,
+                                  rtol=0).any(axis=1)]
+    inside = [locs[(locs >= lo * (1 - 1e-10)) & (locs <= hi * (1 + 1e-10))] for locs in (major, minor)]
+    labels = []
+    for locs, only_base in zip(inside, (True, False)):
+        formatter = LogFormatterSciNotation(labelOnlyBase=only_base)
+        formatter.create_dummy_axis()
+        formatter.axis.set_view_interval(lo, hi)
+        labels.append(formatter.format_ticks(list(locs)))
+    return inside[0], labels[0], inside[1], labels[1]
 
 
 def ticks(lo: float, hi: float, length_pt: float, per_label_pt: float) -> tuple[np.ndarray, list[str], str]:
@@ -224,8 +290,11 @@ class Panel:
     xlabel: str = ""
     ylabel: str = ""
     title: str = ""
+    title_pt: float = _TITLE_PT
     ylim: tuple[float, float] | None = None
+    ylog: bool = False
     grid_alpha: float | None = None
+    grid_minor: bool = False
     legend_spec: _Legend | None = None
     xticklabels: bool = True
     ylabel_x: float = 0.0  # figure pixels left of the panel to the y label's centre
@@ -233,7 +302,7 @@ class Panel:
 
     def plot(self, x, y, fmt: str | None = None, **kwargs) -> None:
         """A line y(x) (matplotlib's Axes.plot: format '--', ':', '-.'; color, lw, ls, label)."""
-        color, lw, style, label = _line_args(fmt, kwargs, _cycle()[len(self.lines) % len(_cycle())])
+        color, lw, style, label = _line_args(fmt, kwargs, color_cycle()[len(self.lines) % len(color_cycle())])
         self.lines.append(_Line(np.asarray(x, float), np.asarray(y, float), color, lw, style, label))
 
     def axhline(self, y: float, color="k", ls: str = "-", lw: float = 1.5, label: str | None = None) -> None:
@@ -264,14 +333,21 @@ class Panel:
     def set_ylabel(self, text: str) -> None:
         self.ylabel = text
 
-    def set_title(self, text: str, y: float = 1.0) -> None:
-        self.title = text
+    def set_title(self, text: str, y: float = 1.0, fontsize: float = _TITLE_PT) -> None:
+        self.title, self.title_pt = text, fontsize
 
     def set_ylim(self, lo: float, hi: float) -> None:
         self.ylim = (float(lo), float(hi))
 
-    def grid(self, alpha: float = 1.0) -> None:
-        self.grid_alpha = alpha
+    def set_yscale(self, scale: str) -> None:
+        """'linear' or 'log' (values at or below 0 are then not drawn)."""
+        if scale not in ("linear", "log"):
+            raise ValueError(f"set_yscale: {scale!r} is not drawn; expected 'linear' or 'log'")
+        self.ylog = scale == "log"
+
+    def grid(self, alpha: float = 1.0, which: str = "major") -> None:
+        """Grid lines at the major ticks, or with which='both' at the minor ones too."""
+        self.grid_alpha, self.grid_minor = alpha, which == "both"
 
     def legend(self, loc: str = "best", fontsize: float = 10) -> None:
         self.legend_spec = _Legend(loc, fontsize)
@@ -283,14 +359,26 @@ class Panel:
     def _ylimits(self) -> tuple[float, float]:
         if self.ylim is not None:
             return self.ylim
+        if self.ylog:
+            extent = _extent([ln.y[ln.y > 0] for ln in self.lines])
+            return _view_log(*extent) if extent else (1.0, 10.0)
         extent = _extent([ln.y for ln in self.lines])
         return _view(*extent) if extent else (0.0, 1.0)
+
+    def _yticks(self, ylim: tuple[float, float], length_pt: float):
+        """(major positions, their labels, the offset text, minor positions, their labels), positions as drawn
+        (log10 on a log axis; a linear axis has no minor ticks)."""
+        if not self.ylog:
+            return (*ticks(*ylim, length_pt, 2 * _LABEL_PT), np.empty(0), [])
+        major, labels, minor, minor_labels = log_ticks(*ylim, length_pt, 2 * _LABEL_PT)
+        return np.log10(major), labels, "", np.log10(minor), minor_labels
 
     def draw(self, canvas: Image.Image, xlim: tuple[float, float]) -> None:
         """Everything of this panel onto the figure's canvas, over x limits `xlim`."""
         left, top, right, bottom = (v * _SCALE for v in self.rect)
         w, h = round(right - left), round(bottom - top)
-        ylim = self._ylimits()
+        yt, ylabels, yoffset, minor, minor_labels = self._yticks(self._ylimits(), h / _PT)
+        ylim = tuple(np.log10(self._ylimits())) if self.ylog else self._ylimits()
         sx, sy = w / (xlim[1] - xlim[0]), h / (ylim[1] - ylim[0])
         inner = Image.new("RGB", (w, h), "white")
         draw = ImageDraw.Draw(inner, "RGBA")
@@ -298,40 +386,45 @@ class Panel:
             draw.rectangle(((x0 - xlim[0]) * sx, 0, max((x1 - xlim[0]) * sx, (x0 - xlim[0]) * sx + 1), h),
                            fill=_rgba(color, alpha))
         xt, xlabels, xoffset = ticks(*xlim, w / _PT, 3 * _LABEL_PT)
-        yt, ylabels, yoffset = ticks(*ylim, h / _PT, 2 * _LABEL_PT)
-        px, py = (xt - xlim[0]) * sx, (ylim[1] - yt) * sy
+        px, py, pminor = (xt - xlim[0]) * sx, (ylim[1] - yt) * sy, (ylim[1] - minor) * sy
         if self.grid_alpha is not None:
             grid, width = _rgb(_GRID, self.grid_alpha), _width(_FRAME_PT)
             for x in px:
                 draw.line((x, 0, x, h), fill=grid, width=width)
-            for y in py:
+            for y in [*py, *(pminor if self.grid_minor else ())]:
                 draw.line((0, y, w, y), fill=grid, width=width)
         for ln in self.lines:
-            _polyline(draw, _pixels(ln, xlim, ylim, w, h), ln.color, ln.lw, ln.style)
+            shown = replace(ln, y=np.log10(np.where(ln.y > 0, ln.y, np.nan))) if self.ylog else ln
+            _polyline(draw, _pixels(shown, xlim, ylim, w, h), ln.color, ln.lw, ln.style)
         for text, x, frac, size, rotation in self.notes:
             _text(inner, ((x - xlim[0]) * sx, (1 - frac) * h), text, size, "lt", rotation=rotation)
         if self.legend_spec is not None:
             _legend(inner, self.lines, self.legend_spec)
         canvas.paste(inner, (round(left), round(top)))
-        self._frame(canvas, (left, top, left + w, top + h), px, py, xlabels, ylabels, xoffset, yoffset)
+        self._frame(canvas, (left, top, left + w, top + h), px, py, xlabels, ylabels, xoffset, yoffset,
+                    (pminor, minor_labels))
 
-    def _frame(self, canvas, box, px, py, xlabels, ylabels, xoffset, yoffset) -> None:
-        """Spines, ticks, tick labels, offsets, axis labels and title around the panel's box (canvas pixels)."""
+    def _frame(self, canvas, box, px, py, xlabels, ylabels, xoffset, yoffset, minor) -> None:
+        """Spines, ticks, tick labels, offsets, axis labels and title around the panel's box (canvas pixels);
+        `minor`: the minor y ticks' pixels and labels."""
         left, top, right, bottom = box
         draw = ImageDraw.Draw(canvas)
         width, tick, pad = _width(_FRAME_PT), _TICK_SIZE * _PT, (_TICK_SIZE + _TICK_PAD) * _PT
         draw.rectangle(box, outline=(0, 0, 0), width=width)
+        for y, label in zip(*minor):
+            draw.line((left - _MINOR_TICK * _PT, top + y, left, top + y), fill=(0, 0, 0), width=width)
+            _tick_text(canvas, (left - (_MINOR_TICK + _TICK_PAD) * _PT, top + y), label, _LABEL_PT)
         for x, label in zip(px, xlabels):
             draw.line((left + x, bottom, left + x, bottom + tick), fill=(0, 0, 0), width=width)
             if self.xticklabels:
                 _text(canvas, (left + x, bottom + pad), label, _LABEL_PT, "mt")
         for y, label in zip(py, ylabels):
             draw.line((left - tick, top + y, left, top + y), fill=(0, 0, 0), width=width)
-            _text(canvas, (left - pad, top + y), label, _LABEL_PT, "rm")
+            _tick_text(canvas, (left - pad, top + y), label, _LABEL_PT)
         _text(canvas, (left, top - 2 * _PT), yoffset, _LABEL_PT, "ld")
         if self.xticklabels:
             _text(canvas, (right, bottom + pad + 1.3 * _LABEL_PT * _PT), xoffset, _LABEL_PT, "rt")
-        _text(canvas, ((left + right) / 2, top - 6 * _PT), self.title, _TITLE_PT, "ms")
+        _text(canvas, ((left + right) / 2, top - 6 * _PT), self.title, self.title_pt, "ms")
         _text(canvas, ((left + right) / 2, bottom + self.xlabel_y * _SCALE), self.xlabel, _LABEL_PT, "mt")
         _text(canvas, (left - self.ylabel_x * _SCALE, (top + bottom) / 2), self.ylabel, _LABEL_PT, "mm",
               rotation=90)
@@ -398,6 +491,11 @@ class Figure:
         self.size = (round(width * DPI), round(height * DPI))
         self.panels: list[Panel] = []
         self.boxes: list[Box3D] = []
+        self.title = ""
+
+    def suptitle(self, text: str) -> None:
+        """A title over the whole figure (matplotlib's Figure.suptitle, at its default size)."""
+        self.title = text
 
     def panel(self, rect: tuple[float, float, float, float]) -> Panel:
         """A new panel at rect (figure pixels: left, top, right, bottom); panels share the x limits."""
@@ -419,6 +517,7 @@ class Figure:
                 p.draw(canvas, xlim)
         for box in self.boxes:
             box.draw(canvas)
+        _text(canvas, (canvas.width / 2, 0.1 * DPI * _SCALE), self.title, _TITLE_PT, "mt")
         return canvas.reduce(_SCALE)
 
     def save(self, path: Path) -> None:
@@ -465,7 +564,7 @@ class Box3D:
 
     def plot(self, x, y, z, fmt: str | None = None, **kwargs) -> None:
         """A 3-D polyline (matplotlib's Axes3D.plot)."""
-        color, lw, style, label = _line_args(fmt, kwargs, _cycle()[len(self.lines) % len(_cycle())])
+        color, lw, style, label = _line_args(fmt, kwargs, color_cycle()[len(self.lines) % len(color_cycle())])
         self.lines.append(_Line(np.asarray(x, float), np.asarray(y, float), color, lw, style, label))
         self.z.append(np.asarray(z, float))
 

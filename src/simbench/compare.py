@@ -323,44 +323,44 @@ def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tupl
 
 
 def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[str]:
-    """The methods overlaid against time: tool error, joint speeds, distance to each singular set."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """The methods overlaid against time: tool error, joint speeds, distance to each singular set. Drawn by
+    `simbench.chart` as a run's own plots are, each series through its envelope at the figure's resolution."""
+    from simbench.chart import color_cycle
+    from simbench.plots import save_png, time_line, time_panels
 
     folder.mkdir(parents=True, exist_ok=True)
     ran = [r for r in runs if r.evaluation is not None]
     robot = base.robot_def
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    color = {r.label: colors[i % len(colors)] for i, r in enumerate(runs)}
+    color = {r.label: color_cycle()[i % len(color_cycle())] for i, r in enumerate(runs)}
     floor = 1e-4  # mm: the log scales' floor
 
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    fig, axes = time_panels(2, 8, 5.5)
     for r in ran:
         series, t = r.evaluation.analysis.series, r.evaluation.recording.t
-        axes[0].plot(t, np.maximum(series["path_deviation"] * 1e3, floor), color=color[r.label], lw=1.2, label=r.label)
-        axes[1].plot(t, np.maximum(series["tool_error"] * 1e3, floor), color=color[r.label], lw=1.2, label=r.label)
-    axes[0].axhline(base.analysis.path_tolerance * 1e3, color="k", ls=":", lw=0.8, label="path tolerance")
-    axes[0].set_ylabel("distance from path (mm)")
-    axes[1].set_ylabel("tool error (mm)")
-    axes[1].set_xlabel("time (s)")
-    axes[0].set_title(f"{base.name}: the simulated tool against the plan's reference")
-    for ax in axes:
+        time_line(axes[0, 0], t, np.maximum(series["path_deviation"] * 1e3, floor), color=color[r.label], lw=1.2,
+                  label=r.label)
+        time_line(axes[1, 0], t, np.maximum(series["tool_error"] * 1e3, floor), color=color[r.label], lw=1.2)
+    axes[0, 0].axhline(base.analysis.path_tolerance * 1e3, color="k", ls=":", lw=0.8, label="path tolerance")
+    axes[0, 0].set_ylabel("distance from path (mm)")
+    axes[1, 0].set_ylabel("tool error (mm)")
+    axes[1, 0].set_xlabel("time (s)")
+    axes[0, 0].set_title(f"{base.name}: the simulated tool against the plan's reference")
+    for ax in axes[:, 0]:
         ax.set_yscale("log")
         ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=8, loc="best")
-    _save(fig, folder / "tool_error.png")
+    axes[0, 0].legend(fontsize=8, loc="best")
+    save_png(fig, folder / "tool_error.png")
 
-    fig, axes = plt.subplots(robot.dof, 1, figsize=(8, 1.7 * robot.dof + 0.8), sharex=True, squeeze=False)
+    fig, axes = time_panels(robot.dof, 8, 1.7 * robot.dof + 0.8)
     for j, ax in enumerate(axes[:, 0]):
         revolute = robot.kinds[j] == api.REVOLUTE
         scale, unit = (180 / np.pi, "deg/s") if revolute else (1e3, "mm/s")
         for r in ran:
             ev = r.evaluation
-            ax.plot(ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2, label=r.label)
+            time_line(ax, ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2,
+                      label=r.label)
             rec = ev.recording.thinned()  # qd is kept at every record_every-th state
-            ax.plot(rec.t, rec.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--", alpha=0.7)
+            time_line(ax, rec.t, rec.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--")
         for sign in (-1, 1):
             ax.axhline(sign * robot.qd_max[j] * scale, color="k", ls=":", lw=0.8)
         ax.set_ylabel(f"{robot.joints[j]} ({unit})")
@@ -368,7 +368,7 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[st
     axes[0, 0].legend(fontsize=8, loc="best")
     axes[0, 0].set_title("Joint speeds: planned (solid), simulated (dashed), speed limits (dotted)")
     axes[-1, 0].set_xlabel("time (s)")
-    _save(fig, folder / "joint_speeds.png")
+    save_png(fig, folder / "joint_speeds.png")
 
     sets = {r.label: singular_sets(r) for r in ran}
     first = next(iter(sets.values()), [])
@@ -376,30 +376,21 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[st
     if first:
         cols = 1 if len(first) <= 4 else 3
         rows_ = -(-len(first) // cols)
-        fig, axes = plt.subplots(rows_, cols, figsize=(8 if cols == 1 else 13, 2.0 * rows_ + 0.8), sharex=True,
-                                 squeeze=False)
+        fig, axes = time_panels(rows_, 8 if cols == 1 else 13, 2.0 * rows_ + 0.8, cols=cols, gap=0.4, top=0.75)
+        fig.suptitle("Distance to each singular set, in multiples of the near tolerance (dotted: near)")
         for i, (ax, sset) in enumerate(zip(axes.flat, first)):
             for r in ran:
-                ax.plot(r.evaluation.recording.t, np.maximum(sets[r.label][i].distance, 1e-3), color=color[r.label],
-                        lw=1.2, label=r.label)
+                time_line(ax, r.evaluation.recording.t, np.maximum(sets[r.label][i].distance, 1e-3),
+                          color=color[r.label], lw=1.2, label=r.label)
             ax.axhline(1.0, color="k", ls=":", lw=0.8)
             ax.set_yscale("log")
             ax.set_title(f"{sset.name}: {sset.condition}", fontsize=8)
             ax.grid(alpha=0.3, which="both")
         for ax in list(axes.flat)[len(first):]:
-            ax.set_visible(False)
+            fig.panels.remove(ax)
         axes[0, 0].legend(fontsize=8, loc="best")
-        fig.suptitle("Distance to each singular set, in multiples of the near tolerance (dotted: near)")
         for ax in axes[-1]:
             ax.set_xlabel("time (s)")
-        _save(fig, folder / "singular_distance.png")
+        save_png(fig, folder / "singular_distance.png")
         files.append("singular_distance.png")
     return files
-
-
-def _save(fig, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -23,6 +23,7 @@ from simbench.trajectory import JointTrajectory
 
 _MARGINS = (1.0, 0.15, 0.36, 0.59)  # in: left (tick labels and y label), right, top (title), bottom (x label)
 _GAP = 0.22  # in: between panels that share their time axis
+_COLUMN_GAP = 1.05  # in: between columns of panels (the next column's tick labels and y label)
 _LABEL_X, _LABEL_Y = 0.72, 0.36  # in: the centre of a y label left of its panel, the top of the x label below it
 
 
@@ -39,20 +40,24 @@ def _shade(ax: Panel, events: list[dict], kinds: set[str] | None, color: str, jo
             ax.axvspan(e["t_start"], max(e["t_end"], e["t_start"] + 1e-3), color=color, alpha=0.25, lw=0)
 
 
-def time_panels(rows: int, width: float, height: float) -> tuple[Figure, np.ndarray]:
-    """A figure of `rows` panels over one time axis, `width` x `height` inches, laid out with simbench's fixed
-    margins (the x tick labels on the lowest panel only); (figure, panels as an array (rows, 1)). The panels take
-    matplotlib's Axes calls (`simbench.chart.Panel`)."""
+def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: float = _GAP,
+                top: float = _MARGINS[2]) -> tuple[Figure, np.ndarray]:
+    """A figure of `rows` x `cols` panels over one time axis, `width` x `height` inches, laid out with simbench's
+    fixed margins (`top` inches over the first row, `gap` between rows; the x tick labels on the lowest row
+    only); (figure, panels as an array (rows, cols)). The panels take matplotlib's Axes calls
+    (`simbench.chart.Panel`)."""
     fig = Figure(width, height)
-    left, right, top, bottom = _MARGINS
-    panel = (height - top - bottom - (rows - 1) * _GAP) / rows
-    axes = np.empty((rows, 1), dtype=object)
+    left, right, _, bottom = _MARGINS
+    panel = (height - top - bottom - (rows - 1) * gap) / rows
+    column = (width - left - right - (cols - 1) * _COLUMN_GAP) / cols
+    axes = np.empty((rows, cols), dtype=object)
     for i in range(rows):
-        y0 = top + i * (panel + _GAP)
-        ax = fig.panel(tuple(v * DPI for v in (left, y0, width - right, y0 + panel)))
-        ax.xticklabels = i == rows - 1
-        ax.ylabel_x, ax.xlabel_y = _LABEL_X * DPI, _LABEL_Y * DPI
-        axes[i, 0] = ax
+        for j in range(cols):
+            x0, y0 = left + j * (column + _COLUMN_GAP), top + i * (panel + gap)
+            ax = fig.panel(tuple(v * DPI for v in (x0, y0, x0 + column, y0 + panel)))
+            ax.xticklabels = i == rows - 1
+            ax.ylabel_x, ax.xlabel_y = _LABEL_X * DPI, _LABEL_Y * DPI
+            axes[i, j] = ax
     return fig, axes
 
 
