@@ -115,6 +115,7 @@ def test_a_log_axis_has_matplotlibs_limits_ticks_and_labels_on_random_series():
         assert np.allclose(ylim, m_ylim, rtol=1e-12, atol=0), (ylim, m_ylim)
         assert np.allclose(major, m_major, rtol=1e-12) and labels == m_labels, (major, m_major, labels, m_labels)
         assert np.allclose(minor, m_minor, rtol=1e-12) and minor_labels == m_minor_labels, (minor, m_minor)
+        assert all(not label or chart._MATH.fullmatch(label) for label in labels + minor_labels)  # all drawn
 
 
 def test_a_log_axis_places_its_lines_and_writes_its_exponents(tmp_path):
