@@ -39,6 +39,6 @@ def test_the_rotor_and_closure_errors_are_each_samples_own_however_the_samples_a
         closure = np.maximum(closure, np.where(engaged[:, arm], drift, 0.0))
     assert closure.max() > 0
     for chunk in (7, 1000, 1 << 16):
-        monkeypatch.setattr(rsmg_outputs, "_CHUNK", chunk)
+        monkeypatch.setattr(rsmg_outputs, "CHUNK", chunk)
         got_error, got_closure = rsmg_outputs._rotor_errors(traj, rec, engaged)
         assert np.array_equal(got_error, error) and np.array_equal(got_closure, closure)

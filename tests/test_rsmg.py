@@ -276,5 +276,5 @@ def test_the_type_a_measure_is_each_samples_own_however_the_samples_are_chunked(
         det = np.abs(np.linalg.det(rows[:, three]))
         want = np.where(engaged[:, three].all(axis=1), np.maximum(want, det), want)
     for chunk in (1, 7, 1000, 1 << 16):
-        monkeypatch.setattr(S, "_CHUNK", chunk)
+        monkeypatch.setattr(S, "CHUNK", chunk)
         assert np.allclose(S._type_a(q, engaged), want, rtol=0, atol=1e-14)

@@ -273,10 +273,13 @@ class _Legend:
     fontsize: float
 
 
-def _line_args(fmt: str | None, kwargs: dict, default_color: str) -> tuple[str, float, str, str | None]:
-    """(colour, width, style, label) from a matplotlib plot call's format string and keywords."""
-    return (kwargs.get("color", kwargs.get("c", default_color)), kwargs.get("lw", kwargs.get("linewidth", 1.5)),
-            _style(fmt, kwargs.get("ls", kwargs.get("linestyle"))), kwargs.get("label"))
+def _plotted(x, y, fmt: str | None, kwargs: dict, drawn: int) -> _Line:
+    """The line of a matplotlib plot call from its format string and keywords (colour, width, style, label); by
+    default the colour cycle's next colour after `drawn` lines."""
+    cycle = color_cycle()
+    color = kwargs.get("color", kwargs.get("c", cycle[drawn % len(cycle)]))
+    return _Line(np.asarray(x, float), np.asarray(y, float), color, kwargs.get("lw", kwargs.get("linewidth", 1.5)),
+                 _style(fmt, kwargs.get("ls", kwargs.get("linestyle"))), kwargs.get("label"))
 
 
 @dataclass
@@ -302,8 +305,7 @@ class Panel:
 
     def plot(self, x, y, fmt: str | None = None, **kwargs) -> None:
         """A line y(x) (matplotlib's Axes.plot: format '--', ':', '-.'; color, lw, ls, label)."""
-        color, lw, style, label = _line_args(fmt, kwargs, color_cycle()[len(self.lines) % len(color_cycle())])
-        self.lines.append(_Line(np.asarray(x, float), np.asarray(y, float), color, lw, style, label))
+        self.lines.append(_plotted(x, y, fmt, kwargs, len(self.lines)))
 
     def axhline(self, y: float, color="k", ls: str = "-", lw: float = 1.5, label: str | None = None) -> None:
         """A horizontal line across the panel at y (counted in the y limits, as matplotlib does)."""
@@ -564,8 +566,7 @@ class Box3D:
 
     def plot(self, x, y, z, fmt: str | None = None, **kwargs) -> None:
         """A 3-D polyline (matplotlib's Axes3D.plot)."""
-        color, lw, style, label = _line_args(fmt, kwargs, color_cycle()[len(self.lines) % len(color_cycle())])
-        self.lines.append(_Line(np.asarray(x, float), np.asarray(y, float), color, lw, style, label))
+        self.lines.append(_plotted(x, y, fmt, kwargs, len(self.lines)))
         self.z.append(np.asarray(z, float))
 
     def scatter(self, x, y, z, color="k", s: float = 20, label: str | None = None) -> None:

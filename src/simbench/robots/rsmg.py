@@ -67,7 +67,7 @@ KINDS = (REVOLUTE,) * (2 * ARMS)
 LOWER = np.full(2 * ARMS, -np.inf)
 UPPER = np.full(2 * ARMS, np.inf)
 QD_MAX = np.full(2 * ARMS, 4 * np.pi)  # 2 turns/s: a small direct-drive motor's speed, the base joints' and gammas'
-_CHUNK = 1 << 16  # samples whose A is built at once by the measures: memory bounded on a long run
+CHUNK = 1 << 16  # samples the measures and rsmg_outputs' errors work on at once: memory bounded on a long run
 
 
 def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
@@ -196,11 +196,11 @@ def measures(rec) -> dict[str, np.ndarray]:
 
 
 def _type_a(q: np.ndarray, engaged: np.ndarray) -> np.ndarray:
-    """type_a_measure of the recorded joints (N,), _CHUNK samples at a time: each sample's own numbers, without
+    """type_a_measure of the recorded joints (N,), CHUNK samples at a time: each sample's own numbers, without
     temporaries of a dozen times A for all of a long run's samples at once (250 MB on the ten-minute soak)."""
     out = np.empty(len(q))
-    for a in range(0, len(q), _CHUNK):
-        out[a:a + _CHUNK] = type_a_measure(_rows(q[a:a + _CHUNK]), engaged[a:a + _CHUNK])
+    for a in range(0, len(q), CHUNK):
+        out[a:a + CHUNK] = type_a_measure(_rows(q[a:a + CHUNK]), engaged[a:a + CHUNK])
     return out
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from simbench.api import Summary
-from simbench.robots.rsmg import _CHUNK, ARMS, GAMMA_BAND, POINTS, RADIUS, gripping
+from simbench.robots.rsmg import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.rotations import quat_to_matrix, rotation_angle
 
 _GRIPPING_RGBA = [0.2, 0.85, 0.3, 1.0]  # an EM that grips: green
@@ -41,7 +41,7 @@ def summary(traj, rec, series: dict) -> Summary:
 def _rotor_errors(traj, rec, engaged: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rotor's error (its angle from the planned orientation) and the closure error (how far each gripping
     EM's tip has moved on the rotor since it gripped: the weld's violation, the loop through the arm and the rotor
-    failing to close; the largest over the arms, in m), (N,) each. _CHUNK samples at a time, each sample's own
+    failing to close; the largest over the arms, in m), (N,) each. CHUNK samples at a time, each sample's own
     numbers: the rotor's matrices for all of a long run's samples at once, planned and recorded, and each arm's tip
     in the rotor's frame would be 130 MB of temporaries on the ten-minute soak. `anchor`: each arm's tip in the
     rotor's frame at its last grip before the chunk."""
@@ -49,8 +49,8 @@ def _rotor_errors(traj, rec, engaged: np.ndarray) -> tuple[np.ndarray, np.ndarra
     error, closure = np.empty(rec.t.size), np.zeros(rec.t.size)
     grips = engaged & ~np.concatenate([np.zeros((1, ARMS), bool), engaged[:-1]])  # the rows where each arm grips
     anchor = np.zeros((ARMS, 3))
-    for a in range(0, rec.t.size, _CHUNK):
-        b = min(a + _CHUNK, rec.t.size)
+    for a in range(0, rec.t.size, CHUNK):
+        b = min(a + CHUNK, rec.t.size)
         rot = quat_to_matrix(quat[a:b])
         error[a:b] = rotation_angle(quat_to_matrix(planned[a:b]), rot)
         for arm in range(ARMS):
