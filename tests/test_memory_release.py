@@ -2,8 +2,12 @@
 temporaries small: the same numbers as computed whole (benchmarks/bench_soak.py measures the peak memory)."""
 
 import numpy as np
+import simbench
+from conftest import scenario_file
 
 from simbench import sim
+from simbench.plant import Plant
+from simbench.planners import round_robin
 from simbench.robots import rsmg as S
 from simbench.robots import rsmg_outputs
 from simbench.rotations import quat_to_matrix, rotation_angle
@@ -19,6 +23,47 @@ def test_a_revised_plan_comes_without_its_spent_feedback_and_the_forces_are_view
     assert rec.force.base is not None and rec.force.base is rec.tool.base  # both views of the sensor rows
     assert sim._columns(np.array([3, 4, 5])) == slice(3, 6)
     assert np.array_equal(sim._columns(np.array([3, 5])), [3, 5])
+
+
+def test_revising_the_plan_in_place_steps_as_revising_copies_of_it():
+    """simulate(..., revise_in_place=True), as simbench.run asks, revises the plan's own references instead of
+    copies: the same recording and the same commanded references, bit for bit, while the plan's own references
+    are left as planned by default. The RSMG's feedback reads the plan's references as it re-solves each grip, so
+    this also shows that no change touches a row a later change reads. The feedback finds the rotor's commanded
+    orientations again from the motion: they are the plan's own (its rotor quaternions)."""
+    scenario = simbench.load_scenario(scenario_file("rsmg", "tumble"))
+    robot = scenario.robot_def
+    plant = Plant.load(robot, scenario.sim.timestep)
+    dt = float(plant.model.opt.timestep)
+    copied_plan, own_plan = (scenario.planner_def.plan(scenario, robot, dt) for _ in range(2))
+    planned = copied_plan.q_ref.copy()
+    copied = sim.simulate(plant, copied_plan, settle=scenario.sim.settle)
+    own = sim.simulate(plant, own_plan, settle=scenario.sim.settle, revise_in_place=True)
+    assert np.array_equal(copied_plan.q_ref, planned)  # left as planned
+    assert copied.q_ref is not None and not np.array_equal(copied.q_ref, planned)  # the feedback revised them
+    assert own.q_ref is own_plan.q_ref and own.qd_ref is own_plan.qd_ref
+    for name in ("q_ref", "qd_ref", "qpos", "q", "ctrl", "tool", "force"):
+        assert np.array_equal(getattr(own, name), getattr(copied, name)), name
+
+
+def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_plan_has_them(monkeypatch):
+    """The feedback finds the rotor's commanded orientations a block at a time as grips ask for them, dropping the
+    blocks behind: the same numbers as all of them found at once, bit for bit, for rows asked for in time order
+    and out of it, across blocks; and those of the plan's own rotor quaternions."""
+    monkeypatch.setattr(round_robin, "_CHUNK", 1000)
+    scenario = simbench.load_scenario(scenario_file("rsmg", "tumble"))
+    dt = float(Plant.load(scenario.robot_def, scenario.sim.timestep).model.opt.timestep)
+    plan = scenario.planner_def.plan(scenario, scenario.robot_def, dt)
+    motion, s = scenario.task.motion, plan.s
+    every = motion.orientation(s)
+    assert np.abs(every - quat_to_matrix(plan.series["rotor_quat_ref"])).max() < 1e-12
+    rot = round_robin._Orientations(motion, s)
+    rng = np.random.default_rng(7)
+    starts = np.sort(rng.integers(0, len(s) - 1, 30)).tolist() + rng.integers(0, len(s) - 1, 10).tolist()
+    for a in starts:
+        b = min(a + int(rng.integers(1, 4000)), len(s))
+        assert np.array_equal(rot.rows(a, b), every[a:b])
+        assert min(rot.blocks) == a // 1000  # the blocks behind are dropped
 
 
 def test_the_rotor_and_closure_errors_are_each_samples_own_however_the_samples_are_chunked(evaluated, monkeypatch):

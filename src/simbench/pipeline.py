@@ -135,7 +135,8 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
         _give_back_memory(len(traj.t))
     with watch.stage("simulate"):
-        rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every)
+        rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every,
+                       revise_in_place=True)  # the plan as planned is not needed after the run
         traj = commanded(traj, rec)
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
         del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them

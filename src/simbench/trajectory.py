@@ -57,6 +57,19 @@ class JointTrajectory:
         return float(self.t[1] - self.t[0])
 
 
+def revise(q_ref: np.ndarray, qd_ref: np.ndarray, change: tuple, dt: float) -> tuple[int, int]:
+    """Apply a plan feedback's change (k0, columns, q) to references in place (JointTrajectory.feedback): new
+    values q for those columns of q_ref from row k0 on, and their rates from np.gradient of the new values, up to
+    and including the row just after them, whose rate moves too (the rows before k0 have been used). Returns the
+    rows [k0, hi) whose references changed."""
+    k0, columns, q = change
+    k1 = k0 + len(q)
+    q_ref[k0:k1, columns] = q
+    hi = min(k1 + 1, len(q_ref))
+    qd_ref[k0:hi, columns] = np.gradient(q_ref[k0:hi, columns], dt, axis=0)
+    return k0, hi
+
+
 def control_grid(duration: float, hold: float, dt: float) -> np.ndarray:
     """Sample times 0, dt, ..., covering the motion and the hold after it."""
     n = int(round((duration + hold) / dt))

@@ -24,6 +24,7 @@ from simbench.scenario import Scenario
 from simbench.sim import Recording
 from simbench.stepping import ClosedLoop, OpenLoop, Rows
 from simbench.switches import apply_switch, switch_steps
+from simbench.trajectory import revise
 
 _REWARD_AT_TOLERANCE = 0.5  # the reward when the tool is analysis.path_tolerance off its reference
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -185,11 +186,7 @@ class Track(control.Task):
             return
         if not self.revised:
             self.q_ref, self.qd_ref, self.revised = self.plan.q_ref.copy(), self.plan.qd_ref.copy(), True
-        k0, columns, q = change
-        k1 = k0 + len(q)
-        self.q_ref[k0:k1, columns] = q
-        hi = min(k1 + 1, len(self.q_ref))
-        self.qd_ref[k0:hi, columns] = np.gradient(self.q_ref[k0:hi, columns], self.plan.dt, axis=0)
+        revise(self.q_ref, self.qd_ref, change, self.plan.dt)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
         """One value per robot joint, within its actuator's control range where it has one."""

@@ -69,7 +69,7 @@ _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this tim
 _QUINTIC = TimeLaw("quintic", 1.0)
 _STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
 _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
-_CHUNK = 65536  # control samples turned into quaternions at a time (_quaternions)
+_CHUNK = 65536  # control samples turned into quaternions at a time (_quaternions), or orientations (_Orientations)
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 # The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
 # paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
@@ -672,7 +672,7 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     q_ref = _joint_paths(t, sched)
     rot = task.motion.orientation(s)
     engaged = _engaged(t, sched.holds, sched.grid)
-    feedback = _RegripFeedback(rot, q_ref, sched.holds, sched.grid, dt, round(task.swing_time / dt)) \
+    feedback = _RegripFeedback(task.motion, s, q_ref, sched.holds, sched.grid, dt, round(task.swing_time / dt)) \
         if task.regrip_feedback else None
     quat = _quaternions(rot)
     info = {
@@ -708,9 +708,9 @@ class _RegripFeedback:
     """At a grip during the run, the gripping arm's references from then until its release and over the swing
     after it, re-solved for the point it really gripped (see the module's docstring)."""
 
-    def __init__(self, rot: np.ndarray, q_ref: np.ndarray, holds: list[Hold], grid: np.ndarray, dt: float,
-                 n_swing: int):
-        self.rot, self.q_ref, self.dt, self.n_swing = rot, q_ref, dt, n_swing
+    def __init__(self, motion: Motion, s: np.ndarray, q_ref: np.ndarray, holds: list[Hold], grid: np.ndarray,
+                 dt: float, n_swing: int):
+        self.rot, self.q_ref, self.dt, self.n_swing = _Orientations(motion, s), q_ref, dt, n_swing
         # (arm, grip row) -> its release row (the end of the reference if it never lets go)
         self.release = {(h.arm, int(round(grid[h.start] / dt))): min(int(round(grid[h.end] / dt)), len(q_ref))
                         if h.end < grid.size else len(q_ref) for h in holds if h.start > 0}
@@ -722,7 +722,7 @@ class _RegripFeedback:
         k_release = self.release[arm, k]
         tip = data.site(f"em{arm + 1}_tip").xpos
         point = data.body("rotor").xmat.reshape(3, 3).T @ (tip / np.linalg.norm(tip))  # in the rotor's frame
-        theta, gamma = rsmg.ik(arm, self.rot[k:k_release] @ point)
+        theta, gamma = rsmg.ik(arm, self.rot.rows(k, k_release) @ point)
         if not (np.isfinite(theta).all() and np.isfinite(gamma).all()):
             return None  # the point leaves the arm's reach before its release: keep the plan
         columns = [arm, rsmg.ARMS + arm]
@@ -735,6 +735,27 @@ class _RegripFeedback:
         out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
         q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
         return k, columns, q
+
+
+class _Orientations:
+    """The rotor's commanded orientations R (N, 3, 3) at the plan's path parameters s, found from the motion a
+    block of _CHUNK rows at a time as the run's grips ask for them, not kept whole: all of them would hold 43 MB
+    through the ten-minute soak's run. The grips come in time order, so the blocks before the latest asked for are
+    dropped (and found again should an earlier row be asked for); each row is then found about once, though the
+    four arms' holds overlap."""
+
+    def __init__(self, motion: Motion, s: np.ndarray):
+        self.motion, self.s = motion, s
+        self.blocks: dict[int, np.ndarray] = {}
+
+    def rows(self, a: int, b: int) -> np.ndarray:
+        """R at rows a..b-1: the same numbers as motion.orientation(s)[a:b] (scipy's rotations are each row's)."""
+        first, last = a // _CHUNK, max(b - 1, a) // _CHUNK
+        self.blocks = {i: block for i, block in self.blocks.items() if i >= first}
+        for i in range(first, last + 1):
+            if i not in self.blocks:
+                self.blocks[i] = self.motion.orientation(self.s[i * _CHUNK:(i + 1) * _CHUNK])
+        return np.concatenate([self.blocks[i][max(a - i * _CHUNK, 0):b - i * _CHUNK] for i in range(first, last + 1)])
 
 
 def _smoothstep(u: np.ndarray) -> np.ndarray:
