@@ -63,6 +63,17 @@ def test_lag_is_the_error_along_the_tangent_even_where_the_path_closes():
     assert np.allclose(tangent[4001:], tangent[4000])
 
 
+def test_row_norms_are_numpys_to_the_bit():
+    """_norms adds the squares in np.linalg.norm's order: the same numbers, on rows of any scale and on a strided
+    view (a recording's columns)."""
+    from simbench.analysis import _norms
+
+    rng = np.random.default_rng(14)
+    rows = rng.normal(size=(5000, 7)) * 10.0 ** rng.integers(-150, 150, (5000, 1))
+    for v in (rows[:, :3], rows[:, 4:], np.diff(rows[:, 2:5], axis=0), np.zeros((0, 3))):
+        assert np.array_equal(_norms(v), np.linalg.norm(v, axis=1))
+
+
 def test_spans_of_a_mask():
     mask = np.array([0, 1, 1, 0, 0, 1, 0, 1, 1, 1], bool)
     assert spans(mask) == [(1, 2), (5, 5), (7, 9)]
@@ -155,7 +166,7 @@ def test_deviation_near_reference_gives_what_the_k_d_tree_search_gave():
     """deviation_near_reference against the k-d tree search it replaced, written out by brute force block by block
     (_kd_tree_rule), on random paths (fixed seed) with points near them, off them and far from them."""
     rng = np.random.default_rng(140)
-    for n, window in ((400, 60), (700, 250), (90, 200)):
+    for n, window in ((400, 60), (700, 250), (90, 200), (450, 300)):  # the last's two blocks share the whole path
         path = _random_path(rng, n)
         offset = rng.normal(size=(n, 3)) * rng.choice([0.0, 1e-7, 1e-3, 0.05, 2.0], (n, 1))
         points = path[np.clip(np.arange(n) - rng.integers(0, 5, n), 0, n - 1)] + offset

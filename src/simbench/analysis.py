@@ -42,8 +42,12 @@ class Analysis:
 
 
 def spans(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Index ranges [start, end] (inclusive) of the runs of True in mask."""
-    padded = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    """Index ranges [start, end] (inclusive) of the runs of True in mask. Most masks the analysis asks about (a
+    joint past a limit, an actuator saturated) have none: those return at once."""
+    mask = np.asarray(mask, bool)
+    if not mask.any():
+        return []
+    padded = np.concatenate([[False], mask, [False]])
     edges = np.flatnonzero(padded[1:] != padded[:-1])
     return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
 
@@ -85,7 +89,8 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
     if len(path) == 0:
         raise ValueError("path_deviation needs a path of at least one point")
     reference = reference and len(points) <= len(path)
-    keep = np.concatenate([[True], np.any(path[1:] != path[:-1], axis=1)])  # repeated samples add nothing
+    moved = path[1:] != path[:-1]  # repeated samples add nothing (x, y and z apart, as in `_norms`)
+    keep = np.concatenate([[True], moved[:, 0] | moved[:, 1] | moved[:, 2]])
     index = np.cumsum(keep) - 1  # each sample's vertex among those kept
     vertices = path[keep]
     first = np.empty(len(points), int)
@@ -95,7 +100,7 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
     out = np.empty(len(points))
     segment = np.full(len(points), -1)
     single = first == last
-    out[single] = np.linalg.norm(points[single] - vertices[first[single]], axis=1)
+    out[single] = _norms(points[single] - vertices[first[single]])
     todo = np.flatnonzero(~single)
     if todo.size:
         tree = _capsules(vertices)
@@ -103,8 +108,14 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
             guess = np.clip(index[part], first[part], last[part] - 1) if reference else first[part]
             out[part], segment[part] = _nearest(tree, points[part], first[part], last[part] - 1, guess)
         lengths = np.sqrt(np.einsum("ij,ij->i", *(2 * [np.diff(vertices, axis=0)])))
-        for a, b, lo, hi in blocks:
-            _far_rule(tree, vertices, lengths, points, out, first, last, segment, a, b)
+        # each stretch's `_pieces` once: on a short run, every block of `deviation_near_reference` has the whole path
+        pieces: dict[tuple[int, int], tuple[np.ndarray, float]] = {}
+        for a, b, _, _ in blocks:
+            if a < b and first[a] < last[a]:
+                stretch = int(first[a]), int(last[a])
+                if stretch not in pieces:
+                    pieces[stretch] = _pieces(lengths[stretch[0]:stretch[1]])
+                _far_rule(tree, vertices, points, out, first, last, segment, a, b, *pieces[stretch])
     return out
 
 
@@ -263,21 +274,24 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
     return dist[least], seg[least]
 
 
-def _far_rule(tree: _Capsules, vertices: np.ndarray, lengths: np.ndarray, points: np.ndarray, out: np.ndarray,
-              first: np.ndarray, last: np.ndarray, guess: np.ndarray, a: int, b: int) -> None:
-    """Where one of points[a:b] (searched on vertices first..last, the same for all) lies far from that stretch,
-    its distance as the k-d tree search that `_nearest` replaced gave it, in place in `out`: with the stretch's
-    long segments cut into pieces no longer than the typical one (the median, or 1e-5 of the whole length if
-    that is longer) and h half the longest piece, a point whose nearest piece end lies beyond 100 h took that
-    end's distance, within h^2 / 2r of the exact one; only where h^2 / 2r exceeds 1e-11 of the coordinates' scale
-    does it differ from the exact one here. `lengths`: the segments', `guess`: a segment near each point."""
-    if a == b or first[a] == last[a]:
-        return
-    length = lengths[first[a]:last[a]]
+def _pieces(length: np.ndarray) -> tuple[np.ndarray, float]:
+    """A stretch's segments (their lengths) cut into pieces no longer than the typical one (the median, or 1e-5 of
+    the whole length if that is longer), as the k-d tree search that `_nearest` replaced cut them: each segment's
+    number of pieces, and h, half the longest piece (`_far_rule`)."""
     cuts = np.ones(len(length), int)
     if len(length) >= 2:
         cuts = np.maximum(np.ceil(length / max(float(np.median(length)), 1e-5 * float(length.sum()))), 1).astype(int)
-    half = 0.5 * float((length / cuts).max())
+    return cuts, 0.5 * float((length / cuts).max())
+
+
+def _far_rule(tree: _Capsules, vertices: np.ndarray, points: np.ndarray, out: np.ndarray, first: np.ndarray,
+              last: np.ndarray, guess: np.ndarray, a: int, b: int, cuts: np.ndarray, half: float) -> None:
+    """Where one of points[a:b] (searched on vertices first..last, the same for all, of at least one segment) lies
+    far from that stretch, its distance as the k-d tree search that `_nearest` replaced gave it, in place in `out`:
+    with the stretch's segments cut into `cuts` pieces each and h (`half`) half the longest piece (`_pieces`), a
+    point whose nearest piece end lies beyond 100 h took that end's distance, within h^2 / 2r of the exact one; only
+    where h^2 / 2r exceeds 1e-11 of the coordinates' scale does it differ from the exact one here. `guess`: a
+    segment near each point."""
     tol = 1e-11 * (1.0 + tree.scale)
     far = a + np.flatnonzero((out[a:b] > 99.99 * half) & (half * half > 2 * tol * out[a:b]))
     if far.size == 0:
@@ -294,7 +308,7 @@ def _far_rule(tree: _Capsules, vertices: np.ndarray, lengths: np.ndarray, points
         for step in (0, 1):
             piece = np.minimum(np.floor(u * n).astype(int) + step, n)
             at = np.where((piece == n)[:, None], end, start + (piece / n)[:, None] * ab)
-            ends.append(np.linalg.norm(p - at, axis=1))
+            ends.append(_norms(p - at))
     nearest_end = np.min(ends, axis=0)
     out[far] = np.where(nearest_end > 100 * half, nearest_end, exact)
 
@@ -303,10 +317,18 @@ def _rms(x: np.ndarray, axis=0) -> np.ndarray:
     return np.sqrt(np.mean(np.square(x), axis=axis))
 
 
+def _norms(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of v (N, 3): the numbers np.linalg.norm(v, axis=1) gives (the squares added in
+    the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array across its short rows
+    several times as slowly as it does the arithmetic, so the analysis works a column at a time there."""
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def along_path(points: np.ndarray) -> np.ndarray:
     """Unit tangent (N, 3) of a sampled path; where it rests, the direction it last moved in (or first will)."""
     step = np.gradient(points, axis=0)
-    norm = np.linalg.norm(step, axis=1)
+    norm = _norms(step)
     moving = norm > 1e-12 * max(1.0, float(np.abs(points).max()))
     if not moving.any():
         return np.zeros_like(points)
@@ -324,12 +346,14 @@ def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict,
     """
     joint_error = rec.q - traj.q_ref
     deviation = deviation_near_reference(traj.tool_ref, rec.tool, max(1, int(round(_NEAR_REFERENCE / traj.dt))))
-    lag = np.einsum("ij,ij->i", traj.tool_ref - rec.tool, along_path(traj.tool_ref))
-    arc_ref = np.sum(np.linalg.norm(np.diff(traj.tool_ref, axis=0), axis=1))
-    tool_error = np.linalg.norm(rec.tool - traj.tool_ref, axis=1)
+    behind = traj.tool_ref - rec.tool  # the tool to its reference: its error, and along the tangent its lag
+    lag = np.einsum("ij,ij->i", behind, along_path(traj.tool_ref))
+    arc_ref = np.sum(_norms(np.diff(traj.tool_ref, axis=0)))
+    tool_error = _norms(behind)
     summary = {
         "joint_rms": dict(zip(robot.joints, _rms(joint_error).tolist())),
-        "joint_max": dict(zip(robot.joints, np.abs(joint_error).max(axis=0).tolist())),
+        # a joint at a time, as in `_norms`
+        "joint_max": {name: float(np.abs(error).max()) for name, error in zip(robot.joints, joint_error.T)},
         "tool_rms": float(_rms(deviation)),
         "tool_max": float(deviation.max()),
         "tool_lag_rms": float(_rms(lag)),
@@ -406,10 +430,11 @@ def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | No
     cost: how far and how long the tool left the path."""
     t, events = traj.t, []
     limit = _JUMP_FACTOR * robot.qd_max * traj.dt
-    # a joint at a time, the steps as np.diff gives them: no (N, dof) temporaries on a long run
-    jump = np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))], axis=1)
-    for k in np.flatnonzero(jump.any(axis=1)):
-        detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[k])],
+    # a joint at a time, the steps as np.diff gives them: no (N, dof) temporaries on a long run; a joint a row, so
+    # that `any` runs along the samples (as in `_norms`)
+    jump = np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))])
+    for k in np.flatnonzero(jump.any(axis=0)):
+        detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[:, k])],
                   "step": (traj.q_ref[k + 1] - traj.q_ref[k]).tolist(),
                   "s": [float(traj.s[k]), float(traj.s[k + 1])],
                   "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1])}
