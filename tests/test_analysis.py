@@ -1,9 +1,11 @@
 """Analysis building blocks against closed-form geometry."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from simbench import analysis
 from simbench.analysis import along_path, deviation_near_reference, path_deviation, spans
 from simbench.render import simplify
 
@@ -162,9 +164,13 @@ def test_the_branch_and_bound_finds_every_points_nearest_segment_in_its_range():
         assert np.all(np.abs(found - exact) <= 2 * tol) and np.all(np.abs(at - exact) <= 2 * tol), n
 
 
-def test_deviation_near_reference_gives_what_the_k_d_tree_search_gave():
+@pytest.mark.parametrize("group", [1 << 17, 1, 500])
+def test_deviation_near_reference_gives_what_the_k_d_tree_search_gave(group, monkeypatch):
     """deviation_near_reference against the k-d tree search it replaced, written out by brute force block by block
-    (_kd_tree_rule), on random paths (fixed seed) with points near them, off them and far from them."""
+    (_kd_tree_rule), on random paths (fixed seed) with points near them, off them and far from them; the same
+    searched whole (one group of blocks, as every shipped scenario is), a block at a time and in groups of
+    blocks (a long run's: each group on its own stretch of path)."""
+    monkeypatch.setattr(analysis, "_GROUP", group)
     rng = np.random.default_rng(140)
     for n, window in ((400, 60), (700, 250), (90, 200), (450, 300)):  # the last's two blocks share the whole path
         path = _random_path(rng, n)

@@ -26,6 +26,7 @@ _NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
 _BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
 _LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
+_GROUP = 1 << 17  # samples of a long run that deviation_near_reference searches at once, on their stretch alone
 
 
 @dataclass(frozen=True)
@@ -66,20 +67,31 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) 
     """Distance of each points[k] from the stretch of the sampled path within about `window` samples of path[k]
     (from `window` to twice that: the path is cut into blocks of `window` samples, each searched with its
     neighbours). A path that comes back to the same place later, a rotor turning many times say, then does not
-    hide a point that is off its own stretch, and the search stays as cheap as on a path that never returns."""
+    hide a point that is off its own stretch, and the search stays as cheap as on a path that never returns.
+    A long run's blocks are searched a group of at least _GROUP samples at a time, each group on the stretch of
+    path its blocks need, so that the search's memory does not grow with the run (a tree of the whole ten-minute
+    soak's path and its search took 180 MB); every shipped scenario is one group."""
+    path, points = np.asarray(path, float), np.asarray(points, float)
     n = len(points)
     blocks = [(start, min(start + window, n), max(start - window, 0), min(start + 2 * window, len(path)) - 1)
               for start in range(0, n, window)]
-    return _deviation(np.asarray(path, float), np.asarray(points, float), blocks, reference=True)
+    out = np.empty(n)
+    per = max(1, _GROUP // window)  # blocks a group
+    for group in (blocks[g:g + per] for g in range(0, len(blocks), per)):
+        a0, b0, lo, hi = group[0][0], group[-1][1], group[0][2], group[-1][3]  # block ranges ascend with start
+        shifted = [(a - a0, b - a0, first - lo, last - lo) for a, b, first, last in group]
+        out[a0:b0] = _deviation(path[lo:hi + 1], points[a0:b0], shifted, planned_at=a0 - lo)
+    return out
 
 
 def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int, int, int]],
-               reference: bool = False) -> np.ndarray:
+               planned_at: int | None = None) -> np.ndarray:
     """Distance of points[a:b] from the polyline path[first:last + 1], for each block (a, b, first, last).
 
     Exact to about 1e-12 of the coordinates' scale: a branch and bound over a tree of the path's stretches of 2^l
     segments (`_capsules`), each bounded by a capsule about its chord, so that each point examines a few stretches a
-    level (`_nearest`). `reference`: points[k] is planned at path[k], and the segment there gives the first bound.
+    level (`_nearest`). `planned_at`: points[k] is planned at path[k + planned_at], and the segment there gives the
+    first bound.
     Repeated samples are dropped first: the polyline is the same.
 
     Far from its stretch of path (nearest vertex r > 100 h), a point's distance is the one the k-d tree search
@@ -88,11 +100,13 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
     """
     if len(path) == 0:
         raise ValueError("path_deviation needs a path of at least one point")
-    reference = reference and len(points) <= len(path)
     moved = path[1:] != path[:-1]  # repeated samples add nothing (x, y and z apart, as in `_norms`)
     keep = np.concatenate([[True], moved[:, 0] | moved[:, 1] | moved[:, 2]])
     index = np.cumsum(keep) - 1  # each sample's vertex among those kept
     vertices = path[keep]
+    planned = None  # each point's planned vertex, where known
+    if planned_at is not None and len(points) + planned_at <= len(path):
+        planned = index[planned_at:planned_at + len(points)]
     first = np.empty(len(points), int)
     last = np.empty(len(points), int)
     for a, b, lo, hi in blocks:
@@ -105,7 +119,7 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
     if todo.size:
         tree = _capsules(vertices)
         for part in np.array_split(todo, -(-todo.size // _BATCH)):  # memory bounded on a long run
-            guess = np.clip(index[part], first[part], last[part] - 1) if reference else first[part]
+            guess = first[part] if planned is None else np.clip(planned[part], first[part], last[part] - 1)
             out[part], segment[part] = _nearest(tree, points[part], first[part], last[part] - 1, guess)
         lengths = np.sqrt(np.einsum("ij,ij->i", *(2 * [np.diff(vertices, axis=0)])))
         # each stretch's `_pieces` once: on a short run, every block of `deviation_near_reference` has the whole path
@@ -433,7 +447,7 @@ def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | No
     # a joint at a time, the steps as np.diff gives them: no (N, dof) temporaries on a long run; a joint a row, so
     # that `any` runs along the samples (as in `_norms`)
     jump = np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))])
-    for k in np.flatnonzero(jump.any(axis=0)):
+    for k in np.flatnonzero(jump.any(axis=0)).tolist():
         detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[:, k])],
                   "step": (traj.q_ref[k + 1] - traj.q_ref[k]).tolist(),
                   "s": [float(traj.s[k]), float(traj.s[k + 1])],
