@@ -29,7 +29,7 @@ from simbench.robots import Tolerance
 from simbench.sim import commanded, simulate
 from simbench.verdict import run_verdict
 
-REPEATS = 5
+REPEATS = 15  # pairs a scenario: with 5, one loaded run of the circle swung by +-0.05
 PLOT_REPEATS = 7
 PLOTS = "spherical_arm/demo"
 # Commit 0ca0635, measured by this module on 2026-11-23 (AMD EPYC, 2 cores, shared with other work) just before
