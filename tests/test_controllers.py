@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import sys
 import textwrap
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -213,21 +214,31 @@ def test_the_servo_redoes_only_the_revised_rows_and_a_controller_without_revise_
     assert heard.told[0] == 7 and heard.told[1] is q_ref
 
 
-def test_computed_torque_redoes_the_planned_acceleration_only_where_the_revised_rows_reach():
-    """On the RSMG (constrained: the acceleration's feed-forward is taken each step), revise_rows over random
-    spans leaves qdd_ref bit-identical to np.gradient of the whole revised qd_ref."""
-    scenario = with_control("rsmg", "three_turns", controller="computed_torque")
+@pytest.mark.parametrize("robot, name", [("rsmg", "three_turns"), ("puma600", "line")])
+def test_computed_torque_redoes_the_feedforward_only_where_the_revised_rows_reach(robot, name):
+    """revise_rows over random spans (and `revise` to the end) leaves the controller as binding it to the revised
+    references would, bit for bit: on the RSMG (constrained: the acceleration's feed-forward is taken each step)
+    qdd_ref, np.gradient of the whole revised qd_ref; on a serial arm also its inverse dynamics tau_ff, redone
+    only at the rows the change reaches."""
+    scenario = with_control(robot, name, controller="computed_torque")
     plant = Plant.load(scenario.robot_def, scenario.sim.timestep, actuation="torque")
     traj = scenario.planner_def.plan(scenario, scenario.robot_def, float(plant.model.opt.timestep))
     ct = ComputedTorque()
     ct.bind(plant, traj)
-    assert ct.tau_ff is None
+    assert (ct.tau_ff is None) == (robot == "rsmg")
     rng = np.random.default_rng(8)
     q_ref, qd_ref = traj.q_ref.copy(), traj.qd_ref.copy()
     n = len(q_ref)
-    for k0, k1 in [(0, 1), (0, 3), (n - 1, n), (n - 3, n), *((int(a), int(a) + int(rng.integers(1, 500)))
-                                                              for a in rng.integers(1, n - 600, 10))]:
+    spans = [(0, 1), (0, 3), (n - 1, n), (n - 3, n), *((int(a), int(a) + int(rng.integers(1, 500)))
+                                                       for a in rng.integers(1, n - 600, 10)), (n // 2, n)]
+    for k0, k1 in spans:
         q_ref[k0:k1] += rng.normal(scale=0.01, size=(k1 - k0, q_ref.shape[1]))
         qd_ref[k0:k1] += rng.normal(scale=0.01, size=(k1 - k0, q_ref.shape[1]))
-        ct.revise_rows(k0, k1, q_ref, qd_ref)
-        assert np.array_equal(ct.qdd_ref, np.gradient(qd_ref, float(plant.model.opt.timestep), axis=0)), (k0, k1)
+        if k1 == n:
+            ct.revise(k0, q_ref, qd_ref)
+        else:
+            ct.revise_rows(k0, k1, q_ref, qd_ref)
+        fresh = ComputedTorque()
+        fresh.bind(plant, replace(traj, q_ref=q_ref.copy(), qd_ref=qd_ref.copy()))
+        assert np.array_equal(ct.qdd_ref, fresh.qdd_ref), (k0, k1)
+        assert ct.tau_ff is None or np.array_equal(ct.tau_ff, fresh.tau_ff), (k0, k1)

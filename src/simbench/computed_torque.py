@@ -66,7 +66,8 @@ class ComputedTorque(Controller):
         self.inertia = effective_inertia(plant, trajectory)
         self.kp, self.kd = self._gains()
         self.qdd_ref = np.gradient(trajectory.qd_ref, float(plant.model.opt.timestep), axis=0)
-        self.tau_ff = None if self.constrained else self._inverse_dynamics(trajectory.q_ref, trajectory.qd_ref)
+        self.tau_ff = None if self.constrained else self._inverse_dynamics(trajectory.q_ref, trajectory.qd_ref,
+                                                                           self.qdd_ref)
         self.ctrl = np.zeros(plant.model.nu)
 
     def _gains(self) -> tuple[Array, Array]:
@@ -76,11 +77,10 @@ class ComputedTorque(Controller):
         kd = np.array(c.kd) if c.kd is not None else 2 * c.damping_ratio * inertia * c.bandwidth
         return kp, kd
 
-    def _inverse_dynamics(self, q_ref: Array, qd_ref: Array) -> Array:
+    def _inverse_dynamics(self, q_ref: Array, qd_ref: Array, qdd_ref: Array) -> Array:
         """tau_ff (N, dof): mj_inverse at every planned sample, the other DOFs at rest."""
         plant, model = self.plant, self.plant.model
         data = mujoco.MjData(model)
-        qdd_ref = np.gradient(qd_ref, float(model.opt.timestep), axis=0)
         tau = np.empty_like(q_ref)
         for k in range(len(q_ref)):
             data.qpos[:] = plant.initial_qpos(q_ref[k])
@@ -104,23 +104,19 @@ class ComputedTorque(Controller):
         return self.ctrl.copy()
 
     def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
-        self.q_ref, self.qd_ref = q_ref, qd_ref
-        self.qdd_ref = np.gradient(qd_ref, float(self.plant.model.opt.timestep), axis=0)
-        if self.tau_ff is not None:
-            self.tau_ff[k0:] = self._inverse_dynamics(q_ref[k0:], qd_ref[k0:])
+        self.revise_rows(k0, len(q_ref), q_ref, qd_ref)
 
     def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
-        """As `revise` where the acceleration is measured each step (a constrained mechanism: the RSMG's re-grips),
-        the planned acceleration redone only at the rows k0 - 1 to k1 that np.gradient's differences of the
-        changed rows reach: the same numbers as over the whole references. A serial arm's feed-forward: `revise`."""
+        """The planned acceleration, and a serial arm's inverse dynamics, redone only at the rows k0 - 1 to k1 that
+        np.gradient's differences of the changed rows reach: the same numbers as binding to the revised references
+        (a long run re-grips hundreds of times; redoing every row to the end made it quadratic)."""
         n = len(qd_ref)
-        lo, hi = max(k0 - 2, 0), min(k1 + 2, n)  # the differences at rows k0 - 1 .. k1, each with its neighbours
-        if self.tau_ff is not None or hi - lo < 2:
-            self.revise(k0, q_ref, qd_ref)
-            return
         self.q_ref, self.qd_ref = q_ref, qd_ref
+        lo, hi = max(k0 - 2, 0), min(k1 + 2, n)  # the differences at rows k0 - 1 .. k1, each with its neighbours
         a, b = max(k0 - 1, 0), min(k1 + 1, n)
         self.qdd_ref[a:b] = np.gradient(qd_ref[lo:hi], float(self.plant.model.opt.timestep), axis=0)[a - lo:b - lo]
+        if self.tau_ff is not None:
+            self.tau_ff[a:b] = self._inverse_dynamics(q_ref[a:b], qd_ref[a:b], self.qdd_ref[a:b])
 
     def gains(self) -> dict[str, Any]:
         feedforward = ("effective inertia x planned acceleration + bias forces at the measured state "
