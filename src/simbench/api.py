@@ -212,7 +212,9 @@ class Planner(ABC, Generic[TaskT]):
 
     @abstractmethod
     def plan(self, scenario: Scenario, robot: Robot, dt: float) -> JointTrajectory:
-        """Joint references on the control grid of period dt (simbench.trajectory.control_grid)."""
+        """Joint references on the control grid of period dt (simbench.trajectory.control_grid). A plan whose
+        `feedback` revises it during the run has its q_ref and qd_ref changed in place by `simbench.run`: return
+        arrays of this plan's own, not ones a cache keeps for the next call."""
 
     def check(self, scenario: Scenario, robot: Robot) -> tuple[str, str] | None:
         """A task that is well-formed but means nothing (a zero-length path): (field, what is wrong), or None."""
