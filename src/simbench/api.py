@@ -45,9 +45,9 @@ if TYPE_CHECKING:
     from simbench.plant import Plant
     from simbench.sim import Recording
 
-__all__ = ["PRISMATIC", "REVOLUTE", "ControlSettings", "Controller", "Decoration", "JointTrajectory", "Plant", "Planner",
-           "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summary", "Switch", "Tolerance",
-           "broken", "controllers", "origin", "planners", "register_controller", "register_planner",
+__all__ = ["PRISMATIC", "REVOLUTE", "ControlSettings", "Controller", "Decoration", "JointTrajectory", "Plant",
+           "Planner", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summary", "Switch",
+           "Tolerance", "broken", "controllers", "origin", "planners", "register_controller", "register_planner",
            "register_robot", "robots"]
 
 _LAZY = {"Plant": "simbench.plant", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
