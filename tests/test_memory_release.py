@@ -2,15 +2,18 @@
 temporaries small: the same numbers as computed whole (benchmarks/bench_soak.py measures the peak memory)."""
 
 import numpy as np
-import simbench
+import yaml
 from conftest import scenario_file
 
+import simbench
 from simbench import sim
-from simbench.plant import Plant
+from simbench.errors import RunError
 from simbench.planners import round_robin
+from simbench.plant import Plant
 from simbench.robots import rsmg as S
 from simbench.robots import rsmg_outputs
 from simbench.rotations import quat_to_matrix, rotation_angle
+from simbench.scenario import parse_scenario
 
 
 def test_a_revised_plan_comes_without_its_spent_feedback_and_the_forces_are_views_of_the_sensors(evaluated):
@@ -44,6 +47,43 @@ def test_revising_the_plan_in_place_steps_as_revising_copies_of_it():
     assert own.q_ref is own_plan.q_ref and own.qd_ref is own_plan.qd_ref
     for name in ("q_ref", "qd_ref", "qpos", "q", "ctrl", "tool", "force"):
         assert np.array_equal(getattr(own, name), getattr(copied, name)), name
+
+
+def _random_rsmg_task(rng: np.random.Generator) -> dict:
+    """The shipped tumble's scenario with a random motion (turns or a tumble about random axes), approach time,
+    contact scheme and duration."""
+    doc = yaml.safe_load(scenario_file("rsmg", "tumble").read_text())
+    axis, other = (list(np.round(v / np.linalg.norm(v), 3)) for v in rng.normal(size=(2, 3)))
+    doc["task"]["motion"] = ({"kind": "turns", "axis": axis, "turns": float(rng.uniform(0.5, 2.0))}
+                             if rng.random() < 0.5 else
+                             {"kind": "tumble", "spin_axis": axis, "spin_turns": float(rng.uniform(0.5, 2.0)),
+                              "precession_axis": other, "precession_turns": float(rng.uniform(0.2, 1.0))})
+    doc["task"]["approach_time"] = float(rng.choice([0.0, 0.05, 0.1]))
+    doc["task"]["contacts"] = str(rng.choice(["general", "fixed"]))
+    doc["timing"]["duration"] = float(rng.uniform(6.0, 10.0))
+    return doc
+
+
+def test_revising_in_place_steps_as_revising_copies_on_random_rsmg_tasks():
+    """The same on random motions, contact schemes and approach times (fixed seed), an approach of 0 among them (the
+    next grip right at a swing's end, the row after the last one the previous change touched): in place or on
+    copies, the same commanded references and the same recording, bit for bit."""
+    rng = np.random.default_rng(26)
+    revised = 0
+    for _ in range(12):
+        scenario = parse_scenario(_random_rsmg_task(rng), "random", default_name="random")
+        plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
+        dt = float(plant.model.opt.timestep)
+        try:
+            copied_plan, own_plan = (scenario.planner_def.plan(scenario, scenario.robot_def, dt) for _ in range(2))
+        except RunError:
+            continue  # a motion the arms cannot follow: refused before any simulation
+        copied = sim.simulate(plant, copied_plan, settle=scenario.sim.settle)
+        own = sim.simulate(plant, own_plan, settle=scenario.sim.settle, revise_in_place=True)
+        revised += copied.q_ref is not None
+        for name in ("q_ref", "qd_ref", "qpos", "q", "ctrl", "tool", "force"):
+            assert np.array_equal(getattr(own, name), getattr(copied, name)), (scenario.task.motion, name)
+    assert revised >= 8
 
 
 def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_plan_has_them(monkeypatch):
