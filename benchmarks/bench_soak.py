@@ -5,7 +5,7 @@ gripped: the weld's violation) and the mechanism's kinetic energy are no larger 
 first, and memory grows only with what is recorded. Measured:
   - each run in a fresh process (`simbench.run`, no video): wall time and peak resident memory, for the soak
     and for its first minute alone (the same motion, 60 s), so that the memory a recorded sample costs is
-    (peak_600 - peak_60) / (samples_600 - samples_60);
+    (peak_600 - peak_60) / (samples_600 - samples_60); and the soak's resident size at its peak in each stage;
   - the soak at its recording stride (`sim.record_every` in the yaml) and recorded whole (stride 1): peak
     memory, the time to write the outputs (plots and timeseries), and whether the report's errors and events
     are the same;
@@ -35,14 +35,27 @@ FOUND = ("status", "samples", "tracking", "singularity_events", "limit_events", 
          "rotor_error_max", "closure_error_max", "fewest_gripping", "gripping_gamma")
 
 _CHILD = """
-import json, resource, sys, time
+import json, os, resource, sys, threading, time
 import simbench
+PAGE = os.sysconf("SC_PAGE_SIZE")
+resident = []  # (s since the run's start, bytes), every 2 ms
+
+
+def sample():
+    while True:
+        with open("/proc/self/statm") as f:
+            resident.append((time.perf_counter() - start, int(f.read().split()[1]) * PAGE))
+        time.sleep(0.002)
+
+
 sc = simbench.load_scenario(sys.argv[1])
 start = time.perf_counter()
+threading.Thread(target=sample, daemon=True).start()
 simbench.run(sc, out=sys.argv[2], video=False)
-print(json.dumps({"wall": time.perf_counter() - start,
+print(json.dumps({"wall": time.perf_counter() - start, "resident": resident,
                   "peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
 """
+_STAGES = ("plan", "simulate", "analyse", "plots", "write")  # report.json's wall_time, in the order they run
 
 
 def _variant(folder: Path, name: str, minutes: float | None = None, feedback: bool = True,
@@ -70,6 +83,16 @@ def _run(scenario: Path, out: Path) -> dict:
     result = json.loads(done.stdout.strip().splitlines()[-1])
     result["report"] = json.loads((out / "report.json").read_text())
     return result
+
+
+def stage_peaks(resident: list, stages: dict) -> dict[str, float]:
+    """The largest resident size (bytes) sampled during each stage of a run, the stages placed end to end from
+    the run's start by report.json's wall times (the untimed work between them, checking the output folder say,
+    is a few ms)."""
+    t, rss = np.array(resident).T
+    ends = np.cumsum([stages.get(name, 0.0) for name in ("load", *_STAGES)])
+    return {name: float(rss[(t >= lo) & (t < hi)].max(initial=0.0))
+            for name, lo, hi in zip(_STAGES, ends[:-1], ends[1:])}
 
 
 def kinetic_energy(qpos: np.ndarray, dt: float) -> np.ndarray:
@@ -122,6 +145,7 @@ def measure() -> dict:
         "whole_stages": whole["report"]["wall_time"], "peak_rss_whole": whole["peak_rss"],
         "differ": [key for key in FOUND if report.get(key) != whole["report"].get(key)],
         "peak_rss": soak["peak_rss"], "peak_rss_short": short["peak_rss"], "samples_short": short["report"]["samples"],
+        "stage_peaks": stage_peaks(soak["resident"], report["wall_time"]),
         "rotor": _per_minute(t, rotor), "closure": _per_minute(t, closure),
         "energy": _per_minute(t[1::_STRIDE], energy), "energy_mean": _per_minute(t[1::_STRIDE], energy, np.mean),
         "open_rotor": open_rotor, "open_closure": open_closure, "open_status": open_loop["report"]["status"],
@@ -170,7 +194,8 @@ def markdown(r: dict) -> str:
         f"Memory: peak resident {r['peak_rss'] / 2**20:.0f} MiB for the soak, {r['peak_rss_short'] / 2**20:.0f} "
         f"MiB for its first minute alone (both at stride {r['record_every']}): memory grows with the run, "
         f"{per_sample:.0f} bytes a sample (the plan, the columns the analysis reads at every sample, the analysis "
-        "series).",
+        "series). The soak's resident size at its peak in each stage (sampled every 2 ms, MiB): "
+        + ", ".join(f"{name} {peak / 2**20:.0f}" for name, peak in r["stage_peaks"].items()) + ".",
     ])
 
 
