@@ -771,6 +771,9 @@ class RoundRobin(Planner):
     description = "paper 001: RSMG rotor motion by round-robin re-gripping of four electromagnet arms"
     task = Task
     robots = ("rsmg",)
+    # The schedule's search with general contacts: the ten-minute soak's tumble plans in 14 s, 23 us a sample in
+    # all (2026-11-23), of which budget.py's _SAMPLE_SECONDS covers 10; three_turns takes 2 us a sample.
+    seconds_per_sample = 13e-6
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
         return plan(scenario, robot, dt)
