@@ -29,11 +29,10 @@ def test_a_revised_plan_comes_without_its_spent_feedback_and_the_forces_are_view
 
 
 def test_revising_the_plan_in_place_steps_as_revising_copies_of_it():
-    """simulate(..., revise_in_place=True), as simbench.run asks, revises the plan's own references instead of
+    """simulate(..., revise_in_place=True), as the pipeline asks, revises the plan's own references instead of
     copies: the same recording and the same commanded references, bit for bit, while the plan's own references
-    are left as planned by default. The RSMG's feedback reads the plan's references as it re-solves each grip, so
-    this also shows that no change touches a row a later change reads. The feedback finds the rotor's commanded
-    orientations again from the motion: they are the plan's own (its rotor quaternions)."""
+    are left as planned by default. The RSMG's feedback reads the plan's references as it re-solves each grip:
+    the same results show that no change touched a row a later change read."""
     scenario = simbench.load_scenario(scenario_file("rsmg", "tumble"))
     robot = scenario.robot_def
     plant = Plant.load(robot, scenario.sim.timestep)
@@ -50,27 +49,30 @@ def test_revising_the_plan_in_place_steps_as_revising_copies_of_it():
 
 
 def _random_rsmg_task(rng: np.random.Generator) -> dict:
-    """The shipped tumble's scenario with a random motion (turns or a tumble about random axes), approach time,
-    contact scheme and duration."""
+    """The shipped tumble's scenario with a random motion (turns or a tumble about random axes), swing and
+    approach times, contact scheme, timestep and duration."""
     doc = yaml.safe_load(scenario_file("rsmg", "tumble").read_text())
     axis, other = (list(np.round(v / np.linalg.norm(v), 3)) for v in rng.normal(size=(2, 3)))
     doc["task"]["motion"] = ({"kind": "turns", "axis": axis, "turns": float(rng.uniform(0.5, 2.0))}
                              if rng.random() < 0.5 else
                              {"kind": "tumble", "spin_axis": axis, "spin_turns": float(rng.uniform(0.5, 2.0)),
                               "precession_axis": other, "precession_turns": float(rng.uniform(0.2, 1.0))})
-    doc["task"]["approach_time"] = float(rng.choice([0.0, 0.05, 0.1]))
+    doc["task"]["swing_time"] = float(rng.choice([0.5, rng.uniform(0.3, 0.6)]))  # on the schedule's grid or off
+    doc["task"]["approach_time"] = float(rng.choice([0.0, 0.002, 0.05, 0.1]))
     doc["task"]["contacts"] = str(rng.choice(["general", "fixed"]))
+    doc["sim"] = {**doc.get("sim", {}), "timestep": float(rng.choice([0.001, 0.002, 0.003]))}
     doc["timing"]["duration"] = float(rng.uniform(6.0, 10.0))
     return doc
 
 
 def test_revising_in_place_steps_as_revising_copies_on_random_rsmg_tasks():
-    """The same on random motions, contact schemes and approach times (fixed seed), an approach of 0 among them (the
-    next grip right at a swing's end, the row after the last one the previous change touched): in place or on
-    copies, the same commanded references and the same recording, bit for bit."""
+    """The same on random motions, contact schemes, swing and approach times and timesteps (fixed seed): among them
+    approaches of 0 and swings off the schedule's 5 ms grid or timesteps that do not divide it, where an arm's
+    next grip comes before its swing's planned end (the change then ends at that grip). In place or on copies,
+    the same commanded references and the same recording, bit for bit."""
     rng = np.random.default_rng(26)
     revised = 0
-    for _ in range(12):
+    for _ in range(16):
         scenario = parse_scenario(_random_rsmg_task(rng), "random", default_name="random")
         plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
         dt = float(plant.model.opt.timestep)

@@ -139,6 +139,20 @@ def test_three_turns_are_scheduled_at_every_speed_the_swings_allow():
     assert round_robin.plan(direct, S.ROBOT, 0.001).series["engaged_ref"].sum(axis=1).min() >= 3
 
 
+def test_control_samples_past_the_schedules_end_hold_the_last_reference():
+    """control_grid rounds the count of samples, so with a control step that does not divide duration + hold the
+    last sample lies up to half a step past the schedule's end: there every arm keeps its last reference (the
+    rotor rests through the hold) instead of having none (before: NaN, refused as a plan without a finite
+    reference)."""
+    base = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
+    for dt, duration in ((0.003, 6.7647), (0.002, 7.0013), (0.007, 9.304)):
+        sc = base.model_copy(update={"timing": base.timing.model_copy(update={"duration": duration})})
+        traj = round_robin.plan(sc, S.ROBOT, dt)
+        assert traj.t[-1] > duration + sc.timing.hold, dt
+        assert np.isfinite(traj.q_ref).all() and np.isfinite(traj.qd_ref).all(), dt
+        assert np.array_equal(traj.q_ref[-1], traj.q_ref[-2]), dt
+
+
 def test_impossible_band_is_a_run_error():
     task = round_robin.Task.model_validate({"motion": {"kind": "turns", "axis": [1, 0, 0], "turns": 2},
                                             "gamma_margin": np.deg2rad(75)})

@@ -500,7 +500,9 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
     for h in mine:
         start, stop = max(h.start - n_approach, 0), min(h.end, grid.size - 1)
         span = grid[start:stop + 1]
-        inside = _span(t, span[0], span[-1], closed=True) if h.end >= grid.size else _span(t, span[0], grid[h.end])
+        # a hold never released lasts to the reference's end, which may pass the schedule's by up to half a control
+        # step (control_grid rounds the samples' count): there it keeps its last value (np.interp's)
+        inside = _span(t, span[0], np.inf) if h.end >= grid.size else _span(t, span[0], grid[h.end])
         theta, gamma = contacts.path(arm, h.point, start, stop + 1)
         th = np.unwrap(theta)
         if held:  # keep theta on the turn nearest where the swing began
@@ -519,11 +521,11 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
     return out_theta, out_gamma
 
 
-def _span(t: np.ndarray, start: float, stop: float, closed: bool = False) -> slice:
-    """The samples of increasing times t from `start` to `stop` (included if `closed`) as a slice: the mask
+def _span(t: np.ndarray, start: float, stop: float) -> slice:
+    """The samples of increasing times t from `start` to before `stop` as a slice: the mask
     (t >= start) & (t < stop), found by bisection, not by a pass over all samples for every hold (a ten-minute run:
     hundreds of holds, 600,000 samples)."""
-    return slice(int(np.searchsorted(t, start)), int(np.searchsorted(t, stop, "right" if closed else "left")))
+    return slice(int(np.searchsorted(t, start)), int(np.searchsorted(t, stop)))
 
 
 def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
@@ -706,20 +708,32 @@ def _joint_rates(q_ref: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 class _RegripFeedback:
     """At a grip during the run, the gripping arm's references from then until its release and over the swing
-    after it, re-solved for the point it really gripped (see the module's docstring)."""
+    after it, up to its next grip, re-solved for the point it really gripped (see the module's docstring). A change
+    ends by the arm's next grip, whose own change takes over there: so no change touches the rows a later one
+    reads, and the references revised in place (simbench.run) are those revised in copies."""
 
     def __init__(self, motion: Motion, s: np.ndarray, q_ref: np.ndarray, holds: list[Hold], grid: np.ndarray,
                  dt: float, n_swing: int):
         self.rot, self.q_ref, self.dt, self.n_swing = _Orientations(motion, s), q_ref, dt, n_swing
-        # (arm, grip row) -> its release row (the end of the reference if it never lets go)
-        self.release = {(h.arm, int(round(grid[h.start] / dt))): min(int(round(grid[h.end] / dt)), len(q_ref))
-                        if h.end < grid.size else len(q_ref) for h in holds if h.start > 0}
+        rows = len(q_ref)
+
+        def row(step: int) -> int:  # a schedule step's control row (the end of the reference past the schedule)
+            return min(int(round(grid[step] / dt)), rows) if step < grid.size else rows
+
+        # (arm, grip row) -> its release row and the arm's next grip row (the end of the reference if none)
+        self.release: dict[tuple[int, int], tuple[int, int]] = {}
+        for arm in {h.arm for h in holds}:
+            own = sorted((h for h in holds if h.arm == arm), key=lambda h: h.start)
+            for h, after in zip(own, own[1:] + [None]):
+                if h.start > 0:
+                    self.release[arm, int(round(grid[h.start] / dt))] = (row(h.end),
+                                                                          rows if after is None else row(after.start))
 
     def __call__(self, switch: Switch, model, data, k: int):
         if not switch.active:
             return None
         arm = switch.detail["arm"] - 1
-        k_release = self.release[arm, k]
+        k_release, k_next = self.release[arm, k]
         tip = data.site(f"em{arm + 1}_tip").xpos
         point = data.body("rotor").xmat.reshape(3, 3).T @ (tip / np.linalg.norm(tip))  # in the rotor's frame
         theta, gamma = rsmg.ik(arm, self.rot.rows(k, k_release) @ point)
@@ -731,7 +745,7 @@ class _RegripFeedback:
         theta += 2 * np.pi * np.round((old[0, 0] - theta[0]) / (2 * np.pi))
         change = np.stack([theta, gamma], axis=1) - old
         ease = _smoothstep(np.arange(k_release - k) * self.dt / _EASE)
-        swing = self.q_ref[k_release:k_release + self.n_swing][:, columns]
+        swing = self.q_ref[k_release:min(k_release + self.n_swing, k_next)][:, columns]
         out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
         q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
         return k, columns, q
@@ -772,7 +786,8 @@ class RoundRobin(Planner):
     task = Task
     robots = ("rsmg",)
     # The schedule's search with general contacts: the ten-minute soak's tumble plans in 14 s, 23 us a sample in
-    # all (2026-11-23), of which budget.py's _SAMPLE_SECONDS covers 10; three_turns takes 2 us a sample.
+    # all (2026-11-23), of which budget.py's _SAMPLE_SECONDS (planning and analysing) covers 10; three_turns takes
+    # 2 us a sample.
     seconds_per_sample = 13e-6
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
