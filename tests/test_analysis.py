@@ -68,12 +68,10 @@ def test_lag_is_the_error_along_the_tangent_even_where_the_path_closes():
 def test_row_norms_are_numpys_to_the_bit():
     """_norms adds the squares in np.linalg.norm's order: the same numbers, on rows of any scale and on a strided
     view (a recording's columns)."""
-    from simbench.analysis import _norms
-
     rng = np.random.default_rng(14)
     rows = rng.normal(size=(5000, 7)) * 10.0 ** rng.integers(-150, 150, (5000, 1))
     for v in (rows[:, :3], rows[:, 4:], np.diff(rows[:, 2:5], axis=0), np.zeros((0, 3))):
-        assert np.array_equal(_norms(v), np.linalg.norm(v, axis=1))
+        assert np.array_equal(analysis._norms(v), np.linalg.norm(v, axis=1))
 
 
 def test_spans_of_a_mask():

@@ -68,11 +68,14 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) 
     (from `window` to twice that: the path is cut into blocks of `window` samples, each searched with its
     neighbours). A path that comes back to the same place later, a rotor turning many times say, then does not
     hide a point that is off its own stretch, and the search stays as cheap as on a path that never returns.
-    A long run's blocks are searched a group of at least _GROUP samples at a time, each group on the stretch of
-    path its blocks need, so that the search's memory does not grow with the run (a tree of the whole ten-minute
-    soak's path and its search took 180 MB); every shipped scenario is one group."""
+    A long run's blocks are searched a group of at most _GROUP samples (or one block, if longer) at a time, each
+    group on the stretch of path its blocks need, so that the search's memory does not grow with the run (a tree
+    of the whole ten-minute soak's path and its search took 180 MB); every shipped scenario is one group. Points
+    and path are (N, 3), a point for each path sample at most."""
     path, points = np.asarray(path, float), np.asarray(points, float)
     n = len(points)
+    if n > len(path):
+        raise ValueError(f"deviation_near_reference: {n} points for a path of {len(path)} samples")
     blocks = [(start, min(start + window, n), max(start - window, 0), min(start + 2 * window, len(path)) - 1)
               for start in range(0, n, window)]
     out = np.empty(n)
@@ -332,7 +335,7 @@ def _rms(x: np.ndarray, axis=0) -> np.ndarray:
 
 
 def _norms(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of v (N, 3): the numbers np.linalg.norm(v, axis=1) gives (the squares added in
+    """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1) gives (the squares added in
     the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array across its short rows
     several times as slowly as it does the arithmetic, so the analysis works a column at a time there."""
     x, y, z = v[:, 0], v[:, 1], v[:, 2]

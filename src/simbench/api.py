@@ -213,8 +213,8 @@ class Planner(ABC, Generic[TaskT]):
     @abstractmethod
     def plan(self, scenario: Scenario, robot: Robot, dt: float) -> JointTrajectory:
         """Joint references on the control grid of period dt (simbench.trajectory.control_grid). A plan whose
-        `feedback` revises it during the run has its q_ref and qd_ref changed in place by `simbench.run`: return
-        arrays of this plan's own, not ones a cache keeps for the next call."""
+        `feedback` revises it during the run has its q_ref and qd_ref changed in place by the pipeline
+        (simbench.run, evaluate): return arrays of this plan's own, not ones a cache keeps for the next call."""
 
     def check(self, scenario: Scenario, robot: Robot) -> tuple[str, str] | None:
         """A task that is well-formed but means nothing (a zero-length path): (field, what is wrong), or None."""

@@ -77,8 +77,8 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     since switching edits it. PhysicsError if the physics fails on the way, ControlError if the controller does.
 
     A plan with feedback has its references revised in copies (Recording.q_ref), or with `revise_in_place` in
-    traj's own arrays, for a caller that has no further use for the plan as planned (simbench.run: two (N, dof)
-    arrays fewer, 77 MB on the ten-minute soak). The feedback then reads the plan's references as revised so far
+    traj's own arrays, for a caller that has no further use for the plan as planned (the pipeline: simbench.run
+    and evaluate, sweeps, compare; two (N, dof) arrays fewer, 77 MB on the ten-minute soak). The feedback then reads the plan's references as revised so far
     (the RSMG's reads only its gripping arm's rows from the grip on, which no earlier change touched)."""
     if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {plant.model.opt.timestep}")
@@ -91,8 +91,8 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
 def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
     """The plan with the references the run really commanded: its own, or those its feedback revised. Revised
     ones come without the feedback, which is spent: simulating them again should not revise them twice, and the
-    feedback holds the plan's own arrays (the RSMG's: its references and rotor orientations, 80 MB on the
-    ten-minute soak), which the analysis after a run does not need."""
+    feedback holds what the analysis after a run does not need (the RSMG's: the plan's references as planned,
+    where they were revised in copies, and its blocks of rotor orientations)."""
     return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref, feedback=None)
 
 
