@@ -32,7 +32,8 @@ print(json.dumps({{"seconds": time.perf_counter() - start,
 _KINDS = {
     "bare": "import numpy, mujoco",
     "import": "import simbench, simbench.cli, simbench.pipeline",
-    "validate": "from simbench.cli import main\ntry:\n    main(['validate', {scenario!r}])\nexcept SystemExit:\n    pass",
+    "validate": ("from simbench.cli import main\ntry:\n    main(['validate', {scenario!r}])\n"
+                 "except SystemExit:\n    pass"),
 }
 # Commit e7ffd6e, measured by this module on 2026-11-23 (AMD EPYC, 2 cores, with other work running) in the same
 # rounds as the figures now of that day (0.316, 0.618 and 0.801 s; 50, 75 and 94 MiB): seconds and peak MiB.

@@ -335,9 +335,10 @@ def _rms(x: np.ndarray, axis=0) -> np.ndarray:
 
 
 def _norms(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1) gives (the squares added in
-    the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array across its short rows
-    several times as slowly as it does the arithmetic, so the analysis works a column at a time there."""
+    """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1)
+    gives (the squares added in the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array
+    across its short rows several times as slowly as it does the arithmetic, so the analysis works a column at a
+    time there."""
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     return np.sqrt(x * x + y * y + z * z)
 

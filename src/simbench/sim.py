@@ -78,8 +78,9 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
 
     A plan with feedback has its references revised in copies (Recording.q_ref), or with `revise_in_place` in
     traj's own arrays, for a caller that has no further use for the plan as planned (the pipeline: simbench.run
-    and evaluate, sweeps, compare; two (N, dof) arrays fewer, 77 MB on the ten-minute soak). The feedback then reads the plan's references as revised so far
-    (the RSMG's reads only its gripping arm's rows from the grip on, which no earlier change touched)."""
+    and evaluate, sweeps, compare; two (N, dof) arrays fewer, 77 MB on the ten-minute soak). The feedback then
+    reads the plan's references as revised so far (the RSMG's reads only its gripping arm's rows from the grip on,
+    which no earlier change touched)."""
     if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {plant.model.opt.timestep}")
     controller = controller if controller is not None else Servo()

@@ -726,8 +726,7 @@ class _RegripFeedback:
             own = sorted((h for h in holds if h.arm == arm), key=lambda h: h.start)
             for h, after in zip(own, own[1:] + [None]):
                 if h.start > 0:
-                    self.release[arm, int(round(grid[h.start] / dt))] = (row(h.end),
-                                                                          rows if after is None else row(after.start))
+                    self.release[arm, row(h.start)] = row(h.end), rows if after is None else row(after.start)
 
     def __call__(self, switch: Switch, model, data, k: int):
         if not switch.active:

@@ -171,7 +171,8 @@ def gripping(rec) -> np.ndarray:
 
 
 def _rows(q: np.ndarray) -> np.ndarray:
-    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once, from joints q (N, 8): jacobian_rows' (eqs. 12, 24-27, 34) expanded.
+    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once, from joints q (N, 8): jacobian_rows' (eqs. 12,
+    24-27, 34) expanded.
     With v_i = Rodrigues(w_i, gamma_i) of the folded axis cos(BETA) w_i + sin(BETA) (u_i - cos(ALPHA) w_i) /
     sin(ALPHA), and w_i . u_i = cos(ALPHA), a_i = sin(BETA) [(c st + s cos(ALPHA) ct) x_i + (s cos(ALPHA) st - c ct)
     y_i - s sin(ALPHA) u_i], with c, s = cos, sin gamma_i and ct, st = cos, sin theta_i (within 1e-15 of
@@ -207,12 +208,12 @@ def _type_a(q: np.ndarray, engaged: np.ndarray) -> np.ndarray:
 def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
     """Type A: |det A1| and |det A2| (every 3 x 3 minor over the gripping arms) under 0.01 (eq. 46). Type B: a
     gripping arm's gamma within 10 deg of 0 or 180 deg (eq. 45). The paper's own thresholds, not `tol`."""
-    engaged = gripping(rec)
-    return _sets(_type_a(rec.q, engaged), _type_b_gap(rec.q[:, ARMS:], engaged))
+    return sets_of_measures(measures(rec))
 
 
-def _sets(type_a: np.ndarray, type_b: np.ndarray) -> list[SingularSet]:
-    """The two sets of the type A measure and the type B gap."""
+def sets_of_measures(found: dict[str, np.ndarray]) -> list[SingularSet]:
+    """`singular_sets` from what `measures` found: its type A measure and type B gap are the sets' distances."""
+    type_a, type_b = found["type_a"], found["type_b_gap"]
     return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01", type_a / DET_A_MIN,
                         {"det": type_a}),
             SingularSet("typeB", "type B (boundary, det B = 0)", "a gripping arm's gamma within 10 deg of 0 or 180",
@@ -249,7 +250,7 @@ class RSMG(Robot):
         return singular_sets(rec, tol)
 
     def singular_sets_from(self, rec, tol: Tolerance, measures: dict[str, np.ndarray]) -> list[SingularSet]:
-        return _sets(measures["type_a"], measures["type_b_gap"])  # the measures are the sets' gaps
+        return sets_of_measures(measures)
 
     def summary(self, traj, rec, series: dict) -> Summary:
         from simbench.robots import rsmg_outputs
