@@ -12,15 +12,13 @@ it.
 
 from __future__ import annotations
 
-import ctypes
-import gc
 import os
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from simbench import budget, destination
+from simbench import budget, destination, heap
 from simbench.analysis import Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
@@ -34,32 +32,6 @@ from simbench.plant import Plant
 from simbench.sim import Recording, commanded, simulate
 from simbench.trajectory import JointTrajectory
 from simbench.verdict import Verdict, plan_verdict, run_verdict
-
-
-def _malloc_trim():
-    """glibc's malloc_trim, which hands the heap's freed pages back to the system; None elsewhere."""
-    try:
-        return ctypes.CDLL(None).malloc_trim
-    except (AttributeError, OSError, TypeError):
-        return None
-
-
-_MALLOC_TRIM = _malloc_trim()
-_TRIM_SAMPLES = 100_000  # control samples from which a run gives its freed heap back after a stage
-
-
-def _give_back_memory(samples: int) -> None:
-    """Return the memory a stage of a long run freed to the system. Planning a long run allocates and frees many
-    arrays smaller than glibc's mmap threshold (which it raises as large ones are freed); the heap keeps those
-    pages, and the next stage's arrays then stack on top of them in the peak resident size (the ten-minute soak:
-    260 MB of the 440 MB held after planning two minutes of it). The cyclic garbage is collected first: the
-    planner leaves some (40 MB of small arrays on the ten-minute soak) that the interpreter's own collection
-    would free only later, after the next stage's arrays have stacked on top of it. A short run (under
-    _TRIM_SAMPLES) frees a few MB, and the collection and trim would cost it a few milliseconds (a sweep's
-    runs)."""
-    if _MALLOC_TRIM is not None and samples >= _TRIM_SAMPLES:
-        gc.collect()
-        _MALLOC_TRIM(0)
 
 
 @dataclass(frozen=True)
@@ -133,14 +105,14 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
                            controller.actuation)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
-        _give_back_memory(len(traj.t))
+        heap.give_back(len(traj.t))
     with watch.stage("simulate"):
         rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every,
                        revise_in_place=True)  # the plan as planned is not needed after the run
         traj = commanded(traj, rec)
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
         del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them
-        _give_back_memory(len(traj.t))
+        heap.give_back(len(traj.t))
     with watch.stage("analyse"):
         a = scenario.analysis
         result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),

@@ -47,6 +47,7 @@ from typing import Annotated, Literal, NamedTuple
 import numpy as np
 from pydantic import Field, model_validator
 
+from simbench import heap
 from simbench.api import Planner
 from simbench.errors import RunError
 from simbench.planners.rsmg_contacts import (CACHE_FLOATS, FIRM_CAP, FIRM_SPEED, SPEED_SHARE, BoundedCache,
@@ -69,7 +70,7 @@ _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this tim
 _QUINTIC = TimeLaw("quintic", 1.0)
 _STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
 _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
-_CHUNK = 65536  # control samples turned into quaternions at a time (_quaternions), or orientations (_Orientations)
+_CHUNK = 65536  # control samples whose orientations are found at a time (_rotor_references, _Orientations)
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 # The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
 # paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
@@ -670,31 +671,41 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     law = scenario.timing.law_fn()
     sched = _schedule_grips(task, law, scenario.timing.hold)
     t = control_grid(law.duration, scenario.timing.hold, dt)
+    # The search's caches (general contacts': up to 80 MB) go before the per-sample arrays come: the arms' paths
+    # read their IK again, a few MB, the same numbers.
+    sched.contacts.forget()
+    heap.give_back(len(t))
     s = law(t, order=0)[0]
     q_ref = _joint_paths(t, sched)
-    rot = task.motion.orientation(s)
-    engaged = _engaged(t, sched.holds, sched.grid)
-    feedback = _RegripFeedback(task.motion, s, q_ref, sched.holds, sched.grid, dt, round(task.swing_time / dt)) \
+    switches = _switches(sched.holds, sched.grid, sched.contacts)
+    holds, grid, count = sched.holds, sched.grid, sched.contacts.count
+    engaged = _engaged(t, holds, grid)
+    feedback = _RegripFeedback(task.motion, s, q_ref, holds, grid, dt, round(task.swing_time / dt)) \
         if task.regrip_feedback else None
-    quat = _quaternions(rot)
+    tool_ref, quat = _rotor_references(task.motion, s)
     info = {
         "method": "paper 001: round-robin re-gripping (section 4)",
-        "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": sched.contacts.count},
+        "design": {"alpha": rsmg.ALPHA, "beta": rsmg.BETA, "arms": rsmg.ARMS, "candidates": count},
         "contacts": task.contacts,
-        "grips": len(sched.holds) - rsmg.ARMS,
+        "grips": len(holds) - rsmg.ARMS,
         "fewest_gripping": int(engaged.sum(axis=1).min()),
     }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=_joint_rates(q_ref, t),
-                           tool_ref=rot @ (_MARKER * 1.2 * rsmg.RADIUS), info=info,
-                           switches=_switches(sched.holds, sched.grid, sched.contacts),
-                           series={"rotor_quat_ref": quat, "engaged_ref": engaged},
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=_joint_rates(q_ref, t), tool_ref=tool_ref, info=info,
+                           switches=switches, series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                            initial={"rotor": quat[0].tolist()}, feedback=feedback)
 
 
-def _quaternions(rot: np.ndarray) -> np.ndarray:
-    """matrix_to_quat of orientations (N, 3, 3), _CHUNK at a time: scipy's temporaries for all of a long run's
-    samples at once (600,000 in the ten-minute soak) would be seven times the quaternions, planning's peak."""
-    return np.concatenate([matrix_to_quat(rot[i:i + _CHUNK]) for i in range(0, len(rot), _CHUNK)])
+def _rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The marker's planned point (N, 3) and the rotor's planned orientation as quaternions (N, 4) at path
+    parameters s, from the rotor's orientations a _CHUNK of samples at a time: all of a long run's at once (43 MB
+    on the ten-minute soak's 600,000 samples), and scipy's temporaries for their quaternions (seven times those),
+    would be planning's peak. Each row's numbers are those of the whole run's arrays."""
+    tool_ref, quat = np.empty((len(s), 3)), np.empty((len(s), 4))
+    for i in range(0, len(s), _CHUNK):
+        rot = motion.orientation(s[i:i + _CHUNK])
+        tool_ref[i:i + _CHUNK] = rot @ (_MARKER * 1.2 * rsmg.RADIUS)
+        quat[i:i + _CHUNK] = matrix_to_quat(rot)
+    return tool_ref, quat
 
 
 def _joint_rates(q_ref: np.ndarray, t: np.ndarray) -> np.ndarray:

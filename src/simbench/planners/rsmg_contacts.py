@@ -265,6 +265,9 @@ class FixedContacts:
     def label(self, arm: int, k: int) -> str:
         return "abc"[k]
 
+    def forget(self) -> None:
+        """Nothing is cached: the paper's three points a arm are every step's arrays."""
+
     def initial_points(self, arm: int) -> list[int]:
         """The points the arm may grip at t = 0: those inside the band then."""
         return [k for k in range(self.count) if self._next_bad[arm, k, 0] > 0]
@@ -311,6 +314,12 @@ class GeneralContacts:
 
     def _cached(self, key, make):
         return self._cache.fetch(key, make)
+
+    def forget(self) -> None:
+        """Drop every cached array (up to CACHE_FLOATS numbers) once the schedule and the arms' paths are found.
+        Their Lazy arrays' blocks refer back to this object, so without this the cache would live on as cyclic
+        garbage until the interpreter's collector came by, after the plan's per-sample arrays had stacked on it."""
+        self._cache.clear()
 
     def lazy(self, make) -> Lazy:
         """A Lazy array along this grid, its blocks in this object's cache."""
