@@ -127,5 +127,6 @@ def test_the_rotor_and_closure_errors_are_each_samples_own_however_the_samples_a
     assert closure.max() > 0
     for chunk in (7, 1000, 1 << 16):
         monkeypatch.setattr(rsmg_outputs, "CHUNK", chunk)
-        got_error, got_closure = rsmg_outputs._rotor_errors(traj, rec, engaged)
+        got_error, got_closure = rsmg_outputs._rotor_errors(traj, rec, engaged, np.zeros((S.ARMS, 3)),
+                                                               np.zeros(S.ARMS, bool))
         assert np.array_equal(got_error, error) and np.array_equal(got_closure, closure)

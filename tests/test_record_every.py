@@ -35,23 +35,27 @@ def _strided(robot: str, name: str, k: int) -> simbench.Scenario:
 
 
 @pytest.mark.parametrize("robot, name, k", [("rsmg", "three_turns", 10), ("spherical_arm", "case1", 7),
-                                            ("puma600", "line", 3)])
+                                            ("puma600", "line", 3), ("agile_eye", "through_singularity", 9)])
 def test_a_stride_keeps_the_whole_runs_rows_and_reports_the_same(evaluated, robot, name, k):
-    """The kept rows of qpos, qd and ctrl are the stride-1 run's rows [::k] and its last, bit for bit; the
-    columns the analysis reads, and so the tracking maxima, the events and the robot's report (the RSMG's
-    re-grips, closure and rotor errors), are those of every row."""
+    """The evaluation of a strided run holds the stride-1 run's rows [::k] and its last, bit for bit: every column
+    of the recording, the plan, and the analysis' series (the RSMG's and the Agile Eye's a window of samples at a
+    time, from their Summarisers); the tracking figures, the events and the robot's report (the RSMG's re-grips,
+    closure and rotor errors, the Agile Eye's assembly-mode changes) are those of every row."""
     _, whole = evaluated(robot, name)
     thin = simbench.evaluate(_strided(robot, name, k))
     rows = _rows(whole.recording.t.size, k)
-    assert np.array_equal(thin.recording.kept, rows)
-    for column in _HEAVY:
+    assert thin.recording.kept is None and thin.analysis.samples == whole.recording.t.size
+    for column in _HEAVY + _EVERY_ROW:
         assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)[rows]), column
-    for column in _EVERY_ROW:
-        assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)), column
+    assert np.array_equal(thin.trajectory.q_ref, whole.trajectory.q_ref[rows])
+    assert thin.analysis.series.keys() == whole.analysis.series.keys()
+    for name_, values in thin.analysis.series.items():
+        assert np.array_equal(values, whole.analysis.series[name_][rows]), name_
     assert thin.analysis.tracking == whole.analysis.tracking
     assert thin.analysis.singularity_events == whole.analysis.singularity_events
     assert thin.analysis.limit_events == whole.analysis.limit_events
     assert json.dumps(thin.analysis.extra, default=str) == json.dumps(whole.analysis.extra, default=str)
+    assert thin.verdict == whole.verdict
 
 
 def test_the_outputs_of_a_stride_are_the_whole_runs_at_the_kept_rows(tmp_path):

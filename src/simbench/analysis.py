@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simbench.robots import Robot, Tolerance
+from simbench.windowed import Departure, Rises, Spans, Sums, spans
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
@@ -27,34 +28,7 @@ _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path wit
 _BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
 _LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
 _GROUP = 1 << 17  # samples of a long run that deviation_near_reference searches at once, on their stretch alone
-
-
-@dataclass(frozen=True)
-class Analysis:
-    """Tracking summary, event lists, the per-sample series behind them, the names of the robot's singularity
-    measures among those series, and what the robot adds to the report (closure error, say)."""
-
-    tracking: dict
-    singularity_events: list[dict]
-    limit_events: list[dict]
-    series: dict[str, np.ndarray]
-    measures: tuple[str, ...] = ()
-    extra: dict = field(default_factory=dict)
-
-
-def spans(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Index ranges [start, end] (inclusive) of the runs of True in mask. Most masks the analysis asks about (a
-    joint past a limit, an actuator saturated) have none: those return at once."""
-    mask = np.asarray(mask, bool)
-    if not mask.any():
-        return []
-    padded = np.concatenate([[False], mask, [False]])
-    edges = np.flatnonzero(padded[1:] != padded[:-1])
-    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
-
-
-def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dict:
-    return {"t_start": float(t[span[0]]), "t_end": float(t[span[1]]), "kind": kind, "detail": detail}
+_WINDOW = 1 << 17  # samples analysed at a time (whole groups of the path search: `window_size`)
 
 
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -63,28 +37,47 @@ def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     return _deviation(np.asarray(path, float), np.asarray(points, float), [(0, n, 0, len(path) - 1)])
 
 
-def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int) -> np.ndarray:
-    """Distance of each points[k] from the stretch of the sampled path within about `window` samples of path[k]
-    (from `window` to twice that: the path is cut into blocks of `window` samples, each searched with its
-    neighbours). A path that comes back to the same place later, a rotor turning many times say, then does not
-    hide a point that is off its own stretch, and the search stays as cheap as on a path that never returns.
+def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, start: int = 0) -> np.ndarray:
+    """Distance of each points[k], the tool at path sample start + k, from the stretch of the sampled path within
+    about `window` samples of its own (from `window` to twice that: the path is cut into blocks of `window`
+    samples, each searched with its neighbours). A path that comes back to the same place later, a rotor turning
+    many times say, then does not hide a point that is off its own stretch, and the search stays as cheap as on a
+    path that never returns.
     A long run's blocks are searched a group of at most _GROUP samples (or one block, if longer) at a time, each
     group on the stretch of path its blocks need, so that the search's memory does not grow with the run (a tree
-    of the whole ten-minute soak's path and its search took 180 MB); every shipped scenario is one group. Points
-    and path are (N, 3), a point for each path sample at most."""
+    of the whole ten-minute soak's path and its search took 180 MB); every shipped scenario is one group. Blocks
+    and groups are counted from the path's first sample, so points given a group at a time (`start`, the analysis'
+    windows) are searched as the run's points all at once. Points and path are (N, 3)."""
     path, points = np.asarray(path, float), np.asarray(points, float)
     n = len(points)
-    if n > len(path):
-        raise ValueError(f"deviation_near_reference: {n} points for a path of {len(path)} samples")
-    blocks = [(start, min(start + window, n), max(start - window, 0), min(start + 2 * window, len(path)) - 1)
-              for start in range(0, n, window)]
-    out = np.empty(n)
+    if start + n > len(path):
+        raise ValueError(f"deviation_near_reference: {n} points from sample {start} of a path of {len(path)}")
     per = max(1, _GROUP // window)  # blocks a group
-    for group in (blocks[g:g + per] for g in range(0, len(blocks), per)):
+    groups: dict[int, list[tuple[int, int, int, int]]] = {}
+    for first in range(start - start % window, start + n, window):  # each block's first sample
+        groups.setdefault(first // window // per, []).append(
+            (max(first, start) - start, min(first + window, start + n) - start, max(first - window, 0),
+             min(first + 2 * window, len(path)) - 1))
+    out = np.empty(n)
+    for group in groups.values():
         a0, b0, lo, hi = group[0][0], group[-1][1], group[0][2], group[-1][3]  # block ranges ascend with start
         shifted = [(a - a0, b - a0, first - lo, last - lo) for a, b, first, last in group]
-        out[a0:b0] = _deviation(path[lo:hi + 1], points[a0:b0], shifted, planned_at=a0 - lo)
+        out[a0:b0] = _deviation(path[lo:hi + 1], points[a0:b0], shifted, planned_at=start + a0 - lo)
     return out
+
+
+def window_size(dt: float) -> int:
+    """Samples the analysis takes at a time at control period dt: about _WINDOW, in whole groups of the path
+    search (`deviation_near_reference`), so that a long run's deviations are those of its analysis all at
+    once."""
+    block = _near_reference(dt)
+    group = block * max(1, _GROUP // block)
+    return group * max(1, _WINDOW // group)
+
+
+def _near_reference(dt: float) -> int:
+    """The path search's blocks: samples within _NEAR_REFERENCE of a reference."""
+    return max(1, int(round(_NEAR_REFERENCE / dt)))
 
 
 def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int, int, int]],
@@ -330,10 +323,6 @@ def _far_rule(tree: _Capsules, vertices: np.ndarray, points: np.ndarray, out: np
     out[far] = np.where(nearest_end > 100 * half, nearest_end, exact)
 
 
-def _rms(x: np.ndarray, axis=0) -> np.ndarray:
-    return np.sqrt(np.mean(np.square(x), axis=axis))
-
-
 def _norms(v: np.ndarray) -> np.ndarray:
     """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1)
     gives (the squares added in the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array
@@ -345,59 +334,74 @@ def _norms(v: np.ndarray) -> np.ndarray:
 
 def along_path(points: np.ndarray) -> np.ndarray:
     """Unit tangent (N, 3) of a sampled path; where it rests, the direction it last moved in (or first will)."""
-    step = np.gradient(points, axis=0)
-    norm = _norms(step)
-    moving = norm > 1e-12 * max(1.0, float(np.abs(points).max()))
-    if not moving.any():
-        return np.zeros_like(points)
-    index = np.maximum.accumulate(np.where(moving, np.arange(len(points)), -1))
-    index = np.where(index < 0, np.argmax(moving), index)
-    return step[index] / norm[index][:, None]
+    return _Tangents(points).rows(0, len(points))
 
 
-def tracking(robot: Robot, traj: JointTrajectory, rec: Recording) -> tuple[dict, dict[str, np.ndarray]]:
-    """Tracking summary (SI units) and the per-sample series it summarises.
+class _Tangents:
+    """`along_path` of a planned path, a window of rows at a time: each row's step from the rows either side of
+    it (np.gradient's, the same numbers as over the whole path), and where the path rests the direction it last
+    moved in, carried from the windows before, or the one it first will, found ahead."""
 
-    The tool's error against the planned path splits into its distance from the path near its reference (the
-    stretch within _NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and tool_max) and its
-    lag: the error's component along the path's tangent at the reference point, positive when the tool trails.
-    """
-    joint_error = rec.q - traj.q_ref
-    deviation = deviation_near_reference(traj.tool_ref, rec.tool, max(1, int(round(_NEAR_REFERENCE / traj.dt))))
-    behind = traj.tool_ref - rec.tool  # the tool to its reference: its error, and along the tangent its lag
-    lag = np.einsum("ij,ij->i", behind, along_path(traj.tool_ref))
-    arc_ref = np.sum(_norms(np.diff(traj.tool_ref, axis=0)))
-    tool_error = _norms(behind)
-    summary = {
-        "joint_rms": dict(zip(robot.joints, _rms(joint_error).tolist())),
-        # a joint at a time, as in `_norms`
-        "joint_max": {name: float(np.abs(error).max()) for name, error in zip(robot.joints, joint_error.T)},
-        "tool_rms": float(_rms(deviation)),
-        "tool_max": float(deviation.max()),
-        "tool_lag_rms": float(_rms(lag)),
-        "tool_lag_max": float(np.abs(lag).max()),
-        "tool_error_rms": float(_rms(tool_error)),
-        "tool_error_max": float(tool_error.max()),
-        "tool_error_final": float(tool_error[-1]),
-        "path_length": float(arc_ref),
-    }
-    series = {"joint_error": joint_error, "path_deviation": deviation, "path_lag": lag, "tool_error": tool_error}
-    return summary, series
+    def __init__(self, points: np.ndarray):
+        self.points = points
+        self.floor = 1e-12 * max(1.0, max(float(points.max(initial=0.0)), -float(points.min(initial=0.0))))
+        self.last: np.ndarray | None = None  # the unit step where the path last moved, in the windows before
+        self.first: np.ndarray | None = None  # where it first moves, once looked for
+
+    def _steps(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The steps of rows lo..hi-1, their lengths, and whether the path moves there."""
+        a, b = max(lo - 1, 0), min(hi + 1, len(self.points))
+        step = np.gradient(self.points[a:b], axis=0)[lo - a:hi - a]
+        norm = _norms(step)
+        return step, norm, norm > self.floor
+
+    def rows(self, lo: int, hi: int) -> np.ndarray:
+        """The unit tangents at rows lo..hi-1 (windows asked for in order)."""
+        step, norm, moving = self._steps(lo, hi)
+        index = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -1))
+        out = np.empty_like(step)
+        seen = index >= 0
+        out[seen] = step[index[seen]] / norm[index[seen]][:, None]
+        if not seen.all():  # rows before the window's first move
+            out[~seen] = self.last if self.last is not None else self._first_move(lo)
+        if moving.any():
+            k = int(np.flatnonzero(moving)[-1])
+            self.last = step[k] / norm[k]
+        return out
+
+    def _first_move(self, lo: int) -> np.ndarray:
+        """The unit step where the path first moves at or after row lo (no move before it), zero if it never
+        does."""
+        if self.first is None:
+            self.first = np.zeros(3)
+            for a in range(lo, len(self.points), _WINDOW):
+                step, norm, moving = self._steps(a, min(a + _WINDOW, len(self.points)))
+                if moving.any():
+                    k = int(np.argmax(moving))
+                    self.first = step[k] / norm[k]
+                    break
+        return self.first
 
 
-def singularity_events(robot: Robot, rec: Recording, tol: Tolerance, measures: dict | None = None) -> list[dict]:
-    """Spans where the recorded state lies near each of the robot's singular sets, with how near at the closest
-    sample; `measures`: the robot's of this recording, if already computed (Robot.singular_sets_from)."""
-    t, events = rec.t, []
-    sets = robot.singular_sets(rec, tol) if measures is None else robot.singular_sets_from(rec, tol, measures)
-    for sset in sets:
-        for span in spans(sset.distance <= 1.0):
-            i = span[0] + int(np.argmin(sset.distance[span[0]:span[1] + 1]))
-            detail = {"family": sset.family, "condition": sset.condition, "t_closest": float(t[i]),
-                      "distance": float(sset.distance[i]),
-                      "gaps_at_closest": {k: float(v[i]) for k, v in sset.gaps.items()}}
-            events.append(_event(t, span, sset.name, detail))
-    return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
+@dataclass(frozen=True)
+class Analysis:
+    """Tracking summary, event lists, the per-sample series behind them (at the recording's kept rows), the names
+    of the robot's singularity measures among those series, what the robot adds to the report (closure error,
+    say), the number of samples analysed, and where the path deviation and the orientation error rose above every
+    sample before them (windowed.Rises: the verdict's first sample beyond a tolerance)."""
+
+    tracking: dict
+    singularity_events: list[dict]
+    limit_events: list[dict]
+    series: dict[str, np.ndarray]
+    measures: tuple[str, ...] = ()
+    extra: dict = field(default_factory=dict)
+    samples: int = 0
+    rises: dict[str, Rises] = field(default_factory=dict)
+
+
+def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dict:
+    return {"t_start": float(t[span[0]]), "t_end": float(t[span[1]]), "kind": kind, "detail": detail}
 
 
 def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int] | None:
@@ -415,7 +419,7 @@ def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     range), `velocity_limit` (a reference rate beyond its speed limit) and `reference_jump` (without its cost in
     physics)."""
     return sorted(_joint_limit_events(robot, traj) + _velocity_events(robot, traj)
-                  + _jump_events(robot, traj, None), key=lambda e: (e["t_start"], e["kind"]))
+                  + _jump_events(robot, traj, _jumps(robot, traj)), key=lambda e: (e["t_start"], e["kind"]))
 
 
 def _joint_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
@@ -443,73 +447,194 @@ def _velocity_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     return events
 
 
-def _jump_events(robot: Robot, traj: JointTrajectory, deviation: np.ndarray | None) -> list[dict]:
-    """Steps of the plan farther than ten samples at the speed limit; with the recorded path deviation, what each
-    cost: how far and how long the tool left the path."""
-    t, events = traj.t, []
+def _jumps(robot: Robot, traj: JointTrajectory) -> np.ndarray:
+    """The steps k -> k + 1 of the plan farther than ten samples at the speed limit (a joint a row, (dof, N - 1)):
+    a joint at a time, the steps as np.diff gives them, so that there are no (N, dof) temporaries on a long run and
+    `any` runs along the samples (as in `_norms`)."""
     limit = _JUMP_FACTOR * robot.qd_max * traj.dt
-    # a joint at a time, the steps as np.diff gives them: no (N, dof) temporaries on a long run; a joint a row, so
-    # that `any` runs along the samples (as in `_norms`)
-    jump = np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))])
+    return np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))])
+
+
+def _jump_events(robot: Robot, traj: JointTrajectory, jump: np.ndarray,
+                 departures: dict[int, Departure] | None = None) -> list[dict]:
+    """The plan's jumps (`_jumps`); with the tool's departure from the path after each (the recorded path
+    deviation's), what each cost: how far and how long the tool left the path."""
+    t, events = traj.t, []
     for k in np.flatnonzero(jump.any(axis=0)).tolist():
         detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[:, k])],
                   "step": (traj.q_ref[k + 1] - traj.q_ref[k]).tolist(),
                   "s": [float(traj.s[k]), float(traj.s[k + 1])],
                   "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1])}
-        if deviation is not None:
-            after = deviation[k + 1:]
-            peak = int(np.argmax(after))
-            back = np.flatnonzero(after[peak:] < _BACK_ON_PATH)
-            back_at = k + 1 + peak + int(back[0]) if back.size else len(t) - 1
-            detail["cost"] = {"tool_off_path_max": float(after.max()),
-                              "time_off_path": float(t[back_at] - t[k + 1]),
-                              "back_on_path": bool(back.size)}
+        if departures is not None:
+            away = departures[k]
+            back_at = away.back_at if away.back_at is not None else len(t) - 1
+            detail["cost"] = {"tool_off_path_max": away.peak, "time_off_path": float(t[back_at] - t[k + 1]),
+                              "back_on_path": away.back_at is not None}
         events.append(_event(t, (k, k + 1), "reference_jump", detail))
     return events
 
 
-def _saturation_events(robot: Robot, rec: Recording) -> list[dict]:
-    """Spans where a joint's actuator force sits at its bound (within a part in a million)."""
-    events = []
-    for j, name in enumerate(robot.joints):  # a joint at a time: no (N, dof) temporaries on a long run
-        for span in spans(np.abs(rec.force[:, j]) >= rec.force_limit[j] * (1 - 1e-6)):
-            events.append(_event(rec.t, span, "actuator_saturation", {
-                "joint": name, "limit": float(rec.force_limit[j]),
-                "force": float(rec.force[span[0], j]),
-                "duration": float(rec.t[span[1]] - rec.t[span[0]] + rec.timestep)}))
-    return events
+def _closest(a: tuple, b: tuple) -> tuple:
+    """Of two pieces of a span near a singular set, (distance, sample, gaps) at the closest sample: the first."""
+    return b if b[0] < a[0] else a
 
 
-def limit_events(robot: Robot, traj: JointTrajectory, rec: Recording, margin: Tolerance,
-                 deviation: np.ndarray) -> list[dict]:
-    """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
-    t, events = traj.t, _joint_limit_events(robot, traj)
-    for j, (name, kind) in enumerate(zip(robot.joints, robot.kinds)):
-        lo, hi = robot.lower[j], robot.upper[j]
-        tol = margin.of(kind)
-        for bound, limit, near in (("lower", lo, rec.q[:, j] < lo + tol), ("upper", hi, rec.q[:, j] > hi - tol)):
-            for span in spans(near):
-                seg = rec.q[span[0]:span[1] + 1, j]
-                extreme = float(seg.min() if bound == "lower" else seg.max())
-                events.append(_event(t, span, "at_limit", {
-                    "joint": name, "bound": bound, "limit": float(limit), "extreme": extreme}))
-    events += _jump_events(robot, traj, deviation) + _velocity_events(robot, traj) + _saturation_events(robot, rec)
-    return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
+def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
+            window: int | None = None) -> Analysis:
+    """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
+    `window_size`, more than any shipped scenario has), so that a long run's analysis holds a window of per-sample
+    arrays and what it keeps of them: the figures and events of the whole run, and the per-sample series at the
+    recording's kept rows (every row without a recording stride)."""
+    run = _Analyser(robot, traj, rec, near, margin)
+    size = window or window_size(traj.dt)
+    for lo in range(0, rec.t.size, size):
+        run.add(lo, min(lo + size, rec.t.size))
+    return run.finish()
 
 
-def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance) -> Analysis:
-    """Everything the report says about a run."""
-    summary, series = tracking(robot, traj, rec)
-    measures = robot.measures(rec)
-    series.update(measures)
-    singular = singularity_events(robot, rec, near, measures)
-    extra, events, more = robot.summary(traj, rec, series)
-    series.update(more)
-    singular = sorted(singular + events, key=lambda e: (e["t_start"], e["kind"]))
-    if robot.orientation_error in series:  # a task that is an orientation: its error beside the tool point's
-        error = series[robot.orientation_error]
-        summary.update(orientation_rms=float(_rms(error)), orientation_max=float(error.max()),
-                       orientation_final=float(error[-1]))
-    return Analysis(tracking=summary, singularity_events=singular,
-                    limit_events=limit_events(robot, traj, rec, margin, series["path_deviation"]),
-                    series=series, measures=tuple(measures), extra=extra)
+class _Analyser:
+    """The analysis of a run, fed its samples a window at a time, in order.
+
+    Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points)
+    near its reference (the stretch within _NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and
+    tool_max) and its lag: the error's component along the path's tangent at the reference point, positive when
+    the tool trails; and its error against the time-indexed reference. The robot's measures, singular sets and
+    summary (a Summariser's windows, or with none the whole run's `summary` at the end). Spans of events that reach
+    a window's edge go on into the next (windowed.Spans)."""
+
+    def __init__(self, robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance):
+        self.robot, self.traj, self.rec, self.near, self.margin = robot, traj, rec, near, margin
+        self.tangents = _Tangents(traj.tool_ref)
+        self.sums, self.arc = Sums(), 0.0
+        self.rises = {"path_deviation": Rises(), robot.orientation_error: Rises()}
+        self.kept: dict[str, list[np.ndarray]] = {}  # each series' kept rows, window by window
+        self.measures: tuple[str, ...] = ()
+        self.summariser = robot.summariser(traj)
+        self.singular: list[Spans] = []
+        self.sets: list = []  # each singular set's name, family and condition
+        self.at_limit = {(j, bound): Spans(min if bound == "lower" else max)
+                         for j in range(robot.dof) for bound in ("lower", "upper")}
+        self.saturated = [Spans(lambda first, _: first) for _ in range(robot.dof)]
+        self.jump = _jumps(robot, traj)
+        self.departures = {k: Departure(k + 1, _BACK_ON_PATH) for k in np.flatnonzero(self.jump.any(axis=0)).tolist()}
+
+    def add(self, lo: int, hi: int) -> None:
+        """Samples lo..hi-1."""
+        traj, rec = self.traj.rows(slice(lo, hi)), self.rec.rows(lo, hi)
+        series = self._tracking(traj, rec, lo, hi)
+        measures = self.robot.measures(rec)
+        self.measures = tuple(measures)
+        series.update(measures)
+        self._singular(self.robot.singular_sets_from(rec, self.near, measures), lo)
+        if self.summariser is not None:
+            series.update(self.summariser.add(traj, rec, series))
+            self._orientation(series, lo)
+        self._limits(rec, lo)
+        keep = slice(None) if self.summariser is None or rec.kept is None else rec.kept
+        for name, values in series.items():
+            self.kept.setdefault(name, []).append(values[keep])
+
+    def _tracking(self, traj: JointTrajectory, rec: Recording, lo: int, hi: int) -> dict[str, np.ndarray]:
+        """The tracking series of samples lo..hi-1, added to the sums."""
+        joint_error = rec.q - traj.q_ref
+        deviation = deviation_near_reference(self.traj.tool_ref, rec.tool, _near_reference(self.traj.dt), lo)
+        behind = traj.tool_ref - rec.tool  # the tool to its reference: its error, and along the tangent its lag
+        lag = np.einsum("ij,ij->i", behind, self.tangents.rows(lo, hi))
+        tool_error = _norms(behind)
+        self.sums.add(joint_error=joint_error, path_deviation=deviation, path_lag=lag, tool_error=tool_error)
+        self.arc += float(np.sum(_norms(np.diff(self.traj.tool_ref[lo:hi + 1], axis=0))))
+        self.rises["path_deviation"].add(deviation, lo)
+        for away in self.departures.values():
+            away.add(deviation, lo)
+        return {"joint_error": joint_error, "path_deviation": deviation, "path_lag": lag, "tool_error": tool_error}
+
+    def _orientation(self, series: dict[str, np.ndarray], lo: int) -> None:
+        """The orientation error's sums, where the task is an orientation (beside the tool point's)."""
+        error = series.get(self.robot.orientation_error)
+        if error is not None:
+            self.sums.add(orientation=error)
+            self.rises[self.robot.orientation_error].add(error, lo)
+
+    def _singular(self, sets: list, lo: int) -> None:
+        """The spans where the recorded state lies near each of the robot's singular sets, with the closest sample."""
+        if not self.singular:
+            self.singular = [Spans(_closest) for _ in sets]
+            self.sets = [(s.name, s.family, s.condition) for s in sets]
+
+        for spans_of, sset in zip(self.singular, sets):
+            def closest(a: int, b: int, sset=sset) -> tuple:
+                i = a + int(np.argmin(sset.distance[a:b + 1]))
+                return float(sset.distance[i]), lo + i, {k: float(v[i]) for k, v in sset.gaps.items()}
+            spans_of.add(sset.distance <= 1.0, lo, closest)
+
+    def _limits(self, rec: Recording, lo: int) -> None:
+        """The spans where a joint sits at a limit (with its extreme there) or its actuator at its force bound."""
+        for j, kind in enumerate(self.robot.kinds):
+            q, tol = rec.q[:, j], self.margin.of(kind)
+            for bound, near in (("lower", q < self.robot.lower[j] + tol), ("upper", q > self.robot.upper[j] - tol)):
+                extreme = np.min if bound == "lower" else np.max
+                self.at_limit[j, bound].add(near, lo, lambda a, b, q=q, extreme=extreme: float(extreme(q[a:b + 1])))
+            force = rec.force[:, j]
+            self.saturated[j].add(np.abs(force) >= rec.force_limit[j] * (1 - 1e-6), lo,
+                                  lambda a, b, force=force: float(force[a]))
+
+    def finish(self) -> Analysis:
+        """The whole run's analysis."""
+        robot, traj, t = self.robot, self.traj, self.traj.t
+        series = {name: np.concatenate(parts) if len(parts) > 1 else parts[0] for name, parts in self.kept.items()}
+        singular = []
+        for spans_of, (name, family, condition) in zip(self.singular, self.sets):
+            for first, last, (distance, i, gaps) in spans_of.finish():
+                detail = {"family": family, "condition": condition, "t_closest": float(t[i]), "distance": distance,
+                          "gaps_at_closest": gaps}
+                singular.append(_event(t, (first, last), name, detail))
+        if self.summariser is not None:
+            extra, events = self.summariser.finish()
+        else:  # the whole run's summary, then its series at the kept rows
+            extra, events, more = robot.summary(traj, self.rec, series)
+            series.update(more)
+            self._orientation(series, 0)
+            if self.rec.kept is not None:
+                series = {name: v[self.rec.kept] for name, v in series.items()}
+        return Analysis(tracking=self._summary(), singularity_events=sorted(
+                            singular + events, key=lambda e: (e["t_start"], e["kind"])),
+                        limit_events=self._limit_events(), series=series, measures=self.measures, extra=extra,
+                        samples=int(self.rec.t.size),
+                        rises={k: v for k, v in self.rises.items() if k is not None and v.at})
+
+    def _summary(self) -> dict:
+        """The tracking summary (SI units)."""
+        sums, joints = self.sums, self.robot.joints
+        summary = {
+            "joint_rms": dict(zip(joints, sums.rms("joint_error").tolist())),
+            "joint_max": {name: float(v) for name, v in zip(joints, sums.largest["joint_error"])},
+            "tool_rms": float(sums.rms("path_deviation")),
+            "tool_max": float(sums.largest["path_deviation"]),
+            "tool_lag_rms": float(sums.rms("path_lag")),
+            "tool_lag_max": float(sums.largest["path_lag"]),
+            "tool_error_rms": float(sums.rms("tool_error")),
+            "tool_error_max": float(sums.largest["tool_error"]),
+            "tool_error_final": float(sums.last["tool_error"]),
+            "path_length": self.arc,
+        }
+        if "orientation" in sums.squares:
+            summary.update(orientation_rms=float(sums.rms("orientation")),
+                           orientation_max=float(sums.largest["orientation"]),
+                           orientation_final=float(sums.last["orientation"]))
+        return summary
+
+    def _limit_events(self) -> list[dict]:
+        """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
+        robot, traj, t = self.robot, self.traj, self.traj.t
+        events = _joint_limit_events(robot, traj)
+        for (j, bound), spans_of in self.at_limit.items():
+            limit = robot.lower[j] if bound == "lower" else robot.upper[j]
+            events += [_event(t, (first, last), "at_limit", {"joint": robot.joints[j], "bound": bound,
+                                                             "limit": float(limit), "extreme": extreme})
+                       for first, last, extreme in spans_of.finish()]
+        events += _jump_events(robot, traj, self.jump, self.departures) + _velocity_events(robot, traj)
+        for j, spans_of in enumerate(self.saturated):
+            events += [_event(t, (first, last), "actuator_saturation", {
+                "joint": robot.joints[j], "limit": float(self.rec.force_limit[j]), "force": force,
+                "duration": float(t[last] - t[first] + self.rec.timestep)}) for first, last, force in spans_of.finish()]
+        return sorted(events, key=lambda e: (e["t_start"], e["kind"]))

@@ -46,9 +46,9 @@ if TYPE_CHECKING:
     from simbench.sim import Recording
 
 __all__ = ["PRISMATIC", "REVOLUTE", "ControlSettings", "Controller", "Decoration", "JointTrajectory", "Plant",
-           "Planner", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summary", "Switch",
-           "Tolerance", "broken", "controllers", "origin", "planners", "register_controller", "register_planner",
-           "register_robot", "robots"]
+           "Planner", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summariser", "Summary",
+           "Switch", "Tolerance", "broken", "controllers", "origin", "planners", "register_controller",
+           "register_planner", "register_robot", "robots"]
 
 _LAZY = {"Plant": "simbench.plant", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
 
@@ -99,6 +99,22 @@ class Summary(NamedTuple):
     entries: dict[str, Any]
     events: list[dict[str, Any]]
     series: dict[str, Array]
+
+
+class Summariser(ABC):
+    """A mechanism's summary of a run (Robot.summary) found a window of samples at a time (Robot.summariser), so
+    that analysing a long run holds a window's samples, not the run's. The analysis calls `add` with each window
+    in turn, then `finish`; together they give what `summary` gives of the whole run."""
+
+    @abstractmethod
+    def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
+        """The next window: the plan and the recording at its samples (JointTrajectory.rows, Recording.rows) and
+        the analysis's series there so far; this mechanism's per-sample series at those samples (Summary.series).
+        """
+
+    @abstractmethod
+    def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+        """The whole run's report entries and events (Summary.entries, Summary.events)."""
 
 
 class Decoration(NamedTuple):
@@ -164,11 +180,13 @@ class Robot(ABC):
 
     @abstractmethod
     def measures(self, rec: Recording) -> dict[str, Array]:
-        """Per-sample singularity measures of a run (name -> (N,)), written to the report and timeseries."""
+        """Per-sample singularity measures of a run (name -> (N,)), written to the report and timeseries. Each
+        sample's from that sample alone: a long run is analysed a window of samples at a time (Recording.rows)."""
 
     @abstractmethod
     def singular_sets(self, rec: Recording, tol: Tolerance) -> list[SingularSet]:
-        """The mechanism's singular sets along a run, each with its distance normalised by `tol`."""
+        """The mechanism's singular sets along a run, each with its distance normalised by `tol`; each sample's from
+        that sample alone, as `measures`."""
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
         """`singular_sets(rec, tol)` where this robot's `measures(rec)` are already computed: the analysis computes
@@ -184,6 +202,12 @@ class Robot(ABC):
         """What this mechanism adds to a run's analysis (closure error, grips, ...); `series` holds the
         analysis's per-sample series so far (the tool error, say)."""
         return Summary({}, [], {})
+
+    def summariser(self, traj: JointTrajectory) -> Summariser | None:
+        """`summary` found a window of samples at a time, for a run of the plan `traj` (as commanded): override it
+        where the mechanism adds series or figures, so that a long run's analysis holds a window's samples. None
+        (the default): the analysis keeps every sample's series and calls `summary` once, on the whole run."""
+        return None
 
     def paint(self, model: mujoco.MjModel, rec: Recording, row: int) -> None:
         """Change the model's colours for the video frame of recorded row `row` (a magnet on or off)."""

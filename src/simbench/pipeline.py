@@ -37,7 +37,8 @@ from simbench.verdict import Verdict, plan_verdict, run_verdict
 @dataclass(frozen=True)
 class Evaluation:
     """A scenario planned, simulated and analysed, with nothing written yet, and the verdict: whether the run
-    kept every promise (simbench.verdict)."""
+    kept every promise (simbench.verdict). Found from every sample; the plan, the recording and the analysis'
+    series hold the recording's kept rows (all but where sim.record_every thins them: what the outputs show)."""
 
     trajectory: JointTrajectory
     recording: Recording
@@ -118,6 +119,8 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
         result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
                          margin=Tolerance(a.limit_angle, a.limit_length))
         found = run_verdict(robot, traj, result, a, scenario.expect)
+    if rec.kept is not None:  # the analysis has read every sample: what is kept of them is the outputs' rows
+        traj, rec = traj.rows(rec.kept), rec.thinned()
     return Evaluation(traj, rec, result, found, control)
 
 
@@ -209,9 +212,7 @@ def thinned(traj: JointTrajectory, rec: Recording, series: dict | None = None
     if rec.kept is None:
         return traj, rec, series
     k = rec.kept
-    traj = replace(traj, t=traj.t[k], s=traj.s[k], q_ref=traj.q_ref[k], qd_ref=traj.qd_ref[k],
-                   tool_ref=traj.tool_ref[k], series={name: v[k] for name, v in traj.series.items()})
-    return traj, rec.thinned(), {name: v[k] for name, v in series.items()}
+    return traj.rows(k), rec.thinned(), {name: v[k] for name, v in series.items()}
 
 
 def _write_failure(scenario: Scenario, err: PhysicsError, out: Path, watch: _Stopwatch) -> None:

@@ -84,7 +84,7 @@ def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | Non
         **_head(scenario, rec.timestep, source),
         **ev.verdict.to_report(),
         "control": ev.control,
-        "samples": int(rec.t.size),
+        "samples": result.samples,
         "tracking": result.tracking,
         "singularity_events": result.singularity_events,
         "limit_events": result.limit_events,

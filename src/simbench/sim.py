@@ -57,6 +57,22 @@ class Recording:
     qd_ref: np.ndarray | None = None
     kept: np.ndarray | None = None  # the rows of qpos, qd and ctrl; None: every row
 
+    def rows(self, lo: int, hi: int) -> Recording:
+        """Samples lo..hi-1 (views): every per-sample column there, and qpos, qd and ctrl at the kept rows among
+        them (`kept` counted from lo). What the analysis reads a window at a time."""
+        whole = slice(lo, hi)
+        if self.kept is None:
+            kept, stored = None, whole
+        else:
+            stored = slice(*np.searchsorted(self.kept, [lo, hi]))
+            kept = self.kept[stored] - lo
+        return replace(self, t=self.t[whole], qpos=self.qpos[stored], q=self.q[whole], qd=self.qd[stored],
+                       ctrl=self.ctrl[stored], tool=self.tool[whole], force=self.force[whole],
+                       sensors={name: v[whole] for name, v in self.sensors.items()},
+                       eq_active={name: v[whole] for name, v in self.eq_active.items()},
+                       q_ref=None if self.q_ref is None else self.q_ref[whole],
+                       qd_ref=None if self.qd_ref is None else self.qd_ref[whole], kept=kept)
+
     def thinned(self) -> Recording:
         """The recording at its kept rows only, every column: what the outputs of a strided run show."""
         if self.kept is None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +56,11 @@ class JointTrajectory:
     def dt(self) -> float:
         """Control period (s)."""
         return float(self.t[1] - self.t[0])
+
+    def rows(self, index: slice | np.ndarray) -> JointTrajectory:
+        """The plan at rows `index` (a slice or row numbers): every per-sample array taken there."""
+        return replace(self, t=self.t[index], s=self.s[index], q_ref=self.q_ref[index], qd_ref=self.qd_ref[index],
+                       tool_ref=self.tool_ref[index], series={name: v[index] for name, v in self.series.items()})
 
 
 def revise(q_ref: np.ndarray, qd_ref: np.ndarray, change: tuple, dt: float) -> tuple[int, int]:

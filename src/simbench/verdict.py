@@ -134,12 +134,13 @@ def _actuator_saturation(name: str, events: list[dict], kind: str) -> dict:
                       f"{events[0]['t_start']:.3f} s", events, joint=name, duration=total)
 
 
-def _tolerance_violations(tracking: dict, series: dict, t: np.ndarray, robot: Robot, tol) -> list[dict]:
-    """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal."""
-    out = []
-    deviation = series["path_deviation"]
+def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[dict]:
+    """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal. The first
+    sample beyond a tolerance is among those where the series rose above every sample before it (Analysis.rises),
+    found from every sample of a run recorded with a stride too."""
+    out, tracking = [], analysis.tracking
     if tracking["tool_max"] > tol.path_tolerance:
-        k = int(np.argmax(deviation > tol.path_tolerance))
+        k = analysis.rises["path_deviation"].first_beyond(tol.path_tolerance)
         out.append(_violation("off_path", f"the tool leaves the planned path by up to {tracking['tool_max'] * 1e3:.2f} "
                               f"mm (tolerance {tol.path_tolerance * 1e3:g} mm), from t = {t[k]:.3f} s", [],
                               t=float(t[k]), worst=tracking["tool_max"]))
@@ -147,18 +148,18 @@ def _tolerance_violations(tracking: dict, series: dict, t: np.ndarray, robot: Ro
         out.append(_violation("goal_missed", f"the tool ends {tracking['tool_error_final'] * 1e3:.2f} mm from the "
                               f"plan's end (tolerance {tol.goal_tolerance * 1e3:g} mm)", [],
                               t=float(t[-1]), error=tracking["tool_error_final"]))
-    if robot.orientation_error is not None and robot.orientation_error in series:
-        error = series[robot.orientation_error]
-        if error.max() > tol.orientation_tolerance:
-            k = int(np.argmax(error > tol.orientation_tolerance))
+    if "orientation_max" in tracking:
+        worst, final = tracking["orientation_max"], tracking["orientation_final"]
+        if worst > tol.orientation_tolerance:
+            k = analysis.rises[robot.orientation_error].first_beyond(tol.orientation_tolerance)
             out.append(_violation("orientation_error", f"the orientation leaves the plan's by up to "
-                                  f"{np.rad2deg(error.max()):.2f} deg (tolerance "
+                                  f"{np.rad2deg(worst):.2f} deg (tolerance "
                                   f"{np.rad2deg(tol.orientation_tolerance):g} deg), from t = {t[k]:.3f} s",
-                                  [], t=float(t[k]), worst=float(error.max())))
-        if error[-1] > tol.goal_orientation_tolerance and not any(v["kind"] == "goal_missed" for v in out):
-            out.append(_violation("goal_missed", f"the orientation ends {np.rad2deg(error[-1]):.2f} deg from the "
+                                  [], t=float(t[k]), worst=worst))
+        if final > tol.goal_orientation_tolerance and not any(v["kind"] == "goal_missed" for v in out):
+            out.append(_violation("goal_missed", f"the orientation ends {np.rad2deg(final):.2f} deg from the "
                                   f"plan's end (tolerance {np.rad2deg(tol.goal_orientation_tolerance):g} deg)", [],
-                                  t=float(t[-1]), error=float(error[-1])))
+                                  t=float(t[-1]), error=final))
     return out
 
 
@@ -190,7 +191,7 @@ def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expec
     `analysis` section; `expect` its `expect` section or None."""
     found = (_limit_violations(robot, analysis.limit_events) + _planner_violations(traj)
              + _breaking_violations(robot, analysis.singularity_events)
-             + _tolerance_violations(analysis.tracking, analysis.series, traj.t, robot, tolerances))
+             + _tolerance_violations(analysis, traj.t, robot, tolerances))
     return _verdict(found, expect)
 
 

@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from simbench import api
 from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 from simbench.rotations import axis_rotation, canonical, quat_to_matrix, rotation_angle
@@ -342,21 +343,50 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
 
 def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     """Report entries (closure error, KCI, orientation error), assembly-mode changes as events, and the
-    platform orientation series."""
-    rot = _platform(rec)
-    report = {"closure_error_max": float(series["closure_error"].max()),
-              "kci": {"mean": float(series["kci"].mean()), "min": float(series["kci"].min())}}
-    extra = {"platform_quat": canonical(rec.sensors["platform_quat"]), "base_angles": rec.q.copy()}
-    if "platform_quat_ref" in traj.series:
-        error = rotation_angle(quat_to_matrix(traj.series["platform_quat_ref"]), rot)
-        extra["orientation_error"] = error
-        report["orientation_error_max"] = float(error.max())
-    sign = np.sign(series["det_a"])
-    flips = np.flatnonzero(sign[1:] * sign[:-1] < 0)
-    events = [{"t_start": float(rec.t[k]), "t_end": float(rec.t[k + 1]), "kind": "assembly_mode_change",
-               "detail": {"det_a": [float(series["det_a"][k]), float(series["det_a"][k + 1])]}} for k in flips]
-    report["assembly_mode_changes"] = len(events)
-    return report, events, extra
+    platform orientation series: the Summariser's of the whole run as one window."""
+    whole = Summariser(traj)
+    extra = whole.add(traj, rec, series)
+    return (*whole.finish(), extra)
+
+
+class Summariser(api.Summariser):
+    """`summary` a window of samples at a time (in order): the KCI's sum, the largest errors, and det A's last
+    sample (an assembly-mode change between two windows) carried from window to window."""
+
+    def __init__(self, traj):
+        self.t, self.lo = traj.t, 0
+        self.planned = "platform_quat_ref" in traj.series
+        self.closure, self.orientation = -np.inf, -np.inf
+        self.kci_sum, self.kci_min = 0.0, np.inf
+        self.det_a: np.ndarray = np.zeros(0)  # det A at the sample before the window
+        self.events: list[dict] = []
+
+    def add(self, traj, rec, series: dict) -> dict:
+        kci, det_a = series["kci"], series["det_a"]
+        self.closure = max(self.closure, float(series["closure_error"].max()))
+        self.kci_sum += np.sum(kci)
+        self.kci_min = min(self.kci_min, float(kci.min()))
+        extra = {"platform_quat": canonical(rec.sensors["platform_quat"]), "base_angles": rec.q.copy()}
+        if self.planned:
+            error = rotation_angle(quat_to_matrix(traj.series["platform_quat_ref"]), _platform(rec))
+            extra["orientation_error"] = error
+            self.orientation = max(self.orientation, float(error.max()))
+        det = np.concatenate([self.det_a, det_a])
+        sign = np.sign(det)
+        first = self.lo - len(self.det_a)  # the sample of det's first
+        self.events += [{"t_start": float(self.t[first + k]), "t_end": float(self.t[first + k + 1]),
+                         "kind": "assembly_mode_change", "detail": {"det_a": [float(det[k]), float(det[k + 1])]}}
+                        for k in np.flatnonzero(sign[1:] * sign[:-1] < 0)]
+        self.det_a, self.lo = det_a[-1:].copy(), self.lo + rec.t.size
+        return extra
+
+    def finish(self) -> tuple[dict, list[dict]]:
+        report = {"closure_error_max": self.closure, "kci": {"mean": float(self.kci_sum / self.lo),
+                                                             "min": self.kci_min}}
+        if self.planned:
+            report["orientation_error_max"] = self.orientation
+        report["assembly_mode_changes"] = len(self.events)
+        return report, self.events
 
 
 class AgileEye(Robot):
@@ -395,6 +425,9 @@ class AgileEye(Robot):
 
     def summary(self, traj, rec, series: dict) -> Summary:
         return Summary(*summary(traj, rec, series))
+
+    def summariser(self, traj) -> Summariser:
+        return Summariser(traj)
 
 
 ROBOT = AgileEye()

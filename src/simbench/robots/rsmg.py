@@ -257,6 +257,11 @@ class RSMG(Robot):
 
         return rsmg_outputs.summary(traj, rec, series)
 
+    def summariser(self, traj):
+        from simbench.robots import rsmg_outputs
+
+        return rsmg_outputs.Summariser(traj)
+
     def paint(self, model, rec, row: int) -> None:
         from simbench.robots import rsmg_outputs
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simbench import api
 from simbench.api import Summary
 from simbench.robots.rsmg import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.rotations import quat_to_matrix, rotation_angle
@@ -20,35 +21,78 @@ _FREE_RGBA = [0.55, 0.55, 0.58, 1.0]  # an EM that is free: grey
 
 
 def summary(traj, rec, series: dict) -> Summary:
-    """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped."""
-    engaged = gripping(rec)
-    gamma = rec.q[:, ARMS:]
-    error, closure = _rotor_errors(traj, rec, engaged)
-    held = gamma[engaged]
-    report = {
-        "rotor_error_max": float(error.max()),
-        "closure_error_max": float(closure.max()),
-        "fewest_gripping": int(engaged.sum(axis=1).min()),
-        "gripping_gamma": {"min": float(held.min()), "max": float(held.max())},
-        "switch_events": _switch_events(traj, rec),
-    }
-    # gamma and rotor_quat as views of the recording, which the run keeps anyway (copies: 37 MB on the soak)
-    extra = {"gamma": gamma, "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"],
-             "rotor_error": error, "closure_error": closure}
-    return Summary(report, [], extra)
+    """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped: the
+    Summariser's of the whole run as one window."""
+    whole = Summariser(traj)
+    extra = whole.add(traj, rec, series)
+    return Summary(*whole.finish(), extra)
 
 
-def _rotor_errors(traj, rec, engaged: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+class Summariser(api.Summariser):
+    """`summary` a window of samples at a time (in order, from the first): each arm's tip on the rotor at its
+    last grip (the closure error's anchor) and whether it gripped at the last sample are carried from window to
+    window, and the last two samples' tips and rotor orientation, for a grip at a window's edge (its snap reads the
+    samples either side of it)."""
+
+    def __init__(self, traj):
+        self.t, self.lo = traj.t, 0
+        self.anchor = np.zeros((ARMS, 3))
+        self.before = np.zeros(ARMS, bool)  # which arms gripped at the sample before the window
+        self.largest = {"rotor_error_max": -np.inf, "closure_error_max": -np.inf}
+        self.fewest, self.gamma = ARMS, [np.inf, -np.inf]
+        self.regrips = _regrips(traj)  # (release, grip, the grip's sample)
+        self.events: dict[int, dict] = {}
+        self.tail: dict[str, np.ndarray] = {}  # the window before's last two samples of the tips and rotor
+
+    def add(self, traj, rec, series: dict) -> dict:
+        lo, hi = self.lo, self.lo + rec.t.size
+        engaged = gripping(rec)
+        gamma = rec.q[:, ARMS:]
+        error, closure = _rotor_errors(traj, rec, engaged, self.anchor, self.before)
+        self.before = engaged[-1]
+        held = gamma[engaged]
+        for name, values in (("rotor_error_max", error), ("closure_error_max", closure)):
+            self.largest[name] = max(self.largest[name], float(values.max()))
+        self.fewest = min(self.fewest, int(engaged.sum(axis=1).min()))
+        if held.size:
+            self.gamma = [min(self.gamma[0], float(held.min())), max(self.gamma[1], float(held.max()))]
+        self._snaps(rec, lo, hi)
+        self.lo = hi
+        # gamma and rotor_quat as views of the recording, which the run keeps anyway (copies: 37 MB on the soak)
+        return {"gamma": gamma, "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"],
+                "rotor_error": error, "closure_error": closure}
+
+    def _snaps(self, rec, lo: int, hi: int) -> None:
+        """The re-grips whose samples either side of the grip are the window's (or the last two before it)."""
+        names = [f"em{arm + 1}_tip" for arm in range(ARMS)] + ["rotor_quat"]
+        rows = {name: np.concatenate([self.tail[name], rec.sensors[name]]) if self.tail else rec.sensors[name]
+                for name in names}
+        first = lo - (2 if self.tail else 0)  # the sample of rows' first row
+        for i, (release, grip, k) in enumerate(self.regrips):
+            if lo - 1 <= k <= hi - 2:
+                tip = rows[f"em{grip.detail['arm']}_tip"][k - 1 - first:k + 2 - first]
+                self.events[i] = _regrip_event(release, grip, tip, rows["rotor_quat"][k - first])
+        self.tail = {name: v[-2:].copy() for name, v in rows.items()}
+
+    def finish(self) -> tuple[dict, list[dict]]:
+        report = {**self.largest, "fewest_gripping": self.fewest,
+                  "gripping_gamma": {"min": self.gamma[0], "max": self.gamma[1]},
+                  "switch_events": [self.events[i] for i in range(len(self.regrips))]}
+        return report, []
+
+
+def _rotor_errors(traj, rec, engaged: np.ndarray, anchor: np.ndarray, before: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """The rotor's error (its angle from the planned orientation) and the closure error (how far each gripping
     EM's tip has moved on the rotor since it gripped: the weld's violation, the loop through the arm and the rotor
     failing to close; the largest over the arms, in m), (N,) each. CHUNK samples at a time, each sample's own
     numbers: the rotor's matrices for all of a long run's samples at once, planned and recorded, and each arm's tip
     in the rotor's frame would be 130 MB of temporaries on the ten-minute soak. `anchor`: each arm's tip in the
-    rotor's frame at its last grip before the chunk."""
+    rotor's frame at its last grip before these samples, updated in place; `before`: which arms gripped at the
+    sample before them."""
     quat, planned = rec.sensors["rotor_quat"], traj.series["rotor_quat_ref"]
     error, closure = np.empty(rec.t.size), np.zeros(rec.t.size)
-    grips = engaged & ~np.concatenate([np.zeros((1, ARMS), bool), engaged[:-1]])  # the rows where each arm grips
-    anchor = np.zeros((ARMS, 3))
+    grips = engaged & ~np.concatenate([before[None], engaged[:-1]])  # the rows where each arm grips
     for a in range(0, rec.t.size, CHUNK):
         b = min(a + CHUNK, rec.t.size)
         rot = quat_to_matrix(quat[a:b])
@@ -64,35 +108,35 @@ def _rotor_errors(traj, rec, engaged: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return error, closure
 
 
-def _switch_events(traj, rec) -> list[dict]:
-    """One event a re-grip (an arm's release, then its grip); the initial grips are none."""
-    events = []
-    releases = {}
+def _regrips(traj) -> list[tuple]:
+    """One (release, grip, the grip's sample) a re-grip (an arm's release, then its grip); the initial grips are
+    none. The sample is the first at the grip's time, kept off the run's ends."""
+    found, releases = [], {}
     for sw in traj.switches:
         arm = sw.detail["arm"]
         if not sw.active:
             releases[arm] = sw
         elif arm in releases:
-            events.append(_regrip_event(rec, releases[arm], sw))
-    return events
+            k = int(np.clip(np.searchsorted(traj.t, sw.t - 1e-9), 1, len(traj.t) - 2))
+            found.append((releases[arm], sw, k))
+    return found
 
 
-def _regrip_event(rec, release, grip) -> dict:
+def _regrip_event(release, grip, tip: np.ndarray, quat: np.ndarray) -> dict:
     """The re-grip from switch `release` to switch `grip` of one arm: the arm, the points; the grip's snap (the
     EM tip's jump in the step after the weld goes on, beyond what its motion before carried it: the second
-    difference of its position); and the grip's offset (how far the EM tip is from the planned contact point
-    when it grips, which the weld then keeps)."""
+    difference of its position, `tip` at the samples before, at and after the grip); and the grip's offset (how far
+    the EM tip is from the planned contact point when it grips, which the weld then keeps; `quat`: the recorded
+    rotor's orientation there)."""
     arm = grip.detail["arm"]
-    k = int(np.clip(np.searchsorted(rec.t, grip.t - 1e-9), 1, len(rec.t) - 2))
-    tip = rec.sensors[f"em{arm}_tip"]
-    jump = float(np.linalg.norm(tip[k + 1] - 2 * tip[k] + tip[k - 1]))
+    jump = float(np.linalg.norm(tip[2] - 2 * tip[1] + tip[0]))
     held = grip.detail.get("point")  # the point gripped (rotor frame), or the paper's candidate by its letter
-    rot = quat_to_matrix(rec.sensors["rotor_quat"][k])[0]  # the recorded rotor's orientation there
+    rot = quat_to_matrix(quat)[0]
     point = rot @ (np.asarray(held) if held is not None else POINTS[arm - 1, "abc".index(grip.detail["to_point"])])
     point = point * RADIUS
     return {"t_start": release.t, "t_end": grip.t, "kind": "switch",
             "detail": {"arm": arm, "from_point": grip.detail["from_point"], "to_point": grip.detail["to_point"],
-                       "contact_jump": jump, "grip_offset": float(np.linalg.norm(tip[k] - point))}}
+                       "contact_jump": jump, "grip_offset": float(np.linalg.norm(tip[1] - point))}}
 
 
 def paint(model, rec, row: int) -> None:

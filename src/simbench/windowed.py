@@ -1,0 +1,144 @@
+"""What the analysis reduces a run's per-sample arrays to, found a window of samples at a time, so that analysing
+a long run holds one window's arrays and what it keeps of them, not every sample's (simbench.analysis).
+
+- `Spans`: the runs of True in a mask (a joint at its limit, the tool near a singular set), each reduced as it
+  grows; a run that reaches a window's last sample goes on in the next window if that one's first sample
+  continues it.
+- `Rises`: where a series rose above every sample before it: the first sample beyond any level is among them (the
+  verdict's "off the path from t = ...").
+- `Departure`: how far and for how long the tool left the path after a step of the plan (a reference jump), from
+  the path deviation after it.
+- `Sums`: sums of squares, maxima and the last value of series, for their RMS, maximum and final value.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+
+def spans(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [start, end] (inclusive) of the runs of True in mask. Most masks the analysis asks about (a
+    joint past a limit, an actuator saturated) have none: those return at once."""
+    mask = np.asarray(mask, bool)
+    if not mask.any():
+        return []
+    padded = np.concatenate([[False], mask, [False]])
+    edges = np.flatnonzero(padded[1:] != padded[:-1])
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
+
+
+class Spans:
+    """The runs of True in a mask seen a window at a time, as (first, last, state) in the run's sample indices:
+    `state` is what `add`'s reduce made of the run's samples, and `merge` joins the states of a run's pieces in two
+    windows (earlier first)."""
+
+    def __init__(self, merge: Callable[[Any, Any], Any]):
+        self.merge = merge
+        self.done: list[tuple[int, int, Any]] = []
+        self.open: tuple[int, int, Any] | None = None  # a run that reached the last window's last sample
+
+    def add(self, mask: np.ndarray, lo: int, reduce: Callable[[int, int], Any]) -> None:
+        """The window of samples lo.. whose mask this is; reduce(a, b) gives the state of its run from window
+        index a to b (inclusive)."""
+        found = spans(mask)
+        if self.open is not None and not (found and found[0][0] == 0):
+            self.done.append(self.open)
+            self.open = None
+        for a, b in found:
+            state, first = reduce(a, b), lo + a
+            if self.open is not None:  # this window's first run goes on from the last window's
+                first, state = self.open[0], self.merge(self.open[2], state)
+                self.open = None
+            if b == len(mask) - 1:
+                self.open = (first, lo + b, state)
+            else:
+                self.done.append((first, lo + b, state))
+
+    def finish(self) -> list[tuple[int, int, Any]]:
+        """Every run, in order."""
+        if self.open is not None:
+            self.done.append(self.open)
+            self.open = None
+        return self.done
+
+
+class Rises:
+    """The samples where a series rose above every sample before it, and its values there, in order."""
+
+    def __init__(self):
+        self.at: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+        self.top = -np.inf
+
+    def add(self, x: np.ndarray, lo: int) -> None:
+        """The window of samples lo.. of the series."""
+        if not len(x):
+            return
+        before = np.maximum(np.concatenate([[self.top], np.maximum.accumulate(x)[:-1]]), self.top)
+        rose = np.flatnonzero(x > before)
+        self.at.append(lo + rose)
+        self.values.append(x[rose])
+        self.top = max(self.top, float(np.max(x)))
+
+    def first_beyond(self, level: float) -> int | None:
+        """The first sample whose value is beyond `level`, or None."""
+        for at, values in zip(self.at, self.values):
+            beyond = np.flatnonzero(values > level)
+            if beyond.size:
+                return int(at[beyond[0]])
+        return None
+
+
+class Departure:
+    """The tool's departure from the path after a jump in the plan, from the path deviation at samples `start`
+    on: its largest deviation (the first sample of it), and the first sample from there on within `back` of the
+    path."""
+
+    def __init__(self, start: int, back: float):
+        self.start, self.back = start, back
+        self.peak, self.peak_at, self.back_at = -np.inf, start, None
+
+    def add(self, deviation: np.ndarray, lo: int) -> None:
+        """The window of samples lo.. of the path deviation."""
+        skip = max(self.start - lo, 0)
+        seg = deviation[skip:]
+        if not len(seg):
+            return
+        i = int(np.argmax(seg))
+        if seg[i] > self.peak:
+            self.peak, self.peak_at = float(seg[i]), lo + skip + i
+            within = np.flatnonzero(seg[i:] < self.back)
+            self.back_at = lo + skip + i + int(within[0]) if within.size else None
+        elif self.back_at is None:
+            within = np.flatnonzero(seg < self.back)
+            self.back_at = lo + skip + int(within[0]) if within.size else None
+
+
+class Sums:
+    """For named series (a column each, or (N, k) columns) seen a window at a time: the sum of their squares,
+    their largest absolute value, their last row and their number of rows."""
+
+    def __init__(self):
+        self.squares: dict[str, Any] = {}
+        self.largest: dict[str, Any] = {}
+        self.last: dict[str, Any] = {}
+        self.count: dict[str, int] = {}
+
+    def add(self, **series: np.ndarray) -> None:
+        """A window of each series."""
+        for name, x in series.items():
+            squares = np.sum(np.square(x), axis=0)
+            # a column at a time, as in `analysis._norms`: NumPy reduces across short rows slowly
+            largest = np.abs(x).max() if x.ndim == 1 else np.array([np.abs(c).max() for c in x.T])
+            if name in self.squares:
+                self.squares[name] = self.squares[name] + squares
+                self.largest[name] = np.maximum(self.largest[name], largest)
+            else:
+                self.squares[name], self.largest[name] = squares, largest
+            self.last[name] = x[-1]
+            self.count[name] = self.count.get(name, 0) + len(x)
+
+    def rms(self, name: str) -> Any:
+        return np.sqrt(self.squares[name] / self.count[name])
