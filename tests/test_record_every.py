@@ -12,7 +12,8 @@ from test_sim import ClosedServo, Scripted, planned, shipped
 
 import simbench
 from conftest import scenario_file
-from simbench import stepping
+from simbench import analysis, pages, stepping
+from simbench.robots import Tolerance
 from simbench.controllers import Servo
 from simbench.errors import ControlError
 from simbench.scenario import parse_scenario
@@ -43,14 +44,24 @@ def test_a_stride_keeps_the_whole_runs_rows_and_reports_the_same(evaluated, robo
     closure and rotor errors, the Agile Eye's assembly-mode changes) are those of every row."""
     _, whole = evaluated(robot, name)
     thin = simbench.evaluate(_strided(robot, name, k))
+    assert thin.analysis.samples == whole.recording.t.size
+    _same_at_the_kept_rows(thin, whole, k)
+
+
+def _same_at_the_kept_rows(thin, whole, k: int) -> None:
+    """Evaluation `thin` (stride k) holds `whole`'s rows [::k] and its last, bit for bit (the recording's columns,
+    its sensors and constraints, the plan, the analysis' series), and the same figures, events and verdict."""
     rows = _rows(whole.recording.t.size, k)
-    assert thin.recording.kept is None and thin.analysis.samples == whole.recording.t.size
+    assert thin.recording.kept is None
     for column in _HEAVY + _EVERY_ROW:
         assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)[rows]), column
+    for key in ("sensors", "eq_active"):
+        for name, values in getattr(thin.recording, key).items():
+            assert np.array_equal(values, getattr(whole.recording, key)[name][rows]), name
     assert np.array_equal(thin.trajectory.q_ref, whole.trajectory.q_ref[rows])
     assert thin.analysis.series.keys() == whole.analysis.series.keys()
-    for name_, values in thin.analysis.series.items():
-        assert np.array_equal(values, whole.analysis.series[name_][rows]), name_
+    for name, values in thin.analysis.series.items():
+        assert np.array_equal(values, whole.analysis.series[name][rows]), name
     assert thin.analysis.tracking == whole.analysis.tracking
     assert thin.analysis.singularity_events == whole.analysis.singularity_events
     assert thin.analysis.limit_events == whole.analysis.limit_events
@@ -117,3 +128,55 @@ def test_a_bad_stride_is_refused_in_one_line_naming_the_field(tmp_path, value):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "sim.record_every" in lines[0], done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def _windows_of_a_block(monkeypatch, dt: float) -> int:
+    """Analysis windows (and path-search groups) of one path-search block: a few windows a shipped run."""
+    block = analysis._near_reference(dt)
+    monkeypatch.setattr(analysis, "_GROUP", block)
+    monkeypatch.setattr(analysis, "_WINDOW", block)
+    return block
+
+
+@pytest.mark.parametrize("robot, name, k", [("rsmg", "three_turns", 10), ("agile_eye", "through_singularity", 9),
+                                            ("spherical_arm", "case2", 7), ("puma600", "wrist_singularity", 4)])
+def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch, robot, name, k):
+    """A strided run is analysed while it is simulated, a window at a time, and each window's every-step arrays
+    are handed back after it (pages.release: every sample once, in order): its evaluation is the stride-1 run's
+    (simulated whole and analysed after, in the same windows) at the kept rows, bit for bit, with the same
+    figures, events (re-grips, reference jumps and their cost, spans cut by windows) and verdict."""
+    whole = simbench.evaluate(_strided(robot, name, 1))
+    window = _windows_of_a_block(monkeypatch, whole.trajectory.dt)
+    whole = simbench.evaluate(_strided(robot, name, 1))
+    released = []
+    release = pages.release
+    monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((a.shape, lo, hi)), release(a, lo, hi)))
+    thin = simbench.evaluate(_strided(robot, name, k))
+    n = whole.recording.t.size
+    assert n > window and thin.analysis.samples == n  # two windows at least
+    q_windows = [(lo, hi) for shape, lo, hi in released if shape == whole.recording.q.shape]
+    assert q_windows == [(lo, min(lo + window, n)) for lo in range(0, n, window)]
+    _same_at_the_kept_rows(thin, whole, k)
+
+
+def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_failure(monkeypatch):
+    """A bad command at sample 2500, after two windows were analysed and let go: the error's recording and plan
+    are the kept rows before it, as the same failure recorded whole has them at those rows."""
+    scenario = shipped("spherical_arm", "case1", duration=4.0)
+    plant, traj = planned(scenario, "torque")
+    window = _windows_of_a_block(monkeypatch, traj.dt) // 2
+    a = scenario.analysis
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    caught = []
+    for k, analyser in ((1, None), (20, analysis.Analyser(scenario.robot_def, traj, near, margin, window))):
+        with pytest.raises(ControlError) as err:
+            simulate(plant, traj, Scripted(lambda nu: np.full(nu, np.nan), at=2500), settle=0.05, record_every=k,
+                     analyser=analyser)
+        caught.append(err.value)
+    whole, thin = caught
+    rows = np.arange(0, 2500, 20)
+    assert 2500 > 2 * window and analyser.samples >= 2 * window and thin.t == whole.t
+    assert thin.recording.kept is None
+    for column in _HEAVY + _EVERY_ROW:
+        assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)[rows]), column
+    assert np.array_equal(thin.trajectory.q_ref, traj.q_ref[rows])

@@ -13,6 +13,7 @@ its lag along the path, and its error against the time-indexed reference. Events
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,8 +28,8 @@ _NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
 _BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
 _LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
-_GROUP = 1 << 17  # samples of a long run that deviation_near_reference searches at once, on their stretch alone
-_WINDOW = 1 << 17  # samples analysed at a time (whole groups of the path search: `window_size`)
+_GROUP = 1 << 15  # samples of a long run that deviation_near_reference searches at once, on their stretch alone
+_WINDOW = 1 << 15  # samples analysed at a time (whole groups of the path search: `window_size`)
 
 
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -419,7 +420,8 @@ def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     range), `velocity_limit` (a reference rate beyond its speed limit) and `reference_jump` (without its cost in
     physics)."""
     return sorted(_joint_limit_events(robot, traj) + _velocity_events(robot, traj)
-                  + _jump_events(robot, traj, _jumps(robot, traj)), key=lambda e: (e["t_start"], e["kind"]))
+                  + _jump_events(robot, traj, _jumps(robot, traj, 0, len(traj.t) - 1)),
+                  key=lambda e: (e["t_start"], e["kind"]))
 
 
 def _joint_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
@@ -447,21 +449,23 @@ def _velocity_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     return events
 
 
-def _jumps(robot: Robot, traj: JointTrajectory) -> np.ndarray:
-    """The steps k -> k + 1 of the plan farther than ten samples at the speed limit (a joint a row, (dof, N - 1)):
-    a joint at a time, the steps as np.diff gives them, so that there are no (N, dof) temporaries on a long run and
-    `any` runs along the samples (as in `_norms`)."""
+def _jumps(robot: Robot, traj: JointTrajectory, first: int, stop: int) -> list[tuple[int, list[int]]]:
+    """The steps k -> k + 1 of the plan, first <= k < stop, farther than ten samples at the speed limit, each with
+    the joints that jump: a joint at a time, the steps as np.diff gives them, so that there are no (N, dof)
+    temporaries on a long run; a joint a row, so that `any` runs along the samples (as in `_norms`)."""
     limit = _JUMP_FACTOR * robot.qd_max * traj.dt
-    return np.stack([np.abs(np.diff(traj.q_ref[:, j])) > limit[j] for j in range(len(limit))])
+    q = traj.q_ref[first:stop + 1]
+    jump = np.stack([np.abs(np.diff(q[:, j])) > limit[j] for j in range(len(limit))])
+    return [(first + k, np.flatnonzero(jump[:, k]).tolist()) for k in np.flatnonzero(jump.any(axis=0)).tolist()]
 
 
-def _jump_events(robot: Robot, traj: JointTrajectory, jump: np.ndarray,
+def _jump_events(robot: Robot, traj: JointTrajectory, jumps: list[tuple[int, list[int]]],
                  departures: dict[int, Departure] | None = None) -> list[dict]:
     """The plan's jumps (`_jumps`); with the tool's departure from the path after each (the recorded path
     deviation's), what each cost: how far and how long the tool left the path."""
     t, events = traj.t, []
-    for k in np.flatnonzero(jump.any(axis=0)).tolist():
-        detail = {"joints": [robot.joints[j] for j in np.flatnonzero(jump[:, k])],
+    for k, joints in jumps:
+        detail = {"joints": [robot.joints[j] for j in joints],
                   "step": (traj.q_ref[k + 1] - traj.q_ref[k]).tolist(),
                   "s": [float(traj.s[k]), float(traj.s[k + 1])],
                   "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1])}
@@ -485,15 +489,16 @@ def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance
     `window_size`, more than any shipped scenario has), so that a long run's analysis holds a window of per-sample
     arrays and what it keeps of them: the figures and events of the whole run, and the per-sample series at the
     recording's kept rows (every row without a recording stride)."""
-    run = _Analyser(robot, traj, rec, near, margin)
-    size = window or window_size(traj.dt)
-    for lo in range(0, rec.t.size, size):
-        run.add(lo, min(lo + size, rec.t.size))
-    return run.finish()
+    run = Analyser(robot, traj, near, margin, window)
+    for lo in range(0, rec.t.size, run.window):
+        run.add(rec.rows(lo, min(lo + run.window, rec.t.size)))
+    return run.finish(rec)
 
 
-class _Analyser:
-    """The analysis of a run, fed its samples a window at a time, in order.
+class Analyser:
+    """The analysis of a run, fed its samples a window at a time, in order (as they are simulated: simbench.sim,
+    whose windows' samples are then let go). A window's plan is final: the plan's feedback revises the references
+    of samples still to come only.
 
     Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points)
     near its reference (the stretch within _NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and
@@ -502,8 +507,11 @@ class _Analyser:
     summary (a Summariser's windows, or with none the whole run's `summary` at the end). Spans of events that reach
     a window's edge go on into the next (windowed.Spans)."""
 
-    def __init__(self, robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance):
-        self.robot, self.traj, self.rec, self.near, self.margin = robot, traj, rec, near, margin
+    def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
+                 window: int | None = None):
+        self.robot, self.traj, self.near, self.margin = robot, traj, near, margin
+        self.window = window or window_size(traj.dt)  # the samples a window should have (`analyse`, simbench.sim)
+        self.samples, self.seconds = 0, 0.0  # analysed so far, and the time `add` took
         self.tangents = _Tangents(traj.tool_ref)
         self.sums, self.arc = Sums(), 0.0
         self.rises = {"path_deviation": Rises(), robot.orientation_error: Rises()}
@@ -515,12 +523,29 @@ class _Analyser:
         self.at_limit = {(j, bound): Spans(min if bound == "lower" else max)
                          for j in range(robot.dof) for bound in ("lower", "upper")}
         self.saturated = [Spans(lambda first, _: first) for _ in range(robot.dof)]
-        self.jump = _jumps(robot, traj)
-        self.departures = {k: Departure(k + 1, _BACK_ON_PATH) for k in np.flatnonzero(self.jump.any(axis=0)).tolist()}
+        self.jumps: list[tuple[int, list[int]]] = []
+        self.departures: dict[int, Departure] = {}
+        self.force_limit, self.timestep = np.zeros(0), 0.0
 
-    def add(self, lo: int, hi: int) -> None:
-        """Samples lo..hi-1."""
-        traj, rec = self.traj.rows(slice(lo, hi)), self.rec.rows(lo, hi)
+    @property
+    def streams(self) -> bool:
+        """Whether the robot's summary comes a window at a time (a Summariser): else it needs the whole run."""
+        return self.summariser is not None
+
+    def add(self, rec: Recording) -> None:
+        """The next window: the recording of samples lo..hi-1 (Recording.rows), lo the samples so far."""
+        start = time.perf_counter()
+        self._add(rec)
+        self.seconds += time.perf_counter() - start
+
+    def _add(self, rec: Recording) -> None:
+        lo = self.samples
+        hi = self.samples = lo + rec.t.size
+        traj = self.traj.rows(slice(lo, hi))
+        self.force_limit, self.timestep = rec.force_limit, rec.timestep
+        for k, joints in _jumps(self.robot, self.traj, max(lo - 1, 0), hi - 1):  # each step once its rows are final
+            self.jumps.append((k, joints))
+            self.departures[k] = Departure(k + 1, _BACK_ON_PATH)
         series = self._tracking(traj, rec, lo, hi)
         measures = self.robot.measures(rec)
         self.measures = tuple(measures)
@@ -578,8 +603,8 @@ class _Analyser:
             self.saturated[j].add(np.abs(force) >= rec.force_limit[j] * (1 - 1e-6), lo,
                                   lambda a, b, force=force: float(force[a]))
 
-    def finish(self) -> Analysis:
-        """The whole run's analysis."""
+    def finish(self, whole: Recording | None = None) -> Analysis:
+        """The whole run's analysis; `whole`, the run's recording, is needed where the robot has no Summariser."""
         robot, traj, t = self.robot, self.traj, self.traj.t
         series = {name: np.concatenate(parts) if len(parts) > 1 else parts[0] for name, parts in self.kept.items()}
         singular = []
@@ -591,15 +616,16 @@ class _Analyser:
         if self.summariser is not None:
             extra, events = self.summariser.finish()
         else:  # the whole run's summary, then its series at the kept rows
-            extra, events, more = robot.summary(traj, self.rec, series)
+            assert whole is not None, f"robot '{robot.name}' has no Summariser: its analysis needs the whole run"
+            extra, events, more = robot.summary(traj, whole, series)
             series.update(more)
             self._orientation(series, 0)
-            if self.rec.kept is not None:
-                series = {name: v[self.rec.kept] for name, v in series.items()}
+            if whole.kept is not None:
+                series = {name: v[whole.kept] for name, v in series.items()}
         return Analysis(tracking=self._summary(), singularity_events=sorted(
                             singular + events, key=lambda e: (e["t_start"], e["kind"])),
                         limit_events=self._limit_events(), series=series, measures=self.measures, extra=extra,
-                        samples=int(self.rec.t.size),
+                        samples=self.samples,
                         rises={k: v for k, v in self.rises.items() if k is not None and v.at})
 
     def _summary(self) -> dict:
@@ -632,9 +658,9 @@ class _Analyser:
             events += [_event(t, (first, last), "at_limit", {"joint": robot.joints[j], "bound": bound,
                                                              "limit": float(limit), "extreme": extreme})
                        for first, last, extreme in spans_of.finish()]
-        events += _jump_events(robot, traj, self.jump, self.departures) + _velocity_events(robot, traj)
+        events += _jump_events(robot, traj, self.jumps, self.departures) + _velocity_events(robot, traj)
         for j, spans_of in enumerate(self.saturated):
             events += [_event(t, (first, last), "actuator_saturation", {
-                "joint": robot.joints[j], "limit": float(self.rec.force_limit[j]), "force": force,
-                "duration": float(t[last] - t[first] + self.rec.timestep)}) for first, last, force in spans_of.finish()]
+                "joint": robot.joints[j], "limit": float(self.force_limit[j]), "force": force,
+                "duration": float(t[last] - t[first] + self.timestep)}) for first, last, force in spans_of.finish()]
         return sorted(events, key=lambda e: (e["t_start"], e["kind"]))

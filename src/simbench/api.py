@@ -117,6 +117,16 @@ class Summariser(ABC):
         """The whole run's report entries and events (Summary.entries, Summary.events)."""
 
 
+class _NoSummary(Summariser):
+    """The summary of a mechanism that adds nothing to a run's analysis (Robot.summary not overridden)."""
+
+    def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
+        return {}
+
+    def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+        return {}, []
+
+
 class Decoration(NamedTuple):
     """A shape a planner asks the video to draw in every frame: a cone of directions from the world origin
     (an Agile Eye obstacle), `axis` (3,) unit, `half_angle` rad, `length` m, `rgba` (4,)."""
@@ -205,9 +215,10 @@ class Robot(ABC):
 
     def summariser(self, traj: JointTrajectory) -> Summariser | None:
         """`summary` found a window of samples at a time, for a run of the plan `traj` (as commanded): override it
-        where the mechanism adds series or figures, so that a long run's analysis holds a window's samples. None
-        (the default): the analysis keeps every sample's series and calls `summary` once, on the whole run."""
-        return None
+        with `summary` where the mechanism adds series or figures, so that a long run's analysis holds a window's
+        samples. The default: a Summariser that adds nothing where `summary` is not overridden either, else None:
+        the analysis then keeps every sample's series and calls `summary` once, on the whole run."""
+        return _NoSummary() if type(self).summary is Robot.summary else None
 
     def paint(self, model: mujoco.MjModel, rec: Recording, row: int) -> None:
         """Change the model's colours for the video frame of recorded row `row` (a magnet on or off)."""

@@ -30,7 +30,10 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   k-th sample only, R_k = 8 (columns - nstate - dof + (nstate + dof) / k) a sample, and writes every k-th: the
   run holds R_k instead of R (planning and analysing still work at every sample: 1.8 R + R_k; measured at
   stride 10 against stride 1, MB: spherical arm 30 against 35, RSMG 51 against 61, Agile Eye 24 against 27), and
-  writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k).
+  writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k). Since the pipeline analyses a
+  strided run as it simulates it (simbench.sim's analyser), it holds every step's readings of a window of
+  32,768 samples only, not R a sample: the estimate, kept as calibrated before, runs high there (the ten-minute
+  soak: estimated 1.3 GB, its resident peak 0.4 GB).
 - Time: stepping 0.13 us per column per step (measured 4.4-17 us a step), planning and analysing 10 us a
   sample and 1.2 us a searched pair (the pairs of the k-d tree search the analysis used until issue 14, kept as
   the estimate, which runs high: 4 a sample, and 0.001 x the samples a sample under the 4-5-6-7 law, whose ends

@@ -26,10 +26,17 @@ def _malloc_trim():
 _MALLOC_TRIM = _malloc_trim()
 
 
+def trim() -> None:
+    """Return the heap's free pages to the system (without collecting garbage first: a few milliseconds on a
+    large heap)."""
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
+
+
 def give_back(samples: int) -> None:
     """Collect the cyclic garbage and return the heap's free pages to the system, in a run of `samples` control
     samples at least TRIM_SAMPLES long. A short run frees a few MB, and the collection and trim would cost it a
     few milliseconds (a sweep's runs)."""
-    if _MALLOC_TRIM is not None and samples >= TRIM_SAMPLES:
+    if samples >= TRIM_SAMPLES:
         gc.collect()
-        _MALLOC_TRIM(0)
+        trim()

@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from simbench import budget, destination, heap
-from simbench.analysis import Analysis, analyse, plan_limit_events
+from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
 from simbench.page import run_page, write_page
@@ -30,6 +30,7 @@ from simbench.robots import Tolerance
 from simbench.scenario import Scenario, as_scenario
 from simbench.plant import Plant
 from simbench.sim import Recording, commanded, simulate
+from simbench.stepping import kept_rows
 from simbench.trajectory import JointTrajectory
 from simbench.verdict import Verdict, plan_verdict, run_verdict
 
@@ -70,6 +71,11 @@ class _Stopwatch:
         finally:
             self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
 
+    def move(self, seconds: float, source: str, target: str) -> None:
+        """Book `seconds` of stage `source` to stage `target` (the analysis done while a run is simulated)."""
+        self.times[source] = self.times.get(source, 0.0) - seconds
+        self.times[target] = self.times.get(target, 0.0) + seconds
+
     def summary(self) -> dict[str, float]:
         """Seconds per stage and their total, as report.json gives them."""
         wall = {k: round(v, 4) for k, v in self.times.items()}
@@ -107,20 +113,27 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
         heap.give_back(len(traj.t))
+    a = scenario.analysis
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    # A run with a recording stride is analysed as it is simulated, where the robot's summary comes a window at a
+    # time: every step's readings are then let go a window at a time (sim.simulate's analyser).
+    analyser = Analyser(robot, traj, near, margin)
+    streams = sim.record_every > 1 and analyser.streams
     with watch.stage("simulate"):
         rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every,
-                       revise_in_place=True)  # the plan as planned is not needed after the run
-        traj = commanded(traj, rec)
+                       revise_in_place=True,  # the plan as planned is not needed after the run
+                       analyser=analyser if streams else None)
+        traj = replace(traj, feedback=None) if streams else commanded(traj, rec)  # the feedback is spent
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
         del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them
         heap.give_back(len(traj.t))
+    watch.move(analyser.seconds, "simulate", "analyse")
     with watch.stage("analyse"):
-        a = scenario.analysis
-        result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
-                         margin=Tolerance(a.limit_angle, a.limit_length))
+        result = analyser.finish() if streams else analyse(robot, traj, rec, near, margin)
         found = run_verdict(robot, traj, result, a, scenario.expect)
-    if rec.kept is not None:  # the analysis has read every sample: what is kept of them is the outputs' rows
-        traj, rec = traj.rows(rec.kept), rec.thinned()
+    if sim.record_every > 1:  # the analysis has read every sample: what is kept of them is the outputs' rows
+        traj = traj.rows(kept_rows(len(traj.t), sim.record_every))
+        rec = rec if streams else rec.thinned()
     return Evaluation(traj, rec, result, found, control)
 
 

@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 from tqdm import tqdm
 
+from simbench import heap, pages
 from simbench.api import Controller
 from simbench.controllers import Servo
 from simbench.errors import ControlError, PhysicsError, RunError
@@ -31,6 +33,9 @@ from simbench.plant import Plant
 from simbench.stepping import ClosedLoop, CommandFault, OpenLoop, Rows, state_slices
 from simbench.switches import apply_switch, at_start
 from simbench.trajectory import JointTrajectory, revise
+
+if TYPE_CHECKING:
+    from simbench.analysis import Analyser
 
 
 @dataclass(frozen=True)
@@ -86,7 +91,8 @@ class Recording:
 
 
 def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None = None, settle: float = 0.2,
-             progress: bool = False, record_every: int = 1, revise_in_place: bool = False) -> Recording:
+             progress: bool = False, record_every: int = 1, revise_in_place: bool = False,
+             analyser: Analyser | None = None) -> Recording:
     """Settle at traj's first reference, then track it with `controller` (default: the servo with velocity
     feed-forward), applying the planned switches at their steps; one recorded row per control sample, whole at
     every `record_every`-th and the last (Recording.kept). Where the plan switches, the plant's model is copied,
@@ -96,13 +102,22 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     traj's own arrays, for a caller that has no further use for the plan as planned (the pipeline: simbench.run
     and evaluate, sweeps, compare; two (N, dof) arrays fewer, 77 MB on the ten-minute soak). The feedback then
     reads the plan's references as revised so far (the RSMG's reads only its gripping arm's rows from the grip on,
-    which no earlier change touched)."""
+    which no earlier change touched).
+
+    With an `analyser` (simbench.analysis.Analyser, whose robot's summary comes a window at a time), the run is
+    analysed as it is simulated, a window of samples at a time, and each window's samples are let go once its
+    kept rows are copied out (simbench.pages): a long run with a recording stride then holds about a window of
+    every step's readings, not all of them. Its Recording, and a PhysicsError's, hold the kept rows only
+    (Recording.thinned's); the plan's feedback, if any, must revise in place, so that the analysis reads the
+    references as commanded."""
+    if analyser is not None and traj.feedback is not None and not revise_in_place:
+        raise ValueError("a run analysed as it is simulated revises its plan in place (revise_in_place=True)")
     if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
         raise ValueError(f"trajectory dt {traj.dt} differs from the model timestep {plant.model.opt.timestep}")
     controller = controller if controller is not None else Servo()
     controller.bind(plant, traj)
     with quiet_mujoco():
-        return _Run(plant, traj, controller, settle, record_every, revise_in_place).go(progress)
+        return _Run(plant, traj, controller, settle, record_every, revise_in_place, analyser).go(progress)
 
 
 def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
@@ -117,7 +132,7 @@ class _Run:
     """One simulation: the model and data, the recorded rows, the stepper, and the references as revised."""
 
     def __init__(self, plant: Plant, traj: JointTrajectory, controller: Controller, settle: float, every: int,
-                 in_place: bool = False):
+                 in_place: bool = False, analyser: Analyser | None = None):
         self.plant, self.traj, self.controller, self.every, self.in_place = plant, traj, controller, every, in_place
         self.ctrl = controller.open_loop()  # (N, nu), or None for a closed-loop controller
         if self.ctrl is not None:
@@ -128,16 +143,17 @@ class _Run:
         n_settle = int(round(settle / self.model.opt.timestep))
         q_columns = state_slices(self.model)["mjSTATE_QPOS"].start + plant.qpos_adr
         self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state,
-                               controls=self.ctrl is None)
+                               controls=self.ctrl is None, releasable=analyser is not None)
         self.stepper: OpenLoop | ClosedLoop
         if self.ctrl is not None:
             self.stepper = OpenLoop(self.model, self.ctrl)
         else:
             self.stepper = ClosedLoop(plant, controller)
         # eq_active[r]: the constraints in force from row r's time on (after the switches at that step).
-        self.eq_active = np.empty((traj.t.size, self.model.neq), bool)
+        self.eq_active = (pages.releasable if analyser is not None else np.empty)((traj.t.size, self.model.neq), bool)
         self.warnings: list[dict] = []
         self.revised: tuple | None = None  # (q_ref, qd_ref) once the plan's feedback has changed them
+        self.stream = None if analyser is None else _Stream(self, analyser)
 
     def _start(self, t: float) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
         """The model and data at the plan's first reference, forwarded (PhysicsError if MuJoCo cannot)."""
@@ -153,7 +169,8 @@ class _Run:
     def go(self, progress: bool) -> Recording:
         """Step every segment between switches; the Recording, or PhysicsError with the one up to the fault."""
         n_settle, n = self.rows.n_settle, len(self.rows.sensors) - 1
-        bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle}) + [n]
+        windows = set() if self.stream is None else set(range(n_settle + self.stream.window, n, self.stream.window))
+        bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle} | windows) + [n]
         done = 0
         with tqdm(total=n, desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
                   leave=False) as bar:
@@ -163,11 +180,16 @@ class _Run:
                     self.warnings += self.stepper.run(self.model, self.data, self.rows, done, stop, bar)
                     self._switch(stop - n_settle)
                     done = stop
+                    if self.stream is not None:
+                        self.stream.feed(done - n_settle)  # the samples whose readings are all in
             except Fault as fault:
                 raise self._failure(fault) from None
             self.eq_active[-1] = self.data.eq_active
             mujoco.mj_forward(self.model, self.data)
         self.rows.sensors[-1] = self.data.sensordata
+        if self.stream is not None:
+            self.stream.feed(n - n_settle + 1, last=True)
+            return self.stream.recording(n - n_settle + 1)
         return self._record(self.rows.sensors[n_settle:])
 
     def _switch(self, k: int) -> None:
@@ -200,28 +222,42 @@ class _Run:
         rows = fault.step + (0 if command else 1) - self.rows.n_settle  # the rows recorded soundly
         if rows <= 0:
             return error(rows * self.model.opt.timestep, fault.cause, self.traj, None)
-        partial = self._record(self.rows.sensors[self.rows.n_settle:self.rows.n_settle + rows])
         when = float(self.traj.t[rows - 1] + self.model.opt.timestep)
+        if self.stream is not None:  # the kept rows before the fault, and the plan at them
+            return error(when, fault.cause, self.traj.rows(self.rows.kept[self.rows.kept < rows]),
+                         self.stream.recording(rows))
+        partial = self._record(self.rows.sensors[self.rows.n_settle:self.rows.n_settle + rows])
         return error(when, fault.cause, commanded(self.traj, partial), partial)
 
-    def _record(self, readings: np.ndarray) -> Recording:
+    def _record(self, readings: np.ndarray, commands: bool = True) -> Recording:
         """The Recording of the first len(readings) samples. Row 0 is the state at the end of settling (the
         start state itself when there is no settling); row r > 0 is the state after step r - 1. MuJoCo computes
-        sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state."""
-        plant, model, rows = self.plant, self.model, len(readings)
+        sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state.
+        Without `commands`, its ctrl is empty (the views an analysis reads while the run goes on: a closed loop's
+        commands would be copied)."""
+        rows = len(readings)
         kept = self.rows.kept[self.rows.kept < rows]
-        states = self.rows.states[:len(kept)]
+        ctrl = self._commands(rows) if commands else np.zeros((0, self.model.nu))
+        revised = {} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}
+        return self._recording(self.traj.t[:rows].copy(), readings, self.rows.q[:rows], self.eq_active[:rows],
+                               ctrl if self.every == 1 or not commands else ctrl[kept], len(kept),
+                               kept=None if self.every == 1 else kept, **revised)
+
+    def _recording(self, t: np.ndarray, readings: np.ndarray, q: np.ndarray, eq_active: np.ndarray,
+                   ctrl: np.ndarray, n_kept: int, **more) -> Recording:
+        """A Recording of readings, joint positions and constraints in force at the times t, the first n_kept
+        kept rows' full states (qpos, qd) and commands ctrl; `more`: Recording's other fields."""
+        plant, model = self.plant, self.model
+        states = self.rows.states[:n_kept]
         sl = state_slices(model)
         qpos, qvel = states[:, sl["mjSTATE_QPOS"]], states[:, sl["mjSTATE_QVEL"]]
-        ctrl = self._commands(rows)
         recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
-        return Recording(t=self.traj.t[:rows].copy(), qpos=qpos, q=self.rows.q[:rows], qd=qvel[:, plant.dof_adr],
-                         ctrl=ctrl if self.every == 1 else ctrl[kept], tool=recorded.pop(plant.robot.tool_sensor),
-                         timestep=float(model.opt.timestep), warnings=tuple(self.warnings), sensors=recorded,
-                         eq_active={model.equality(i).name: self.eq_active[:rows, i] for i in range(model.neq)},
+        return Recording(t=t, qpos=qpos, q=q, qd=qvel[:, plant.dof_adr], ctrl=ctrl,
+                         tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
+                         warnings=tuple(self.warnings), sensors=recorded,
+                         eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)},
                          force=readings[:, _columns(plant.force_sensors)], force_limit=plant.force_limit(),
-                         kept=None if self.every == 1 else kept,
-                         **({} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}))
+                         **more)
 
     def _commands(self, rows: int) -> np.ndarray:
         """The command at each of the first `rows` samples: an open-loop controller's own; a closed-loop one's
@@ -230,6 +266,56 @@ class _Run:
             return self.ctrl[:rows]
         given = self.rows.controls[self.rows.n_settle:self.rows.n_settle + rows]
         return np.concatenate([given, given[-1:]])[:rows] if len(given) else self.rows.controls[:0]
+
+
+class _Stream:
+    """A run's samples handed to an Analyser a window of samples at a time as they are simulated, then let go:
+    the kept rows of every step's arrays (sensors, joint positions, the constraints in force, a closed loop's
+    commands) copied out, then their pages handed back (simbench.pages)."""
+
+    def __init__(self, run: _Run, analyser: Analyser):
+        self.run, self.analyser, self.window = run, analyser, analyser.window
+        rows = run.rows
+        kept = len(rows.kept)
+        self.lo, self.copied = 0, 0  # the first sample not analysed; the kept rows copied out
+        self.sensors, self.q = np.empty((kept, rows.sensors.shape[1])), np.empty((kept, rows.q.shape[1]))
+        self.eq_active = np.empty((kept, run.eq_active.shape[1]), bool)
+        self.controls = np.empty((kept if len(rows.controls) else 0, rows.controls.shape[1]))
+        self.every = run._record(rows.sensors[rows.n_settle:], commands=False)  # views of every sample
+
+    def feed(self, done: int, last: bool = False) -> None:
+        """Analyse the whole windows among the first `done` samples (with `last`, the rest too), then let them go."""
+        while self.lo + self.window <= done or (last and self.lo < done):
+            hi = min(self.lo + self.window, done)
+            self.analyser.add(self.every.rows(self.lo, hi))
+            self._copy(hi)
+            rows, settle = self.run.rows, self.run.rows.n_settle
+            first = 0 if self.lo == 0 else settle + self.lo  # the settling steps' readings go with the first window
+            for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi),
+                                (rows.q, self.lo, hi), (self.run.eq_active, self.lo, hi)):
+                pages.release(array, a, b)
+            heap.trim()  # the window's analysis' temporaries, freed into the heap
+            self.lo = hi
+
+    def _copy(self, done: int) -> None:
+        """Copy out the kept rows among the first `done` samples not copied yet."""
+        rows, settle = self.run.rows, self.run.rows.n_settle
+        stop = int(np.searchsorted(rows.kept, done))
+        k = rows.kept[self.copied:stop]
+        self.sensors[self.copied:stop] = rows.sensors[settle + k]
+        self.q[self.copied:stop] = rows.q[k]
+        self.eq_active[self.copied:stop] = self.run.eq_active[k]
+        if len(self.controls):  # a sample's command drove the step after it; the last sample's repeats the one before
+            self.controls[self.copied:stop] = rows.controls[settle + np.minimum(k, len(rows.controls) - settle - 1)]
+        self.copied = stop
+
+    def recording(self, done: int) -> Recording:
+        """The kept rows of the first `done` samples (all simulated), as Recording.thinned gives them."""
+        self._copy(done)
+        run, m = self.run, self.copied
+        kept = run.rows.kept[:m]
+        ctrl = self.controls[:m] if run.ctrl is None else run.ctrl[kept]
+        return run._recording(run.traj.t[kept], self.sensors[:m], self.q[:m], self.eq_active[:m], ctrl, m)
 
 
 def _columns(index: np.ndarray) -> slice | np.ndarray:

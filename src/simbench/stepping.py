@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from simbench import pages
 from simbench.api import Controller, State
 from simbench.errors import RunError
 from simbench.faults import (FATAL, MAX_SPEED, Fault, clear_warnings, fatal_cause, step_fault, unsound,
@@ -56,16 +57,20 @@ class Rows:
 
     @classmethod
     def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int, every: int = 1,
-              q_columns: np.ndarray | None = None, start: np.ndarray | None = None, controls: bool = True) -> "Rows":
+              q_columns: np.ndarray | None = None, start: np.ndarray | None = None, controls: bool = True,
+              releasable: bool = False) -> "Rows":
         """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
         (kept_rows), the joint positions at `q_columns` of the state (none by default); `start`: row 0's state
         when there is no settling. `controls`: whether the rows keep every step's command (not where an
-        open-loop controller's array has them all: a second (n, nu) copy, 37 MB on the ten-minute soak)."""
+        open-loop controller's array has them all: a second (n, nu) copy, 37 MB on the ten-minute soak).
+        `releasable`: every step's sensors, commands and joint positions on pages that can be handed back once
+        read (simbench.pages: a run analysed as it is simulated)."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
         q_columns = np.zeros(0, int) if q_columns is None else q_columns
         kept = kept_rows(n_track + 1, every)
-        rows = cls(sensors=np.empty((n + 1, model.nsensordata)), controls=np.empty((n if controls else 0, model.nu)),
-                   q=np.empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
+        empty = pages.releasable if releasable else np.empty
+        rows = cls(sensors=empty((n + 1, model.nsensordata)), controls=empty((n if controls else 0, model.nu)),
+                   q=empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
                    q_columns=q_columns, scratch=np.empty((min(_CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
                    t0=n_settle * model.opt.timestep)
         if start is not None:

@@ -1,0 +1,43 @@
+"""Arrays whose rows can be handed back to the system once they have been read.
+
+A long run recorded with a stride (sim.record_every) is analysed a window of samples at a time while it is
+simulated; the steppers write every step's sensors and joint positions into arrays indexed by step, and once a
+window is analysed (and its kept rows copied out) its rows are not read again. On an array of `releasable`, those
+rows' pages go back to the system (madvise MADV_DONTNEED on a private anonymous mapping: pages not yet touched
+cost nothing, pages handed back read as zeros), so the run holds about a window of them, not every step's.
+Where the system has no such mapping (Windows), `releasable` is np.empty and `release` does nothing.
+"""
+
+from __future__ import annotations
+
+import mmap
+
+import numpy as np
+
+_PRIVATE = getattr(mmap, "MAP_PRIVATE", None)
+_ANONYMOUS = getattr(mmap, "MAP_ANONYMOUS", None)
+_DONTNEED = getattr(mmap, "MADV_DONTNEED", None)
+
+
+def releasable(shape: tuple[int, ...], dtype=float) -> np.ndarray:
+    """An uninitialised array on pages of its own whose rows `release` can hand back."""
+    count = int(np.prod(shape))
+    if _PRIVATE is None or _ANONYMOUS is None or _DONTNEED is None:
+        return np.empty(shape, dtype)
+    buffer = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=_PRIVATE | _ANONYMOUS)
+    return np.frombuffer(buffer, dtype, count=count).reshape(shape)
+
+
+def release(array: np.ndarray, lo: int, hi: int) -> None:
+    """Hand rows lo..hi-1 of a `releasable` array back to the system (they read as zeros afterwards): the pages
+    wholly inside them; those shared with other rows stay."""
+    buffer = array.base
+    while buffer is not None and not isinstance(buffer, mmap.mmap):
+        buffer = getattr(buffer, "obj", None) if isinstance(buffer, memoryview) else buffer.base
+    if buffer is None:
+        return
+    row, hi = array.itemsize * int(np.prod(array.shape[1:])), min(hi, len(array))  # bytes a row (C order)
+    start = -(-lo * row // mmap.PAGESIZE) * mmap.PAGESIZE
+    end = hi * row // mmap.PAGESIZE * mmap.PAGESIZE
+    if end > start:
+        buffer.madvise(_DONTNEED, start, end - start)
