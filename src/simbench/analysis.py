@@ -360,14 +360,15 @@ class _Tangents:
         """The unit tangents at rows lo..hi-1 (windows asked for in order)."""
         step, norm, moving = self._steps(lo, hi)
         index = np.maximum.accumulate(np.where(moving, np.arange(len(moving)), -1))
+        before = self.last
+        if index[-1] >= 0:
+            self.last = step[index[-1]] / norm[index[-1]]
+        if index[0] >= 0:  # the window moves at its first row: every row has a step of its own or before it
+            return step[index] / norm[index][:, None]
+        seen = index >= 0  # the rows before the window's first move take the last before it, or the first after
         out = np.empty_like(step)
-        seen = index >= 0
         out[seen] = step[index[seen]] / norm[index[seen]][:, None]
-        if not seen.all():  # rows before the window's first move
-            out[~seen] = self.last if self.last is not None else self._first_move(lo)
-        if moving.any():
-            k = int(np.flatnonzero(moving)[-1])
-            self.last = step[k] / norm[k]
+        out[~seen] = before if before is not None else self._first_move(lo)
         return out
 
     def _first_move(self, lo: int) -> np.ndarray:
