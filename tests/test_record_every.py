@@ -13,6 +13,7 @@ from test_sim import ClosedServo, Scripted, planned, shipped
 import simbench
 from conftest import scenario_file
 from simbench import analysis, pages, stepping
+from simbench.report import build_failure_report
 from simbench.robots import Tolerance
 from simbench.controllers import Servo
 from simbench.errors import ControlError
@@ -174,6 +175,7 @@ def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_f
                      analyser=analyser)
         caught.append(err.value)
     whole, thin = caught
+    assert [build_failure_report(scenario, err, {}, {}, None)["samples"] for err in caught] == [2500, 2500]
     rows = np.arange(0, 2500, 20)
     assert 2500 > 2 * window and analyser.samples >= 2 * window and thin.t == whole.t
     assert thin.recording.kept is None

@@ -67,7 +67,8 @@ def build_failure_report(scenario, err, wall_time: dict, outputs: dict, source: 
         **_head(scenario, float(traj.dt), source),
         "status": "failed",
         "failure": {"stage": "simulate", "t": err.t, "cause": err.cause},
-        "samples": 0 if rec is None else int(rec.t.size),
+        # the samples simulated soundly, err.t = samples x dt (a strided run's recording holds fewer rows)
+        "samples": 0 if rec is None else int(round(err.t / rec.timestep)),
         "warnings": [] if rec is None else list(rec.warnings),
         "plan": {**traj.info, "warnings": list(traj.warnings)},
         "wall_time": wall_time,
