@@ -70,7 +70,8 @@ _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this tim
 _QUINTIC = TimeLaw("quintic", 1.0)
 _STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
 _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
-_CHUNK = 65536  # control samples whose orientations are found at a time (_rotor_references, _Orientations)
+_CHUNK = 65536  # control samples whose orientations are found at a time while planning (_rotor_references)
+_BLOCK = 8192  # and during the run, as grips ask for them (_Orientations: scipy's temporaries of 65,536 were 19 MB)
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 # The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
 # paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
@@ -763,7 +764,7 @@ class _RegripFeedback:
 
 class _Orientations:
     """The rotor's commanded orientations R (N, 3, 3) at the plan's path parameters s, found from the motion a
-    block of _CHUNK rows at a time as the run's grips ask for them, not kept whole: all of them would hold 43 MB
+    block of _BLOCK rows at a time as the run's grips ask for them, not kept whole: all of them would hold 43 MB
     through the ten-minute soak's run. The grips come in time order, so the blocks before the latest asked for are
     dropped (and found again should an earlier row be asked for); each row is then found about once, though the
     four arms' holds overlap."""
@@ -774,12 +775,12 @@ class _Orientations:
 
     def rows(self, a: int, b: int) -> np.ndarray:
         """R at rows a..b-1: the same numbers as motion.orientation(s)[a:b] (scipy's rotations are each row's)."""
-        first, last = a // _CHUNK, max(b - 1, a) // _CHUNK
+        first, last = a // _BLOCK, max(b - 1, a) // _BLOCK
         self.blocks = {i: block for i, block in self.blocks.items() if i >= first}
         for i in range(first, last + 1):
             if i not in self.blocks:
-                self.blocks[i] = self.motion.orientation(self.s[i * _CHUNK:(i + 1) * _CHUNK])
-        return np.concatenate([self.blocks[i][max(a - i * _CHUNK, 0):b - i * _CHUNK] for i in range(first, last + 1)])
+                self.blocks[i] = self.motion.orientation(self.s[i * _BLOCK:(i + 1) * _BLOCK])
+        return np.concatenate([self.blocks[i][max(a - i * _BLOCK, 0):b - i * _BLOCK] for i in range(first, last + 1)])
 
 
 def _smoothstep(u: np.ndarray) -> np.ndarray:
