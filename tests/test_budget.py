@@ -2,6 +2,7 @@
 machine cannot afford, before anything big is allocated: exit 2, one line naming the field, nothing written, a
 small process; a large but possible run says what it will cost."""
 
+import dataclasses
 import subprocess
 import sys
 import textwrap
@@ -61,6 +62,34 @@ def test_estimate_is_within_a_factor_of_what_a_run_allocates(robot, name, durati
     assert est.samples == ev.analysis.samples  # every sample of the plan analysed
     assert len(ev.trajectory.t) == len(ev.recording.t) == len(ev.analysis.series["tool_error"])  # the kept rows
     assert peak / 1.5 <= est.memory <= 2.0 * peak, (est.memory, peak)
+
+
+@pytest.mark.parametrize(("robot", "name", "duration", "every"), [("spherical_arm", "case1", 150.0, 10),
+                                                            ("rsmg", "three_turns", 100.0, 20)])
+def test_a_run_analysed_as_it_is_simulated_is_estimated_by_its_window(robot, name, duration, every):
+    """A strided run of several windows, analysed as it is simulated: the estimate against tracemalloc's peak of
+    evaluate() plus the every-step readings of a window (on pages of their own, which tracemalloc does not see),
+    within 1/1.5 to 2; and below what the model of a run held whole estimates for it."""
+    path = scenario_file(robot, name)
+    sc = parse_scenario(scaled(path, **{"timing.duration": duration, "sim.record_every": every}), str(path),
+                        default_name=name)
+    model = compiled_scene(str(sc.robot_def.scene))
+    shipped = load_scenario(path)
+    shipped.planner_def.plan(shipped, shipped.robot_def, float(model.opt.timestep))
+    ask = budget.Ask.of(sc)
+    est = budget.estimate(ask)
+    assert ask.streams and est.samples > 3 * analysis._WINDOW == 3 * budget._WINDOW
+    tracemalloc.start()
+    try:
+        start = tracemalloc.get_traced_memory()[0]
+        pipeline.evaluate(sc)
+        peak = tracemalloc.get_traced_memory()[1] - start
+    finally:
+        tracemalloc.stop()
+    window = 8 * (analysis._WINDOW + int(round(sc.sim.settle / model.opt.timestep))) * (model.nsensordata
+                                                                                          + sc.robot_def.dof)
+    assert (peak + window) / 1.5 <= est.memory <= 2.0 * (peak + window), (est.memory, peak, window)
+    assert est.memory < budget.estimate(dataclasses.replace(ask, streams=False)).memory
 
 
 def test_the_machine_limits_are_what_it_has():

@@ -213,6 +213,13 @@ class Robot(ABC):
         analysis's per-sample series so far (the tool error, say)."""
         return Summary({}, [], {})
 
+    @property
+    def streams(self) -> bool:
+        """Whether this robot's summary comes a window at a time (`summariser` overridden, or `summary` not): a run
+        of it with a recording stride is then analysed as it is simulated (simbench.sim), and holds a window of
+        every step's readings (simbench.budget estimates it so)."""
+        return type(self).summariser is not Robot.summariser or type(self).summary is Robot.summary
+
     def summariser(self, traj: JointTrajectory) -> Summariser | None:
         """`summary` found a window of samples at a time, for a run of the plan `traj` (as commanded): override it
         with `summary` where the mechanism adds series or figures, so that a long run's analysis holds a window's

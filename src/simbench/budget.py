@@ -30,10 +30,14 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   k-th sample only, R_k = 8 (columns - nstate - dof + (nstate + dof) / k) a sample, and writes every k-th: the
   run holds R_k instead of R (planning and analysing still work at every sample: 1.8 R + R_k; measured at
   stride 10 against stride 1, MB: spherical arm 30 against 35, RSMG 51 against 61, Agile Eye 24 against 27), and
-  writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k). Since the pipeline analyses a
-  strided run as it simulates it (simbench.sim's analyser), it holds every step's readings of a window of
-  32,768 samples only, not R a sample: the estimate, kept as calibrated before, runs high there (the ten-minute
-  soak: estimated 1.3 GB, its resident peak 0.4 GB).
+  writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k).
+  Where the robot's summary comes a window at a time (api.Robot.streams), the pipeline analyses a strided run as
+  it simulates it (simbench.sim's analyser): it holds every step's readings and the analysis' temporaries for a
+  window of _WINDOW samples only (2.8 R a sample of the window), and through the whole run the plan (t, s,
+  tool_ref, q_ref, qd_ref: 5 + 2 dof columns), the controller's commands (nu) and the kept rows (R / k), taken
+  1.3 times (the plan's own series, the allocator's slack): calibrated on the ten-minute soak, whose resident
+  size peaks 290 MiB above its libraries (estimated 299 MB; the model above gave 1.3 GB). Writing its outputs
+  then holds the thinned run only (4.5 R / k a sample: the soak's 122 MB, measured 120 MiB).
 - Time: stepping 0.13 us per column per step (measured 4.4-17 us a step), planning and analysing 10 us a
   sample and 1.2 us a searched pair (the pairs of the k-d tree search the analysis used until issue 14, kept as
   the estimate, which runs high: 4 a sample, and 0.001 x the samples a sample under the 4-5-6-7 law, whose ends
@@ -68,6 +72,8 @@ NOTE_MEMORY = 1e9  # bytes: a run estimated above this (or NOTE_SECONDS) gets a 
 NOTE_SECONDS = 300.0
 
 _RUN_FACTOR = 2.8  # peak of planning, simulating and analysing, in retained bytes a sample
+_WINDOW = 1 << 15  # samples a strided run is analysed at a time as it is simulated (simbench.analysis._WINDOW)
+_STREAM_FACTOR = 1.3  # of the plan, the commands and the kept rows such a run holds throughout
 _OUTPUT_FACTOR = 4.5  # peak while writing the outputs
 _PAIRS_PER_SAMPLE = 4.0  # the time model's path search: and, for the 4-5-6-7 law, _CROWDING x the samples
 _CROWDING = 0.001
@@ -97,6 +103,9 @@ class Ask:
     model_timestep: float
     strided: int = 0  # of the columns, those a recording stride thins: the full state and qd
     record_every: int = 1
+    dof: int = 0
+    nu: int = 0
+    streams: bool = False  # a strided run analysed as it is simulated (api.Robot.streams)
     video: bool = False
     width: int = 640
     height: int = 480
@@ -108,27 +117,29 @@ class Ask:
     @classmethod
     def of(cls, scenario, video: bool = False, outputs: bool = False) -> Ask:
         """A scenario's ask; `video` and `outputs` as `run` is called (evaluate: neither)."""
-        columns, strided, model_timestep = _model(str(scenario.robot_def.scene), scenario.robot_def.dof)
+        robot = scenario.robot_def
+        columns, strided, nu, model_timestep = _model(str(robot.scene), robot.dof)
         r = scenario.render
         return cls(duration=scenario.timing.duration, hold=scenario.timing.hold, settle=scenario.sim.settle,
                    timestep=scenario.sim.timestep or model_timestep, law=scenario.timing.law, columns=columns,
                    model_timestep=model_timestep, strided=strided, record_every=scenario.sim.record_every,
+                   dof=robot.dof, nu=nu, streams=scenario.sim.record_every > 1 and robot.streams,
                    video=video, width=r.width, height=r.height, fps=r.fps,
                    quality=r.quality, outputs=outputs or video,
                    plan_seconds=scenario.planner_def.seconds_per_sample)
 
 
 @cache
-def _model(scene: str, dof: int) -> tuple[int, int, float]:
-    """The float64 columns a sample keeps, those of them a recording stride thins, and the model's own timestep,
-    from the compiled scene (compiled once per process: the run compiles the same)."""
+def _model(scene: str, dof: int) -> tuple[int, int, int, float]:
+    """The float64 columns a sample keeps, those of them a recording stride thins, the actuators and the model's
+    own timestep, from the compiled scene (compiled once per process: the run compiles the same)."""
     import mujoco
 
     from simbench.plant import compiled_scene
 
     model = compiled_scene(scene)
     nstate = mujoco.mj_stateSize(model, int(mujoco.mjtState.mjSTATE_FULLPHYSICS))
-    return 6 + 5 * dof + nstate + model.nu + model.nsensordata, nstate + dof, float(model.opt.timestep)
+    return 6 + 5 * dof + nstate + model.nu + model.nsensordata, nstate + dof, model.nu, float(model.opt.timestep)
 
 
 @dataclass(frozen=True)
@@ -170,13 +181,18 @@ def estimate(ask: Ask) -> Estimate:
     rows = n / ask.record_every  # written
     held = 8.0 * (ask.columns - ask.strided + ask.strided / ask.record_every)  # a sample, while writing
     pairs = n * max(_PAIRS_PER_SAMPLE, _CROWDING * n if ask.law == "4567" else 0.0)
-    memory = (_RUN_FACTOR * kept - kept + held) * (n + n_settle)
+    if ask.streams:  # every step's readings a window at a time; the plan, the commands and the kept rows whole
+        held = 8.0 * (5 + 2 * ask.dof + ask.nu) + kept / ask.record_every
+        memory = _STREAM_FACTOR * held * (n + n_settle) + _RUN_FACTOR * kept * min(n + n_settle, _WINDOW)
+    else:
+        memory = (_RUN_FACTOR * kept - kept + held) * (n + n_settle)
     seconds = (_START_SECONDS + _STEP_SECONDS * ask.columns * (n + n_settle)
                + (_SAMPLE_SECONDS + ask.plan_seconds) * n
                + _PAIR_SECONDS * pairs)
     disk = 0.0
     if ask.outputs:
-        memory = max(memory, held * n + (_OUTPUT_FACTOR - 1) * kept * rows)
+        writing = _OUTPUT_FACTOR * kept * rows if ask.streams else held * n + (_OUTPUT_FACTOR - 1) * kept * rows
+        memory = max(memory, writing)
         seconds += _OUTPUT_SECONDS[0] + _OUTPUT_SECONDS[1] * rows
         disk = _TIMESERIES_FACTOR * kept * rows + _PLOT_BYTES
     frames, video_bytes = 0, 0.0
