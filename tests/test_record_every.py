@@ -12,8 +12,7 @@ from test_sim import ClosedServo, Scripted, planned, shipped
 
 import simbench
 from conftest import scenario_file
-from simbench import analysis, pages, stepping
-from simbench.report import build_failure_report
+from simbench import analysis, pages, pipeline, stepping
 from simbench.robots import Tolerance
 from simbench.controllers import Servo
 from simbench.errors import ControlError
@@ -160,7 +159,24 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
     _same_at_the_kept_rows(thin, whole, k)
 
 
-def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_failure(monkeypatch):
+def test_a_closed_loop_run_whose_last_window_is_its_last_sample_keeps_its_last_command():
+    """A closed loop at stride 20 whose last window holds only the run's last sample (32,001 samples, settle 0),
+    its commands ending on a page edge: the last sample's command (the step before's, repeated) is kept, as the
+    stride-1 run has it, though that step's window was handed back (it read zeros)."""
+    raw = yaml.safe_load(scenario_file("spherical_arm", "case1").read_text())
+    raw["timing"] = {**raw["timing"], "duration": 31.5, "hold": 0.5}
+    raw["control"] = {"controller": "computed_torque"}
+    runs = {}
+    for k in (1, 20):
+        raw["sim"] = {"settle": 0.0, "record_every": k}
+        runs[k] = simbench.evaluate(parse_scenario(raw, "case1", default_name="case1"))
+    n = runs[1].recording.t.size
+    assert n == analysis.window_size(runs[1].trajectory.dt) + 1 and (n - 1) * runs[1].recording.ctrl.shape[1] % 512 == 0
+    assert runs[1].recording.ctrl[-1].any()
+    _same_at_the_kept_rows(runs[20], runs[1], 20)
+
+
+def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_failure(monkeypatch, tmp_path):
     """A bad command at sample 2500, after two windows were analysed and let go: the error's recording and plan
     are the kept rows before it, as the same failure recorded whole has them at those rows."""
     scenario = shipped("spherical_arm", "case1", duration=4.0)
@@ -168,14 +184,20 @@ def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_f
     window = _windows_of_a_block(monkeypatch, traj.dt) // 2
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
-    caught = []
-    for k, analyser in ((1, None), (20, analysis.Analyser(scenario.robot_def, traj, near, margin, window))):
-        with pytest.raises(ControlError) as err:
-            simulate(plant, traj, Scripted(lambda nu: np.full(nu, np.nan), at=2500), settle=0.05, record_every=k,
-                     analyser=analyser)
-        caught.append(err.value)
-    whole, thin = caught
-    assert [build_failure_report(scenario, err, {}, {}, None)["samples"] for err in caught] == [2500, 2500]
+    caught = {}
+    for at in (10, 2500):  # before the first kept row after row 0, and after two windows
+        for k in (1, 20):
+            analyser = analysis.Analyser(scenario.robot_def, traj, near, margin, window) if k > 1 else None
+            with pytest.raises(ControlError) as err:
+                simulate(plant, traj, Scripted(lambda nu: np.full(nu, np.nan), at=at), settle=0.05, record_every=k,
+                         analyser=analyser)
+            caught[at, k] = err.value
+            pipeline._write_failure(scenario, err.value, tmp_path / f"{at}_{k}", pipeline._Stopwatch())
+            report = json.loads((tmp_path / f"{at}_{k}" / "report.json").read_text())
+            assert (report["samples"], report["timestep"]) == (at, traj.dt), (at, k)
+            with np.load(tmp_path / f"{at}_{k}" / "timeseries.npz") as saved:
+                assert np.array_equal(saved["t"], traj.t[np.arange(0, at, k)])
+    whole, thin = caught[2500, 1], caught[2500, 20]
     rows = np.arange(0, 2500, 20)
     assert 2500 > 2 * window and analyser.samples >= 2 * window and thin.t == whole.t
     assert thin.recording.kept is None

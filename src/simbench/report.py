@@ -64,7 +64,8 @@ def build_failure_report(scenario, err, wall_time: dict, outputs: dict, source: 
     """report.json of a run whose physics failed (a PhysicsError): when and why, and how much was recorded."""
     rec, traj = err.recording, err.trajectory
     return plain({
-        **_head(scenario, float(traj.dt), source),
+        # the recording's timestep: a strided run's error carries the plan at its kept rows only
+        **_head(scenario, float(traj.dt) if rec is None else rec.timestep, source),
         "status": "failed",
         "failure": {"stage": "simulate", "t": err.t, "cause": err.cause},
         # the samples simulated soundly, err.t = samples x dt (a strided run's recording holds fewer rows)

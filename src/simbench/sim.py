@@ -291,7 +291,8 @@ class _Stream:
             self._copy(hi)
             rows, settle = self.run.rows, self.run.rows.n_settle
             first = 0 if self.lo == 0 else settle + self.lo  # the settling steps' readings go with the first window
-            for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi),
+            # a closed loop's last command stays: the run's last sample, maybe the next window's only, repeats it
+            for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi - 1),
                                 (rows.q, self.lo, hi), (self.run.eq_active, self.lo, hi)):
                 pages.release(array, a, b)
             heap.trim()  # the window's analysis' temporaries, freed into the heap
