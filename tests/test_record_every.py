@@ -133,8 +133,8 @@ def test_a_bad_stride_is_refused_in_one_line_naming_the_field(tmp_path, value):
 def _windows_of_a_block(monkeypatch, dt: float) -> int:
     """Analysis windows (and path-search groups) of one path-search block: a few windows a shipped run."""
     block = analysis._near_reference(dt)
-    monkeypatch.setattr(analysis, "_GROUP", block)
-    monkeypatch.setattr(analysis, "_WINDOW", block)
+    monkeypatch.setattr(analysis, "_WINDOW", block)  # a run of more than a block is long
+    monkeypatch.setattr(analysis, "_LONG", block)
     return block
 
 
@@ -160,18 +160,19 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
 
 
 def test_a_closed_loop_run_whose_last_window_is_its_last_sample_keeps_its_last_command():
-    """A closed loop at stride 20 whose last window holds only the run's last sample (32,001 samples, settle 0),
+    """A closed loop at stride 20 whose last window holds only the run's last sample (48,001 samples, settle 0),
     its commands ending on a page edge: the last sample's command (the step before's, repeated) is kept, as the
     stride-1 run has it, though that step's window was handed back (it read zeros)."""
     raw = yaml.safe_load(scenario_file("spherical_arm", "case1").read_text())
-    raw["timing"] = {**raw["timing"], "duration": 31.5, "hold": 0.5}
+    raw["timing"] = {**raw["timing"], "duration": 47.5, "hold": 0.5}
     raw["control"] = {"controller": "computed_torque"}
     runs = {}
     for k in (1, 20):
         raw["sim"] = {"settle": 0.0, "record_every": k}
         runs[k] = simbench.evaluate(parse_scenario(raw, "case1", default_name="case1"))
     n = runs[1].recording.t.size
-    assert n == analysis.window_size(runs[1].trajectory.dt) + 1 and (n - 1) * runs[1].recording.ctrl.shape[1] % 512 == 0
+    window = analysis.window_size(runs[1].trajectory.dt, n)
+    assert (n - 1) % window == 0 and (n - 1) * runs[1].recording.ctrl.shape[1] % 512 == 0  # a page edge
     assert runs[1].recording.ctrl[-1].any()
     _same_at_the_kept_rows(runs[20], runs[1], 20)
 

@@ -28,8 +28,9 @@ _NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
 _BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
 _LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
-_GROUP = 1 << 15  # samples of a long run that deviation_near_reference searches at once, on their stretch alone
-_WINDOW = 1 << 15  # samples analysed at a time (whole groups of the path search: `window_size`)
+_GROUP = 1 << 15  # samples deviation_near_reference searches at once, on their stretch alone (a run of _WINDOW)
+_WINDOW = 1 << 15  # a run of at most this many samples is analysed at once (every shipped scenario)
+_LONG = 1 << 13  # a longer one about this many at a time, and its path searched in groups of as many
 
 
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -44,16 +45,17 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
     samples, each searched with its neighbours). A path that comes back to the same place later, a rotor turning
     many times say, then does not hide a point that is off its own stretch, and the search stays as cheap as on a
     path that never returns.
-    A long run's blocks are searched a group of at most _GROUP samples (or one block, if longer) at a time, each
-    group on the stretch of path its blocks need, so that the search's memory does not grow with the run (a tree
-    of the whole ten-minute soak's path and its search took 180 MB); every shipped scenario is one group. Blocks
+    The blocks are searched a group of at most _GROUP samples (_LONG in a run of more than _WINDOW; or one block,
+    if longer) at a time, each group on the stretch of path its blocks need, so that the search's memory does not
+    grow with the run (a tree of the whole ten-minute soak's path and its search took 180 MB); every shipped
+    scenario is one group. Blocks
     and groups are counted from the path's first sample, so points given a group at a time (`start`, the analysis'
     windows) are searched as the run's points all at once. Points and path are (N, 3)."""
     path, points = np.asarray(path, float), np.asarray(points, float)
     n = len(points)
     if start + n > len(path):
         raise ValueError(f"deviation_near_reference: {n} points from sample {start} of a path of {len(path)}")
-    per = max(1, _GROUP // window)  # blocks a group
+    per = _group(window, len(path)) // window  # blocks a group
     groups: dict[int, list[tuple[int, int, int, int]]] = {}
     for first in range(start - start % window, start + n, window):  # each block's first sample
         groups.setdefault(first // window // per, []).append(
@@ -67,13 +69,17 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
     return out
 
 
-def window_size(dt: float) -> int:
-    """Samples the analysis takes at a time at control period dt: about _WINDOW, in whole groups of the path
-    search (`deviation_near_reference`), so that a long run's deviations are those of its analysis all at
-    once."""
-    block = _near_reference(dt)
-    group = block * max(1, _GROUP // block)
-    return group * max(1, _WINDOW // group)
+def window_size(dt: float, samples: int) -> int:
+    """Samples the analysis of a run of `samples` at control period dt takes at a time: all of them, up to _WINDOW;
+    beyond, a group of the path search (`deviation_near_reference`), about _LONG, so that the deviations found a
+    window at a time are those of the run's search all at once."""
+    return max(samples, 1) if samples <= _WINDOW else _group(_near_reference(dt), samples)
+
+
+def _group(block: int, samples: int) -> int:
+    """The samples of a group of the path search in a run of `samples`: whole blocks, up to _GROUP (_LONG in a run
+    longer than _WINDOW), at least one."""
+    return block * max(1, (_GROUP if samples <= _WINDOW else _LONG) // block)
 
 
 def _near_reference(dt: float) -> int:
@@ -487,7 +493,7 @@ def _closest(a: tuple, b: tuple) -> tuple:
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
             window: int | None = None) -> Analysis:
     """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
-    `window_size`, more than any shipped scenario has), so that a long run's analysis holds a window of per-sample
+    `window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds a window of per-sample
     arrays and what it keeps of them: the figures and events of the whole run, and the per-sample series at the
     recording's kept rows (every row without a recording stride)."""
     run = Analyser(robot, traj, near, margin, window)
@@ -511,7 +517,7 @@ class Analyser:
     def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
                  window: int | None = None):
         self.robot, self.traj, self.near, self.margin = robot, traj, near, margin
-        self.window = window or window_size(traj.dt)  # the samples a window should have (`analyse`, simbench.sim)
+        self.window = window or window_size(traj.dt, len(traj.t))  # samples a window (`analyse`, simbench.sim)
         self.samples, self.seconds = 0, 0.0  # analysed so far, and the time `add` took
         self.tangents = _Tangents(traj.tool_ref)
         self.sums, self.arc = Sums(), 0.0

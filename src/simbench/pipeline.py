@@ -39,7 +39,8 @@ from simbench.verdict import Verdict, plan_verdict, run_verdict
 class Evaluation:
     """A scenario planned, simulated and analysed, with nothing written yet, and the verdict: whether the run
     kept every promise (simbench.verdict). Found from every sample; the plan, the recording and the analysis'
-    series hold the recording's kept rows (all but where sim.record_every thins them: what the outputs show)."""
+    series hold the recording's kept rows (all but where sim.record_every thins them: what the outputs show; the
+    control period is then recording.timestep, not the thinned plan's dt)."""
 
     trajectory: JointTrajectory
     recording: Recording
