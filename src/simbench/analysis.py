@@ -493,9 +493,9 @@ def _closest(a: tuple, b: tuple) -> tuple:
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
             window: int | None = None) -> Analysis:
     """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
-    `window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds a window of per-sample
-    arrays and what it keeps of them: the figures and events of the whole run, and the per-sample series at the
-    recording's kept rows (every row without a recording stride)."""
+    `window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds a window
+    of per-sample arrays and what it keeps of them: the figures and events of the whole run, and the per-sample
+    series at the recording's kept rows (every row without a recording stride)."""
     run = Analyser(robot, traj, near, margin, window)
     for lo in range(0, rec.t.size, run.window):
         run.add(rec.rows(lo, min(lo + run.window, rec.t.size)))
