@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simbench import analysis
+from simbench import analysis, windowed
 from simbench.analysis import along_path, deviation_near_reference, path_deviation, spans
 from simbench.render import simplify
 
@@ -168,7 +168,7 @@ def test_deviation_near_reference_gives_what_the_k_d_tree_search_gave(group, mon
     (_kd_tree_rule), on random paths (fixed seed) with points near them, off them and far from them; the same
     searched whole (one group of blocks, as every shipped scenario is), a block at a time and in groups of
     blocks (a long run's: each group on its own stretch of path)."""
-    monkeypatch.setattr(analysis, "_GROUP", group)
+    monkeypatch.setattr(windowed, "GROUP", group)
     rng = np.random.default_rng(140)
     for n, window in ((400, 60), (700, 250), (90, 200), (450, 300)):  # the last's two blocks share the whole path
         path = _random_path(rng, n)

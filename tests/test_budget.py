@@ -12,7 +12,7 @@ import pytest
 import yaml
 from conftest import SHIPPED, scenario_file
 
-from simbench import analysis, budget, pipeline
+from simbench import budget, pipeline, windowed
 from simbench.cli import main
 from simbench.errors import ScenarioError
 from simbench.scenario import load_scenario, parse_scenario
@@ -78,7 +78,7 @@ def test_a_run_analysed_as_it_is_simulated_is_estimated_by_its_window(robot, nam
     shipped.planner_def.plan(shipped, shipped.robot_def, float(model.opt.timestep))
     ask = budget.Ask.of(sc)
     est = budget.estimate(ask)
-    assert ask.streams and est.samples > analysis._WINDOW == budget._WINDOW and analysis._LONG == budget._LONG
+    assert ask.streams and est.samples > windowed.WINDOW
     tracemalloc.start()
     try:
         start = tracemalloc.get_traced_memory()[0]
@@ -86,7 +86,7 @@ def test_a_run_analysed_as_it_is_simulated_is_estimated_by_its_window(robot, nam
         peak = tracemalloc.get_traced_memory()[1] - start
     finally:
         tracemalloc.stop()
-    window = 8 * (analysis._LONG + int(round(sc.sim.settle / model.opt.timestep))) * (model.nsensordata
+    window = 8 * (windowed.window_size(model.opt.timestep, est.samples) + est.settle_steps) * (model.nsensordata
                                                                                           + sc.robot_def.dof)
     assert (peak + window) / 1.5 <= est.memory <= 2.0 * (peak + window), (est.memory, peak, window)
     assert est.memory < budget.estimate(dataclasses.replace(ask, streams=False)).memory

@@ -12,7 +12,7 @@ from test_sim import ClosedServo, Scripted, planned, shipped
 
 import simbench
 from conftest import scenario_file
-from simbench import analysis, pages, pipeline, stepping
+from simbench import analysis, pages, pipeline, stepping, windowed
 from simbench.robots import Tolerance
 from simbench.controllers import Servo
 from simbench.errors import ControlError
@@ -132,9 +132,9 @@ def test_a_bad_stride_is_refused_in_one_line_naming_the_field(tmp_path, value):
 
 def _windows_of_a_block(monkeypatch, dt: float) -> int:
     """Analysis windows (and path-search groups) of one path-search block: a few windows a shipped run."""
-    block = analysis._near_reference(dt)
-    monkeypatch.setattr(analysis, "_WINDOW", block)  # a run of more than a block is long
-    monkeypatch.setattr(analysis, "_LONG", block)
+    block = windowed.near_reference(dt)
+    monkeypatch.setattr(windowed, "WINDOW", block)  # a run of more than a block is long
+    monkeypatch.setattr(windowed, "LONG", block)
     return block
 
 
@@ -171,7 +171,7 @@ def test_a_closed_loop_run_whose_last_window_is_its_last_sample_keeps_its_last_c
         raw["sim"] = {"settle": 0.0, "record_every": k}
         runs[k] = simbench.evaluate(parse_scenario(raw, "case1", default_name="case1"))
     n = runs[1].recording.t.size
-    window = analysis.window_size(runs[1].trajectory.dt, n)
+    window = windowed.window_size(runs[1].trajectory.dt, n)
     assert (n - 1) % window == 0 and (n - 1) * runs[1].recording.ctrl.shape[1] % 512 == 0  # a page edge
     assert runs[1].recording.ctrl[-1].any()
     _same_at_the_kept_rows(runs[20], runs[1], 20)

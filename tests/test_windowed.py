@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from simbench import analysis
+from simbench import analysis, windowed
 from simbench.analysis import analyse, along_path
 from simbench.robots import Tolerance
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
@@ -120,8 +120,8 @@ def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, 
     scenario, ev = evaluated(robot, name)
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
-    block = analysis._near_reference(ev.trajectory.dt)
-    monkeypatch.setattr(analysis, "_GROUP", block)
+    block = windowed.near_reference(ev.trajectory.dt)
+    monkeypatch.setattr(windowed, "GROUP", block)
     n = ev.recording.t.size
     once = analyse(scenario.robot_def, ev.trajectory, ev.recording, near, margin, window=n)
     for window, exact in ((block, True), (2 * block, True), (997, False), (3001, False)):

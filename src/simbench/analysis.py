@@ -19,18 +19,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simbench.robots import Robot, Tolerance
+from simbench import windowed
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
 _JUMP_FACTOR = 10.0
-_NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within this time of its reference
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
 _BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
 _LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
-_GROUP = 1 << 15  # samples deviation_near_reference searches at once, on their stretch alone (a run of _WINDOW)
-_WINDOW = 1 << 15  # a run of at most this many samples is analysed at once (every shipped scenario)
-_LONG = 1 << 13  # a longer one about this many at a time, and its path searched in groups of as many
 
 
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -45,8 +42,8 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
     samples, each searched with its neighbours). A path that comes back to the same place later, a rotor turning
     many times say, then does not hide a point that is off its own stretch, and the search stays as cheap as on a
     path that never returns.
-    The blocks are searched a group of at most _GROUP samples (_LONG in a run of more than _WINDOW; or one block,
-    if longer) at a time, each group on the stretch of path its blocks need, so that the search's memory does not
+    The blocks are searched a group at a time (windowed.group: whole blocks, at most windowed.GROUP samples, or
+    windowed.LONG in a run of more than windowed.WINDOW), each group on the stretch of path its blocks need, so that the search's memory does not
     grow with the run (a tree of the whole ten-minute soak's path and its search took 180 MB); every shipped
     scenario is one group. Blocks
     and groups are counted from the path's first sample, so points given a group at a time (`start`, the analysis'
@@ -55,7 +52,7 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
     n = len(points)
     if start + n > len(path):
         raise ValueError(f"deviation_near_reference: {n} points from sample {start} of a path of {len(path)}")
-    per = _group(window, len(path)) // window  # blocks a group
+    per = windowed.group(window, len(path)) // window  # blocks a group
     groups: dict[int, list[tuple[int, int, int, int]]] = {}
     for first in range(start - start % window, start + n, window):  # each block's first sample
         groups.setdefault(first // window // per, []).append(
@@ -67,24 +64,6 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
         shifted = [(a - a0, b - a0, first - lo, last - lo) for a, b, first, last in group]
         out[a0:b0] = _deviation(path[lo:hi + 1], points[a0:b0], shifted, planned_at=start + a0 - lo)
     return out
-
-
-def window_size(dt: float, samples: int) -> int:
-    """Samples the analysis of a run of `samples` at control period dt takes at a time: all of them, up to _WINDOW;
-    beyond, a group of the path search (`deviation_near_reference`), about _LONG, so that the deviations found a
-    window at a time are those of the run's search all at once."""
-    return max(samples, 1) if samples <= _WINDOW else _group(_near_reference(dt), samples)
-
-
-def _group(block: int, samples: int) -> int:
-    """The samples of a group of the path search in a run of `samples`: whole blocks, up to _GROUP (_LONG in a run
-    longer than _WINDOW), at least one."""
-    return block * max(1, (_GROUP if samples <= _WINDOW else _LONG) // block)
-
-
-def _near_reference(dt: float) -> int:
-    """The path search's blocks: samples within _NEAR_REFERENCE of a reference."""
-    return max(1, int(round(_NEAR_REFERENCE / dt)))
 
 
 def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int, int, int]],
@@ -382,8 +361,8 @@ class _Tangents:
         does."""
         if self.first is None:
             self.first = np.zeros(3)
-            for a in range(lo, len(self.points), _WINDOW):
-                step, norm, moving = self._steps(a, min(a + _WINDOW, len(self.points)))
+            for a in range(lo, len(self.points), windowed.LONG):
+                step, norm, moving = self._steps(a, min(a + windowed.LONG, len(self.points)))
                 if moving.any():
                     k = int(np.argmax(moving))
                     self.first = step[k] / norm[k]
@@ -493,7 +472,7 @@ def _closest(a: tuple, b: tuple) -> tuple:
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
             window: int | None = None) -> Analysis:
     """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
-    `window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds a window
+    `windowed.window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds a window
     of per-sample arrays and what it keeps of them: the figures and events of the whole run, and the per-sample
     series at the recording's kept rows (every row without a recording stride)."""
     run = Analyser(robot, traj, near, margin, window)
@@ -508,7 +487,7 @@ class Analyser:
     of samples still to come only.
 
     Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points)
-    near its reference (the stretch within _NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and
+    near its reference (the stretch within windowed.NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and
     tool_max) and its lag: the error's component along the path's tangent at the reference point, positive when
     the tool trails; and its error against the time-indexed reference. The robot's measures, singular sets and
     summary (a Summariser's windows, or with none the whole run's `summary` at the end). Spans of events that reach
@@ -517,7 +496,7 @@ class Analyser:
     def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
                  window: int | None = None):
         self.robot, self.traj, self.near, self.margin = robot, traj, near, margin
-        self.window = window or window_size(traj.dt, len(traj.t))  # samples a window (`analyse`, simbench.sim)
+        self.window = window or windowed.window_size(traj.dt, len(traj.t))  # samples a window (`analyse`, sim)
         self.samples, self.seconds = 0, 0.0  # analysed so far, and the time `add` took
         self.tangents = _Tangents(traj.tool_ref)
         self.sums, self.arc = Sums(), 0.0
@@ -569,7 +548,7 @@ class Analyser:
     def _tracking(self, traj: JointTrajectory, rec: Recording, lo: int, hi: int) -> dict[str, np.ndarray]:
         """The tracking series of samples lo..hi-1, added to the sums."""
         joint_error = rec.q - traj.q_ref
-        deviation = deviation_near_reference(self.traj.tool_ref, rec.tool, _near_reference(self.traj.dt), lo)
+        deviation = deviation_near_reference(self.traj.tool_ref, rec.tool, windowed.near_reference(self.traj.dt), lo)
         behind = traj.tool_ref - rec.tool  # the tool to its reference: its error, and along the tangent its lag
         lag = np.einsum("ij,ij->i", behind, self.tangents.rows(lo, hi))
         tool_error = _norms(behind)

@@ -33,7 +33,8 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k).
   Where the robot's summary comes a window at a time (api.Robot.streams), the pipeline analyses a strided run as
   it simulates it (simbench.sim's analyser): it holds every step's readings and the analysis' temporaries for a
-  window of samples only (2.8 R a sample of the window: the whole run up to _WINDOW samples, about _LONG beyond),
+  window of samples only (2.8 R a sample of the window, simbench.windowed.window_size: the whole run up to 2^15
+  samples, about 8,000 beyond),
   and through the whole run the plan (t, s,
   tool_ref, q_ref, qd_ref: 5 + 2 dof columns), the controller's commands (nu) and the kept rows (R / k), taken
   1.3 times (the plan's own series, the allocator's slack): calibrated on the ten-minute soak, whose resident
@@ -64,6 +65,7 @@ from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
 
+from simbench import windowed
 from simbench.errors import ScenarioError
 
 MEMORY_FRACTION = 0.5  # of the memory available now
@@ -73,8 +75,6 @@ NOTE_MEMORY = 1e9  # bytes: a run estimated above this (or NOTE_SECONDS) gets a 
 NOTE_SECONDS = 300.0
 
 _RUN_FACTOR = 2.8  # peak of planning, simulating and analysing, in retained bytes a sample
-_WINDOW = 1 << 15  # a strided run of more samples is analysed a window at a time as it is simulated (as
-_LONG = 1 << 13  # simbench.analysis' _WINDOW and _LONG say), about _LONG at a time
 _STREAM_FACTOR = 1.3  # of the plan, the commands and the kept rows such a run holds throughout
 _OUTPUT_FACTOR = 4.5  # peak while writing the outputs
 _PAIRS_PER_SAMPLE = 4.0  # the time model's path search: and, for the 4-5-6-7 law, _CROWDING x the samples
@@ -185,7 +185,7 @@ def estimate(ask: Ask) -> Estimate:
     pairs = n * max(_PAIRS_PER_SAMPLE, _CROWDING * n if ask.law == "4567" else 0.0)
     if ask.streams:  # every step's readings a window at a time; the plan, the commands and the kept rows whole
         held = 8.0 * (5 + 2 * ask.dof + ask.nu) + kept / ask.record_every
-        window = n + n_settle if n <= _WINDOW else _LONG + n_settle
+        window = windowed.window_size(ask.timestep, n) + n_settle
         memory = _STREAM_FACTOR * held * (n + n_settle) + _RUN_FACTOR * kept * window
     else:
         memory = (_RUN_FACTOR * kept - kept + held) * (n + n_settle)

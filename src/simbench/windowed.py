@@ -9,6 +9,10 @@ a long run holds one window's arrays and what it keeps of them, not every sample
 - `Departure`: how far and for how long the tool left the path after a step of the plan (a reference jump), from
   the path deviation after it.
 - `Sums`: sums of squares, maxima and the last value of series, for their RMS, maximum and final value.
+
+And how many samples a window has (`window_size`): a run as short as every shipped scenario is one window; a longer
+one is cut into groups of the path search near each reference (simbench.analysis.deviation_near_reference), so
+that its deviations found a window at a time are those of the search over the whole run.
 """
 
 from __future__ import annotations
@@ -16,6 +20,28 @@ from __future__ import annotations
 from typing import Any, Callable
 
 import numpy as np
+
+NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within this time of its reference
+GROUP = 1 << 15  # samples of a run of at most WINDOW whose path the search takes at once, on their stretch alone
+WINDOW = 1 << 15  # a run of at most this many samples is analysed at once (every shipped scenario)
+LONG = 1 << 13  # a longer one about this many at a time, and its path searched in groups of as many
+
+
+def near_reference(dt: float) -> int:
+    """The path search's blocks at control period dt: the samples within NEAR_REFERENCE of a reference."""
+    return max(1, int(round(NEAR_REFERENCE / dt)))
+
+
+def group(block: int, samples: int) -> int:
+    """The samples of a group of the path search in a run of `samples`: whole blocks, up to GROUP (LONG in a run
+    longer than WINDOW), at least one."""
+    return block * max(1, (GROUP if samples <= WINDOW else LONG) // block)
+
+
+def window_size(dt: float, samples: int) -> int:
+    """Samples the analysis of a run of `samples` at control period dt takes at a time: all of them, up to WINDOW;
+    beyond, a group of the path search (about LONG)."""
+    return max(samples, 1) if samples <= WINDOW else group(near_reference(dt), samples)
 
 
 def spans(mask: np.ndarray) -> list[tuple[int, int]]:
