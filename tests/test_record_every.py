@@ -14,6 +14,7 @@ import simbench
 from conftest import scenario_file
 from simbench import analysis, pages, pipeline, stepping, windowed
 from simbench.robots import Tolerance
+from simbench.verdict import run_verdict
 from simbench.controllers import Servo
 from simbench.errors import ControlError
 from simbench.scenario import parse_scenario
@@ -148,15 +149,67 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
     whole = simbench.evaluate(_strided(robot, name, 1))
     window = _windows_of_a_block(monkeypatch, whole.trajectory.dt)
     whole = simbench.evaluate(_strided(robot, name, 1))
-    released = []
-    release = pages.release
+    released, windows = [], []
+    release, add = pages.release, analysis.Analyser.add
     monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((a.shape, lo, hi)), release(a, lo, hi)))
+    monkeypatch.setattr(analysis.Analyser, "add", lambda self, rec: (windows.append(
+        (self.samples, rec.kept, rec.ctrl.copy(), rec.qpos.copy())), add(self, rec)))
     thin = simbench.evaluate(_strided(robot, name, k))
     n = whole.recording.t.size
     assert n > window and thin.analysis.samples == n  # two windows at least
     q_windows = [(lo, hi) for shape, lo, hi in released if shape == whole.recording.q.shape]
     assert q_windows == [(lo, min(lo + window, n)) for lo in range(0, n, window)]
+    for lo, kept, ctrl, qpos in windows:  # each window's commands and states at its kept rows, as Recording.rows
+        assert np.array_equal(ctrl, whole.recording.ctrl[lo + kept])
+        assert np.array_equal(qpos, whole.recording.qpos[lo + kept])
     _same_at_the_kept_rows(thin, whole, k)
+
+
+def test_only_a_strided_run_of_a_robot_whose_summary_streams_is_analysed_as_it_is_simulated():
+    """simulate refuses an analyser at stride 1 in one line (its windows' series would be views of readings
+    handed back); which robots stream: those whose summary is Robot's, or whose summariser is defined with
+    their summary or below it, not a subclass that overrides only `summary` (its parent's Summariser would not
+    give its summary)."""
+    scenario = shipped("spherical_arm", "case1", duration=1.0)
+    plant, traj = planned(scenario)
+    a = scenario.analysis
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    with pytest.raises(ValueError, match="record_every > 1"):
+        simulate(plant, traj, record_every=1, analyser=analysis.Analyser(scenario.robot_def, traj, near, margin))
+    rsmg_robot, arm = type(simbench.api.robots()["rsmg"]), type(scenario.robot_def)
+
+    class OwnSummary(rsmg_robot):
+        def summary(self, traj, rec, series):
+            return super().summary(traj, rec, series)
+
+    class OwnBoth(OwnSummary):
+        def summariser(self, traj):
+            return super().summariser(traj)
+
+    class ArmSummary(arm):
+        def summary(self, traj, rec, series):
+            return super().summary(traj, rec, series)
+
+    streams = {cls.__name__: cls.streams.fget(object.__new__(cls)) for cls in (rsmg_robot, OwnSummary, OwnBoth, arm,
+                                                                                ArmSummary)}
+    assert streams == {rsmg_robot.__name__: True, "OwnSummary": False, "OwnBoth": True, arm.__name__: True,
+                       "ArmSummary": False}
+
+
+def test_the_outputs_of_a_run_simulated_strided_and_analysed_after_are_at_its_kept_rows(tmp_path):
+    """write_outputs of an Evaluation put together from simulate (stride 5) and analyse, whose series are at the
+    kept rows already: the timeseries holds the kept rows (the series were thinned a second time: IndexError)."""
+    scenario = shipped("spherical_arm", "case1", duration=1.0)
+    plant, traj = planned(scenario)
+    a = scenario.analysis
+    rec = simulate(plant, traj, record_every=5)
+    result = analysis.analyse(scenario.robot_def, traj, rec, Tolerance(a.near_angle, a.near_length),
+                              Tolerance(a.limit_angle, a.limit_length))
+    ev = pipeline.Evaluation(traj, rec, result, run_verdict(scenario.robot_def, traj, result, a), {})
+    pipeline.write_outputs(scenario, ev, tmp_path / "out", video=False)
+    with np.load(tmp_path / "out" / "timeseries.npz") as saved:
+        assert np.array_equal(saved["t"], traj.t[rec.kept])
+        assert np.array_equal(saved["path_deviation"], result.series["path_deviation"])
 
 
 def test_a_closed_loop_run_whose_last_window_is_its_last_sample_keeps_its_last_command():

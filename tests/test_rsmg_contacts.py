@@ -156,3 +156,16 @@ def test_the_floor_on_det_a_rises_with_the_rotors_speed():
     contacts = rsmg_contacts.GeneralContacts(rot, 0.005, (0.4, 2.7), rsmg_contacts.Swing(120, 20))
     floor = contacts.floor(0.3)[25::50]
     assert floor == pytest.approx([0.3, 0.3, 0.3, 0.4, 0.5], abs=1e-6)
+
+
+def test_a_bounded_cache_once_cleared_holds_as_much_as_a_new_one():
+    """BoundedCache.clear (GeneralContacts.forget) drops the entries and their count: afterwards the cache keeps
+    up to its bound again (before, the old count made every new entry evict the one before it)."""
+    from simbench.planners.rsmg_contacts import BoundedCache
+
+    cache = BoundedCache(10)
+    cache.keep("a", np.zeros(6))
+    cache.clear()
+    cache.keep("b", np.zeros(6))
+    cache.keep("c", np.zeros(3))
+    assert list(cache) == ["b", "c"] and cache.held == 9

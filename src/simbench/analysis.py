@@ -43,11 +43,11 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
     many times say, then does not hide a point that is off its own stretch, and the search stays as cheap as on a
     path that never returns.
     The blocks are searched a group at a time (windowed.group: whole blocks, at most windowed.GROUP samples, or
-    windowed.LONG in a run of more than windowed.WINDOW), each group on the stretch of path its blocks need, so that the search's memory does not
-    grow with the run (a tree of the whole ten-minute soak's path and its search took 180 MB); every shipped
-    scenario is one group. Blocks
-    and groups are counted from the path's first sample, so points given a group at a time (`start`, the analysis'
-    windows) are searched as the run's points all at once. Points and path are (N, 3)."""
+    windowed.LONG in a run of more than windowed.WINDOW), each group on the stretch of path its blocks need, so
+    that the search's memory does not grow with the run (a tree of the whole ten-minute soak's path and its search
+    took 180 MB); every shipped scenario is one group. Blocks and groups are counted from the path's first sample,
+    so points given a group at a time (`start`, the analysis' windows) are searched as the run's points all at
+    once. Points and path are (N, 3)."""
     path, points = np.asarray(path, float), np.asarray(points, float)
     n = len(points)
     if start + n > len(path):
@@ -472,9 +472,9 @@ def _closest(a: tuple, b: tuple) -> tuple:
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
             window: int | None = None) -> Analysis:
     """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
-    `windowed.window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds a window
-    of per-sample arrays and what it keeps of them: the figures and events of the whole run, and the per-sample
-    series at the recording's kept rows (every row without a recording stride)."""
+    `windowed.window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds
+    a window of per-sample arrays and what it keeps of them: the figures and events of the whole run, and the
+    per-sample series at the recording's kept rows (every row without a recording stride)."""
     run = Analyser(robot, traj, near, margin, window)
     for lo in range(0, rec.t.size, run.window):
         run.add(rec.rows(lo, min(lo + run.window, rec.t.size)))
@@ -487,11 +487,11 @@ class Analyser:
     of samples still to come only.
 
     Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points)
-    near its reference (the stretch within windowed.NEAR_REFERENCE s: `deviation_near_reference`; reported as tool_rms and
-    tool_max) and its lag: the error's component along the path's tangent at the reference point, positive when
-    the tool trails; and its error against the time-indexed reference. The robot's measures, singular sets and
-    summary (a Summariser's windows, or with none the whole run's `summary` at the end). Spans of events that reach
-    a window's edge go on into the next (windowed.Spans)."""
+    near its reference (the stretch within windowed.NEAR_REFERENCE s: `deviation_near_reference`; reported as
+    tool_rms and tool_max) and its lag: the error's component along the path's tangent at the reference point,
+    positive when the tool trails; and its error against the time-indexed reference. The robot's measures,
+    singular sets and summary (a Summariser's windows, or with none the whole run's `summary` at the end). Spans of
+    events that reach a window's edge go on into the next (windowed.Spans)."""
 
     def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
                  window: int | None = None):
@@ -503,7 +503,7 @@ class Analyser:
         self.rises = {"path_deviation": Rises(), robot.orientation_error: Rises()}
         self.kept: dict[str, list[np.ndarray]] = {}  # each series' kept rows, window by window
         self.measures: tuple[str, ...] = ()
-        self.summariser = robot.summariser(traj)
+        self.summariser = robot.summariser(traj) if robot.streams else None
         self.singular: list[Spans] = []
         self.sets: list = []  # each singular set's name, family and condition
         self.at_limit = {(j, bound): Spans(min if bound == "lower" else max)
@@ -602,7 +602,9 @@ class Analyser:
         if self.summariser is not None:
             extra, events = self.summariser.finish()
         else:  # the whole run's summary, then its series at the kept rows
-            assert whole is not None, f"robot '{robot.name}' has no Summariser: its analysis needs the whole run"
+            if whole is None:
+                raise ValueError(f"robot '{robot.name}' has no Summariser: its analysis needs the whole run's "
+                                 "recording")
             extra, events, more = robot.summary(traj, whole, series)
             series.update(more)
             self._orientation(series, 0)
@@ -621,17 +623,17 @@ class Analyser:
             "joint_rms": dict(zip(joints, sums.rms("joint_error").tolist())),
             "joint_max": {name: float(v) for name, v in zip(joints, sums.largest["joint_error"])},
             "tool_rms": float(sums.rms("path_deviation")),
-            "tool_max": float(sums.largest["path_deviation"]),
+            "tool_max": sums.highest["path_deviation"],
             "tool_lag_rms": float(sums.rms("path_lag")),
             "tool_lag_max": float(sums.largest["path_lag"]),
             "tool_error_rms": float(sums.rms("tool_error")),
-            "tool_error_max": float(sums.largest["tool_error"]),
+            "tool_error_max": sums.highest["tool_error"],
             "tool_error_final": float(sums.last["tool_error"]),
             "path_length": self.arc,
         }
         if "orientation" in sums.squares:
             summary.update(orientation_rms=float(sums.rms("orientation")),
-                           orientation_max=float(sums.largest["orientation"]),
+                           orientation_max=sums.highest["orientation"],
                            orientation_final=float(sums.last["orientation"]))
         return summary
 

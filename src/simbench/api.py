@@ -108,13 +108,24 @@ class Summariser(ABC):
 
     @abstractmethod
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
-        """The next window: the plan and the recording at its samples (JointTrajectory.rows, Recording.rows) and
-        the analysis's series there so far; this mechanism's per-sample series at those samples (Summary.series).
-        """
+        """The next window: the plan and the recording at its samples (JointTrajectory.rows, Recording.rows: its t
+        does not start at 0, and a window may have one sample, whose plan has no dt: the control period is
+        rec.timestep) and the analysis's series there so far; this mechanism's per-sample series at those samples
+        (Summary.series)."""
 
     @abstractmethod
     def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
         """The whole run's report entries and events (Summary.entries, Summary.events)."""
+
+    def whole(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
+        """The Summary of a whole run as one window: what Robot.summary gives, for a robot that has this."""
+        extra = self.add(traj, rec, series)
+        return Summary(*self.finish(), extra)
+
+
+def _defined(cls: type, name: str) -> type:
+    """The class of cls's method resolution order that defines attribute `name`."""
+    return next(c for c in cls.__mro__ if name in c.__dict__)
 
 
 class _NoSummary(Summariser):
@@ -215,16 +226,20 @@ class Robot(ABC):
 
     @property
     def streams(self) -> bool:
-        """Whether this robot's summary comes a window at a time (`summariser` overridden, or `summary` not): a run
-        of it with a recording stride is then analysed as it is simulated (simbench.sim), and holds a window of
-        every step's readings (simbench.budget estimates it so)."""
-        return type(self).summariser is not Robot.summariser or type(self).summary is Robot.summary
+        """Whether this robot's summary comes a window at a time: `summary` not overridden, or `summariser`
+        overridden in the same class as `summary` or below it (a subclass that overrides `summary` alone does not
+        stream: its parent's Summariser would not give its summary). A run of it with a recording stride is then
+        analysed as it is simulated (simbench.sim) and holds a window of every step's readings (simbench.budget
+        estimates it so)."""
+        summary, summariser = _defined(type(self), "summary"), _defined(type(self), "summariser")
+        return summary is Robot or (summariser is not Robot and issubclass(summariser, summary))
 
     def summariser(self, traj: JointTrajectory) -> Summariser | None:
-        """`summary` found a window of samples at a time, for a run of the plan `traj` (as commanded): override it
-        with `summary` where the mechanism adds series or figures, so that a long run's analysis holds a window's
-        samples. The default: a Summariser that adds nothing where `summary` is not overridden either, else None:
-        the analysis then keeps every sample's series and calls `summary` once, on the whole run."""
+        """`summary` found a window of samples at a time, for a run of the plan `traj` (whose references may still
+        be revised, by its feedback, for samples after each window): override it with `summary` where the mechanism
+        adds series or figures, so that a long run's analysis holds a window's samples; it must then return a
+        Summariser. The default: one that adds nothing where `summary` is not overridden either, else None: the
+        analysis then keeps every sample's series and calls `summary` once, on the whole run."""
         return _NoSummary() if type(self).summary is Robot.summary else None
 
     def paint(self, model: mujoco.MjModel, rec: Recording, row: int) -> None:

@@ -4,7 +4,8 @@ A long run recorded with a stride (sim.record_every) is analysed a window of sam
 simulated; the steppers write every step's sensors and joint positions into arrays indexed by step, and once a
 window is analysed (and its kept rows copied out) its rows are not read again. On an array of `releasable`, those
 rows' pages go back to the system (madvise MADV_DONTNEED on a private anonymous mapping: pages not yet touched
-cost nothing, pages handed back read as zeros), so the run holds about a window of them, not every step's.
+cost nothing; on Linux pages handed back read as zeros, elsewhere they may keep their values), so the run holds
+about a window of them, not every step's.
 Where the system has no such mapping (Windows), `releasable` is np.empty and `release` does nothing.
 """
 
@@ -29,11 +30,11 @@ def releasable(shape: tuple[int, ...], dtype=float) -> np.ndarray:
 
 
 def release(array: np.ndarray, lo: int, hi: int) -> None:
-    """Hand rows lo..hi-1 of a `releasable` array back to the system (they read as zeros afterwards): the pages
-    wholly inside them; those shared with other rows stay."""
+    """Hand rows lo..hi-1 of an array `releasable` returned (itself, not a view into it) back to the system (on
+    Linux they read as zeros afterwards): the pages wholly inside them; those shared with other rows stay."""
     buffer = array.base
     while buffer is not None and not isinstance(buffer, mmap.mmap):
-        buffer = getattr(buffer, "obj", None) if isinstance(buffer, memoryview) else buffer.base
+        buffer = getattr(buffer, "obj", None) if isinstance(buffer, memoryview) else getattr(buffer, "base", None)
     if buffer is None:
         return
     row, hi = array.itemsize * int(np.prod(array.shape[1:])), min(hi, len(array))  # bytes a row (C order)

@@ -117,24 +117,24 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
     # A run with a recording stride is analysed as it is simulated, where the robot's summary comes a window at a
-    # time: every step's readings are then let go a window at a time (sim.simulate's analyser).
-    analyser = Analyser(robot, traj, near, margin)
-    streams = sim.record_every > 1 and analyser.streams
+    # time (Robot.streams): every step's readings are then let go a window at a time (sim.simulate's analyser).
+    analyser = Analyser(robot, traj, near, margin) if sim.record_every > 1 and robot.streams else None
     with watch.stage("simulate"):
         rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every,
                        revise_in_place=True,  # the plan as planned is not needed after the run
-                       analyser=analyser if streams else None)
-        traj = replace(traj, feedback=None) if streams else commanded(traj, rec)  # the feedback is spent
+                       analyser=analyser)
+        traj = commanded(traj, rec) if analyser is None else replace(traj, feedback=None)  # the feedback is spent
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
         del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them
         heap.give_back(len(traj.t))
-    watch.move(analyser.seconds, "simulate", "analyse")
+    if analyser is not None:
+        watch.move(analyser.seconds, "simulate", "analyse")
     with watch.stage("analyse"):
-        result = analyser.finish() if streams else analyse(robot, traj, rec, near, margin)
+        result = analyse(robot, traj, rec, near, margin) if analyser is None else analyser.finish()
         found = run_verdict(robot, traj, result, a, scenario.expect)
     if sim.record_every > 1:  # the analysis has read every sample: what is kept of them is the outputs' rows
         traj = traj.rows(kept_rows(len(traj.t), sim.record_every))
-        rec = rec if streams else rec.thinned()
+        rec = rec.thinned()  # as it is, where it was analysed as it was simulated
     return Evaluation(traj, rec, result, found, control)
 
 
@@ -191,8 +191,8 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
     simbench.env). `out` is taken as it is: locking and checking it is the caller's (see `run`)."""
     watch = watch or _Stopwatch()
     robot = scenario.robot_def
-    traj, rec, series = thinned(ev.trajectory, ev.recording, ev.analysis.series)
-    result = replace(ev.analysis, series=series)
+    traj, rec = thinned(ev.trajectory, ev.recording)
+    result = ev.analysis
     with staged_folder(out) as tmp:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz", "page": "index.html"}
         with watch.stage("plots"):
@@ -217,16 +217,11 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
     return Result(out=out, report=report, evaluation=ev)
 
 
-def thinned(traj: JointTrajectory, rec: Recording, series: dict | None = None
-            ) -> tuple[JointTrajectory, Recording, dict]:
-    """The plan, the recording and per-sample `series` (the analysis') at the recording's kept rows
-    (Recording.kept): what the outputs of a run with a recording stride show. The report's figures and events
-    are found before, from every row."""
-    series = series or {}
-    if rec.kept is None:
-        return traj, rec, series
-    k = rec.kept
-    return traj.rows(k), rec.thinned(), {name: v[k] for name, v in series.items()}
+def thinned(traj: JointTrajectory, rec: Recording) -> tuple[JointTrajectory, Recording]:
+    """The plan and the recording at the recording's kept rows (Recording.kept): what the outputs of a run with a
+    recording stride show (the analysis' series are at those rows already). The report's figures and events are
+    found before, from every row."""
+    return (traj, rec) if rec.kept is None else (traj.rows(rec.kept), rec.thinned())
 
 
 def _write_failure(scenario: Scenario, err: PhysicsError, out: Path, watch: _Stopwatch) -> None:
@@ -235,7 +230,7 @@ def _write_failure(scenario: Scenario, err: PhysicsError, out: Path, watch: _Sto
         outputs = {"report": "report.json", "page": "index.html"}
         if err.recording is not None:
             outputs["timeseries"] = "timeseries.npz"
-            traj, rec, _ = thinned(err.trajectory, err.recording)
+            traj, rec = thinned(err.trajectory, err.recording)
             write_timeseries(scenario.robot_def, traj, rec, None, tmp / "timeseries.npz")
         report = build_failure_report(scenario, err, watch.summary(), outputs, scenario.source)
         write_report(report, tmp / "report.json")

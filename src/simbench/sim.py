@@ -8,6 +8,9 @@ controller's commands are stepped in C through `mujoco.rollout`; a closed-loop o
 into segments and are applied between them; a plan with feedback (the RSMG's arms re-solving their hold) may
 then revise the references still to come.
 
+With a recording stride, a run may be analysed as it is simulated (simulate's analyser): each window of samples
+is handed to the analysis once its readings are in, and then let go but for its kept rows (simbench.pages).
+
 The physics is checked as it runs (simbench.faults): the run stops at the first step at fault with a
 PhysicsError that carries the recording up to the last sound state (ControlError for a controller's bad
 command). MuJoCo's own printing of warnings is silenced while simbench steps: they are read from the data and
@@ -110,6 +113,9 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     every step's readings, not all of them. Its Recording, and a PhysicsError's, hold the kept rows only
     (Recording.thinned's); the plan's feedback, if any, must revise in place, so that the analysis reads the
     references as commanded."""
+    if analyser is not None and not (record_every > 1 and analyser.streams):
+        raise ValueError("a run is analysed as it is simulated with a recording stride (record_every > 1) and a "
+                         "robot whose summary comes a window at a time (Robot.streams)")
     if analyser is not None and traj.feedback is not None and not revise_in_place:
         raise ValueError("a run analysed as it is simulated revises its plan in place (revise_in_place=True)")
     if not np.isclose(plant.model.opt.timestep, traj.dt, rtol=1e-9, atol=0.0):
@@ -287,7 +293,9 @@ class _Stream:
         """Analyse the whole windows among the first `done` samples (with `last`, the rest too), then let them go."""
         while self.lo + self.window <= done or (last and self.lo < done):
             hi = min(self.lo + self.window, done)
-            self.analyser.add(self.every.rows(self.lo, hi))
+            kept = self.run.rows.kept
+            at = kept[np.searchsorted(kept, self.lo):np.searchsorted(kept, hi)]  # the window's kept rows
+            self.analyser.add(replace(self.every.rows(self.lo, hi), ctrl=self._commands(at)))
             self._copy(hi)
             rows, settle = self.run.rows, self.run.rows.n_settle
             first = 0 if self.lo == 0 else settle + self.lo  # the settling steps' readings go with the first window
@@ -295,7 +303,8 @@ class _Stream:
             for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi - 1),
                                 (rows.q, self.lo, hi), (self.run.eq_active, self.lo, hi)):
                 pages.release(array, a, b)
-            heap.trim()  # the window's analysis' temporaries, freed into the heap
+            if len(rows.q) >= heap.TRIM_SAMPLES:
+                heap.trim()  # the window's analysis' temporaries, freed into the heap
             self.lo = hi
 
     def _copy(self, done: int) -> None:
@@ -306,9 +315,17 @@ class _Stream:
         self.sensors[self.copied:stop] = rows.sensors[settle + k]
         self.q[self.copied:stop] = rows.q[k]
         self.eq_active[self.copied:stop] = self.run.eq_active[k]
-        if len(self.controls):  # a sample's command drove the step after it; the last sample's repeats the one before
-            self.controls[self.copied:stop] = rows.controls[settle + np.minimum(k, len(rows.controls) - settle - 1)]
+        if len(self.controls):
+            self.controls[self.copied:stop] = self._commands(k)
         self.copied = stop
+
+    def _commands(self, k: np.ndarray) -> np.ndarray:
+        """The commands of samples k (not yet handed back): an open-loop controller's, or a closed loop's as given
+        (a sample's command drove the step after it; the last sample's repeats the one before, as _Run._commands)."""
+        rows, settle = self.run.rows, self.run.rows.n_settle
+        if self.run.ctrl is not None:
+            return self.run.ctrl[k]
+        return rows.controls[settle + np.minimum(k, len(rows.controls) - settle - 1)]
 
     def recording(self, done: int) -> Recording:
         """The kept rows of the first `done` samples (all simulated), as Recording.thinned gives them."""

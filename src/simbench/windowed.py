@@ -144,11 +144,13 @@ class Departure:
 
 class Sums:
     """For named series (a column each, or (N, k) columns) seen a window at a time: the sum of their squares,
-    their largest absolute value, their last row and their number of rows."""
+    their largest absolute value, the largest of a column (`highest`: a distance's, an error angle's), their last
+    row and their number of rows."""
 
     def __init__(self):
         self.squares: dict[str, Any] = {}
         self.largest: dict[str, Any] = {}
+        self.highest: dict[str, float] = {}
         self.last: dict[str, Any] = {}
         self.count: dict[str, int] = {}
 
@@ -163,6 +165,8 @@ class Sums:
                 self.largest[name] = np.maximum(self.largest[name], largest)
             else:
                 self.squares[name], self.largest[name] = squares, largest
+            if x.ndim == 1:
+                self.highest[name] = float(np.maximum(self.highest.get(name, -np.inf), x.max()))  # NaN stays
             self.last[name] = x[-1]
             self.count[name] = self.count.get(name, 0) + len(x)
 

@@ -110,6 +110,11 @@ class BoundedCache(OrderedDict):
             self.held -= _floats(old)
         return value
 
+    def clear(self) -> None:
+        """Drop every entry."""
+        super().clear()
+        self.held = 0
+
     def fetch(self, key, make):
         """The value under key, or make()'s kept there; either way now the newest entry, the last to go (the search
         moves on in time, and what it read last it reads again: the held points' blocks)."""

@@ -344,9 +344,7 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
 def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
     """Report entries (closure error, KCI, orientation error), assembly-mode changes as events, and the
     platform orientation series: the Summariser's of the whole run as one window."""
-    whole = Summariser(traj)
-    extra = whole.add(traj, rec, series)
-    return (*whole.finish(), extra)
+    return tuple(Summariser(traj).whole(traj, rec, series))
 
 
 class Summariser(api.Summariser):

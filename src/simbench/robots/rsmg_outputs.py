@@ -23,9 +23,7 @@ _FREE_RGBA = [0.55, 0.55, 0.58, 1.0]  # an EM that is free: grey
 def summary(traj, rec, series: dict) -> Summary:
     """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped: the
     Summariser's of the whole run as one window."""
-    whole = Summariser(traj)
-    extra = whole.add(traj, rec, series)
-    return Summary(*whole.finish(), extra)
+    return Summariser(traj).whole(traj, rec, series)
 
 
 class Summariser(api.Summariser):
@@ -45,7 +43,7 @@ class Summariser(api.Summariser):
         self.tail: dict[str, np.ndarray] = {}  # the window before's last two samples of the tips and rotor
 
     def add(self, traj, rec, series: dict) -> dict:
-        lo, hi = self.lo, self.lo + rec.t.size
+        lo, hi = self.lo, self.lo + rec.t.size  # windows come in order, from the first sample
         engaged = gripping(rec)
         gamma = rec.q[:, ARMS:]
         error, closure = _rotor_errors(traj, rec, engaged, self.anchor, self.before)
@@ -67,7 +65,7 @@ class Summariser(api.Summariser):
         names = [f"em{arm + 1}_tip" for arm in range(ARMS)] + ["rotor_quat"]
         rows = {name: np.concatenate([self.tail[name], rec.sensors[name]]) if self.tail else rec.sensors[name]
                 for name in names}
-        first = lo - (2 if self.tail else 0)  # the sample of rows' first row
+        first = lo - len(rows["rotor_quat"]) + rec.t.size  # the sample of rows' first row
         for i, (release, grip, k) in enumerate(self.regrips):
             if lo - 1 <= k <= hi - 2:
                 tip = rows[f"em{grip.detail['arm']}_tip"][k - 1 - first:k + 2 - first]
