@@ -243,11 +243,10 @@ class _Run:
         commands would be copied)."""
         rows = len(readings)
         kept = self.rows.kept[self.rows.kept < rows]
-        ctrl = self._commands(rows) if commands else np.zeros((0, self.model.nu))
+        ctrl = self._commands(slice(0, rows) if self.every == 1 else kept) if commands else np.zeros((0, self.model.nu))
         revised = {} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}
-        return self._recording(self.traj.t[:rows].copy(), readings, self.rows.q[:rows], self.eq_active[:rows],
-                               ctrl if self.every == 1 or not commands else ctrl[kept], len(kept),
-                               kept=None if self.every == 1 else kept, **revised)
+        return self._recording(self.traj.t[:rows].copy(), readings, self.rows.q[:rows], self.eq_active[:rows], ctrl,
+                               len(kept), kept=None if self.every == 1 else kept, **revised)
 
     def _recording(self, t: np.ndarray, readings: np.ndarray, q: np.ndarray, eq_active: np.ndarray,
                    ctrl: np.ndarray, n_kept: int, **more) -> Recording:
@@ -265,13 +264,15 @@ class _Run:
                          force=readings[:, _columns(plant.force_sensors)], force_limit=plant.force_limit(),
                          **more)
 
-    def _commands(self, rows: int) -> np.ndarray:
-        """The command at each of the first `rows` samples: an open-loop controller's own; a closed-loop one's
-        as it was given (the last sample, whose command no step used, repeats the one before)."""
+    def _commands(self, k: slice | np.ndarray) -> np.ndarray:
+        """The commands of samples k (a slice from sample 0, or sample numbers): an open-loop controller's own; a
+        closed-loop one's as it was given (a sample's command drove the step after it; the run's last sample, whose
+        command no step used, repeats the one before)."""
         if self.ctrl is not None:
-            return self.ctrl[:rows]
-        given = self.rows.controls[self.rows.n_settle:self.rows.n_settle + rows]
-        return np.concatenate([given, given[-1:]])[:rows] if len(given) else self.rows.controls[:0]
+            return self.ctrl[k]
+        controls, settle = self.rows.controls, self.rows.n_settle
+        k = np.arange(len(controls) - settle + 1)[k] if isinstance(k, slice) else k
+        return controls[settle + np.minimum(k, len(controls) - settle - 1)]
 
 
 class _Stream:
@@ -295,7 +296,7 @@ class _Stream:
             hi = min(self.lo + self.window, done)
             kept = self.run.rows.kept
             at = kept[np.searchsorted(kept, self.lo):np.searchsorted(kept, hi)]  # the window's kept rows
-            self.analyser.add(replace(self.every.rows(self.lo, hi), ctrl=self._commands(at)))
+            self.analyser.add(replace(self.every.rows(self.lo, hi), ctrl=self.run._commands(at)))
             self._copy(hi)
             rows, settle = self.run.rows, self.run.rows.n_settle
             first = 0 if self.lo == 0 else settle + self.lo  # the settling steps' readings go with the first window
@@ -316,16 +317,8 @@ class _Stream:
         self.q[self.copied:stop] = rows.q[k]
         self.eq_active[self.copied:stop] = self.run.eq_active[k]
         if len(self.controls):
-            self.controls[self.copied:stop] = self._commands(k)
+            self.controls[self.copied:stop] = self.run._commands(k)
         self.copied = stop
-
-    def _commands(self, k: np.ndarray) -> np.ndarray:
-        """The commands of samples k (not yet handed back): an open-loop controller's, or a closed loop's as given
-        (a sample's command drove the step after it; the last sample's repeats the one before, as _Run._commands)."""
-        rows, settle = self.run.rows, self.run.rows.n_settle
-        if self.run.ctrl is not None:
-            return self.run.ctrl[k]
-        return rows.controls[settle + np.minimum(k, len(rows.controls) - settle - 1)]
 
     def recording(self, done: int) -> Recording:
         """The kept rows of the first `done` samples (all simulated), as Recording.thinned gives them."""

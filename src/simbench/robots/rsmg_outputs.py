@@ -33,7 +33,7 @@ class Summariser(api.Summariser):
     samples either side of it)."""
 
     def __init__(self, traj):
-        self.t, self.lo = traj.t, 0
+        self.lo = 0
         self.anchor = np.zeros((ARMS, 3))
         self.before = np.zeros(ARMS, bool)  # which arms gripped at the sample before the window
         self.largest = {"rotor_error_max": -np.inf, "closure_error_max": -np.inf}
