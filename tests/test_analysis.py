@@ -210,3 +210,47 @@ def test_a_plotted_series_keeps_its_look_at_the_figures_resolution():
     assert kept[edges].all() and kept[edges + 1].all()
     short = np.arange(100.0)
     assert _envelope(short, short, columns)[0] is short
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_plans_limit_events_a_window_at_a_time_are_those_of_the_whole_plan(seed):
+    """A random plan whose references pass the joints' ranges and speed limits in spans, many of them across
+    window edges (windows of 1 to 40 rows): `joint_limit` and `velocity_limit` events found a window at a time are
+    those found from the whole plan at once, and each is a span of the references beyond the bound, with its worst
+    value, checked here sample by sample."""
+    import simbench
+    from simbench.trajectory import JointTrajectory
+
+    robot = simbench.api.robots()["spherical_arm"]
+    rng = np.random.default_rng(seed)
+    n, dof = 600, robot.dof
+    t = np.arange(n) * 0.01
+    lower, upper = np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi)  # a range for every joint
+    middle, half = (lower + upper) / 2, (upper - lower) / 2
+    q = middle + 1.2 * half * np.sin(np.cumsum(rng.normal(scale=0.08, size=(n, dof)), axis=0))
+    qd = robot.qd_max * 1.3 * np.sin(np.cumsum(rng.normal(scale=0.1, size=(n, dof)), axis=0))
+    traj = JointTrajectory(t=t, s=t / t[-1], q_ref=q, qd_ref=qd, tool_ref=np.zeros((n, 3)))
+    whole = analysis._PlanLimits(robot)
+    whole.add(traj, 0)
+    windows = analysis._PlanLimits(robot)
+    lo = 0
+    while lo < n:
+        hi = min(lo + int(rng.integers(1, 41)), n)
+        windows.add(traj.rows(slice(lo, hi)), lo)
+        lo = hi
+    events = whole.events(t)
+    assert windows.events(t) == events
+    kinds = {e["kind"] for e in events}
+    assert kinds == {"joint_limit", "velocity_limit"}
+    for e in events:
+        j = robot.joints.index(e["detail"]["joint"])
+        a, b = np.searchsorted(t, [e["t_start"], e["t_end"]])
+        if e["kind"] == "joint_limit":
+            values, bound = q[:, j], e["detail"]["bound"]
+            beyond = values < robot.lower[j] - 1e-9 if bound == "lower" else values > robot.upper[j] + 1e-9
+            worst = values[a:b + 1].min() if bound == "lower" else values[a:b + 1].max()
+        else:
+            values = np.abs(qd[:, j])
+            beyond, worst = values > robot.qd_max[j], values[a:b + 1].max()
+        assert beyond[a:b + 1].all() and not beyond[max(a - 1, 0):a].any() and not beyond[b + 1:b + 2].any()
+        assert e["detail"]["worst"] == worst

@@ -171,10 +171,10 @@ def test_a_bad_action_is_exit_1_with_the_time(act, when, cause, tmp_path, capsys
     assert report["status"] == "failed" and report["failure"]["cause"] == cause
 
 
-def test_the_servo_redoes_only_the_revised_rows_and_a_controller_without_revise_rows_still_hears_of_them():
-    """Servo.revise_rows(k0, k1) leaves its commands equal to those of the references revised whole (the rows
-    outside k0..k1 were the same), for random spans; a controller that defines only `revise` gets the change
-    through the default `revise_rows`."""
+def test_the_servo_follows_the_revised_rows_and_a_controller_without_revise_rows_still_hears_of_them():
+    """After Servo.revise_rows(k0, k1) its commands equal those of the references revised whole (the rows outside
+    k0..k1 were the same) and those of a servo bound to them afresh, for random spans; a controller that defines
+    only `revise` gets the change through the default `revise_rows`."""
     from dataclasses import replace
 
     from simbench.api import Controller
@@ -212,6 +212,34 @@ def test_the_servo_redoes_only_the_revised_rows_and_a_controller_without_revise_
     heard = Heard()
     heard.revise_rows(7, 9, q_ref, qd_ref)
     assert heard.told[0] == 7 and heard.told[1] is q_ref
+
+
+def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed():
+    """The servo's open-loop commands are api.Commands, found a few rows at a time as the run asks: indexed by a
+    row, a negative row, a slice, row numbers in any order, and with columns after, they are the rows and columns
+    of the servo's targets for the whole plan at once (Servo.targets of every reference), and np.asarray gives
+    them all; the run's recorded commands are those rows, at a recording stride too."""
+    from simbench.api import Commands
+    from simbench.controllers import Servo
+    from simbench.sim import simulate
+
+    scenario = simbench.load_scenario(scenario_file("puma600", "line"))
+    plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
+    traj = scenario.planner_def.plan(scenario, scenario.robot_def, float(plant.model.opt.timestep))
+    servo = Servo()
+    servo.bind(plant, traj)
+    commands = servo.open_loop()
+    whole = servo.targets(traj.q_ref, traj.qd_ref)
+    assert isinstance(commands, Commands) and commands.shape == whole.shape and len(commands) == len(traj.t)
+    act = plant.actuators
+    rows = np.random.default_rng(3).integers(0, len(whole), 50)
+    for index in (7, -1, slice(10, 400, 3), slice(None), rows, (slice(None), act), (rows, 2), (slice(5, 9), act[1]),
+                  (4, act[0])):
+        assert np.array_equal(commands[index], whole[index]), index
+    assert np.array_equal(np.asarray(commands), whole)
+    assert np.array_equal(simulate(plant, traj, servo).ctrl, whole)
+    thin = simulate(plant, traj, servo, record_every=7)
+    assert np.array_equal(thin.ctrl, whole[thin.kept])
 
 
 @pytest.mark.parametrize("robot, name", [("rsmg", "three_turns"), ("puma600", "line")])

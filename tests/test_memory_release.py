@@ -92,8 +92,7 @@ def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_p
     """The feedback finds the rotor's commanded orientations a block at a time as grips ask for them, dropping the
     blocks behind: the same numbers as all of them found at once, bit for bit, for rows asked for in time order
     and out of it, across blocks; and those of the plan's own rotor quaternions."""
-    monkeypatch.setattr(round_robin, "_BLOCK", 1000)
-    monkeypatch.setattr(round_robin, "_CHUNK", 1500)  # the plan's own quaternions, in other chunks
+    monkeypatch.setattr(round_robin, "_BLOCK", 1000)  # the plan's own quaternions too, from 1,000 rows at a time
     scenario = simbench.load_scenario(scenario_file("rsmg", "tumble"))
     dt = float(Plant.load(scenario.robot_def, scenario.sim.timestep).model.opt.timestep)
     plan = scenario.planner_def.plan(scenario, scenario.robot_def, dt)

@@ -94,7 +94,7 @@ def test_a_stride_across_many_chunks_of_either_stepper(monkeypatch, controller):
     same rows as a whole recording, for the rollout in C and for the controller asked every step."""
     plant, traj = planned(shipped("spherical_arm", "case1", duration=1.0))
     whole = simulate(plant, traj, controller())
-    monkeypatch.setattr(stepping, "_CHUNK", 97)
+    monkeypatch.setattr(stepping, "CHUNK", 97)
     thin = simulate(plant, traj, controller(), record_every=10)
     rows = _rows(whole.t.size, 10)
     for column in _HEAVY:
@@ -151,14 +151,18 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
     whole = simbench.evaluate(_strided(robot, name, 1))
     released, windows = [], []
     release, add = pages.release, analysis.Analyser.add
-    monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((a.shape, lo, hi)), release(a, lo, hi)))
+    monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((sys._getframe(1).f_code.co_name, a.shape,
+                                                                            lo, hi)), release(a, lo, hi)))
     monkeypatch.setattr(analysis.Analyser, "add", lambda self, rec: (windows.append(
         (self.samples, rec.kept, rec.ctrl.copy(), rec.qpos.copy())), add(self, rec)))
     thin = simbench.evaluate(_strided(robot, name, k))
     n = whole.recording.t.size
     assert n > window and thin.analysis.samples == n  # two windows at least
-    q_windows = [(lo, hi) for shape, lo, hi in released if shape == whole.recording.q.shape]
+    q_windows = [(lo, hi) for who, shape, lo, hi in released if who == "feed" and shape == whole.recording.q.shape]
     assert q_windows == [(lo, min(lo + window, n)) for lo in range(0, n, window)]
+    # the plan's rows go from the first on, up to the block before the last window's (the path search's stretch)
+    plan = [hi for who, shape, lo, hi in released if who == "_let_plan_go" and shape == whole.trajectory.q_ref.shape]
+    assert plan == sorted(plan) and plan[-1] >= n - 1 - (n - 1) % window - 3 * window
     for lo, kept, ctrl, qpos in windows:  # each window's commands and states at its kept rows, as Recording.rows
         assert np.array_equal(ctrl, whole.recording.ctrl[lo + kept])
         assert np.array_equal(qpos, whole.recording.qpos[lo + kept])

@@ -2,6 +2,7 @@
 swings. Every accepted plan is checked against A rebuilt here from the planned joints and the switches; a run
 against A rebuilt from the recorded joints."""
 
+import mmap
 from itertools import combinations
 
 import numpy as np
@@ -13,6 +14,8 @@ import simbench
 from simbench.errors import RunError
 from simbench.planners import round_robin
 from simbench.robots import rsmg as S
+from simbench.rotations import matrix_to_quat
+from simbench.trajectory import PER_SAMPLE
 
 DT = 0.002  # s: the control grid the plans are checked on
 BASE = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
@@ -156,3 +159,34 @@ def test_the_issues_motion_runs_without_a_type_a_event(motion, duration):
     assert S.GAMMA_BAND[0] < gamma.min() and gamma.max() < S.GAMMA_BAND[1]
     assert not [e for e in ev.analysis.singularity_events if e["kind"] in ("typeA", "typeB")]
     assert ev.verdict.status == "ok", ev.verdict.violations
+
+
+def _on_own_pages(array: np.ndarray) -> bool:
+    """Whether an array lies on an anonymous mapping of its own (pages.releasable), whose rows can be handed back."""
+    base = array.base
+    while base is not None and not isinstance(base, mmap.mmap):
+        base = getattr(base, "obj", None) if isinstance(base, memoryview) else getattr(base, "base", None)
+    return base is not None
+
+
+def test_the_plans_rows_found_a_block_at_a_time_are_those_of_the_whole_arrays(monkeypatch):
+    """The RSMG plan's per-sample arrays are found _BLOCK rows at a time (here 97, so that blocks end mid-hold and
+    mid-swing), to the bit as from whole arrays at once: the joint rates np.gradient's of the whole q_ref (at the
+    control period, as the grip feedback's revisions take them: trajectory.revise), the
+    marker's point and the rotor's quaternion those of every orientation of the motion at once; and they lie on
+    pages of their own (pages.releasable), which a run streamed with a stride hands back as it passes them."""
+    sc = scenario({"kind": "tumble", "spin_axis": [0.6, 0.0, 0.8], "spin_turns": 1.3, "precession_axis": [0, 1, 0],
+                   "precession_turns": 0.4}, 9.0)
+    whole = round_robin.plan(sc, S.ROBOT, DT)
+    monkeypatch.setattr(round_robin, "_BLOCK", 97)
+    blocks = round_robin.plan(sc, S.ROBOT, DT)
+    assert len(whole.switches) > 4  # re-grips: holds and swings
+    for name in PER_SAMPLE:
+        assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name
+    for name, values in whole.series.items():
+        assert np.array_equal(blocks.series[name], values), name
+    assert np.array_equal(whole.qd_ref, np.gradient(whole.q_ref, DT, axis=0))
+    rot = sc.task.motion.orientation(whole.s)
+    assert np.array_equal(whole.series["rotor_quat_ref"], matrix_to_quat(rot))
+    assert np.array_equal(whole.tool_ref, rot @ np.array([0.0, 0.0, 1.2 * S.RADIUS]))
+    assert all(_on_own_pages(a) for a in (whole.q_ref, whole.qd_ref, whole.tool_ref, *whole.series.values()))

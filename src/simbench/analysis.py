@@ -14,7 +14,7 @@ its lag along the path, and its error against the time-indexed reference. Events
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from simbench.robots import Robot, Tolerance
 from simbench import windowed
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
 from simbench.sim import Recording
-from simbench.trajectory import JointTrajectory
+from simbench.trajectory import JointTrajectory, joined
 
 _JUMP_FACTOR = 10.0
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
@@ -56,7 +56,7 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
     groups: dict[int, list[tuple[int, int, int, int]]] = {}
     for first in range(start - start % window, start + n, window):  # each block's first sample
         groups.setdefault(first // window // per, []).append(
-            (max(first, start) - start, min(first + window, start + n) - start, max(first - window, 0),
+            (max(first, start) - start, min(first + window, start + n) - start, path_from(first, window),
              min(first + 2 * window, len(path)) - 1))
     out = np.empty(n)
     for group in groups.values():
@@ -64,6 +64,12 @@ def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, 
         shifted = [(a - a0, b - a0, first - lo, last - lo) for a, b, first, last in group]
         out[a0:b0] = _deviation(path[lo:hi + 1], points[a0:b0], shifted, planned_at=start + a0 - lo)
     return out
+
+
+def path_from(start: int, window: int) -> int:
+    """The first path sample that `deviation_near_reference` reads for the points from sample `start` on: the
+    first of the block before theirs."""
+    return max(start - start % window - window, 0)
 
 
 def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int, int, int]],
@@ -405,56 +411,80 @@ def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
     """The limits the plan itself breaks, found without simulating: `joint_limit` (a reference beyond a joint's
     range), `velocity_limit` (a reference rate beyond its speed limit) and `reference_jump` (without its cost in
     physics)."""
-    return sorted(_joint_limit_events(robot, traj) + _velocity_events(robot, traj)
-                  + _jump_events(robot, traj, _jumps(robot, traj, 0, len(traj.t) - 1)),
+    limits = _PlanLimits(robot)
+    limits.add(traj, 0)
+    return sorted(limits.events(traj.t) + _jump_events(robot, traj, _jumps(robot, traj, 0, len(traj.t) - 1)),
                   key=lambda e: (e["t_start"], e["kind"]))
 
 
-def _joint_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
-    t, events = traj.t, []
-    for j, name in enumerate(robot.joints):
-        lo, hi = robot.lower[j], robot.upper[j]
-        for bound, limit, beyond in (("lower", lo, traj.q_ref[:, j] < lo - 1e-9),
-                                     ("upper", hi, traj.q_ref[:, j] > hi + 1e-9)):
-            for span in spans(beyond):
-                seg = traj.q_ref[span[0]:span[1] + 1, j]
-                worst = float(seg.min() if bound == "lower" else seg.max())
-                events.append(_event(t, span, "joint_limit", {
-                    "joint": name, "bound": bound, "limit": float(limit), "worst": worst,
-                    "excess": abs(worst - float(limit)), "source": "reference"}))
-    return events
+class _PlanLimits:
+    """The spans where the plan's references pass a joint's range (`joint_limit`, with the worst reference) or its
+    rates a joint's speed limit (`velocity_limit`, with the fastest), the plan seen a window at a time: a joint at
+    a time, so that there are no (N, dof) temporaries on a long run."""
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+        self.beyond = {(j, bound): Spans(min if bound == "lower" else max)
+                       for j in range(robot.dof) for bound in ("lower", "upper")}
+        self.fast = [Spans(max) for _ in range(robot.dof)]
+
+    def add(self, traj: JointTrajectory, lo: int) -> None:
+        """The plan's rows lo.. (traj: those rows alone)."""
+        robot = self.robot
+        for j in range(robot.dof):
+            q = traj.q_ref[:, j]
+            for bound, beyond in (("lower", q < robot.lower[j] - 1e-9), ("upper", q > robot.upper[j] + 1e-9)):
+                extreme = np.min if bound == "lower" else np.max
+                self.beyond[j, bound].add(beyond, lo, lambda a, b, q=q, extreme=extreme: float(extreme(q[a:b + 1])))
+            speed = np.abs(traj.qd_ref[:, j])
+            self.fast[j].add(speed > robot.qd_max[j], lo, lambda a, b, speed=speed: float(speed[a:b + 1].max()))
+
+    def events(self, t: np.ndarray) -> list[dict]:
+        """The spans' events, a joint at a time (its range, then its speed limit), t the whole plan's times."""
+        robot, events = self.robot, []
+        for (j, bound), spans_of in self.beyond.items():
+            limit = float(robot.lower[j] if bound == "lower" else robot.upper[j])
+            events += [_event(t, (first, last), "joint_limit", {
+                "joint": robot.joints[j], "bound": bound, "limit": limit, "worst": worst,
+                "excess": abs(worst - limit), "source": "reference"}) for first, last, worst in spans_of.finish()]
+        for j, spans_of in enumerate(self.fast):
+            events += [_event(t, (first, last), "velocity_limit", {
+                "joint": robot.joints[j], "limit": float(robot.qd_max[j]), "worst": worst})
+                for first, last, worst in spans_of.finish()]
+        return events
 
 
-def _velocity_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
-    t, events = traj.t, []
-    for j, name in enumerate(robot.joints):  # a joint at a time: no (N, dof) temporaries on a long run
-        for span in spans(np.abs(traj.qd_ref[:, j]) > robot.qd_max[j]):
-            seg = np.abs(traj.qd_ref[span[0]:span[1] + 1, j])
-            events.append(_event(t, span, "velocity_limit", {
-                "joint": name, "limit": float(robot.qd_max[j]), "worst": float(seg.max())}))
-    return events
+@dataclass(frozen=True)
+class _Jump:
+    """A step k -> k + 1 of the plan that jumps (`_jumps`): the joints that jump, the step and the path parameters
+    at both ends, taken when it is found (a long run's plan rows are let go once they have been analysed)."""
+
+    k: int
+    joints: list[int]
+    step: list[float]
+    s: list[float]
 
 
-def _jumps(robot: Robot, traj: JointTrajectory, first: int, stop: int) -> list[tuple[int, list[int]]]:
-    """The steps k -> k + 1 of the plan, first <= k < stop, farther than ten samples at the speed limit, each with
-    the joints that jump: a joint at a time, the steps as np.diff gives them, so that there are no (N, dof)
-    temporaries on a long run; a joint a row, so that `any` runs along the samples (as in `_norms`)."""
+def _jumps(robot: Robot, traj: JointTrajectory, first: int, stop: int) -> list[_Jump]:
+    """The steps k -> k + 1 of the plan, first <= k < stop, farther than ten samples at the speed limit: a joint
+    at a time, the steps as np.diff gives them, so that there are no (N, dof) temporaries on a long run; a joint a
+    row, so that `any` runs along the samples (as in `_norms`)."""
     limit = _JUMP_FACTOR * robot.qd_max * traj.dt
-    q = traj.q_ref[first:stop + 1]
+    q, s = traj.q_ref[first:stop + 1], traj.s[first:stop + 1]
     jump = np.stack([np.abs(np.diff(q[:, j])) > limit[j] for j in range(len(limit))])
-    return [(first + k, np.flatnonzero(jump[:, k]).tolist()) for k in np.flatnonzero(jump.any(axis=0)).tolist()]
+    return [_Jump(first + k, np.flatnonzero(jump[:, k]).tolist(), (q[k + 1] - q[k]).tolist(),
+                  [float(s[k]), float(s[k + 1])]) for k in np.flatnonzero(jump.any(axis=0)).tolist()]
 
 
-def _jump_events(robot: Robot, traj: JointTrajectory, jumps: list[tuple[int, list[int]]],
+def _jump_events(robot: Robot, traj: JointTrajectory, jumps: list[_Jump],
                  departures: dict[int, Departure] | None = None) -> list[dict]:
     """The plan's jumps (`_jumps`); with the tool's departure from the path after each (the recorded path
     deviation's), what each cost: how far and how long the tool left the path."""
     t, events = traj.t, []
-    for k, joints in jumps:
-        detail = {"joints": [robot.joints[j] for j in joints],
-                  "step": (traj.q_ref[k + 1] - traj.q_ref[k]).tolist(),
-                  "s": [float(traj.s[k]), float(traj.s[k + 1])],
-                  "between_waypoints": _waypoint_interval(traj, traj.s[k], traj.s[k + 1])}
+    for jump in jumps:
+        k = jump.k
+        detail = {"joints": [robot.joints[j] for j in jump.joints], "step": jump.step, "s": jump.s,
+                  "between_waypoints": _waypoint_interval(traj, *jump.s)}
         if departures is not None:
             away = departures[k]
             back_at = away.back_at if away.back_at is not None else len(t) - 1
@@ -509,7 +539,9 @@ class Analyser:
         self.at_limit = {(j, bound): Spans(min if bound == "lower" else max)
                          for j in range(robot.dof) for bound in ("lower", "upper")}
         self.saturated = [Spans(lambda first, _: first) for _ in range(robot.dof)]
-        self.jumps: list[tuple[int, list[int]]] = []
+        self.plan_limits = _PlanLimits(robot)
+        self.plan_kept: list[JointTrajectory] = []  # the plan at the recording's kept rows, window by window
+        self.jumps: list[_Jump] = []
         self.departures: dict[int, Departure] = {}
         self.force_limit, self.timestep = np.zeros(0), 0.0
 
@@ -528,10 +560,13 @@ class Analyser:
         lo = self.samples
         hi = self.samples = lo + rec.t.size
         traj = self.traj.rows(slice(lo, hi))
+        if rec.kept is not None:
+            self.plan_kept.append(traj.rows(rec.kept))
         self.force_limit, self.timestep = rec.force_limit, rec.timestep
-        for k, joints in _jumps(self.robot, self.traj, max(lo - 1, 0), hi - 1):  # each step once its rows are final
-            self.jumps.append((k, joints))
-            self.departures[k] = Departure(k + 1, _BACK_ON_PATH)
+        self.plan_limits.add(traj, lo)
+        for jump in _jumps(self.robot, self.traj, max(lo - 1, 0), hi - 1):  # each step once its rows are final
+            self.jumps.append(jump)
+            self.departures[jump.k] = Departure(jump.k + 1, _BACK_ON_PATH)
         series = self._tracking(traj, rec, lo, hi)
         measures = self.robot.measures(rec)
         self.measures = tuple(measures)
@@ -589,6 +624,18 @@ class Analyser:
             self.saturated[j].add(np.abs(force) >= rec.force_limit[j] * (1 - 1e-6), lo,
                                   lambda a, b, force=force: float(force[a]))
 
+    def plan_from(self) -> int:
+        """The first row of the plan that the windows still to come read: the step into the next window (its
+        jump, its tangent) and the stretch of path its search takes (`path_from`). The rows before it may be let
+        go (sim.simulate's analyser does), but for the plan's times, which the events are stamped with."""
+        lo = self.samples
+        return max(min(lo - 1, path_from(lo, windowed.near_reference(self.traj.dt))), 0)
+
+    def plan(self) -> JointTrajectory:
+        """The plan at the recording's kept rows analysed so far, without its feedback (spent): what the outputs
+        of a run with a recording stride show, kept as the run goes, since its other rows may be let go."""
+        return replace(joined(self.plan_kept), feedback=None)
+
     def finish(self, whole: Recording | None = None) -> Analysis:
         """The whole run's analysis; `whole`, the run's recording, is needed where the robot has no Summariser."""
         robot, traj, t = self.robot, self.traj, self.traj.t
@@ -640,13 +687,13 @@ class Analyser:
     def _limit_events(self) -> list[dict]:
         """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
         robot, traj, t = self.robot, self.traj, self.traj.t
-        events = _joint_limit_events(robot, traj)
+        events = self.plan_limits.events(t)
         for (j, bound), spans_of in self.at_limit.items():
             limit = robot.lower[j] if bound == "lower" else robot.upper[j]
             events += [_event(t, (first, last), "at_limit", {"joint": robot.joints[j], "bound": bound,
                                                              "limit": float(limit), "extreme": extreme})
                        for first, last, extreme in spans_of.finish()]
-        events += _jump_events(robot, traj, self.jumps, self.departures) + _velocity_events(robot, traj)
+        events += _jump_events(robot, traj, self.jumps, self.departures)
         for j, spans_of in enumerate(self.saturated):
             events += [_event(t, (first, last), "actuator_saturation", {
                 "joint": robot.joints[j], "limit": float(self.force_limit[j]), "force": force,

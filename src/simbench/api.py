@@ -45,9 +45,9 @@ if TYPE_CHECKING:
     from simbench.plant import Plant
     from simbench.sim import Recording
 
-__all__ = ["PRISMATIC", "REVOLUTE", "ControlSettings", "Controller", "Decoration", "JointTrajectory", "Plant",
-           "Planner", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summariser", "Summary",
-           "Switch", "Tolerance", "broken", "controllers", "origin", "planners", "register_controller",
+__all__ = ["PRISMATIC", "REVOLUTE", "Commands", "ControlSettings", "Controller", "Decoration", "JointTrajectory",
+           "Plant", "Planner", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summariser",
+           "Summary", "Switch", "Tolerance", "broken", "controllers", "origin", "planners", "register_controller",
            "register_planner", "register_robot", "robots"]
 
 _LAZY = {"Plant": "simbench.plant", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
@@ -314,6 +314,34 @@ class ControlSettings(SimbenchModel):
     controller: str = "servo"
 
 
+class Commands(ABC):
+    """An open-loop controller's commands for every step, shape (N, nu), found a few rows at a time as the run
+    asks for them rather than held all at once: what `Controller.open_loop` may return in place of an array (the
+    servo's, on the ten-minute RSMG soak, would hold 37 MB through the run). Indexed as an (N, nu) array is, by
+    rows (an int, a slice or row numbers) and then any columns; np.asarray gives them all."""
+
+    @property
+    @abstractmethod
+    def shape(self) -> tuple[int, int]:
+        """(N, nu): the rows (one per control sample) and the commands of each."""
+
+    @abstractmethod
+    def rows(self, k: slice | NDArray[np.intp]) -> Array:
+        """The commands (len, nu) of rows k (a slice, or row numbers, negative ones counted from the end)."""
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, index: Any) -> Array:
+        rows, columns = (index[0], index[1:]) if isinstance(index, tuple) else (index, ())
+        if isinstance(rows, (int, np.integer)):
+            return self.rows(np.array([rows]))[(0, *columns)]
+        return self.rows(rows)[(slice(None), *columns)]
+
+    def __array__(self, dtype: Any = None, copy: bool | None = None) -> Array:
+        return np.asarray(self.rows(slice(None)), dtype)
+
+
 class Controller(ABC):
     """Turns the plan and the measured state into actuator commands (the model's `ctrl`, one row per control
     step). A run makes one with `from_scenario`, calls `bind` once with the plant and the plan, then
@@ -338,8 +366,9 @@ class Controller(ABC):
     def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
         """Prepare for a run of `trajectory` on `plant` (gains, references, indices)."""
 
-    def open_loop(self) -> Array | None:
-        """Every step's commands (N, nu), if they do not depend on the measured state; else None."""
+    def open_loop(self) -> Array | Commands | None:
+        """Every step's commands (N, nu), if they do not depend on the measured state, as an array or as Commands
+        that find them a few rows at a time (a long run then does not hold them all); else None."""
         return None
 
     @abstractmethod

@@ -5,8 +5,8 @@
   cancels the joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd_ref, as an
   industrial joint controller with friction compensation is. Commands are clamped to the actuators' control
   ranges (the joint ranges), as the servo's own limits would. The commands depend on the plan alone, so the
-  servo is open-loop to simbench: the physics runs through `mujoco.rollout` with all of them computed
-  beforehand.
+  servo is open-loop to simbench: the physics runs through `mujoco.rollout`, fed the commands of a chunk of
+  steps at a time (api.Commands).
 - `computed_torque` (simbench.computed_torque): torques from the model's inverse dynamics plus PD.
 - `policy` (simbench.policy): a Python object named in the scenario, called every step with an observation.
 """
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from simbench.api import Array, Controller, State
+from simbench.api import Array, Commands, Controller, State
 from simbench.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
@@ -26,7 +26,8 @@ if TYPE_CHECKING:
 
 
 class Servo(Controller):
-    """The MJCF's position servos with velocity feed-forward (the scenario's `sim.velocity_feedforward`)."""
+    """The MJCF's position servos with velocity feed-forward (the scenario's `sim.velocity_feedforward`). Its
+    commands are found from the references as the run asks for them (_Targets), not held for every step."""
 
     name = "servo"
     description = "position servo with velocity feed-forward (the MJCF's position actuators)"
@@ -34,7 +35,7 @@ class Servo(Controller):
     def __init__(self, feedforward: bool = True):
         self.feedforward = feedforward
         self._plant: Plant | None = None
-        self._ctrl: Array | None = None
+        self._refs: tuple[Array, Array] | None = None  # (q_ref, qd_ref): the plan's, or as its feedback revised them
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> Servo:
@@ -42,21 +43,20 @@ class Servo(Controller):
 
     def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
         self._plant = plant
-        self._ctrl = self.targets(trajectory.q_ref, trajectory.qd_ref)
+        self._refs = trajectory.q_ref, trajectory.qd_ref
 
-    def open_loop(self) -> Array | None:
-        return self._ctrl
+    def open_loop(self) -> Commands:
+        assert self._refs is not None, "bind() first"
+        return _Targets(self)
 
     def commands(self, state: State) -> Array:
-        assert self._ctrl is not None, "bind() first"
-        return self._ctrl[min(state.k, len(self._ctrl) - 1)]
+        assert self._refs is not None, "bind() first"
+        q_ref, qd_ref = self._refs
+        k = min(state.k, len(q_ref) - 1)
+        return self.targets(q_ref[k:k + 1], qd_ref[k:k + 1])[0]
 
     def revise(self, k0: int, q_ref: Array, qd_ref: Array) -> None:
-        self.revise_rows(k0, len(q_ref), q_ref, qd_ref)
-
-    def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
-        assert self._ctrl is not None, "bind() first"
-        self._ctrl[k0:k1] = self.targets(q_ref[k0:k1], qd_ref[k0:k1])
+        self._refs = q_ref, qd_ref  # the commands follow the references they are given, every row
 
     def gains(self) -> dict[str, Any]:
         assert self._plant is not None, "bind() first"
@@ -78,3 +78,19 @@ class Servo(Controller):
         lo, hi = m.actuator_ctrlrange.T
         ctrl[:, limited] = np.clip(ctrl[:, limited], lo[limited], hi[limited])
         return ctrl
+
+
+class _Targets(Commands):
+    """The servo's commands, Servo.targets of its references (as revised so far) at the rows asked for."""
+
+    def __init__(self, servo: Servo):
+        self.servo = servo
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        assert self.servo._plant is not None and self.servo._refs is not None
+        return len(self.servo._refs[0]), self.servo._plant.model.nu
+
+    def rows(self, k):
+        q_ref, qd_ref = self.servo._refs
+        return self.servo.targets(q_ref[k], qd_ref[k])

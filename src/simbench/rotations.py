@@ -28,10 +28,24 @@ def canonical(quat: np.ndarray) -> np.ndarray:
 
 
 def matrix_to_quat(rot: np.ndarray) -> np.ndarray:
-    """Unit quaternions (N, 4), w x y z with w >= 0, of rotation matrices (N, 3, 3)."""
-    from scipy.spatial.transform import Rotation
-
-    xyzw = Rotation.from_matrix(np.reshape(rot, (-1, 3, 3))).as_quat()
+    """Unit quaternions (N, 4), w x y z with w >= 0, of rotation matrices (N, 3, 3). Each from the largest of
+    w, x, y and z, which is well away from zero (Shepperd's method), as scipy's Rotation.from_matrix does; in
+    NumPy, so that a run which needs no more of scipy does not load it (scipy.spatial: 34 MB resident)."""
+    m = np.reshape(rot, (-1, 3, 3))
+    diag = np.einsum("nii->ni", m)
+    trace = diag.sum(axis=1)
+    choice = np.argmax(np.concatenate([diag, trace[:, None]], axis=1), axis=1)  # x, y, z or w largest
+    xyzw = np.empty((len(m), 4))
+    w = choice == 3
+    xyzw[w] = np.stack([m[w, 2, 1] - m[w, 1, 2], m[w, 0, 2] - m[w, 2, 0], m[w, 1, 0] - m[w, 0, 1], 1 + trace[w]], -1)
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        c = choice == i
+        xyzw[c, i] = 1 - trace[c] + 2 * m[c, i, i]
+        xyzw[c, j] = m[c, j, i] + m[c, i, j]
+        xyzw[c, k] = m[c, k, i] + m[c, i, k]
+        xyzw[c, 3] = m[c, k, j] - m[c, j, k]
+    xyzw /= np.sqrt(np.einsum("ij,ij->i", xyzw, xyzw))[:, None]
     return canonical(np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1))
 
 

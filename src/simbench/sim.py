@@ -28,14 +28,14 @@ import numpy as np
 from tqdm import tqdm
 
 from simbench import heap, pages
-from simbench.api import Controller
+from simbench.api import Commands, Controller
 from simbench.controllers import Servo
 from simbench.errors import ControlError, PhysicsError, RunError
 from simbench.faults import Fault, fatal_cause, quiet_mujoco
 from simbench.plant import Plant
-from simbench.stepping import ClosedLoop, CommandFault, OpenLoop, Rows, state_slices
+from simbench.stepping import CHUNK, ClosedLoop, CommandFault, OpenLoop, Rows, state_slices
 from simbench.switches import apply_switch, at_start
-from simbench.trajectory import JointTrajectory, revise
+from simbench.trajectory import JointTrajectory, joined, revise
 
 if TYPE_CHECKING:
     from simbench.analysis import Analyser
@@ -140,7 +140,7 @@ class _Run:
     def __init__(self, plant: Plant, traj: JointTrajectory, controller: Controller, settle: float, every: int,
                  in_place: bool = False, analyser: Analyser | None = None):
         self.plant, self.traj, self.controller, self.every, self.in_place = plant, traj, controller, every, in_place
-        self.ctrl = controller.open_loop()  # (N, nu), or None for a closed-loop controller
+        self.ctrl = controller.open_loop()  # (N, nu) (an array or Commands), or None for a closed loop
         if self.ctrl is not None:
             _check_finite(self.ctrl, traj)
         self.model, self.data, self.steps = self._start(-settle)
@@ -230,8 +230,7 @@ class _Run:
             return error(rows * self.model.opt.timestep, fault.cause, self.traj, None)
         when = float(self.traj.t[rows - 1] + self.model.opt.timestep)
         if self.stream is not None:  # the kept rows before the fault, and the plan at them
-            return error(when, fault.cause, self.traj.rows(self.rows.kept[self.rows.kept < rows]),
-                         self.stream.recording(rows))
+            return error(when, fault.cause, self.stream.plan(rows), self.stream.recording(rows))
         partial = self._record(self.rows.sensors[self.rows.n_settle:self.rows.n_settle + rows])
         return error(when, fault.cause, commanded(self.traj, partial), partial)
 
@@ -239,13 +238,14 @@ class _Run:
         """The Recording of the first len(readings) samples. Row 0 is the state at the end of settling (the
         start state itself when there is no settling); row r > 0 is the state after step r - 1. MuJoCo computes
         sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state.
-        Without `commands`, its ctrl is empty (the views an analysis reads while the run goes on: a closed loop's
-        commands would be copied)."""
+        Without `commands`, its ctrl is empty and its times are the plan's own (the views an analysis reads while
+        the run goes on: a closed loop's commands would be copied)."""
         rows = len(readings)
         kept = self.rows.kept[self.rows.kept < rows]
         ctrl = self._commands(slice(0, rows) if self.every == 1 else kept) if commands else np.zeros((0, self.model.nu))
         revised = {} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}
-        return self._recording(self.traj.t[:rows].copy(), readings, self.rows.q[:rows], self.eq_active[:rows], ctrl,
+        t = self.traj.t[:rows]
+        return self._recording(t.copy() if commands else t, readings, self.rows.q[:rows], self.eq_active[:rows], ctrl,
                                len(kept), kept=None if self.every == 1 else kept, **revised)
 
     def _recording(self, t: np.ndarray, readings: np.ndarray, q: np.ndarray, eq_active: np.ndarray,
@@ -287,7 +287,7 @@ class _Stream:
         self.lo, self.copied = 0, 0  # the first sample not analysed; the kept rows copied out
         self.sensors, self.q = np.empty((kept, rows.sensors.shape[1])), np.empty((kept, rows.q.shape[1]))
         self.eq_active = np.empty((kept, run.eq_active.shape[1]), bool)
-        self.controls = np.empty((kept if len(rows.controls) else 0, rows.controls.shape[1]))
+        self.controls = np.empty((kept, run.model.nu))  # the commands at the kept rows (the plan's rows go too)
         self.every = run._record(rows.sensors[rows.n_settle:], commands=False)  # views of every sample
 
     def feed(self, done: int, last: bool = False) -> None:
@@ -304,9 +304,26 @@ class _Stream:
             for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi - 1),
                                 (rows.q, self.lo, hi), (self.run.eq_active, self.lo, hi)):
                 pages.release(array, a, b)
+            self.lo = hi
+            self._let_plan_go()
             if len(rows.q) >= heap.TRIM_SAMPLES:
                 heap.trim()  # the window's analysis' temporaries, freed into the heap
-            self.lo = hi
+
+    def _let_plan_go(self) -> None:
+        """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the run (which reads the
+        references of the steps to come) reads again, where its arrays are on pages of their own
+        (pages.releasable: a long plan's, as the RSMG's planner makes them), but its times: the events are stamped
+        with them. The analyser keeps the plan's kept rows."""
+        traj, upto = self.run.traj, min(self.analyser.plan_from(), self.lo)
+        for array in (traj.s, traj.q_ref, traj.qd_ref, traj.tool_ref, *traj.series.values()):
+            pages.release(array, 0, upto)  # from the first row: the pages across the last window's edge too
+
+    def plan(self, done: int) -> JointTrajectory:
+        """The plan at the kept rows of the first `done` samples: the analysed windows' as the analyser kept them,
+        then the rows not analysed yet."""
+        kept = self.run.rows.kept
+        rest = self.run.traj.rows(kept[(kept >= self.lo) & (kept < done)])
+        return joined([*self.analyser.plan_kept, rest])
 
     def _copy(self, done: int) -> None:
         """Copy out the kept rows among the first `done` samples not copied yet."""
@@ -316,8 +333,7 @@ class _Stream:
         self.sensors[self.copied:stop] = rows.sensors[settle + k]
         self.q[self.copied:stop] = rows.q[k]
         self.eq_active[self.copied:stop] = self.run.eq_active[k]
-        if len(self.controls):
-            self.controls[self.copied:stop] = self.run._commands(k)
+        self.controls[self.copied:stop] = self.run._commands(k)
         self.copied = stop
 
     def recording(self, done: int) -> Recording:
@@ -325,8 +341,8 @@ class _Stream:
         self._copy(done)
         run, m = self.run, self.copied
         kept = run.rows.kept[:m]
-        ctrl = self.controls[:m] if run.ctrl is None else run.ctrl[kept]
-        return run._recording(run.traj.t[kept], self.sensors[:m], self.q[:m], self.eq_active[:m], ctrl, m)
+        return run._recording(run.traj.t[kept], self.sensors[:m], self.q[:m], self.eq_active[:m], self.controls[:m],
+                              m)
 
 
 def _columns(index: np.ndarray) -> slice | np.ndarray:
@@ -337,8 +353,10 @@ def _columns(index: np.ndarray) -> slice | np.ndarray:
     return index
 
 
-def _check_finite(ctrl: np.ndarray, traj: JointTrajectory) -> None:
-    """RunError at the first sample without a finite command (the plan has no finite reference there)."""
-    bad = ~np.isfinite(ctrl).all(axis=1)
-    if bad.any():
-        raise RunError(f"the plan has no finite reference at t = {traj.t[np.argmax(bad)]:.4f} s")
+def _check_finite(ctrl: np.ndarray | Commands, traj: JointTrajectory) -> None:
+    """RunError at the first sample without a finite command (the plan has no finite reference there), the
+    commands read a chunk at a time (Commands find them as they are read)."""
+    for lo in range(0, len(ctrl), CHUNK):
+        bad = ~np.isfinite(ctrl[lo:lo + CHUNK]).all(axis=1)
+        if bad.any():
+            raise RunError(f"the plan has no finite reference at t = {traj.t[lo + np.argmax(bad)]:.4f} s")

@@ -25,13 +25,13 @@ import numpy as np
 from mujoco import rollout
 
 from simbench import pages
-from simbench.api import Controller, State
+from simbench.api import Commands, Controller, State
 from simbench.errors import RunError
 from simbench.faults import (FATAL, MAX_SPEED, Fault, clear_warnings, fatal_cause, step_fault, unsound,
                              warnings_raised)
 from simbench.plant import Plant
 
-_CHUNK = 5000
+CHUNK = 5000  # steps stepped at a time (and an open loop's commands found at a time for them)
 FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
 
@@ -42,7 +42,7 @@ class Rows:
     holds them), n_settle of them settling before the plan's first sample; and for each recorded row (row r is
     the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, and its
     full physics state where the row is one of `kept`.
-    The steppers write up to _CHUNK states into `scratch` and then `keep` them, so that a long run with a
+    The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a long run with a
     recording stride never holds every step's state."""
 
     sensors: np.ndarray
@@ -51,7 +51,7 @@ class Rows:
     states: np.ndarray  # (len(kept), nstate): the full state of the kept rows
     kept: np.ndarray  # the recorded rows whose full state is kept, ascending
     q_columns: np.ndarray  # where the joint positions sit in a full state vector
-    scratch: np.ndarray  # (_CHUNK, nstate): the states of the steps not yet kept
+    scratch: np.ndarray  # (CHUNK, nstate): the states of the steps not yet kept
     n_settle: int
     t0: float  # the simulated time of the plan's first sample
 
@@ -71,7 +71,7 @@ class Rows:
         empty = pages.releasable if releasable else np.empty
         rows = cls(sensors=empty((n + 1, model.nsensordata)), controls=empty((n if controls else 0, model.nu)),
                    q=empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
-                   q_columns=q_columns, scratch=np.empty((min(_CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
+                   q_columns=q_columns, scratch=np.empty((min(CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
                    t0=n_settle * model.opt.timestep)
         if start is not None:
             rows.q[0], rows.states[0] = start[q_columns], start
@@ -116,10 +116,11 @@ def _warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
 
 
 class OpenLoop:
-    """Precomputed commands stepped through `mujoco.rollout`, chunk by chunk: rows.controls, or where `planned`
-    is given, an open-loop controller's commands per sample (N, nu), read from it without a copy in the rows."""
+    """Commands known beforehand stepped through `mujoco.rollout`, chunk by chunk: rows.controls, or where
+    `planned` is given, an open-loop controller's commands per sample (N, nu: an array, or api.Commands found a
+    chunk at a time), read from it without a copy in the rows."""
 
-    def __init__(self, model: mujoco.MjModel, planned: np.ndarray | None = None):
+    def __init__(self, model: mujoco.MjModel, planned: np.ndarray | Commands | None = None):
         self.slices = state_slices(model)
         self.state = np.empty(mujoco.mj_stateSize(model, FULL))
         self.planned = planned
@@ -140,7 +141,7 @@ class OpenLoop:
         while k < stop:
             mujoco.mj_getState(model, data, self.state, FULL)
             warmstart = data.qacc_warmstart.copy()
-            end = min(k + _CHUNK, stop)
+            end = min(k + CHUNK, stop)
             controls = self.commands(rows, k, end)
             try:
                 rollout.rollout(model, data, self.state[None], controls[None], control_spec=ctrl_spec,

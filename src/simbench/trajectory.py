@@ -21,6 +21,9 @@ class Switch:
     detail: dict = field(default_factory=dict)
 
 
+PER_SAMPLE = ("t", "s", "q_ref", "qd_ref", "tool_ref")  # JointTrajectory's arrays of a row a sample, but `series`
+
+
 @dataclass(frozen=True)
 class JointTrajectory:
     """Joint references sampled at every control step, t = 0, dt, ..., T + hold.
@@ -36,6 +39,10 @@ class JointTrajectory:
     re-solving its hold for the point it really gripped); the pipeline (simbench.run, evaluate) applies those to
     q_ref and qd_ref in place (sim.simulate's revise_in_place). `violations` are the promises the planner knows its
     plan breaks (it ends away from the task's goal, say), each {"kind", "message"}: the run cannot end `ok`.
+
+    A planner of long runs may make the per-sample arrays with simbench.pages.releasable: a run with a recording
+    stride, analysed as it is simulated, then hands back the rows it has passed (all but t), keeping the plan at its
+    kept rows for the outputs (analysis.Analyser.plan); the plan is the run's to use up (the pipeline's).
     """
 
     t: np.ndarray
@@ -59,8 +66,18 @@ class JointTrajectory:
 
     def rows(self, index: slice | np.ndarray) -> JointTrajectory:
         """The plan at rows `index` (a slice or row numbers): every per-sample array taken there."""
-        return replace(self, t=self.t[index], s=self.s[index], q_ref=self.q_ref[index], qd_ref=self.qd_ref[index],
-                       tool_ref=self.tool_ref[index], series={name: v[index] for name, v in self.series.items()})
+        return replace(self, **{name: getattr(self, name)[index] for name in PER_SAMPLE},
+                       series={name: v[index] for name, v in self.series.items()})
+
+
+def joined(pieces: list[JointTrajectory]) -> JointTrajectory:
+    """Plans of consecutive rows (JointTrajectory.rows of one plan, in order) as one: every per-sample array
+    concatenated, the rest the first piece's."""
+    first = pieces[0]
+    if len(pieces) == 1:
+        return first
+    return replace(first, **{name: np.concatenate([getattr(p, name) for p in pieces]) for name in PER_SAMPLE},
+                   series={name: np.concatenate([p.series[name] for p in pieces]) for name in first.series})
 
 
 def revise(q_ref: np.ndarray, qd_ref: np.ndarray, change: tuple, dt: float) -> tuple[int, int]:

@@ -47,14 +47,14 @@ from typing import Annotated, Literal, NamedTuple
 import numpy as np
 from pydantic import Field, model_validator
 
-from simbench import heap
+from simbench import heap, pages
 from simbench.api import Planner
 from simbench.errors import RunError
 from simbench.planners.rsmg_contacts import (CACHE_FLOATS, FIRM_CAP, FIRM_SPEED, SPEED_SHARE, BoundedCache,
                                              FixedContacts, GeneralContacts, Lazy, LazyExit, Swing, angular_speed,
                                              exit_upto, first_false, first_out)
 from simbench.robots import rsmg
-from simbench.rotations import matrix_to_quat
+from simbench.rotations import axis_rotation, matrix_to_quat
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, Switch, control_grid
@@ -70,8 +70,10 @@ _EASE = 0.1  # s: a grip's revised hold blends in from the old one over this tim
 _QUINTIC = TimeLaw("quintic", 1.0)
 _STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
 _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
-_CHUNK = 65536  # control samples whose orientations are found at a time while planning (_rotor_references)
-_BLOCK = 8192  # and during the run, as grips ask for them (_Orientations: scipy's temporaries of 65,536 were 19 MB)
+# control samples whose orientations and rates are found at a time, in planning (_rotor_references, _joint_rates)
+# and during the run, as grips ask for them (_Orientations): the temporaries of a rotation matrix for each of
+# 65,536 samples took 28 MB
+_BLOCK = 8192
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 # The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
 # paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
@@ -96,15 +98,15 @@ class Motion(SimbenchModel):
     precession_turns: Turns = 1.0
 
     def orientation(self, s: np.ndarray) -> np.ndarray:
-        """R (N, 3, 3) at path parameters s in [0, 1]."""
-        from scipy.spatial.transform import Rotation  # imported when planned, not when registered
+        """R (N, 3, 3) at path parameters s in [0, 1]: a tumble is the precession's rotation after the spin's."""
+        s = np.asarray(s, float)
 
-        s = np.asarray(s, float)[:, None]
+        def turning(axis: list[float], turns: float) -> np.ndarray:  # about a unit axis (schema.Direction)
+            return axis_rotation(np.broadcast_to(np.array(axis), (len(s), 3)), 2 * np.pi * turns * s)
+
         if self.kind == "turns":
-            return Rotation.from_rotvec(2 * np.pi * self.turns * s * np.array(self.axis)).as_matrix()
-        precess = Rotation.from_rotvec(2 * np.pi * self.precession_turns * s * np.array(self.precession_axis))
-        spin = Rotation.from_rotvec(2 * np.pi * self.spin_turns * s * np.array(self.spin_axis))
-        return (precess * spin).as_matrix()
+            return turning(self.axis, self.turns)
+        return turning(self.precession_axis, self.precession_turns) @ turning(self.spin_axis, self.spin_turns)
 
 
 class Task(SimbenchModel):
@@ -492,12 +494,11 @@ def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.nda
 
 
 def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContacts | GeneralContacts,
-              grid: np.ndarray, n_approach: int) -> tuple[np.ndarray, np.ndarray]:
-    """theta and gamma (N,) of one arm on the control grid t: the IK of its held points (from n_approach steps
-    before each grip), quintic swings between. A swing's end states are fitted on the schedule grid (_FIT steps
-    of each hold), whatever the control step."""
+              grid: np.ndarray, n_approach: int, out_theta: np.ndarray, out_gamma: np.ndarray) -> None:
+    """theta and gamma (N,) of one arm on the control grid t, into out_theta and out_gamma (NaN on entry): the IK
+    of its held points (from n_approach steps before each grip), quintic swings between. A swing's end states are
+    fitted on the schedule grid (_FIT steps of each hold), whatever the control step."""
     mine = [h for h in holds if h.arm == arm]
-    out_theta, out_gamma = np.full(t.size, np.nan), np.full(t.size, np.nan)
     held = []  # per hold: grid times and its theta, gamma there
     for h in mine:
         start, stop = max(h.start - n_approach, 0), min(h.end, grid.size - 1)
@@ -520,7 +521,6 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
             start = _state(span_a[-_FIT - 1:], before[-_FIT - 1:], t0)
             end = _state(span_b[:_FIT + 1], after[:_FIT + 1], t1)
             series[swing] = _quintic(t[swing], t0, t1, start, end)
-    return out_theta, out_gamma
 
 
 def _span(t: np.ndarray, start: float, stop: float) -> slice:
@@ -631,11 +631,12 @@ def _cause(task: Task, law: TimeLaw, hold: float) -> str:
 
 
 def _joint_paths(t: np.ndarray, sched: _ScheduleGrid) -> np.ndarray:
-    """q_ref (N, 8) on the control grid: every arm's theta, then every arm's gamma (_arm_path)."""
-    q_ref = np.empty((t.size, 2 * rsmg.ARMS))
+    """q_ref (N, 8) on the control grid: every arm's theta, then every arm's gamma (_arm_path, into its columns)."""
+    q_ref = pages.releasable((t.size, 2 * rsmg.ARMS))
+    q_ref[:] = np.nan
     for arm in range(rsmg.ARMS):
-        q_ref[:, arm], q_ref[:, rsmg.ARMS + arm] = _arm_path(t, arm, sched.holds, sched.contacts, sched.grid,
-                                                             sched.n_approach)
+        _arm_path(t, arm, sched.holds, sched.contacts, sched.grid, sched.n_approach, q_ref[:, arm],
+                  q_ref[:, rsmg.ARMS + arm])
     return q_ref
 
 
@@ -659,7 +660,8 @@ def _switches(holds: list[Hold], grid: np.ndarray, contacts: FixedContacts | Gen
 
 def _engaged(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarray:
     """Which arms grip (N, 4) at each control sample."""
-    engaged = np.zeros((t.size, rsmg.ARMS), bool)
+    engaged = pages.releasable((t.size, rsmg.ARMS), bool)
+    engaged[:] = False
     for h in holds:
         stop = grid[h.end] if h.end < grid.size else np.inf
         engaged[_span(t, grid[h.start], stop), h.arm] = True
@@ -667,7 +669,9 @@ def _engaged(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarray:
 
 
 def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """Schedule the grips and solve every arm at every control sample."""
+    """Schedule the grips and solve every arm at every control sample. The per-sample arrays are on pages of their
+    own (pages.releasable), so that a long run with a recording stride hands their rows back as it passes them
+    (sim.simulate's analyser: the ten-minute soak's plan is 117 MB)."""
     task = scenario.task
     law = scenario.timing.law_fn()
     sched = _schedule_grips(task, law, scenario.timing.hold)
@@ -680,6 +684,8 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     q_ref = _joint_paths(t, sched)
     switches = _switches(sched.holds, sched.grid, sched.contacts)
     holds, grid, count = sched.holds, sched.grid, sched.contacts.count
+    del sched  # the contacts and the rotor's axes on the schedule grid go before the references that remain come
+    heap.give_back(len(t))
     engaged = _engaged(t, holds, grid)
     feedback = _RegripFeedback(task.motion, s, q_ref, holds, grid, dt, round(task.swing_time / dt)) \
         if task.regrip_feedback else None
@@ -691,30 +697,35 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
         "grips": len(holds) - rsmg.ARMS,
         "fewest_gripping": int(engaged.sum(axis=1).min()),
     }
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=_joint_rates(q_ref, t), tool_ref=tool_ref, info=info,
+    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=_joint_rates(q_ref, dt), tool_ref=tool_ref, info=info,
                            switches=switches, series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                            initial={"rotor": quat[0].tolist()}, feedback=feedback)
 
 
 def _rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The marker's planned point (N, 3) and the rotor's planned orientation as quaternions (N, 4) at path
-    parameters s, from the rotor's orientations a _CHUNK of samples at a time: all of a long run's at once (43 MB
-    on the ten-minute soak's 600,000 samples), and scipy's temporaries for their quaternions (seven times those),
-    would be planning's peak. Each row's numbers are those of the whole run's arrays."""
-    tool_ref, quat = np.empty((len(s), 3)), np.empty((len(s), 4))
-    for i in range(0, len(s), _CHUNK):
-        rot = motion.orientation(s[i:i + _CHUNK])
-        tool_ref[i:i + _CHUNK] = rot @ (_MARKER * 1.2 * rsmg.RADIUS)
-        quat[i:i + _CHUNK] = matrix_to_quat(rot)
+    parameters s, from the rotor's orientations a _BLOCK of samples at a time: all of a long run's at once (43 MB
+    on the ten-minute soak's 600,000 samples), and the temporaries of their matrices and quaternions, would be
+    planning's peak. Each row's numbers are those of the whole run's arrays."""
+    tool_ref, quat = pages.releasable((len(s), 3)), pages.releasable((len(s), 4))
+    for i in range(0, len(s), _BLOCK):
+        rot = motion.orientation(s[i:i + _BLOCK])
+        tool_ref[i:i + _BLOCK] = rot @ (_MARKER * 1.2 * rsmg.RADIUS)
+        quat[i:i + _BLOCK] = matrix_to_quat(rot)
     return tool_ref, quat
 
 
-def _joint_rates(q_ref: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """np.gradient(q_ref, t, axis=0), a joint at a time: the same numbers, without temporaries of three and a half
-    times q_ref for all joints at once (on the soak's 600,000 samples, 135 MB)."""
-    qd_ref = np.empty_like(q_ref)
-    for joint in range(q_ref.shape[1]):
-        qd_ref[:, joint] = np.gradient(q_ref[:, joint], t)
+def _joint_rates(q_ref: np.ndarray, dt: float) -> np.ndarray:
+    """np.gradient(q_ref, dt, axis=0), as the grip feedback's revisions take it (trajectory.revise), _BLOCK rows at
+    a time with a row either side: each row's rate is of its own and its neighbours' samples alone, so the same
+    numbers, without temporaries of three and a half times q_ref at once (on the soak's 600,000 samples, 135 MB).
+    The spacing is the control period, not the differences of t: np.gradient takes a block whose t steps happen to
+    be equal for uniform, and rounds differently there."""
+    qd_ref = pages.releasable(q_ref.shape)
+    n = len(q_ref)
+    for lo in range(0, n, _BLOCK):
+        a, b = max(lo - 1, 0), min(lo + _BLOCK + 1, n)
+        qd_ref[lo:lo + _BLOCK] = np.gradient(q_ref[a:b], dt, axis=0)[lo - a:lo - a + min(_BLOCK, n - lo)]
     return qd_ref
 
 
@@ -774,7 +785,7 @@ class _Orientations:
         self.blocks: dict[int, np.ndarray] = {}
 
     def rows(self, a: int, b: int) -> np.ndarray:
-        """R at rows a..b-1: the same numbers as motion.orientation(s)[a:b] (scipy's rotations are each row's)."""
+        """R at rows a..b-1: the same numbers as motion.orientation(s)[a:b] (each row's own)."""
         first, last = a // _BLOCK, max(b - 1, a) // _BLOCK
         self.blocks = {i: block for i, block in self.blocks.items() if i >= first}
         for i in range(first, last + 1):
