@@ -291,3 +291,29 @@ def test_compare_of_a_strided_scenario_reads_speeds_at_the_kept_states(tmp_path)
     whole = simbench.evaluate(WRIST).recording
     kept = np.union1d(np.arange(0, len(whole.t), 7), [len(whole.t) - 1])
     assert share == pytest.approx(float((np.abs(whole.qd[kept]) / P.ROBOT.qd_max).max()), rel=1e-12)
+
+
+def test_compare_of_a_strided_scenario_takes_peaks_and_singular_minima_from_every_sample(tmp_path):
+    """With sim.record_every the outputs keep every k-th row, but the table's planned speed peaks and least
+    distances to each singular set are of every sample: those of the run recorded whole, its plan's |qd_ref| and
+    its recording's singular sets (robot.singular_sets at every state), not of the kept rows (where the wrist's
+    least distance is larger)."""
+    doc = yaml.safe_load(WRIST.read_text())
+    doc["sim"] = {**doc.get("sim", {}), "record_every": 101}
+    strided = tmp_path / "strided.yaml"
+    strided.write_text(yaml.safe_dump(doc))
+    compare(strided, ["decoupled_path"], None, tmp_path / "out")
+    with open(tmp_path / "out" / "comparison.csv") as f:
+        row = next(csv.DictReader(f))
+    whole = simbench.evaluate(WRIST)
+    scenario = simbench.load_scenario(WRIST)
+    a = scenario.analysis
+    sets = P.ROBOT.singular_sets(whole.recording, simbench.api.Tolerance(a.near_angle, a.near_length))
+    kept = np.union1d(np.arange(0, len(whole.recording.t), 101), [len(whole.recording.t) - 1])
+    for sset in sets:
+        assert float(row[f"singular_min_{sset.name}"]) == pytest.approx(float(sset.distance.min()), rel=1e-12)
+    assert any(sset.distance[kept].min() > 1.01 * sset.distance.min() for sset in sets)  # the kept rows miss it
+    peak = np.abs(whole.trajectory.qd_ref).max(axis=0)
+    for j, name in enumerate(P.ROBOT.joints):
+        assert float(row[f"qd_peak_{name}"]) == pytest.approx(float(peak[j]), rel=1e-12)
+    assert (np.abs(whole.trajectory.qd_ref[kept]).max(axis=0) < 0.99 * peak).any()  # and the peaks

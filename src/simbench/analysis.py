@@ -381,7 +381,10 @@ class Analysis:
     """Tracking summary, event lists, the per-sample series behind them (at the recording's kept rows), the names
     of the robot's singularity measures among those series, what the robot adds to the report (closure error,
     say), the number of samples analysed, and where the path deviation and the orientation error rose above every
-    sample before them (windowed.Rises: the verdict's first sample beyond a tolerance)."""
+    sample before them (windowed.Rises: the verdict's first sample beyond a tolerance). `extremes`: what every
+    sample shows and the kept rows of a strided run may miss: "qd_ref_peak", each joint's largest planned rate
+    magnitude (dof,), and "singular_min", each singular set's least distance (in multiples of the near
+    tolerance)."""
 
     tracking: dict
     singularity_events: list[dict]
@@ -391,6 +394,7 @@ class Analysis:
     extra: dict = field(default_factory=dict)
     samples: int = 0
     rises: dict[str, Rises] = field(default_factory=dict)
+    extremes: dict = field(default_factory=dict)
 
 
 def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dict:
@@ -427,6 +431,7 @@ class _PlanLimits:
         self.beyond = {(j, bound): Spans(min if bound == "lower" else max)
                        for j in range(robot.dof) for bound in ("lower", "upper")}
         self.fast = [Spans(max) for _ in range(robot.dof)]
+        self.peak = np.zeros(robot.dof)  # each joint's largest |qd_ref| so far
 
     def add(self, traj: JointTrajectory, lo: int) -> None:
         """The plan's rows lo.. (traj: those rows alone)."""
@@ -438,6 +443,7 @@ class _PlanLimits:
                 self.beyond[j, bound].add(beyond, lo, lambda a, b, q=q, extreme=extreme: float(extreme(q[a:b + 1])))
             speed = np.abs(traj.qd_ref[:, j])
             self.fast[j].add(speed > robot.qd_max[j], lo, lambda a, b, speed=speed: float(speed[a:b + 1].max()))
+            self.peak[j] = max(self.peak[j], float(speed.max(initial=0.0)))
 
     def events(self, t: np.ndarray) -> list[dict]:
         """The spans' events, a joint at a time (its range, then its speed limit), t the whole plan's times."""
@@ -536,6 +542,7 @@ class Analyser:
         self.summariser = robot.summariser(traj) if robot.streams else None
         self.singular: list[Spans] = []
         self.sets: list = []  # each singular set's name, family and condition
+        self.least: dict[str, float] = {}  # each singular set's least distance so far
         self.at_limit = {(j, bound): Spans(min if bound == "lower" else max)
                          for j in range(robot.dof) for bound in ("lower", "upper")}
         self.saturated = [Spans(lambda first, _: first) for _ in range(robot.dof)]
@@ -607,6 +614,8 @@ class Analyser:
             self.singular = [Spans(_closest) for _ in sets]
             self.sets = [(s.name, s.family, s.condition) for s in sets]
 
+        for sset in sets:
+            self.least[sset.name] = min(self.least.get(sset.name, np.inf), float(sset.distance.min(initial=np.inf)))
         for spans_of, sset in zip(self.singular, sets):
             def closest(a: int, b: int, sset=sset) -> tuple:
                 i = a + int(np.argmin(sset.distance[a:b + 1]))
@@ -661,7 +670,8 @@ class Analyser:
                             singular + events, key=lambda e: (e["t_start"], e["kind"])),
                         limit_events=self._limit_events(), series=series, measures=self.measures, extra=extra,
                         samples=self.samples,
-                        rises={k: v for k, v in self.rises.items() if k is not None and v.at})
+                        rises={k: v for k, v in self.rises.items() if k is not None and v.at},
+                        extremes={"qd_ref_peak": self.plan_limits.peak.copy(), "singular_min": dict(self.least)})
 
     def _summary(self) -> dict:
         """The tracking summary (SI units)."""

@@ -176,7 +176,9 @@ def singular_sets(run: MethodRun) -> list[api.SingularSet]:
 def row(run: MethodRun) -> dict:
     """The table's row of a method, SI units: its status, tool error and path deviation (the simulated tool, as
     the analysis measures them, and the plan's own tool by the robot's fk), each joint's planned speed peak and
-    its share of the speed limit, the least distance to each singular set, and its events counted by kind."""
+    its share of the speed limit, the least distance to each singular set, and its events counted by kind. The
+    peaks and least distances are of every sample (Analysis.extremes), with a recording stride too; the simulated
+    speed share and the plan's own tool deviation are of the kept rows."""
     out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
                            "status": run.status, "error": run.error, "violations": ""}
     ev = run.evaluation
@@ -188,15 +190,15 @@ def row(run: MethodRun) -> dict:
     out.update(tool_error_max_m=tracking["tool_error_max"], tool_error_rms_m=tracking["tool_error_rms"],
                path_deviation_max_m=tracking["tool_max"], path_deviation_rms_m=tracking["tool_rms"],
                plan_path_deviation_max_m=_plan_deviation(robot, traj))
-    peak = np.abs(traj.qd_ref).max(axis=0)
+    peak = ev.analysis.extremes["qd_ref_peak"]  # of every sample, also where the outputs keep every k-th
     for j, name in enumerate(robot.joints):
         out[f"qd_peak_{name}"] = float(peak[j])
     for j, name in enumerate(robot.joints):
         out[f"qd_share_{name}"] = float(peak[j] / robot.qd_max[j])
     out["qd_share_max"] = float((peak / robot.qd_max).max())
     out["qd_share_max_simulated"] = float((np.abs(rec.thinned().qd) / robot.qd_max).max())  # at the kept states
-    for sset in singular_sets(run):
-        out[f"singular_min_{sset.name}"] = float(sset.distance.min())
+    for name, least in ev.analysis.extremes["singular_min"].items():
+        out[f"singular_min_{name}"] = least
     for prefix, events in (("singular_events", ev.analysis.singularity_events),
                            ("limit_events", ev.analysis.limit_events)):
         for kind in sorted({e["kind"] for e in events}):
