@@ -30,3 +30,24 @@ def test_released_rows_read_zeros_and_the_others_keep_their_values(shape, dtype)
             assert not a[r].any(), r
     pages.release(a, hi, len(a) + 10)  # as far as the end
     assert np.array_equal(a[:lo], before[:lo])
+
+
+def test_a_view_is_released_at_its_own_rows_or_not_at_all():
+    """A planner's array may be a view of a mapping `releasable` made: rows 1,000.. of it (C order, starting
+    mid-mapping) hand back the pages wholly inside their own rows lo..hi-1, the mapping's rows before the view
+    kept; a reversed or a transposed view, whose rows are not in order on the mapping, is left whole (releasing
+    its bytes 0.. would zero its last rows)."""
+    base = pages.releasable((5000, 8))
+    base[...] = np.arange(base.size).reshape(base.shape) % 11 + 1
+    before = base.copy()
+    view = base[1000:]
+    pages.release(view, 0, 2000)
+    zero = ~view.any(axis=1)
+    assert zero[:2000].sum() >= 2000 - 2 * mmap.PAGESIZE // 64 and not zero[2000:].any()
+    assert np.array_equal(base[:1000], before[:1000])
+    if hasattr(mmap, "MADV_DONTNEED"):
+        assert zero[:2000].any()
+    for other in (pages.releasable((5000, 8))[::-1], pages.releasable((8, 5000)).T):
+        other[...] = before
+        pages.release(other, 0, 4000)
+        assert np.array_equal(other, before)

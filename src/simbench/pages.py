@@ -30,15 +30,17 @@ def releasable(shape: tuple[int, ...], dtype=float) -> np.ndarray:
 
 
 def release(array: np.ndarray, lo: int, hi: int) -> None:
-    """Hand rows lo..hi-1 of an array `releasable` returned (itself, not a view into it) back to the system (on
-    Linux they read as zeros afterwards): the pages wholly inside them; those shared with other rows stay."""
+    """Hand rows lo..hi-1 of an array on a mapping `releasable` made back to the system (on Linux they read as
+    zeros afterwards): the pages wholly inside them; those shared with other rows stay. A view whose rows are not
+    in C order on the mapping (reversed, transposed, strided) is left as it is."""
     buffer = array.base
     while buffer is not None and not isinstance(buffer, mmap.mmap):
         buffer = getattr(buffer, "obj", None) if isinstance(buffer, memoryview) else getattr(buffer, "base", None)
-    if buffer is None:
+    if buffer is None or not array.flags.c_contiguous:
         return
+    offset = array.ctypes.data - np.frombuffer(buffer, np.uint8).ctypes.data  # where row 0 sits in the mapping
     row, hi = array.itemsize * int(np.prod(array.shape[1:])), min(hi, len(array))  # bytes a row (C order)
-    start = -(-lo * row // mmap.PAGESIZE) * mmap.PAGESIZE
-    end = hi * row // mmap.PAGESIZE * mmap.PAGESIZE
+    start = -(-(offset + lo * row) // mmap.PAGESIZE) * mmap.PAGESIZE
+    end = (offset + hi * row) // mmap.PAGESIZE * mmap.PAGESIZE
     if end > start:
         buffer.madvise(_DONTNEED, start, end - start)
