@@ -215,10 +215,11 @@ def test_the_servo_follows_the_revised_rows_and_a_controller_without_revise_rows
 
 
 def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed():
-    """The servo's open-loop commands are api.Commands, found a few rows at a time as the run asks: indexed by a
-    row, a negative row, a slice, row numbers in any order, and with columns after, they are the rows and columns
-    of the servo's targets for the whole plan at once (Servo.targets of every reference), and np.asarray gives
-    them all; the run's recorded commands are those rows, at a recording stride too."""
+    """The servo's open-loop commands are api.Commands, found a few rows at a time as the run asks: indexed as
+    NumPy indexes an array (a row, a negative row, a 0-d array, a list, a mask, slices, row numbers in any order
+    or of any shape, and with columns after, paired with row numbers as NumPy pairs them), they are the servo's
+    targets for the whole plan at once (Servo.targets of every reference), and np.asarray gives them all; the
+    run's recorded commands are those rows, at a recording stride too."""
     from simbench.api import Commands
     from simbench.controllers import Servo
     from simbench.sim import simulate
@@ -233,8 +234,12 @@ def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed(
     assert isinstance(commands, Commands) and commands.shape == whole.shape and len(commands) == len(traj.t)
     act = plant.actuators
     rows = np.random.default_rng(3).integers(0, len(whole), 50)
-    for index in (7, -1, slice(10, 400, 3), slice(None), rows, (slice(None), act), (rows, 2), (slice(5, 9), act[1]),
-                  (4, act[0])):
+    mask = np.zeros(len(whole), bool)
+    mask[::97] = True
+    pairs = np.array([5, 1, 7]), np.array([0, 2, 1])
+    for index in (7, -1, np.int64(4), np.array(3), [1, 2, 3], mask, slice(10, 400, 3), slice(None, None, -5),
+                  slice(None), rows, np.array([], int), (slice(None), act), (rows, 2), (slice(5, 9), act[1]),
+                  (4, act[0]), pairs, (pairs[0][:, None], pairs[1]), (mask, 0), (3, slice(1, 4)), (3,)):
         assert np.array_equal(commands[index], whole[index]), index
     assert np.array_equal(np.asarray(commands), whole)
     assert np.array_equal(simulate(plant, traj, servo).ctrl, whole)

@@ -104,7 +104,9 @@ class Summary(NamedTuple):
 class Summariser(ABC):
     """A mechanism's summary of a run (Robot.summary) found a window of samples at a time (Robot.summariser), so
     that analysing a long run holds a window's samples, not the run's. The analysis calls `add` with each window
-    in turn, then `finish`; together they give what `summary` gives of the whole run."""
+    in turn, then `finish`; together they give what `summary` gives of the whole run. Robot.summariser is given
+    the whole plan before the run; later, read the plan `add` is given: in a run analysed as it is simulated, the
+    plan's rows of windows gone by may have been handed back (pages.releasable) and read as zeros."""
 
     @abstractmethod
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
@@ -333,10 +335,18 @@ class Commands(ABC):
         return self.shape[0]
 
     def __getitem__(self, index: Any) -> Array:
+        """As NumPy indexes an (N, nu) array: rows (an int, a slice, row numbers of any shape or a mask), then
+        columns; the rows asked for are found, then indexed where they stand."""
         rows, columns = (index[0], index[1:]) if isinstance(index, tuple) else (index, ())
-        if isinstance(rows, (int, np.integer)):
-            return self.rows(np.array([rows]))[(0, *columns)]
-        return self.rows(rows)[(slice(None), *columns)]
+        if isinstance(rows, slice):
+            return self.rows(rows)[(slice(None), *columns)]
+        rows = np.asarray(rows)
+        if rows.dtype == bool and rows.ndim == 1:
+            rows = np.flatnonzero(rows)
+        if rows.dtype.kind not in "iu":
+            raise IndexError(f"Commands are indexed by rows (an int, a slice, row numbers or a mask), got {index!r}")
+        found = self.rows(rows.reshape(-1))
+        return found[(np.arange(rows.size).reshape(rows.shape), *columns)]
 
     def __array__(self, dtype: Any = None, copy: bool | None = None) -> Array:
         return np.asarray(self.rows(slice(None)), dtype)
@@ -347,8 +357,11 @@ class Controller(ABC):
     step). A run makes one with `from_scenario`, calls `bind` once with the plant and the plan, then
     `commands` every step.
 
-    A controller whose commands do not depend on the measured state returns them all at once from
-    `open_loop`: the physics then runs in C through `mujoco.rollout`, without a Python call per step.
+    A controller whose commands do not depend on the measured state returns them from `open_loop` (an array, or
+    Commands found a chunk at a time): the physics then runs in C through `mujoco.rollout`, without a Python call
+    per step. In a long run with a recording stride (analysed as it is simulated) the plan's rows more than a few
+    seconds behind the step may have been handed back (pages.releasable: the RSMG's plan) and read as zeros: read
+    the references of the step at hand and ahead, or copy what you need in `bind`.
     `actuation` says what the commands are: position targets of the scene's position servos, or forces and
     torques ("torque": the plant's joint actuators are made motors, their force limits kept).
     """

@@ -112,7 +112,9 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     kept rows are copied out (simbench.pages): a long run with a recording stride then holds about a window of
     every step's readings, not all of them. Its Recording, and a PhysicsError's, hold the kept rows only
     (Recording.thinned's); the plan's feedback, if any, must revise in place, so that the analysis reads the
-    references as commanded."""
+    references as commanded. The plan is then the run's to use up: where its arrays are on pages of their own
+    (pages.releasable) the rows the run has passed are handed back too, and read as zeros after it; the plan at
+    the kept rows is the analyser's (Analyser.plan)."""
     if analyser is not None and not (record_every > 1 and analyser.streams):
         raise ValueError("a run is analysed as it is simulated with a recording stride (record_every > 1) and a "
                          "robot whose summary comes a window at a time (Robot.streams)")

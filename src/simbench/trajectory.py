@@ -35,7 +35,8 @@ class JointTrajectory:
     plan turns on and off (an electromagnet's grip), and `initial` the qpos of joints the robot cannot assemble
     from its actuated joints alone (a free rotor), by joint name. `feedback`, where the method closes a loop, is
     called by the simulator after each switch it applies during the run, as feedback(switch, model, data, k) at
-    row k; it returns None, or (k0, columns, q): new references q for those joints from row k0 on (an RSMG arm
+    row k (reading the references from row k on: earlier ones may have been handed back, below); it returns None,
+    or (k0, columns, q): new references q for those joints from row k0 on (an RSMG arm
     re-solving its hold for the point it really gripped); the pipeline (simbench.run, evaluate) applies those to
     q_ref and qd_ref in place (sim.simulate's revise_in_place). `violations` are the promises the planner knows its
     plan breaks (it ends away from the task's goal, say), each {"kind", "message"}: the run cannot end `ok`.
