@@ -2,6 +2,7 @@
 and events still come from every sample. The truth for each stride is the same run recorded whole (stride 1)."""
 
 import json
+import mmap
 import subprocess
 import sys
 
@@ -262,3 +263,26 @@ def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_f
     for column in _HEAVY + _EVERY_ROW:
         assert np.array_equal(getattr(thin.recording, column), getattr(whole.recording, column)[rows]), column
     assert np.array_equal(thin.trajectory.q_ref, traj.q_ref[rows])
+
+
+@pytest.mark.parametrize("reads_past", [False, True])
+def test_the_plan_is_handed_back_only_under_a_controller_that_does_not_read_it_late(monkeypatch, reads_past):
+    """A streamed RSMG run (stride 10, windows of a path-search block) under the servo hands back the plan's rows
+    it has passed: after the run its first rows read zeros (on a system with madvise), its last are the plan's; a
+    servo that says it reads references gone by (Controller.reads_past) keeps the plan whole, and the run's
+    recording is the same, bit for bit."""
+    scenario = _strided("rsmg", "three_turns", 10)
+    plant, traj = planned(scenario)
+    before = traj.q_ref.copy()
+    _windows_of_a_block(monkeypatch, traj.dt)
+    a = scenario.analysis
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    controller = type("Looking", (Servo,), {"reads_past": True})() if reads_past else Servo()
+    rec = simulate(plant, traj, controller, record_every=10, revise_in_place=True,
+                   analyser=analysis.Analyser(scenario.robot_def, traj, near, margin))
+    head, tail = traj.q_ref[:1000], traj.q_ref[-100:]
+    assert tail.any() and (head.any() if reads_past else not head.any() or not hasattr(mmap, "MADV_DONTNEED"))
+    if reads_past:  # the feedback revised some rows in place; the first hold's stay as planned
+        assert np.array_equal(head, before[:1000])
+    again = simulate(plant, planned(scenario)[1], Servo(), record_every=10)
+    assert np.array_equal(rec.qpos, again.qpos) and np.array_equal(rec.ctrl, again.ctrl)  # both at the kept rows

@@ -359,9 +359,10 @@ class Controller(ABC):
 
     A controller whose commands do not depend on the measured state returns them from `open_loop` (an array, or
     Commands found a chunk at a time): the physics then runs in C through `mujoco.rollout`, without a Python call
-    per step. In a long run with a recording stride (analysed as it is simulated) the plan's rows more than a few
-    seconds behind the step may have been handed back (pages.releasable: the RSMG's plan) and read as zeros: read
-    the references of the step at hand and ahead, or copy what you need in `bind`.
+    per step. `reads_past`: whether the controller may read the plan's references of samples more than
+    windowed.NEAR_REFERENCE (2 s) before the step at hand; the run then keeps them. Where it does not (the shipped
+    controllers), a long run with a recording stride hands back the plan's rows it has passed where the planner
+    put them on pages of their own (pages.releasable: the RSMG's), and they read as zeros.
     `actuation` says what the commands are: position targets of the scene's position servos, or forces and
     torques ("torque": the plant's joint actuators are made motors, their force limits kept).
     """
@@ -370,6 +371,7 @@ class Controller(ABC):
     description: ClassVar[str]
     settings: ClassVar[type[ControlSettings]] = ControlSettings
     actuation: Literal["position", "torque"] = "position"
+    reads_past: ClassVar[bool] = True  # may read references more than 2 s behind the step (the plan is then kept)
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> Controller:

@@ -312,10 +312,12 @@ class _Stream:
                 heap.trim()  # the window's analysis' temporaries, freed into the heap
 
     def _let_plan_go(self) -> None:
-        """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the run (which reads the
-        references of the steps to come) reads again, where its arrays are on pages of their own
-        (pages.releasable: a long plan's, as the RSMG's planner makes them), but its times: the events are stamped
-        with them. The analyser keeps the plan's kept rows."""
+        """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the run (whose controller
+        reads the references of the steps to come: not Controller.reads_past) reads again, where its arrays are on
+        pages of their own (pages.releasable: a long plan's, as the RSMG's planner makes them), but its times: the
+        events are stamped with them. The analyser keeps the plan's kept rows."""
+        if self.run.controller.reads_past:  # it may read them: the plan stays whole
+            return
         traj, upto = self.run.traj, min(self.analyser.plan_from(), self.lo)
         for array in (traj.s, traj.q_ref, traj.qd_ref, traj.tool_ref, *traj.series.values()):
             pages.release(array, 0, upto)  # from the first row: the pages across the last window's edge too
