@@ -241,6 +241,7 @@ def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_f
     scenario = shipped("spherical_arm", "case1", duration=4.0)
     plant, traj = planned(scenario, "torque")
     window = _windows_of_a_block(monkeypatch, traj.dt) // 2
+    monkeypatch.setattr(stepping, "CHUNK", 97)  # windows are analysed as the stepper's chunks come in
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
     caught = {}
@@ -286,3 +287,26 @@ def test_the_plan_is_handed_back_only_under_a_controller_that_does_not_read_it_l
         assert np.array_equal(head, before[:1000])
     again = simulate(plant, planned(scenario)[1], Servo(), record_every=10)
     assert np.array_equal(rec.qpos, again.qpos) and np.array_equal(rec.ctrl, again.ctrl)  # both at the kept rows
+
+
+def test_a_streamed_run_steps_on_the_chunks_of_the_run_recorded_whole(monkeypatch):
+    """MuJoCo's non-fatal warnings are read and stamped at the end of each chunk the stepper hands to
+    mujoco.rollout: a strided run analysed as it is simulated (windows of a path-search block, several to a chunk
+    and across chunk edges) steps on the same chunks as the run recorded whole, so that its warnings are the
+    whole run's; the windows are analysed as the chunks come in."""
+    chunks = {}
+    real = stepping.rollout
+
+    class Counted:
+        @staticmethod
+        def rollout(model, data, initial, control, **kw):
+            chunks[key].append(control.shape[1])
+            return real.rollout(model, data, initial, control, **kw)
+
+    monkeypatch.setattr(stepping, "rollout", Counted)
+    dt = simbench.load_scenario(scenario_file("rsmg", "three_turns")).sim.timestep
+    _windows_of_a_block(monkeypatch, dt or 1e-3)
+    for key in (1, 10):
+        chunks[key] = []
+        simbench.evaluate(_strided("rsmg", "three_turns", key))
+    assert len(chunks[1]) > 8 and chunks[10] == chunks[1]

@@ -177,19 +177,19 @@ class _Run:
     def go(self, progress: bool) -> Recording:
         """Step every segment between switches; the Recording, or PhysicsError with the one up to the fault."""
         n_settle, n = self.rows.n_settle, len(self.rows.sensors) - 1
-        windows = set() if self.stream is None else set(range(n_settle + self.stream.window, n, self.stream.window))
-        bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle} | windows) + [n]
+        bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle}) + [n]
+        # A streamed run's windows are analysed as the stepper's chunks come in (the samples whose readings are all
+        # in), on the chunks a run recorded whole takes: MuJoCo's warnings are stamped at the end of their chunk.
+        after = None if self.stream is None else (lambda step: self.stream.feed(step - n_settle))
         done = 0
         with tqdm(total=n, desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
                   leave=False) as bar:
             try:
                 for stop in bounds:
                     self.eq_active[max(done - n_settle, 0):stop - n_settle] = self.data.eq_active
-                    self.warnings += self.stepper.run(self.model, self.data, self.rows, done, stop, bar)
+                    self.warnings += self.stepper.run(self.model, self.data, self.rows, done, stop, bar, after)
                     self._switch(stop - n_settle)
                     done = stop
-                    if self.stream is not None:
-                        self.stream.feed(done - n_settle)  # the samples whose readings are all in
             except Fault as fault:
                 raise self._failure(fault) from None
             self.eq_active[-1] = self.data.eq_active

@@ -133,9 +133,10 @@ class OpenLoop:
         return self.planned[np.maximum(np.arange(first, stop) - rows.n_settle, 0)]
 
     def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
-            progress=None) -> list[dict]:
-        """Steps first..stop-1 with their commands, from data's current state; the warnings met. Data is left at
-        the last state. Fault at the first step at fault."""
+            progress=None, after=None) -> list[dict]:
+        """Steps first..stop-1 with their commands, from data's current state; the warnings met (each stamped at
+        the end of its chunk). Data is left at the last state. Fault at the first step at fault. `after(end)`, if
+        given, is called once the steps before `end` are kept, chunk by chunk."""
         found, k = [], first
         ctrl_spec = int(mujoco.mjtState.mjSTATE_CTRL)
         while k < stop:
@@ -158,6 +159,8 @@ class OpenLoop:
             found += _warning_rows(data, rows.t0)
             if progress is not None:
                 progress.update(end - k)
+            if after is not None:
+                after(end)
             k = end
         return found
 
@@ -197,15 +200,17 @@ class ClosedLoop:
         self.nu = plant.model.nu
 
     def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
-            progress=None) -> list[dict]:
+            progress=None, after=None) -> list[dict]:
         """Steps first..stop-1, each commanded by the controller, from data's current state; the warnings met.
-        Fault at the first step at fault, CommandFault at the first bad command."""
+        Fault at the first step at fault, CommandFault at the first bad command. `after(end)`, as OpenLoop's."""
         found, size, base = [], len(rows.scratch), first
         try:
             for base in range(first, stop, size):  # a scratch's worth of steps at a time
                 end = min(base + size, stop)
                 found += self._steps(model, data, rows, base, end, progress)
                 rows.keep(base, end)
+                if after is not None:
+                    after(end)
         except Fault as fault:
             rows.keep(base, fault.step)  # the steps before the one at fault
             raise
