@@ -22,7 +22,7 @@ from simbench.robots import Robot, Tolerance
 from simbench import windowed
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
 from simbench.sim import Recording
-from simbench.trajectory import JointTrajectory, joined
+from simbench.trajectory import JointTrajectory, gradient_rows, joined
 
 _JUMP_FACTOR = 10.0
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
@@ -342,8 +342,7 @@ class _Tangents:
 
     def _steps(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The steps of rows lo..hi-1, their lengths, and whether the path moves there."""
-        a, b = max(lo - 1, 0), min(hi + 1, len(self.points))
-        step = np.gradient(self.points[a:b], axis=0)[lo - a:hi - a]
+        step = gradient_rows(self.points, lo, hi)
         norm = _norms(step)
         return step, norm, norm > self.floor
 
@@ -421,6 +420,29 @@ def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
                   key=lambda e: (e["t_start"], e["kind"]))
 
 
+class _Bounds:
+    """The spans where each column of a per-joint series (N, dof) lies below its lower level or above its upper
+    one, each with its extreme there (the least below, the largest above), seen a window at a time."""
+
+    def __init__(self, lower: np.ndarray, upper: np.ndarray):
+        self.lower, self.upper = lower, upper
+        self.spans = {(j, bound): Spans(min if bound == "lower" else max)
+                      for j in range(len(lower)) for bound in ("lower", "upper")}
+
+    def add(self, values: np.ndarray, lo: int) -> None:
+        """The window of samples lo.. of the series."""
+        for j in range(values.shape[1]):
+            x = values[:, j]
+            for bound, beyond in (("lower", x < self.lower[j]), ("upper", x > self.upper[j])):
+                extreme = np.min if bound == "lower" else np.max
+                self.spans[j, bound].add(beyond, lo, lambda a, b, x=x, extreme=extreme: float(extreme(x[a:b + 1])))
+
+    def finish(self) -> list[tuple[int, str, int, int, float]]:
+        """Every span as (joint, bound, first, last, extreme), a joint at a time, its lower bound's first."""
+        return [(j, bound, first, last, extreme) for (j, bound), spans_of in self.spans.items()
+                for first, last, extreme in spans_of.finish()]
+
+
 class _PlanLimits:
     """The spans where the plan's references pass a joint's range (`joint_limit`, with the worst reference) or its
     rates a joint's speed limit (`velocity_limit`, with the fastest), the plan seen a window at a time: a joint at
@@ -428,19 +450,15 @@ class _PlanLimits:
 
     def __init__(self, robot: Robot):
         self.robot = robot
-        self.beyond = {(j, bound): Spans(min if bound == "lower" else max)
-                       for j in range(robot.dof) for bound in ("lower", "upper")}
+        self.beyond = _Bounds(robot.lower - 1e-9, robot.upper + 1e-9)
         self.fast = [Spans(max) for _ in range(robot.dof)]
         self.peak = np.zeros(robot.dof)  # each joint's largest |qd_ref| so far
 
     def add(self, traj: JointTrajectory, lo: int) -> None:
         """The plan's rows lo.. (traj: those rows alone)."""
         robot = self.robot
+        self.beyond.add(traj.q_ref, lo)
         for j in range(robot.dof):
-            q = traj.q_ref[:, j]
-            for bound, beyond in (("lower", q < robot.lower[j] - 1e-9), ("upper", q > robot.upper[j] + 1e-9)):
-                extreme = np.min if bound == "lower" else np.max
-                self.beyond[j, bound].add(beyond, lo, lambda a, b, q=q, extreme=extreme: float(extreme(q[a:b + 1])))
             speed = np.abs(traj.qd_ref[:, j])
             self.fast[j].add(speed > robot.qd_max[j], lo, lambda a, b, speed=speed: float(speed[a:b + 1].max()))
             self.peak[j] = max(self.peak[j], float(speed.max(initial=0.0)))
@@ -448,11 +466,11 @@ class _PlanLimits:
     def events(self, t: np.ndarray) -> list[dict]:
         """The spans' events, a joint at a time (its range, then its speed limit), t the whole plan's times."""
         robot, events = self.robot, []
-        for (j, bound), spans_of in self.beyond.items():
+        for j, bound, first, last, worst in self.beyond.finish():
             limit = float(robot.lower[j] if bound == "lower" else robot.upper[j])
-            events += [_event(t, (first, last), "joint_limit", {
+            events.append(_event(t, (first, last), "joint_limit", {
                 "joint": robot.joints[j], "bound": bound, "limit": limit, "worst": worst,
-                "excess": abs(worst - limit), "source": "reference"}) for first, last, worst in spans_of.finish()]
+                "excess": abs(worst - limit), "source": "reference"}))
         for j, spans_of in enumerate(self.fast):
             events += [_event(t, (first, last), "velocity_limit", {
                 "joint": robot.joints[j], "limit": float(robot.qd_max[j]), "worst": worst})
@@ -531,7 +549,7 @@ class Analyser:
 
     def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
                  window: int | None = None):
-        self.robot, self.traj, self.near, self.margin = robot, traj, near, margin
+        self.robot, self.traj, self.near = robot, traj, near
         self.window = window or windowed.window_size(traj.dt, len(traj.t))  # samples a window (`analyse`, sim)
         self.samples, self.seconds = 0, 0.0  # analysed so far, and the time `add` took
         self.tangents = _Tangents(traj.tool_ref)
@@ -543,8 +561,8 @@ class Analyser:
         self.singular: list[Spans] = []
         self.sets: list = []  # each singular set's name, family and condition
         self.least: dict[str, float] = {}  # each singular set's least distance so far
-        self.at_limit = {(j, bound): Spans(min if bound == "lower" else max)
-                         for j in range(robot.dof) for bound in ("lower", "upper")}
+        margins = np.array([margin.of(kind) for kind in robot.kinds])
+        self.at_limit = _Bounds(robot.lower + margins, robot.upper - margins)
         self.saturated = [Spans(lambda first, _: first) for _ in range(robot.dof)]
         self.plan_limits = _PlanLimits(robot)
         self.plan_kept: list[JointTrajectory] = []  # the plan at the recording's kept rows, window by window
@@ -624,11 +642,8 @@ class Analyser:
 
     def _limits(self, rec: Recording, lo: int) -> None:
         """The spans where a joint sits at a limit (with its extreme there) or its actuator at its force bound."""
-        for j, kind in enumerate(self.robot.kinds):
-            q, tol = rec.q[:, j], self.margin.of(kind)
-            for bound, near in (("lower", q < self.robot.lower[j] + tol), ("upper", q > self.robot.upper[j] - tol)):
-                extreme = np.min if bound == "lower" else np.max
-                self.at_limit[j, bound].add(near, lo, lambda a, b, q=q, extreme=extreme: float(extreme(q[a:b + 1])))
+        self.at_limit.add(rec.q, lo)
+        for j in range(self.robot.dof):
             force = rec.force[:, j]
             self.saturated[j].add(np.abs(force) >= rec.force_limit[j] * (1 - 1e-6), lo,
                                   lambda a, b, force=force: float(force[a]))
@@ -698,11 +713,10 @@ class Analyser:
         """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
         robot, traj, t = self.robot, self.traj, self.traj.t
         events = self.plan_limits.events(t)
-        for (j, bound), spans_of in self.at_limit.items():
+        for j, bound, first, last, extreme in self.at_limit.finish():
             limit = robot.lower[j] if bound == "lower" else robot.upper[j]
-            events += [_event(t, (first, last), "at_limit", {"joint": robot.joints[j], "bound": bound,
-                                                             "limit": float(limit), "extreme": extreme})
-                       for first, last, extreme in spans_of.finish()]
+            events.append(_event(t, (first, last), "at_limit", {"joint": robot.joints[j], "bound": bound,
+                                                               "limit": float(limit), "extreme": extreme}))
         events += _jump_events(robot, traj, self.jumps, self.departures)
         for j, spans_of in enumerate(self.saturated):
             events += [_event(t, (first, last), "actuator_saturation", {

@@ -34,15 +34,13 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
   Where the robot's summary comes a window at a time (api.Robot.streams), the pipeline analyses a strided run as
   it simulates it (simbench.sim's analyser): it holds every step's readings and the analysis' temporaries for a
   window of samples only (2.8 R a sample of the window, simbench.windowed.window_size: the whole run up to 2^15
-  samples, about 8,000 beyond),
-  and through the whole run the plan (t, s,
-  tool_ref, q_ref, qd_ref: 5 + 2 dof columns), the controller's commands (nu) and the kept rows (R / k), taken
-  1.3 times (the plan's own series, the allocator's slack): calibrated on the ten-minute soak, whose resident
-  size peaked 290 MiB above its libraries (estimated 299 MB; the model above gave 1.3 GB). That bounds any
-  planner and controller; the soak's own now peak lower (about 175 MiB above its libraries), as the servo finds
-  its commands a chunk at a time (api.Commands) and the RSMG's plan is handed back as the run passes it
-  (pages.releasable). Writing its outputs then holds the thinned run only (4.5 R / k a sample: the soak's
-  122 MB, measured 120 MiB).
+  samples, about 8,000 beyond), and through the whole run the plan (t, s, tool_ref, q_ref, qd_ref: 5 + 2 dof
+  columns), the controller's commands (nu) and the kept rows (R / k), taken 1.3 times (the plan's own series,
+  the allocator's slack): calibrated on the ten-minute soak, whose resident size peaked 290 MiB above its
+  libraries (estimated 299 MB; the model above gave 1.3 GB). That bounds any planner and controller; the soak's
+  own now peak lower (about 175 MiB above its libraries), as the servo finds its commands a chunk at a time
+  (api.Commands) and the RSMG's plan is handed back as the run passes it (pages.releasable). Writing its outputs
+  then holds the thinned run only (4.5 R / k a sample: the soak's 122 MB, measured 120 MiB).
 - Time: stepping 0.13 us per column per step (measured 4.4-17 us a step), planning and analysing 10 us a
   sample and 1.2 us a searched pair (the pairs of the k-d tree search the analysis used until issue 14, kept as
   the estimate, which runs high: 4 a sample, and 0.001 x the samples a sample under the 4-5-6-7 law, whose ends

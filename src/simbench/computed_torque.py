@@ -34,7 +34,7 @@ from simbench.api import Array, Controller, ControlSettings, State
 from simbench.plant import Plant
 from simbench.schema import Gains
 from simbench.switches import at_start
-from simbench.trajectory import JointTrajectory
+from simbench.trajectory import JointTrajectory, gradient_rows
 
 
 class ComputedTorqueSettings(ControlSettings):
@@ -111,11 +111,9 @@ class ComputedTorque(Controller):
         """The planned acceleration, and a serial arm's inverse dynamics, redone only at the rows k0 - 1 to k1 that
         np.gradient's differences of the changed rows reach: the same numbers as binding to the revised references
         (a long run re-grips hundreds of times; redoing every row to the end made it quadratic)."""
-        n = len(qd_ref)
         self.q_ref, self.qd_ref = q_ref, qd_ref
-        lo, hi = max(k0 - 2, 0), min(k1 + 2, n)  # the differences at rows k0 - 1 .. k1, each with its neighbours
-        a, b = max(k0 - 1, 0), min(k1 + 1, n)
-        self.qdd_ref[a:b] = np.gradient(qd_ref[lo:hi], float(self.plant.model.opt.timestep), axis=0)[a - lo:b - lo]
+        a, b = max(k0 - 1, 0), min(k1 + 1, len(qd_ref))  # the differences at rows k0 - 1 .. k1
+        self.qdd_ref[a:b] = gradient_rows(qd_ref, a, b, float(self.plant.model.opt.timestep))
         if self.tau_ff is not None:
             self.tau_ff[a:b] = self._inverse_dynamics(q_ref[a:b], qd_ref[a:b], self.qdd_ref[a:b])
 

@@ -35,7 +35,7 @@ from simbench.faults import Fault, fatal_cause, quiet_mujoco
 from simbench.plant import Plant
 from simbench.stepping import CHUNK, ClosedLoop, CommandFault, OpenLoop, Rows, state_slices
 from simbench.switches import apply_switch, at_start
-from simbench.trajectory import JointTrajectory, joined, revise
+from simbench.trajectory import PER_SAMPLE, JointTrajectory, joined, revise
 
 if TYPE_CHECKING:
     from simbench.analysis import Analyser
@@ -319,7 +319,7 @@ class _Stream:
         if self.run.controller.reads_past:  # it may read them: the plan stays whole
             return
         traj, upto = self.run.traj, min(self.analyser.plan_from(), self.lo)
-        for array in (traj.s, traj.q_ref, traj.qd_ref, traj.tool_ref, *traj.series.values()):
+        for array in [getattr(traj, name) for name in PER_SAMPLE if name != "t"] + list(traj.series.values()):
             pages.release(array, 0, upto)  # from the first row: the pages across the last window's edge too
 
     def plan(self, done: int) -> JointTrajectory:

@@ -81,6 +81,14 @@ def joined(pieces: list[JointTrajectory]) -> JointTrajectory:
                    series={name: np.concatenate([p.series[name] for p in pieces]) for name in first.series})
 
 
+def gradient_rows(x: np.ndarray, lo: int, hi: int, spacing: float = 1.0) -> np.ndarray:
+    """np.gradient(x, spacing, axis=0)[lo:hi] from rows lo - 1 .. hi of x alone: each row's difference is of its
+    own and its neighbours' samples, so the same numbers, without the whole array's temporaries (a long plan's
+    rates, a block at a time)."""
+    a, b = max(lo - 1, 0), min(hi + 1, len(x))
+    return np.gradient(x[a:b], spacing, axis=0)[lo - a:hi - a]
+
+
 def revise(q_ref: np.ndarray, qd_ref: np.ndarray, change: tuple, dt: float) -> tuple[int, int]:
     """Apply a plan feedback's change (k0, columns, q) to references in place (JointTrajectory.feedback): new
     values q for those columns of q_ref from row k0 on, and their rates from np.gradient of the new values, up to

@@ -57,7 +57,7 @@ from simbench.robots import rsmg
 from simbench.rotations import axis_rotation, matrix_to_quat
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 from simbench.timing import TimeLaw
-from simbench.trajectory import JointTrajectory, Switch, control_grid
+from simbench.trajectory import JointTrajectory, Switch, control_grid, gradient_rows
 from simbench.vectors import triple
 
 _STEP = 0.005  # s: the schedule's time step
@@ -717,15 +717,13 @@ def _rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.nda
 
 def _joint_rates(q_ref: np.ndarray, dt: float) -> np.ndarray:
     """np.gradient(q_ref, dt, axis=0), as the grip feedback's revisions take it (trajectory.revise), _BLOCK rows at
-    a time with a row either side: each row's rate is of its own and its neighbours' samples alone, so the same
-    numbers, without temporaries of three and a half times q_ref at once (on the soak's 600,000 samples, 135 MB).
+    a time (trajectory.gradient_rows): the same numbers, without temporaries of three and a half times q_ref at
+    once (on the soak's 600,000 samples, 135 MB).
     The spacing is the control period, not the differences of t: np.gradient takes a block whose t steps happen to
     be equal for uniform, and rounds differently there."""
     qd_ref = pages.releasable(q_ref.shape)
-    n = len(q_ref)
-    for lo in range(0, n, _BLOCK):
-        a, b = max(lo - 1, 0), min(lo + _BLOCK + 1, n)
-        qd_ref[lo:lo + _BLOCK] = np.gradient(q_ref[a:b], dt, axis=0)[lo - a:lo - a + min(_BLOCK, n - lo)]
+    for lo in range(0, len(q_ref), _BLOCK):
+        qd_ref[lo:lo + _BLOCK] = gradient_rows(q_ref, lo, min(lo + _BLOCK, len(q_ref)), dt)
     return qd_ref
 
 
