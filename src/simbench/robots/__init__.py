@@ -13,6 +13,7 @@ does not end `ok` (simbench.verdict)."""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +30,18 @@ def scene(name: str) -> Path:
 
 
 def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dict[int, float],
-              kinds: tuple[str, ...], joints: tuple[str, ...], tol: Tolerance) -> SingularSet:
-    """A singular set given by joints held at constant values (paper 000's sets p_i, eqs. 15-17)."""
-    gaps = {joints[j]: np.abs(q[:, j] - v) for j, v in values.items()}
-    distance = np.max([gaps[joints[j]] / tol.of(kinds[j]) for j in values], axis=0)
-    return SingularSet(name, family, condition, distance, gaps)
+              kinds: tuple[str, ...], joints: tuple[str, ...], tol: Tolerance,
+              shared: dict[tuple[int, float], tuple[np.ndarray, np.ndarray]] | None = None) -> SingularSet:
+    """A singular set given by joints held at constant values (paper 000's sets p_i, eqs. 15-17): its gaps
+    |q_j - v| and its distance, the largest gap in multiples of its joint kind's tolerance. `shared`: a dict that
+    sets of the same q and tol pass on to one another, so that a gap to a value more than one set holds a joint at
+    is computed once (paper 000's 15 sets hold the joints at 7 values); each of its entries is a set's array,
+    read-only."""
+    shared = {} if shared is None else shared
+    for j, v in values.items():
+        if (j, v) not in shared:
+            gap = np.abs(q[:, j] - v)
+            shared[j, v] = gap, gap / tol.of(kinds[j])
+    scaled = [shared[j, v][1] for j, v in values.items()]
+    distance = scaled[0].copy() if len(scaled) == 1 else functools.reduce(np.maximum, scaled[1:], scaled[0])
+    return SingularSet(name, family, condition, distance, {joints[j]: shared[j, v][0] for j, v in values.items()})

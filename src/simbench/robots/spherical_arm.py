@@ -107,7 +107,7 @@ def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
     the rank deficiency it is. S(2) = {p1, p2}: q3 = 90 deg with q4 at either limit. S(3) = {p3..p14}.
     """
     q = np.atleast_2d(q)
-    args = (KINDS, JOINTS, tol)
+    args = (KINDS, JOINTS, tol, {})  # the sets share their gaps (joint_set)
     half_pi = np.pi / 2
     sets = [
         joint_set("cos_q3_zero", "Jacobian rank < 3", "cos q3 = 0 (tool on the lift axis)", q, {2: half_pi}, *args),
