@@ -92,3 +92,26 @@ def test_singular_set_distance_scales_with_tolerance():
     assert sets["p1"].gaps["q3"][0] == pytest.approx(np.deg2rad(1.5))
     assert sets["cos_q3_zero"].distance[0] == pytest.approx(0.75)
     assert sets["p2"].distance[0] == pytest.approx(400.0)
+
+
+def test_singular_sets_are_their_joints_largest_scaled_gap_on_random_configurations():
+    """Each of the 15 sets (which share their gaps: robots.joint_set) is, sample by sample, the largest of its
+    joints' gaps |q_j - v_j| in multiples of the tolerance of the joint's kind, computed here from the paper's
+    values one set at a time; a joint the set does not hold has no gap."""
+    rng = np.random.default_rng(7)
+    q = rng.uniform(np.where(np.isfinite(ROBOT.lower), ROBOT.lower, -np.pi),
+                    np.where(np.isfinite(ROBOT.upper), ROBOT.upper, np.pi), (200, 4))
+    q[::3, 2] = np.pi / 2  # on the S(2) sets' q3
+    tol = Tolerance(angle=np.deg2rad(2), length=3e-3)
+    held = {"cos_q3_zero": {2: np.pi / 2}, "p1": {2: np.pi / 2, 3: 0.0}, "p2": {2: np.pi / 2, 3: 0.4}}
+    held |= {f"p{i}": {ja: va, jb: vb} for i, ((ja, va), (jb, vb), _) in enumerate(spherical_arm._S3, start=3)}
+    sets = spherical_arm.singular_sets(q, tol)
+    assert [s.name for s in sets] == list(held)
+    for s in sets:
+        gaps = {j: np.abs(q[:, j] - v) for j, v in held[s.name].items()}
+        scale = {j: tol.angle if ROBOT.kinds[j] == "revolute" else tol.length for j in gaps}
+        assert set(s.gaps) == {ROBOT.joints[j] for j in gaps}
+        for j, gap in gaps.items():
+            np.testing.assert_array_equal(s.gaps[ROBOT.joints[j]], gap)
+        np.testing.assert_allclose(s.distance, np.max([gap / scale[j] for j, gap in gaps.items()], axis=0),
+                                   rtol=1e-15)
