@@ -214,6 +214,19 @@ def test_the_servo_follows_the_revised_rows_and_a_controller_without_revise_rows
     assert heard.told[0] == 7 and heard.told[1] is q_ref
 
 
+def _line_servo():
+    """The servo bound to the PUMA's line plan: (plant, plan, servo, its open-loop commands, Servo.targets of the
+    whole plan)."""
+    from simbench.controllers import Servo
+
+    scenario = simbench.load_scenario(scenario_file("puma600", "line"))
+    plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
+    traj = scenario.planner_def.plan(scenario, scenario.robot_def, float(plant.model.opt.timestep))
+    servo = Servo()
+    servo.bind(plant, traj)
+    return plant, traj, servo, servo.open_loop(), servo.targets(traj.q_ref, traj.qd_ref)
+
+
 def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed():
     """The servo's open-loop commands are api.Commands, found a few rows at a time as the run asks: indexed as
     NumPy indexes an array (a row, a negative row, a 0-d array, a list, a mask, slices, row numbers in any order
@@ -221,16 +234,9 @@ def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed(
     targets for the whole plan at once (Servo.targets of every reference), and np.asarray gives them all; the
     run's recorded commands are those rows, at a recording stride too."""
     from simbench.api import Commands
-    from simbench.controllers import Servo
     from simbench.sim import simulate
 
-    scenario = simbench.load_scenario(scenario_file("puma600", "line"))
-    plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
-    traj = scenario.planner_def.plan(scenario, scenario.robot_def, float(plant.model.opt.timestep))
-    servo = Servo()
-    servo.bind(plant, traj)
-    commands = servo.open_loop()
-    whole = servo.targets(traj.q_ref, traj.qd_ref)
+    plant, traj, servo, commands, whole = _line_servo()
     assert isinstance(commands, Commands) and commands.shape == whole.shape and len(commands) == len(traj.t)
     act = plant.actuators
     rows = np.random.default_rng(3).integers(0, len(whole), 50)
@@ -247,6 +253,30 @@ def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed(
     assert np.array_equal(thin.ctrl, whole[thin.kept])
 
 
+
+
+def test_the_servos_commands_read_from_the_stretch_kept_are_those_of_the_references_now():
+    """The servo keeps the last stretch of commands it found for a slice and reads later rows within it from
+    there (a run checks its commands, steps them and records them: found once): what it returns is the caller's
+    to change without changing what it returns next, rows outside the stretch are found afresh, and once the
+    references are revised the stretch kept is not read: every row is Servo.targets of the references then."""
+    _, traj, servo, commands, whole = _line_servo()
+    inside, across = np.array([100, 0, 150, 101, 100]), np.array([190, 250, 10])
+    first = commands[0:200]
+    assert np.array_equal(first, whole[:200])
+    first[:] = np.nan  # the caller's own
+    for index in (inside, across, slice(50, 120), slice(150, 210), np.array([-1, 5])):
+        got = commands.rows(index)
+        assert np.array_equal(got, whole[index]), index
+        got[:] = np.nan
+        assert np.array_equal(commands.rows(index), whole[index]), index
+    assert np.array_equal(commands[0:200], whole[:200])  # kept again: rows 0..199
+    q_ref, qd_ref = traj.q_ref + 0.01, traj.qd_ref * 2.0
+    servo.revise(0, q_ref, qd_ref)
+    revised = servo.targets(q_ref, qd_ref)
+    assert not np.array_equal(revised[inside], whole[inside])
+    for index in (inside, slice(0, 200), across):
+        assert np.array_equal(commands.rows(index), revised[index]), index
 @pytest.mark.parametrize("robot, name", [("rsmg", "three_turns"), ("puma600", "line")])
 def test_computed_torque_redoes_the_feedforward_only_where_the_revised_rows_reach(robot, name):
     """revise_rows over random spans (and `revise` to the end) leaves the controller as binding it to the revised

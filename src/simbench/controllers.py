@@ -82,10 +82,15 @@ class Servo(Controller):
 
 
 class _Targets(Commands):
-    """The servo's commands, Servo.targets of its references (as revised so far) at the rows asked for."""
+    """The servo's commands, Servo.targets of its references (as revised so far) at the rows asked for. The last
+    stretch of rows asked for by a slice is kept, and rows within it are read from it while the references are
+    the same: a run checks its commands a chunk at a time before it steps (sim._check_finite), then steps them a
+    chunk at a time and records them, so that a run of at most one chunk finds its commands once, not three
+    times."""
 
     def __init__(self, servo: Servo):
         self.servo = servo
+        self._kept: tuple[tuple, int, Array] | None = None  # (the references, the first row, their commands)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -93,5 +98,19 @@ class _Targets(Commands):
         return len(self.servo._refs[0]), self.servo._plant.model.nu
 
     def rows(self, k):
-        q_ref, qd_ref = self.servo._refs
-        return self.servo.targets(q_ref[k], qd_ref[k])
+        refs = self.servo._refs
+        n = len(refs[0])
+        kept = self._kept if self._kept is not None and self._kept[0] is refs else None
+        if isinstance(k, slice):
+            first, stop, step = k.indices(n)
+            if step == 1 and stop > first:
+                if kept is not None and kept[1] <= first and stop <= kept[1] + len(kept[2]):
+                    return kept[2][first - kept[1]:stop - kept[1]].copy()
+                found = self.servo.targets(refs[0][k], refs[1][k])
+                self._kept = refs, first, found.copy()  # the one returned is the caller's to change
+                return found
+        elif kept is not None and k.size:
+            local = np.where(k < 0, k + n, k) - kept[1]
+            if local.min() >= 0 and local.max() < len(kept[2]):
+                return kept[2][local]
+        return self.servo.targets(refs[0][k], refs[1][k])

@@ -80,12 +80,17 @@ class Rows:
     def keep(self, first: int, stop: int) -> None:
         """Record steps first..stop-1, whose states are scratch[:stop - first]: every row's q, the kept rows'
         state."""
-        r = np.arange(first, stop) - self.n_settle + 1
-        tracked = r >= 0
-        chunk, r = self.scratch[:stop - first][tracked], r[tracked]
-        self.q[r] = chunk[:, self.q_columns]
-        slot = np.minimum(np.searchsorted(self.kept, r), len(self.kept) - 1)
-        hit = self.kept[slot] == r
+        skip = max(self.n_settle - 1 - first, 0)  # settling steps: no row
+        lo, hi = first + skip - self.n_settle + 1, stop - self.n_settle + 1  # their rows, lo..hi-1
+        if lo >= hi:
+            return
+        chunk = self.scratch[skip:stop - first]
+        self.q[lo:hi] = chunk[:, self.q_columns]
+        if len(self.kept) == len(self.q):  # every row kept whole
+            self.states[lo:hi] = chunk
+            return
+        slot = np.minimum(np.searchsorted(self.kept, np.arange(lo, hi)), len(self.kept) - 1)
+        hit = self.kept[slot] == np.arange(lo, hi)
         self.states[slot[hit]] = chunk[hit]
 
 
@@ -130,7 +135,8 @@ class OpenLoop:
         `planned`, the first sample's while settling."""
         if self.planned is None:
             return rows.controls[first:stop]
-        return self.planned[np.maximum(np.arange(first, stop) - rows.n_settle, 0)]
+        samples = np.maximum(np.arange(first, stop) - rows.n_settle, 0)
+        return self.planned.rows(samples) if isinstance(self.planned, Commands) else self.planned[samples]
 
     def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
             progress=None, after=None) -> list[dict]:
