@@ -17,6 +17,7 @@ import simbench
 from simbench import api, random_tasks
 from simbench.compare import compare
 from simbench.errors import RunError, ScenarioError
+from simbench.scenario import parse_scenario
 from simbench.planners import mink_baseline
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
@@ -276,12 +277,13 @@ def test_the_compare_command_prints_the_table_and_refuses_a_typo_in_one_line(tmp
     assert (tmp_path / "c" / "index.html").is_file()
 
 
-def test_compare_of_a_strided_scenario_reads_speeds_at_the_kept_states(tmp_path):
+def test_compare_of_a_strided_scenario_reads_the_speed_share_of_every_state(tmp_path):
     """With sim.record_every, a recording keeps qd at every k-th state only: the comparison still draws its speed
-    plot, and its simulated speed share is the largest over those states of the run recorded whole (whose rows
-    they are, bit for bit)."""
+    plot, and its simulated speed share is the largest over every state of the run recorded whole
+    (Recording.qd_peak), not over the kept ones, whose largest is lower here; a run's qd_peak is its states'
+    largest |qd|, recorded whole or at a stride, open-loop or closed."""
     doc = yaml.safe_load(WRIST.read_text())
-    doc["sim"] = {**doc.get("sim", {}), "record_every": 7}
+    doc["sim"] = {**doc.get("sim", {}), "record_every": 101}
     strided = tmp_path / "strided.yaml"
     strided.write_text(yaml.safe_dump(doc))
     result = compare(strided, ["decoupled_path"], None, tmp_path / "out")
@@ -289,8 +291,16 @@ def test_compare_of_a_strided_scenario_reads_speeds_at_the_kept_states(tmp_path)
         share = float(next(csv.DictReader(f))["qd_share_max_simulated"])
     assert "plots/joint_speeds.png" in result.files
     whole = simbench.evaluate(WRIST).recording
-    kept = np.union1d(np.arange(0, len(whole.t), 7), [len(whole.t) - 1])
-    assert share == pytest.approx(float((np.abs(whole.qd[kept]) / P.ROBOT.qd_max).max()), rel=1e-12)
+    speeds = np.abs(whole.qd) / P.ROBOT.qd_max
+    kept = np.union1d(np.arange(0, len(whole.t), 101), [len(whole.t) - 1])
+    assert share == pytest.approx(float(speeds.max()), rel=1e-12) and speeds[kept].max() < 0.99 * share
+    np.testing.assert_array_equal(whole.qd_peak, np.abs(whole.qd).max(axis=0))
+    closed = {**yaml.safe_load(WRIST.read_text()), "control": {"controller": "computed_torque"}}
+    every = simbench.evaluate(parse_scenario(closed, "closed")).recording
+    closed["sim"] = {**closed.get("sim", {}), "record_every": 13}
+    thin = simbench.evaluate(parse_scenario(closed, "closed, strided")).recording
+    assert len(thin.t) < len(every.t) / 10  # the kept rows only
+    np.testing.assert_array_equal(thin.qd_peak, np.abs(every.qd).max(axis=0))
 
 
 def test_compare_of_a_strided_scenario_takes_peaks_and_singular_minima_from_every_sample(tmp_path):

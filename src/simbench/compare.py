@@ -177,8 +177,8 @@ def row(run: MethodRun) -> dict:
     """The table's row of a method, SI units: its status, tool error and path deviation (the simulated tool, as
     the analysis measures them, and the plan's own tool by the robot's fk), each joint's planned speed peak and
     its share of the speed limit, the least distance to each singular set, and its events counted by kind. The
-    peaks and least distances are of every sample (Analysis.extremes), with a recording stride too; the simulated
-    speed share and the plan's own tool deviation are of the kept rows."""
+    peaks, least distances and the simulated speed share are of every sample (Analysis.extremes,
+    Recording.qd_peak), with a recording stride too; the plan's own tool deviation is of the kept rows."""
     out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
                            "status": run.status, "error": run.error, "violations": ""}
     ev = run.evaluation
@@ -196,7 +196,8 @@ def row(run: MethodRun) -> dict:
     for j, name in enumerate(robot.joints):
         out[f"qd_share_{name}"] = float(peak[j] / robot.qd_max[j])
     out["qd_share_max"] = float((peak / robot.qd_max).max())
-    out["qd_share_max_simulated"] = float((np.abs(rec.thinned().qd) / robot.qd_max).max())  # at the kept states
+    simulated = rec.qd_peak if rec.qd_peak is not None else np.abs(rec.thinned().qd).max(axis=0, initial=0.0)
+    out["qd_share_max_simulated"] = float((simulated / robot.qd_max).max())  # every state's, a stride's too
     for name, least in ev.analysis.extremes["singular_min"].items():
         out[f"singular_min_{name}"] = least
     for prefix, events in (("singular_events", ev.analysis.singularity_events),

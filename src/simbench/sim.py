@@ -47,7 +47,8 @@ class Recording:
 
     With a recording stride (sim.record_every), qpos, qd and ctrl hold only the rows `kept` (every k-th and the
     last); t, q, tool, force, sensors and eq_active hold every row, since the analysis reads them. `thinned`
-    gives every column at the kept rows."""
+    gives every column at the kept rows. `qd_peak` is of every row, a stride's too (what compare's speed share
+    reads)."""
 
     t: np.ndarray
     qpos: np.ndarray
@@ -64,10 +65,11 @@ class Recording:
     q_ref: np.ndarray | None = None  # the references as commanded, where the plan's feedback revised them
     qd_ref: np.ndarray | None = None
     kept: np.ndarray | None = None  # the rows of qpos, qd and ctrl; None: every row
+    qd_peak: np.ndarray | None = None  # (dof,): each joint's largest |qd| over every row, kept or not (None: unknown)
 
     def rows(self, lo: int, hi: int) -> Recording:
         """Samples lo..hi-1 (views): every per-sample column there, and qpos, qd and ctrl at the kept rows among
-        them (`kept` counted from lo). What the analysis reads a window at a time."""
+        them (`kept` counted from lo), without the run's qd_peak. What the analysis reads a window at a time."""
         whole = slice(lo, hi)
         if self.kept is None:
             kept, stored = None, whole
@@ -79,7 +81,7 @@ class Recording:
                        sensors={name: v[whole] for name, v in self.sensors.items()},
                        eq_active={name: v[whole] for name, v in self.eq_active.items()},
                        q_ref=None if self.q_ref is None else self.q_ref[whole],
-                       qd_ref=None if self.qd_ref is None else self.qd_ref[whole], kept=kept)
+                       qd_ref=None if self.qd_ref is None else self.qd_ref[whole], kept=kept, qd_peak=None)
 
     def thinned(self) -> Recording:
         """The recording at its kept rows only, every column: what the outputs of a strided run show."""
@@ -149,9 +151,11 @@ class _Run:
         self.first_state = np.empty(mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
         mujoco.mj_getState(self.model, self.data, self.first_state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         n_settle = int(round(settle / self.model.opt.timestep))
-        q_columns = state_slices(self.model)["mjSTATE_QPOS"].start + plant.qpos_adr
+        slices = state_slices(self.model)
+        q_columns = slices["mjSTATE_QPOS"].start + plant.qpos_adr
         self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state,
-                               controls=self.ctrl is None, releasable=analyser is not None)
+                               controls=self.ctrl is None, releasable=analyser is not None,
+                               qd_columns=slices["mjSTATE_QVEL"].start + plant.dof_adr)
         self.stepper: OpenLoop | ClosedLoop
         if self.ctrl is not None:
             self.stepper = OpenLoop(self.model, self.ctrl)
@@ -264,7 +268,7 @@ class _Run:
                          warnings=tuple(self.warnings), sensors=recorded,
                          eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)},
                          force=readings[:, _columns(plant.force_sensors)], force_limit=plant.force_limit(),
-                         **more)
+                         qd_peak=self.rows.qd_peak.copy(), **more)
 
     def _commands(self, k: slice | np.ndarray) -> np.ndarray:
         """The commands of samples k (a slice from sample 0, or sample numbers): an open-loop controller's own; a

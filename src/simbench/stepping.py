@@ -43,7 +43,8 @@ class Rows:
     the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, and its
     full physics state where the row is one of `kept`.
     The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a long run with a
-    recording stride never holds every step's state."""
+    recording stride never holds every step's state. `qd_peak`: each joint's largest speed |qd| (at `qd_columns` of
+    the state) over every recorded row so far, kept or not."""
 
     sensors: np.ndarray
     controls: np.ndarray  # (n, nu), or (0, nu) where the commands are not kept here
@@ -51,6 +52,8 @@ class Rows:
     states: np.ndarray  # (len(kept), nstate): the full state of the kept rows
     kept: np.ndarray  # the recorded rows whose full state is kept, ascending
     q_columns: np.ndarray  # where the joint positions sit in a full state vector
+    qd_columns: np.ndarray  # and their speeds
+    qd_peak: np.ndarray  # (dof,)
     scratch: np.ndarray  # (CHUNK, nstate): the states of the steps not yet kept
     n_settle: int
     t0: float  # the simulated time of the plan's first sample
@@ -58,23 +61,26 @@ class Rows:
     @classmethod
     def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int, every: int = 1,
               q_columns: np.ndarray | None = None, start: np.ndarray | None = None, controls: bool = True,
-              releasable: bool = False) -> "Rows":
+              releasable: bool = False, qd_columns: np.ndarray | None = None) -> "Rows":
         """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
-        (kept_rows), the joint positions at `q_columns` of the state (none by default); `start`: row 0's state
+        (kept_rows), the joint positions at `q_columns` of the state and their speeds at `qd_columns` (none by
+        default); `start`: row 0's state
         when there is no settling. `controls`: whether the rows keep every step's command (not where an
         open-loop controller's array has them all: a second (n, nu) copy, 37 MB on the ten-minute soak).
         `releasable`: every step's sensors, commands and joint positions on pages that can be handed back once
         read (simbench.pages: a run analysed as it is simulated)."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
         q_columns = np.zeros(0, int) if q_columns is None else q_columns
+        qd_columns = np.zeros(0, int) if qd_columns is None else qd_columns
         kept = kept_rows(n_track + 1, every)
         empty = pages.releasable if releasable else np.empty
         rows = cls(sensors=empty((n + 1, model.nsensordata)), controls=empty((n if controls else 0, model.nu)),
                    q=empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
-                   q_columns=q_columns, scratch=np.empty((min(CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
+                   q_columns=q_columns, qd_columns=qd_columns, qd_peak=np.zeros(len(qd_columns)),
+                   scratch=np.empty((min(CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
                    t0=n_settle * model.opt.timestep)
         if start is not None:
-            rows.q[0], rows.states[0] = start[q_columns], start
+            rows.q[0], rows.states[0], rows.qd_peak[:] = start[q_columns], start, np.abs(start[qd_columns])
         return rows
 
     def keep(self, first: int, stop: int) -> None:
@@ -86,6 +92,7 @@ class Rows:
             return
         chunk = self.scratch[skip:stop - first]
         self.q[lo:hi] = chunk[:, self.q_columns]
+        np.maximum(self.qd_peak, np.abs(chunk[:, self.qd_columns]).max(axis=0, initial=0.0), out=self.qd_peak)
         if len(self.kept) == len(self.q):  # every row kept whole
             self.states[lo:hi] = chunk
             return
