@@ -64,9 +64,9 @@ class Rows:
               releasable: bool = False, qd_columns: np.ndarray | None = None) -> "Rows":
         """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
         (kept_rows), the joint positions at `q_columns` of the state and their speeds at `qd_columns` (none by
-        default); `start`: row 0's state
-        when there is no settling. `controls`: whether the rows keep every step's command (not where an
-        open-loop controller's array has them all: a second (n, nu) copy, 37 MB on the ten-minute soak).
+        default); `start`: row 0's state when there is no settling. `controls`: whether the rows keep every
+        step's command (not where an open-loop controller's array has them all: a second (n, nu) copy, 37 MB on
+        the ten-minute soak).
         `releasable`: every step's sensors, commands and joint positions on pages that can be handed back once
         read (simbench.pages: a run analysed as it is simulated)."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
@@ -84,8 +84,8 @@ class Rows:
         return rows
 
     def keep(self, first: int, stop: int) -> None:
-        """Record steps first..stop-1, whose states are scratch[:stop - first]: every row's q, the kept rows'
-        state."""
+        """Record steps first..stop-1, whose states are scratch[:stop - first]: every row's q and its speeds'
+        peak, the kept rows' state."""
         skip = max(self.n_settle - 1 - first, 0)  # settling steps: no row
         lo, hi = first + skip - self.n_settle + 1, stop - self.n_settle + 1  # their rows, lo..hi-1
         if lo >= hi:
