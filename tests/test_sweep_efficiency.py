@@ -76,14 +76,16 @@ def test_switched_runs_leave_the_kept_plant_as_built(monkeypatch):
 
 
 def test_plots_drawn_at_once_are_the_plots_drawn_in_turn(tmp_path):
-    """Two metrics against a grid of two numeric parameters: two scatter figures and two heat maps, drawn in
-    forked processes and here, in the same order and to the same bytes."""
+    """Two metrics against a grid of two numeric parameters: two scatter figures and two heat maps, drawn here
+    one by one, and here and in forked processes at once (2 or 3 at a time, this process taking every 2nd or
+    3rd), in the same order and to the same bytes."""
     params = ["sim.timestep", "timing.duration"]
     columns = {"run": [0, 1, 2, 3], "sim.timestep": [0.001, 0.001, 0.002, 0.002],
                "timing.duration": [2.0, 3.0, 2.0, 3.0], "status": ["ok", "limits", "ok", "run_failed"],
                "tool_rms": [1e-4, 3e-4, 2e-4, None], "tool_max": [4e-4, 9e-4, 5e-4, None]}
     drawn = {w: table.write_plots(columns, params, params, ["tool_rms", "tool_max"], tmp_path / str(w), w)
-             for w in (1, 3)}
-    assert drawn[1] == drawn[3] and len(drawn[1][0]) == 4
+             for w in (1, 2, 3)}
+    assert drawn[1] == drawn[2] == drawn[3] and len(drawn[1][0]) == 4
     for name in drawn[1][0]:
-        assert (tmp_path / "1" / name).read_bytes() == (tmp_path / "3" / name).read_bytes(), name
+        for w in (2, 3):
+            assert (tmp_path / "1" / name).read_bytes() == (tmp_path / str(w) / name).read_bytes(), (name, w)

@@ -144,15 +144,18 @@ def write_plots(table: dict[str, list], params: list[str], grid: list[str], metr
 
 def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
     """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in
-    one thread, so where there are more figures than one and `workers` > 1 they are drawn at once in processes
-    forked from this one (the same pixels: the same code on the same state), which shortens the serial end of
-    a sweep."""
+    one thread, so where there are more figures than one and `workers` > 1 they are drawn `workers` at once: this
+    process draws every `workers`-th and processes forked from it the others, meanwhile (the same pixels: the same
+    code on the same state), which shortens the serial end of a sweep."""
     jobs = [(draw, (*args, folder)) for draw, args in figures]
     processes = min(workers, len(jobs))
     if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return [draw(*args) for draw, args in jobs]
-    with multiprocessing.get_context("fork").Pool(processes) as pool:
-        return pool.starmap(_call, jobs)
+    with multiprocessing.get_context("fork").Pool(processes - 1) as pool:
+        theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
+        mine = iter([draw(*args) for draw, args in jobs[::processes]])
+        others = iter(theirs.get())
+    return [next(mine) if i % processes == 0 else next(others) for i in range(len(jobs))]
 
 
 def _call(draw, args: tuple) -> str:
