@@ -3,6 +3,7 @@ analysis holds a window's arrays, and must say what the analysis of the whole ru
 whole arrays' own reductions (brute force), and the same run analysed as one window."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -165,3 +166,23 @@ def test_a_summariser_cut_at_every_event_is_the_whole_runs_summary(evaluated, ro
     assert events == whole.events
     for key, values in whole.series.items():
         assert np.array_equal(np.concatenate([p[key] for p in parts]), values), key
+
+
+def test_a_block_sum_is_the_same_float_however_the_series_is_cut():
+    """BlockSum over a series cut into windows at 60 random sets of places equals it over the series as one window,
+    bit for bit, and the exact sum (math.fsum) to 1e-13; adding the windows' own sums does not (the rounding moves
+    with the cut)."""
+    rng = np.random.default_rng(7)
+    x = rng.lognormal(0.0, 3.0, 20_001) * rng.choice([-1.0, 1.0], 20_001)
+    whole = windowed.BlockSum()
+    whole.add(x)
+    naive = set()
+    for _ in range(60):
+        cuts = np.sort(rng.integers(0, x.size, rng.integers(1, 40)))
+        parts = windowed.BlockSum()
+        for piece in np.split(x, cuts):
+            parts.add(piece)
+        assert parts.value() == whole.value()
+        naive.add(sum(float(np.sum(piece)) for piece in np.split(x, cuts)))
+    assert abs(whole.value() - math.fsum(x)) <= 1e-13 * math.fsum(np.abs(x))
+    assert len(naive) > 1

@@ -9,6 +9,7 @@ a long run holds one window's arrays and what it keeps of them, not every sample
 - `Departure`: how far and for how long the tool left the path after a step of the plan (a reference jump), from
   the path deviation after it.
 - `Sums`: sums of squares, maxima and the last value of series, for their RMS, maximum and final value.
+- `BlockSum`: a series' sum that is the same float however the run is cut into windows.
 
 And how many samples a window has (`window_size`): a run as short as every shipped scenario is one window; a longer
 one is cut into groups of the path search near each reference (simbench.analysis.deviation_near_reference), so
@@ -172,3 +173,28 @@ class Sums:
 
     def rms(self, name: str) -> Any:
         return np.sqrt(self.squares[name] / self.count[name])
+
+
+class BlockSum:
+    """The sum of a series seen a window at a time, the same float however the windows are cut: the samples are
+    summed in fixed blocks of BLOCK counted from the run's first (NumPy's sum of each, the last part of a window
+    carried into the next), and the blocks' sums added in order. Summing each window whole and adding the windows'
+    sums would round differently for every cut (a whole run as one window against the same run streamed)."""
+
+    BLOCK = 4096
+
+    def __init__(self):
+        self.total = 0.0  # of the whole blocks so far
+        self.carry = np.zeros(0)  # the samples after them
+
+    def add(self, x: np.ndarray) -> None:
+        """A window of the series."""
+        x = np.concatenate([self.carry, x]) if self.carry.size else np.asarray(x, float)
+        whole = len(x) - len(x) % self.BLOCK
+        for a in range(0, whole, self.BLOCK):
+            self.total += float(np.sum(x[a:a + self.BLOCK]))
+        self.carry = x[whole:].copy()
+
+    def value(self) -> float:
+        """The sum of every sample added."""
+        return self.total + float(np.sum(self.carry))

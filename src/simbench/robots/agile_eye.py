@@ -30,6 +30,7 @@ from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 from simbench.rotations import axis_rotation, canonical, quat_to_matrix, rotation_angle
 from simbench.vectors import cross, triple
+from simbench.windowed import BlockSum
 
 U = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # rows: u1, u2, u3
 LINE_OF_SIGHT = np.ones(3) / np.sqrt(3.0)
@@ -348,21 +349,22 @@ def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
 
 
 class Summariser(api.Summariser):
-    """`summary` a window of samples at a time (in order): the KCI's sum, the largest errors, and det A's last
-    sample (an assembly-mode change between two windows) carried from window to window."""
+    """`summary` a window of samples at a time (in order): the KCI's sum (`windowed.BlockSum`: the same however
+    the run is cut), the largest errors, and det A's last sample (an assembly-mode change between two windows)
+    carried from window to window."""
 
     def __init__(self, traj):
         self.t, self.lo = traj.t, 0
         self.planned = "platform_quat_ref" in traj.series
         self.closure, self.orientation = -np.inf, -np.inf
-        self.kci_sum, self.kci_min = 0.0, np.inf
+        self.kci_sum, self.kci_min = BlockSum(), np.inf
         self.det_a: np.ndarray = np.zeros(0)  # det A at the sample before the window
         self.events: list[dict] = []
 
     def add(self, traj, rec, series: dict) -> dict:
         kci, det_a = series["kci"], series["det_a"]
         self.closure = max(self.closure, float(series["closure_error"].max()))
-        self.kci_sum += np.sum(kci)
+        self.kci_sum.add(kci)
         self.kci_min = min(self.kci_min, float(kci.min()))
         extra = {"platform_quat": canonical(rec.sensors["platform_quat"]), "base_angles": rec.q.copy()}
         if self.planned:
@@ -379,7 +381,7 @@ class Summariser(api.Summariser):
         return extra
 
     def finish(self) -> tuple[dict, list[dict]]:
-        report = {"closure_error_max": self.closure, "kci": {"mean": float(self.kci_sum / self.lo),
+        report = {"closure_error_max": self.closure, "kci": {"mean": self.kci_sum.value() / self.lo,
                                                              "min": self.kci_min}}
         if self.planned:
             report["orientation_error_max"] = self.orientation
