@@ -3,6 +3,7 @@ keeps what it recorded; Ctrl-C leaves the previous complete output or none; ever
 bit-for-bit deterministic."""
 
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -165,6 +166,7 @@ def test_ctrl_c_is_held_back_on_request_and_survives_an_exec(tmp_path):
     """Ctrl-C inside held_back() is delivered when the block ends; one that leaves an exec() of a string and is
     caught still gives exit 130 (CPython 3.11 would kill the process with SIGINT after a plain KeyboardInterrupt)."""
     (tmp_path / "probe.py").write_text(CTRL_C_PROBE)
-    done = subprocess.run([sys.executable, "-m", "probe"], capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    done = subprocess.run([sys.executable, "-m", "probe"], capture_output=True, text=True, cwd=tmp_path, timeout=60,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as conftest.interrupt
     assert (done.returncode, done.stdout, done.stderr) == (130, "not raised inside raised after Interrupted True\n",
                                                            "")
