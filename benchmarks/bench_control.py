@@ -16,7 +16,6 @@ Pairs are timed in alternation (benchmarks.common.interleaved); ratios are media
 
 from __future__ import annotations
 
-import os
 import time
 from typing import cast
 
@@ -24,7 +23,7 @@ import mujoco
 import numpy as np
 import yaml
 
-from benchmarks.common import interleaved, machine, today
+from benchmarks.common import interleaved
 from simbench import env as simbench_env
 from simbench.api import JointTrajectory, State
 from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
@@ -132,11 +131,10 @@ def measure_environment(robot: str, name: str) -> dict:
 
 
 def measure() -> dict:
-    """Every case, both measurements, and the machine's load average (1 min) before and after them."""
-    before = os.getloadavg()[0]
+    """Every case, both measurements."""
     closed = [measure_closed_loop(*case) for case in CASES]
     environment = [measure_environment(*case) for case in CASES]
-    return {"closed_loop": closed, "environment": environment, "load": (before, os.getloadavg()[0])}
+    return {"closed_loop": closed, "environment": environment}
 
 
 def markdown(results: dict) -> str:
@@ -148,9 +146,6 @@ def markdown(results: dict) -> str:
             f"| {r['ratio']:.2f} |" for r in results["environment"]]
     return "\n".join([
         f"### Closed-loop control and the dm_control environment ({REPEATS} interleaved pairs)",
-        "",
-        (f"Measured {today()} (`python -m benchmarks.bench_control`) on {machine()}; load average "
-         f"{results['load'][0]:.1f} before and {results['load'][1]:.1f} after (other processes shared the cores)."),
         "",
         ("`simulate` with computed_torque (closed loop: the controller asked every step, each step checked and "
          "recorded) against a bare Python `mujoco.mj_step` loop asking the same controller (both bind it first: "

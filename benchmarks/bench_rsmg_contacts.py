@@ -14,7 +14,6 @@ general contacts too must refuse some, to show each refusal's reason and that wh
 
 from __future__ import annotations
 
-import os
 import re
 import sys
 import time
@@ -22,7 +21,6 @@ from collections import Counter
 
 import numpy as np
 
-from benchmarks.common import machine, today
 from simbench.errors import RunError
 from simbench.pipeline import check_plan, evaluate
 from simbench.planners.rsmg_contacts import random_motions
@@ -83,10 +81,7 @@ def measure_set(speedup: float) -> list[dict]:
 
 
 def measure() -> dict:
-    start, load = time.perf_counter(), os.getloadavg()[0]
-    sets = {name: measure_set(speedup) for name, speedup in SETS.items()}
-    return {"sets": sets, "seconds": time.perf_counter() - start, "machine": machine(), "date": today(),
-            "load": (load, os.getloadavg()[0])}
+    return {"sets": {name: measure_set(speedup) for name, speedup in SETS.items()}}
 
 
 def _fixed_reason(reason: str) -> str:
@@ -150,10 +145,7 @@ def markdown(r: dict) -> str:
     sets = r["sets"]
     first = next(iter(sets.values()))
     lines = [f"### RSMG round robin: general contact points against the paper's fixed three on {len(first)} random "
-             f"motions (seed {SEED})", "",
-             f"Measured {r['date']} (`python -m benchmarks.bench_rsmg_contacts`, {r['seconds']:.0f} s) on "
-             f"{r['machine']}; load average {r['load'][0]:.1f} before and {r['load'][1]:.1f} after (planning times "
-             "are wall times).", "", *_table(sets), ""]
+             f"motions (seed {SEED}; planning times are wall times)", "", *_table(sets), ""]
     for name, rows in sets.items():
         fixed_why = Counter(_fixed_reason(row["fixed"]["reason"]) for row in rows if not row["fixed"]["scheduled"])
         refused = [row for row in rows if not row["general"]["scheduled"]]

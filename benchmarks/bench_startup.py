@@ -16,17 +16,17 @@ import sys
 
 import numpy as np
 
+from benchmarks.common import CHILD_PEAK_BYTES
 from simbench.resources import scenarios_dir
 
 REPEATS = 9
 HEAVY = ("matplotlib", "scipy.optimize", "scipy.spatial", "ompl")
 SCENARIO = "spherical_arm/case1"
 _PROBE = """
-import json, resource, sys, time
+import json, sys, time
 start = time.perf_counter()
 {body}
-print(json.dumps({{"seconds": time.perf_counter() - start,
-                   "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+print(json.dumps({{"seconds": time.perf_counter() - start, "peak_mib": {peak} / 2**20,
                    "heavy": [m for m in {heavy!r} if m in sys.modules]}}))
 """
 _KINDS = {
@@ -46,7 +46,7 @@ def _once(kind: str, tree: str | None = None) -> dict:
     folder = scenarios_dir() if tree is None else os.path.join(tree, "scenarios")
     body = _KINDS[kind].format(scenario=os.path.join(folder, f"{SCENARIO}.yaml"))
     env = os.environ if tree is None else {**os.environ, "PYTHONPATH": os.path.join(tree, "src")}
-    done = subprocess.run([sys.executable, "-c", _PROBE.format(body=body, heavy=HEAVY)], capture_output=True,
+    done = subprocess.run([sys.executable, "-c", _PROBE.format(body=body, heavy=HEAVY, peak=CHILD_PEAK_BYTES)], capture_output=True,
                           text=True, check=True, env=env)
     return json.loads(done.stdout.strip().splitlines()[-1])
 

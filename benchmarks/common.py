@@ -31,6 +31,13 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, {system}, Python {platform.python_version()}"
 
 
+# A Python expression, for the source of a child process, for its own peak resident size in bytes (the process
+# image's high-water mark). Not getrusage's ru_maxrss: Linux carries that across exec, so a child started from a
+# larger parent (python -m benchmarks.run, after the other benchmarks) reports the parent's size.
+CHILD_PEAK_BYTES = ('next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") '
+                    'if line.startswith("VmHWM:"))')
+
+
 def today() -> str:
     """The date of the measurement."""
     return date.today().isoformat()
