@@ -1,8 +1,8 @@
 """Run the benchmarks and write their results into BENCHMARKS.md: python -m benchmarks.run [bench_x ...]
 
-With no names it runs every module of MODULES (about 8 minutes on 2 cores); with names, those alone. Each module's
-results go into BENCHMARKS.md between two marker lines of its own (HTML comments, unseen on a rendered page),
-stamped with the machine and the date; everything outside the markers (the notes written by hand: earlier runs,
+With no names it runs every module of MODULES (5.5 to 8 minutes on 2 cores); with names, those alone. Each
+module's results go into BENCHMARKS.md between two marker lines of its own (HTML comments, unseen on a rendered
+page), stamped with the machine, the date, the time it took and the load average; everything outside the markers (the notes written by hand: earlier runs,
 what was tried and dropped, before-and-after tables of an issue) is kept byte for byte, so a rerun replaces the
 figures and never the history. A module with no block yet gets one at the end. The file is replaced whole, never
 left half-written.
