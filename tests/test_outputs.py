@@ -118,6 +118,18 @@ def test_shipped_scenarios_validate(path, capsys):
     assert capsys.readouterr().out.startswith(f"{path}: valid")
 
 
+@pytest.mark.parametrize("name", ["case3", "case4"])
+def test_validate_prints_the_plans_warnings_as_a_run_does(name, capsys, evaluated):
+    """case3's start moved by the repair, case4's path leaving the workspace: each of the plan's warnings on its
+    own line, as the run's summary prints them."""
+    _, ev = evaluated("spherical_arm", name)
+    assert ev.trajectory.warnings
+    main(["validate", str(scenario_file("spherical_arm", name))])
+    lines = capsys.readouterr().out.splitlines()
+    printed = [line for line in lines if "plan warning" in line]
+    assert printed == [f"  plan warning: {w}" for w in ev.trajectory.warnings]
+
+
 def test_list_names_robots_planners_and_scenarios(capsys):
     assert main(["list"]) == 0
     text = capsys.readouterr().out

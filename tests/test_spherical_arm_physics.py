@@ -65,6 +65,21 @@ def test_case3_repairs_its_start_to_66_32_deg(evaluated):
     assert ev.recording.q[0, 2] == pytest.approx(repair["q3_init_new"], abs=1e-4)
 
 
+def test_a_repaired_start_is_said_in_a_plan_warning_with_how_far_the_tool_moved(evaluated):
+    """The run does not start where the scenario said: the plan's warning (printed in the run's summary) names
+    the new and the task's q3 and the tool's displacement, which the robot's own FK of both starts gives."""
+    sc, ev = evaluated("spherical_arm", "case3")
+    start = np.array(sc.task.start)
+    moved = start.copy()
+    moved[2] = ev.trajectory.info["workspace_repair"]["q3_init_new"]
+    shift = np.linalg.norm(np.diff(ROBOT.fk(np.array([start, moved])), axis=0))
+    [warning] = ev.trajectory.warnings
+    assert f"new initial q3 = {np.rad2deg(moved[2]):.4f} deg (S; the task's {np.rad2deg(start[2]):.4f} deg)" in warning
+    assert warning.endswith(f"the tool's start {1e3 * shift:.1f} mm from the task's") and shift > 0.01
+    _, plain = evaluated("spherical_arm", "case1")  # inside the workspace: nothing moved, nothing said
+    assert plain.trajectory.warnings == () and plain.trajectory.info["workspace_repair"] is None
+
+
 def test_case4_reports_the_q3_limit_break(evaluated):
     _, ev = evaluated("spherical_arm", "case4")
     breaks = [e for e in ev.analysis.limit_events if e["kind"] == "joint_limit"]

@@ -187,10 +187,12 @@ def _validate(paths: list[Path], plan: bool) -> int:
         if not plan:
             print(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
             continue
-        _, verdict = pipeline.check_plan(sc)
+        traj, verdict = pipeline.check_plan(sc)
         print(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
         if verdict.violations or verdict.expected is not None:
             print("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
+        for warning in traj.warnings:
+            print(f"  plan warning: {warning}")
         code = max(code, _exit_code(verdict))
     return code
 

@@ -296,6 +296,15 @@ def _info(line: Line, reasons: list[dict], repair_info: dict | None) -> dict:
     }
 
 
+def _moved_start(given: Line, line: Line, reasons: list[dict], chosen: str) -> str:
+    """What the repair did to the task: the plan no longer starts where the scenario said (the method's own
+    choice, Fig. 8, so the run can still keep every promise; the summary says it)."""
+    return (f"the straight path from the task's start leaves the workspace ({reasons[0]['condition']} at s = "
+            f"{reasons[0]['s']:.4f}); the plan starts instead from Fig. 8's new initial q3 = "
+            f"{np.rad2deg(line.q_init[2]):.4f} deg ({chosen}; the task's {np.rad2deg(given.q_init[2]):.4f} deg), "
+            f"the tool's start {1e3 * np.linalg.norm(line.x_init - given.x_init):.1f} mm from the task's")
+
+
 def plan(scenario, robot, dt: float) -> JointTrajectory:
     """Paper 000's method on the scenario's start and goal, solved at every control sample."""
     task = scenario.task
@@ -304,7 +313,9 @@ def plan(scenario, robot, dt: float) -> JointTrajectory:
     repair_info = None
     warnings = []
     if reasons and task.workspace_repair:
+        given = line
         line, repair_info = repair(line, task.nd)
+        warnings.append(_moved_start(given, line, reasons, repair_info["chosen"]))
     elif reasons:
         warnings.append("the straight path leaves the workspace (workspace_repair is off): "
                         + "; ".join(f"{r['condition']} at s = {r['s']:.4f}" for r in reasons))
