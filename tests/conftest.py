@@ -1,4 +1,5 @@
-"""Shared fixtures: shipped scenarios, their simulations cached for the session, and Ctrl-C sent to a command."""
+"""Shared fixtures: shipped scenarios, their simulations cached for the session, Ctrl-C sent to a command, and the
+distance of points from a segment (the brute-force truth of tests whose paths are lines)."""
 
 import os
 import signal
@@ -7,6 +8,7 @@ import time
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import simbench  # noqa: E402
@@ -19,6 +21,13 @@ def scenario_file(robot: str, name: str):
 
 
 SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
+
+
+def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (N,) of points x (N, d) from the segment a-b."""
+    ab = b - a
+    u = np.clip((x - a) @ ab / (ab @ ab), 0.0, 1.0)
+    return np.linalg.norm(x - (a + u[:, None] * ab), axis=1)
 
 
 def interrupt(command: list[str], ready, cwd, timeout: float = 120,

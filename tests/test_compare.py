@@ -22,7 +22,7 @@ from simbench.planners import mink_baseline
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
 from simbench.scenario import parse_scenario
-from conftest import scenario_file
+from conftest import scenario_file, segment_distance
 
 DT = 0.01  # s: the random lines' control grid (100 Hz; the shipped scenarios run at 1 kHz: the same method)
 N_LINES = 12
@@ -32,13 +32,6 @@ ON_ORIENTATION = np.deg2rad(0.05)  # the PUMA torch's largest turn from the line
 FAR = api.Tolerance(np.deg2rad(10.0), 0.02)  # followed plans stay farther than this from singular sets
 _SPEED = 1 + 1e-9  # a joint speed within its limit, to rounding
 WRIST = scenario_file("puma600", "wrist_singularity")
-
-
-def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance (N,) of points x (N, 3) from the segment a-b."""
-    ab = b - a
-    u = np.clip((x - a) @ ab / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(x - (a + u[:, None] * ab), axis=1)
 
 
 def follow(doc: dict, **settings) -> dict:

@@ -17,6 +17,7 @@ from simbench.scenario import Thresholds, Timing, load_scenario  # noqa: E402
 from simbench.schema import Units  # noqa: E402
 from simbench_planar3r.planner import PLANNER  # noqa: E402
 from simbench_planar3r.robot import L1, L2, L3, ROBOT  # noqa: E402
+from conftest import segment_distance  # noqa: E402
 
 _DT = 0.002
 
@@ -157,11 +158,6 @@ def _scenario(start, goal, goal_phi, **task):
                            timing=Timing(law="quintic", duration=3.0, hold=0.5), analysis=Thresholds(), units=Units())
 
 
-def _segment_distance(points, a, b):
-    u = np.clip((points - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
-    return np.linalg.norm(points - (a + u[:, None] * (b - a)), axis=1)
-
-
 @pytest.mark.parametrize("index", range(24))
 def test_planner_follows_lines_away_from_the_singular_set(index):
     start, goal, goal_phi = _random_lines(seed=4, count=24)[index]
@@ -169,7 +165,7 @@ def test_planner_follows_lines_away_from_the_singular_set(index):
     traj = PLANNER.plan(scenario, ROBOT, _DT)
     tool = ROBOT.fk(traj.q_ref)
     a = ROBOT.fk(start)[0, :2]
-    assert _segment_distance(tool[:, :2], a, goal).max() < 1e-3
+    assert segment_distance(tool[:, :2], a, goal).max() < 1e-3
     assert np.linalg.norm(tool[-1, :2] - goal) < 1e-4
     assert abs(_wrap(ROBOT.pose(traj.q_ref[-1])[0, 2] - goal_phi)) < 1e-4
     assert ((traj.q_ref >= ROBOT.lower) & (traj.q_ref <= ROBOT.upper)).all()
@@ -196,7 +192,7 @@ def test_planner_reports_the_deviation_near_the_stretched_elbow():
     start = np.deg2rad([-85.0, 40.0, 70.0])
     near = _scenario(start, [0.1, -0.46], float(np.deg2rad(105.0)), damping=0.1)
     traj = PLANNER.plan(near, ROBOT, _DT)
-    deviation = _segment_distance(ROBOT.fk(traj.q_ref)[:, :2], ROBOT.fk(start)[0, :2], np.array([0.1, -0.46]))
+    deviation = segment_distance(ROBOT.fk(traj.q_ref)[:, :2], ROBOT.fk(start)[0, :2], np.array([0.1, -0.46]))
     assert deviation.max() > near.analysis.path_tolerance
     assert traj.info["max_line_deviation"] == pytest.approx(deviation.max(), abs=1e-9)
     assert [v["kind"] for v in traj.violations] == ["off_path"]

@@ -2,8 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import segment_distance
 
+import simbench
 from simbench.analysis import path_deviation
+from simbench.errors import RunError
+from simbench.scenario import parse_scenario
 from simbench.robots import spherical_arm
 from simbench.plant import Plant
 from simbench.controllers import Servo
@@ -142,22 +146,12 @@ def test_joint_move_interpolates_joints_and_leaves_the_straight_line(evaluated):
     assert bow.max() > 0.01
 
 
-def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    ab = b - a
-    u = np.clip((points - a) @ ab / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(points - a - u[:, None] * ab, axis=1)
-
-
 def test_on_random_tasks_ok_keeps_every_promise_and_a_moved_start_is_said():
     """100 random start/goal pairs (joints uniform within their ranges, q1 in one turn; random nd, time law and
     duration), paper 000's method with its workspace repair, simulated: the plan's tool runs on the line between
     its ends (its own FK), which start at the task's start unless a plan warning says by how much they moved; a
     run is ok only if, by the recording and the line alone, the tool stayed within the path tolerance of the line
     and ended within the goal tolerance, and the plan kept the joint ranges and speed limits."""
-    import simbench
-    from simbench.errors import RunError
-    from simbench.scenario import parse_scenario
-
     rng = np.random.default_rng(3003)
     lo = np.where(np.isfinite(ROBOT.lower), ROBOT.lower, -np.pi)
     hi = np.where(np.isfinite(ROBOT.upper), ROBOT.upper, np.pi)
@@ -177,7 +171,7 @@ def test_on_random_tasks_ok_keeps_every_promise_and_a_moved_start_is_said():
         traj, rec, a = ev.trajectory, ev.recording, sc.analysis
         x_init, x_goal = traj.tool_ref[0], traj.tool_ref[-1]
         assert np.allclose(ROBOT.fk(traj.q_ref), traj.tool_ref, rtol=0, atol=1e-9)
-        assert _segment_distance(traj.tool_ref, x_init, x_goal).max() < 1e-9
+        assert segment_distance(traj.tool_ref, x_init, x_goal).max() < 1e-9
         assert np.linalg.norm(x_goal - ROBOT.fk(goal[None])[0]) < 1e-9
         shift = np.linalg.norm(x_init - ROBOT.fk(start[None])[0])
         said = [w for w in traj.warnings if "the plan starts instead" in w]
@@ -187,7 +181,7 @@ def test_on_random_tasks_ok_keeps_every_promise_and_a_moved_start_is_said():
             assert said[0].endswith(f"the tool's start {1e3 * shift:.1f} mm from the task's")
         statuses.append(ev.verdict.status)
         if ev.verdict.status == "ok":
-            assert _segment_distance(rec.tool, x_init, x_goal).max() <= a.path_tolerance
+            assert segment_distance(rec.tool, x_init, x_goal).max() <= a.path_tolerance
             assert np.linalg.norm(rec.tool[-1] - x_goal) <= a.goal_tolerance
             assert (traj.q_ref >= ROBOT.lower - 1e-12).all() and (traj.q_ref <= ROBOT.upper + 1e-12).all()
             assert (np.abs(np.diff(traj.q_ref, axis=0)) / traj.dt <= ROBOT.qd_max * (1 + 1e-6)).all()
