@@ -46,8 +46,8 @@ def _once(kind: str, tree: str | None = None) -> dict:
     folder = scenarios_dir() if tree is None else os.path.join(tree, "scenarios")
     body = _KINDS[kind].format(scenario=os.path.join(folder, f"{SCENARIO}.yaml"))
     env = os.environ if tree is None else {**os.environ, "PYTHONPATH": os.path.join(tree, "src")}
-    done = subprocess.run([sys.executable, "-c", _PROBE.format(body=body, heavy=HEAVY, peak=CHILD_PEAK_BYTES)], capture_output=True,
-                          text=True, check=True, env=env)
+    probe = _PROBE.format(body=body, heavy=HEAVY, peak=CHILD_PEAK_BYTES)
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, env=env)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

@@ -2,10 +2,10 @@
 
 With no names it runs every module of MODULES (5.5 to 8 minutes on 2 cores); with names, those alone. Each
 module's results go into BENCHMARKS.md between two marker lines of its own (HTML comments, unseen on a rendered
-page), stamped with the machine, the date, the time it took and the load average; everything outside the markers (the notes written by hand: earlier runs,
-what was tried and dropped, before-and-after tables of an issue) is kept byte for byte, so a rerun replaces the
-figures and never the history. A module with no block yet gets one at the end. The file is replaced whole, never
-left half-written.
+page), stamped with the machine, the date, the time it took and the load average; everything outside the markers
+(the notes written by hand: earlier runs, what was tried and dropped, before-and-after tables of an issue) is kept
+byte for byte, so a rerun replaces the figures and never the history. A module with no block yet gets one at the
+end. The file is replaced whole, never left half-written.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ MODULES = ("bench_tracking", "bench_render", "bench_sweep", "bench_planners", "b
            "bench_soak", "bench_rsmg_contacts", "bench_startup")
 TARGET = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
 HEADER = ("# Benchmarks\n\nWritten by `python -m benchmarks.run` (from the repository root, in the test environment):\n"
-          "each section's figures between its markers, with the machine and the date they were measured on; the\n"
-          "notes around them by hand.\n")
+          "each section's figures between its markers, with the machine, the date, the time and the load average\n"
+          "they were measured with; the notes around them by hand.\n")
 
 
 def begin(name: str) -> str:
@@ -46,7 +46,7 @@ def splice(text: str, name: str, section: str) -> str:
     block = f"{opening}\n{section.strip()}\n{closing}"
     if first < 0 and last < 0:
         return f"{text.rstrip()}\n\n{block}\n"
-    if (first < 0 or last < first or text.count(opening) > 1 or text.count(closing) > 1):
+    if first < 0 or last < first or text.count(opening) > 1 or text.count(closing) > 1:
         raise ValueError(f"BENCHMARKS.md: the markers of {name} are not one pair, opening before closing; "
                          "mend them by hand")
     return text[:first] + block + text[last + len(closing):]
