@@ -320,7 +320,7 @@ def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tupl
     write_page(folder, table_page(
         folder, f"Comparison: {base.name} ({base.robot})",
         f"The task of {base.source or base.name}, with each method in turn. {base.description}",
-        [("Methods, SI units (comparison.csv)", folder / "comparison.csv")], [f"plots/{p}" for p in plots],
+        [("Methods, SI units (comparison.csv)", Path("comparison.csv"))], [f"plots/{p}" for p in plots],
         document["methods"][0]["config"]))
     return [*files, "index.html"]
 

@@ -129,6 +129,6 @@ def write_summary_page(folder: Path, part: PaperSummary, notes: Sequence[str] = 
         folder, f"Paper {part.paper}: {part.title}",
         f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}.\n\n"
         + "\n".join(part.headline) + ("\n\n" + "\n".join(notes) if notes else ""),
-        [(name, folder / name) for name in sorted(part.files) if name.endswith(".csv")],
+        [(name, Path(name)) for name in sorted(part.files) if name.endswith(".csv")],
         [name for name in sorted(part.files) if name.endswith(".png")], digits=None))
     return "summary.md"

@@ -85,7 +85,7 @@ def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed
     counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)
     write_page(out, table_page(out, f"Sweep: {sweep.name}", f"{summary['runs']} runs of {sweep.base} ({counts}) on "
                                                              f"{backend}.\n\n" + "\n".join(notes),
-                               [("Every run (results.csv)", out / "results.csv")], [f"plots/{p}" for p in plots],
+                               [("Every run (results.csv)", Path("results.csv"))], [f"plots/{p}" for p in plots],
                                summary))
     return summary
 
