@@ -128,3 +128,77 @@ def _running(pid: int) -> bool:
             return f.read().rsplit(")", 1)[1].split()[0] != "Z"
     except FileNotFoundError:
         return False
+
+
+# --- issue 33: the marker lists files, not folders; the lock file never follows a symlink ---------------------------
+
+def _small_sweep(work, outputs="report"):
+    sweep = work / "scenarios" / "sweep.yaml"
+    doc = {"base": "case1.yaml", "grid": {"timing.duration": [2, 3]}, "outputs": outputs, "plots": ["tool_rms"]}
+    sweep.write_text(yaml.safe_dump(doc))
+    return sweep
+
+
+def _marked(folder) -> set:
+    """Every file some marker on its way down lists (the markers read here line by line, as JSON)."""
+    import json
+
+    listed = set()
+    for marker in folder.rglob(".simbench"):
+        for line in marker.read_text().splitlines():
+            listed |= {(marker.parent / name).relative_to(folder).as_posix() for name in json.loads(line)["files"]}
+    return listed
+
+
+@pytest.mark.parametrize("outputs", ["report", "full"])
+def test_a_sweeps_markers_list_every_file_it_wrote_at_every_depth(tmp_path, monkeypatch, outputs):
+    work, _ = _workspace(tmp_path, monkeypatch)
+    out = work / "out"
+    assert main(["sweep", str(_small_sweep(work, outputs)), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+    on_disk = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file() and p.name != ".simbench"}
+    assert {"rows/r0000.json", "results.csv", "index.html"} <= on_disk
+    assert any(name.startswith("plots/") for name in on_disk)
+    assert on_disk <= _marked(out)
+
+
+@pytest.mark.parametrize("inside", ["plots", "runs", "rows", "runs/r0000"])
+@pytest.mark.parametrize("force", [False, True], ids=["resume", "force"])
+def test_a_sweep_run_again_never_removes_a_users_file_inside_its_folder(tmp_path, monkeypatch, capsys, inside,
+                                                                          force):
+    work, _ = _workspace(tmp_path, monkeypatch)
+    out = work / "out"
+    args = ["sweep", str(_small_sweep(work)), "--out", str(out), "--workers", "1", "--quiet"]
+    assert main(args) == 0
+    mine = out / inside / "my_notes.txt"
+    mine.parent.mkdir(parents=True, exist_ok=True)
+    mine.write_text("the user's notes")
+    capsys.readouterr()
+    assert main(args + ["--force"] * force) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{inside}/my_notes.txt" in err[0] and "simbench did not write" in err[0]
+    assert mine.read_text() == "the user's notes"
+
+
+def test_force_replaces_a_folder_whose_marker_lists_a_folder_by_name_only_if_it_holds_nothing_else(tmp_path,
+                                                                                                     capsys):
+    """The marker of earlier versions listed a sweep's folders by name: a name accounts for itself only."""
+    out = tmp_path / "out"
+    (out / "plots").mkdir(parents=True)
+    (out / "plots" / "mine.png").write_bytes(b"the user's figure")
+    (out / ".simbench").write_text('{"written_by": "simbench", "files": ["plots"]}\n')
+    assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video", "--quiet",
+                 "--force"]) == 2
+    assert "plots/mine.png" in capsys.readouterr().err
+    assert (out / "plots" / "mine.png").read_bytes() == b"the user's figure"
+
+
+def test_the_lock_file_never_follows_a_symlink(tmp_path, capsys):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's file")
+    (tmp_path / ".out.lock").symlink_to(victim)
+    out = tmp_path / "out"
+    assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and ".out.lock" in err[0] and "symlink" in err[0]
+    assert victim.read_text() == "the user's file" and not out.exists()

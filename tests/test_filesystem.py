@@ -258,8 +258,7 @@ def _dest_read_only_parent(ws, monkeypatch=None, code=None):
     if monkeypatch is None:
         (ws / "shelf").chmod(0o555)
     else:
-        monkeypatch.setattr(destination, "open", _refuse(builtins.open, ws / "shelf" / ".out.lock", code),
-                            raising=False)
+        monkeypatch.setattr(os, "open", _refuse(os.open, ws / "shelf" / ".out.lock", code))
     words = os_words(OSError(code or errno.EACCES, ""))
     return out, f"cannot write the output folder: {words} ({ws / 'shelf'}); pick another --out"
 

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from simbench.destination import mark, sweep_leftovers
+from simbench.destination import check_replace, mark, sweep_leftovers
 from simbench.errors import OutputError, output_error, shown_path
 from simbench.interrupts import held_back
 
@@ -63,7 +63,7 @@ def staged_file(path: Path) -> Iterator[Path]:
 def staged_folder(out: Path) -> Iterator[Path]:
     """A fresh hidden folder beside `out`, moved onto `out` (with its marker, destination.mark) if the block
     succeeds, removed if it fails (an OSError as OutputError). The caller has checked that `out` may be replaced
-    (destination.check)."""
+    (destination.check); it is checked again before it is (a file of the user's put in since: ScenarioError)."""
     with _writing(out):
         out.parent.mkdir(parents=True, exist_ok=True)
         sweep_leftovers(out)
@@ -73,6 +73,8 @@ def staged_folder(out: Path) -> Iterator[Path]:
         try:
             yield tmp
             mark(tmp)
+            if out.exists():
+                check_replace(out)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise

@@ -1,11 +1,14 @@
 """Where a run or a sweep writes: never over anything simbench did not write, one writer at a time, nothing left
 behind by a writer that was killed (project issue 11).
 
-Every folder simbench writes holds a marker, `.simbench`, listing the files it wrote there (a sweep's marker
-lists the names of its layout instead, since its rows arrive one by one). `--force` replaces a folder only if
-every file in it is one the marker lists; a folder that holds the input, or the working folder, is never
-replaced. A lock file beside the folder (`.<name>.lock`, flock) keeps a second writer out; the kernel lets go of
-it when its holder dies, however it dies.
+Every folder simbench writes holds a marker, `.simbench`, listing every file it wrote there, at every depth, by
+its path relative to the folder: one JSON line `{"written_by": "simbench", "files": [...]}`, and for a sweep,
+whose files arrive one by one, a line `{"files": [...]}` appended before each batch is written. A subfolder
+written whole (a sweep's plots, a full run inside a sweep) holds its own marker, which accounts for its files.
+`--force` replaces a folder only if every file in it, at every depth, is accounted for; anything else is the
+user's, and the run is refused naming it. A folder that holds the input, or the working folder, is never
+replaced. A lock file beside the folder (`.<name>.lock`, flock, opened without following a symlink) keeps a
+second writer out; the kernel lets go of it when its holder dies, however it dies.
 """
 
 from __future__ import annotations
@@ -38,27 +41,68 @@ def refused(out: Path, what: str = "the output folder") -> Iterator[None]:
 
 
 def mark(folder: Path, names: Iterable[str] | None = None) -> None:
-    """Write the marker of a folder simbench wrote: `names` (a layout), or every file now in it."""
+    """Write the marker of a folder simbench wrote: `names`, or every file now in it."""
     if names is None:
         names = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
     (folder / MARKER).write_text(json.dumps({"written_by": "simbench", "files": list(names)}) + "\n")
 
 
-def foreign(folder: Path) -> list[Path]:
-    """The files in `folder` that its marker does not account for (all of them if it has none). A listed name
-    accounts for itself and, if it is a folder, for what is in it."""
+def mark_more(folder: Path, names: Iterable[str]) -> None:
+    """Add `names` to the marker of `folder` (one line appended, without following a symlink): called before
+    those files are written, so that a writer stopped in between leaves a name listed, never a file unlisted. An
+    OSError (a full disk) names the first of `names`: the write of that file is what failed."""
+    names = list(names)
+    line = (json.dumps({"files": names}) + "\n").encode()
     try:
-        listed = set(json.loads((folder / MARKER).read_text())["files"])
-    except (OSError, ValueError, KeyError, TypeError):
-        listed = set()
+        fd = os.open(folder / MARKER, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+        try:
+            os.write(fd, line)
+        finally:
+            os.close(fd)
+    except OSError as err:
+        raise OSError(err.errno, err.strerror, str(folder / names[0])) from None
+
+
+def _listed(folder: Path) -> set[str]:
+    """The paths the marker of `folder` lists (none if it has no marker, or for a line that cannot be read)."""
+    try:
+        text = (folder / MARKER).read_text()
+    except OSError:
+        return set()
+    names: set[str] = set()
+    for line in text.splitlines():
+        try:
+            files = json.loads(line)["files"]
+        except (ValueError, KeyError, TypeError):
+            continue
+        if isinstance(files, list):
+            names.update(name for name in files if isinstance(name, str))
+    return names
+
+
+def foreign(folder: Path) -> list[Path]:
+    """The files in `folder`, at every depth, that no marker accounts for: the marker of a folder on the way
+    down lists it by its path relative to that folder (a folder's name accounts for nothing inside it). Markers
+    themselves, and what a writer left under a hidden staging name (atomic: `.<name>.partial-PID`,
+    `.<name>.old-PID`), are simbench's."""
+    listed: dict[Path, set[str]] = {}
     out = []
     for path in sorted(folder.rglob("*")):
-        rel = path.relative_to(folder)
-        if path.is_dir() and not path.is_symlink() or rel.as_posix() == MARKER:
+        if path.is_dir() and not path.is_symlink():
             continue
-        if not any(rel.as_posix() == name or name in (p.as_posix() for p in rel.parents) for name in listed):
+        if path.name == MARKER or _staging(path.name):
+            continue
+        owners = [path.parent, *(p for p in path.parent.parents if folder in p.parents or p == folder)]
+        if not any(path.relative_to(owner).as_posix() in listed.setdefault(owner, _listed(owner))
+                   for owner in owners):
             out.append(path)
     return out
+
+
+def _staging(name: str) -> bool:
+    """Whether `name` is a hidden name simbench writes under before moving the file into place (atomic)."""
+    tag, _, pid = name.rpartition("-")
+    return name.startswith(".") and tag.endswith((".partial", ".old")) and pid.isdigit()
 
 
 def check_inputs(out: Path, inputs: Iterable[Path]) -> None:
@@ -93,14 +137,15 @@ def _loops(path: Path) -> bool:
     return False
 
 
-def check_replace(out: Path) -> None:
-    """ScenarioError (naming `out`) unless simbench wrote every file in `out`, so that --force may replace it."""
+def check_replace(out: Path, why: str = "--force replaces only simbench's own outputs") -> None:
+    """ScenarioError (naming `out` and one stranger, saying `why` that matters) unless simbench wrote every file
+    in `out`, so that it may be replaced."""
     with refused(out):
         strangers = foreign(out)
     if strangers:
         raise ScenarioError(str(out), None, f"holds {len(strangers)} file(s) simbench did not write (such as "
-                                            f"{strangers[0].relative_to(out)}); --force replaces only simbench's "
-                                            "own outputs: remove them yourself or pick another --out")
+                                            f"{strangers[0].relative_to(out)}); {why}: move them out yourself or "
+                                            "pick another --out")
 
 
 def check(out: Path, inputs: Iterable[Path], force: bool) -> None:
@@ -126,7 +171,7 @@ def locked(out: Path) -> Iterator[None]:
     path = out.parent / f".{out.name}.lock"
     with refused(out):
         out.parent.mkdir(parents=True, exist_ok=True)
-        lock = open(path, "w")
+        lock = _open_lock(path)
     with lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -139,6 +184,19 @@ def locked(out: Path) -> Iterator[None]:
             yield
         finally:
             path.unlink(missing_ok=True)
+
+
+def _open_lock(path: Path):
+    """The lock file, created if need be, never truncated and never through a symlink (one there could make
+    simbench write to any file the user can write); ScenarioError naming it if a symlink is in the way."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except OSError as err:
+        if err.errno == errno.ELOOP and path.is_symlink():
+            raise ScenarioError(str(path), None, "is a symlink where simbench keeps its lock file; simbench does "
+                                                 "not follow it: remove it, or pass --out to write elsewhere") from None
+        raise
+    return os.fdopen(fd, "r+")
 
 
 def check_name(out: Path) -> None:

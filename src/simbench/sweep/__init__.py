@@ -22,7 +22,7 @@ from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import execute, table
 from simbench.sweep.spec import Sweep, load_sweep
-from simbench.sweep.store import Store, run_folder
+from simbench.sweep.store import RESULTS, Store, run_folder
 
 __all__ = ["Sweep", "SweepResult", "load_sweep", "run_sweep"]
 
@@ -51,6 +51,7 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
         outcomes, backend = _backend(sweep, todo, out, workers, ray)
         _collect(store, outcomes, rows, progress)
         columns = table.columns(list(rows.values()), sweep.params)
+        store.claim(RESULTS)
         with store.writing():  # a full disk here keeps the rows: the same command writes the table again
             summary = _write_results(sweep, columns, out, resumed=len(sweep.variants) - len(todo), backend=backend,
                                      start=start, workers=min(workers, execute.cpu_count()))

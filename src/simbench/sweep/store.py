@@ -8,7 +8,8 @@
 Running the same sweep into the same folder again skips every run that has a row (rows are trusted: after
 changing simbench itself, start over); `force` starts over. A folder that holds anything else is replaced only
 with `force`, and only if simbench wrote all of it; a folder that holds the sweep file, its base or the working
-folder never (simbench.destination). One sweep at a time may write into a folder: a lock file beside it
+folder never (simbench.destination); files of the user's put inside it are never removed: a sweep that would replace
+them (its plots, a run it repeats) is refused, naming one. One sweep at a time may write into a folder: a lock file beside it
 (`.<name>.lock`) keeps a second one out.
 """
 
@@ -30,8 +31,8 @@ from simbench.sweep.spec import Sweep, Variant
 # What a sweep that cannot write a row keeps.
 _KEPT = "the rows of the finished runs are kept: run the same command again to resume"
 
-# What a sweep writes into its folder (the names its marker lists).
-LAYOUT = ("sweep.json", "rows", "runs", "results.csv", "results.parquet", "summary.json", "plots", "index.html")
+# What a sweep writes into its folder once every run has a row (plots/ holds a marker of its own).
+RESULTS = ("results.csv", "results.parquet", "summary.json", "index.html")
 
 
 class Store:
@@ -70,7 +71,7 @@ class Store:
         """Empty a folder that holds anything (with force, and only if simbench wrote it all), or keep it to resume
         if its manifest is this sweep's; ScenarioError for a folder holding other results without force."""
         out = self.out
-        if not (out.exists() and any(out.iterdir())):
+        if not (out.exists() and any(p.name != destination.MARKER for p in out.iterdir())):
             return
         if force:
             destination.check_replace(out)
@@ -79,6 +80,8 @@ class Store:
             raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or files "
                                                 "that are not a sweep's); pass --force to replace them, or --out to "
                                                 "write elsewhere")
+        else:
+            destination.check_replace(out, "a sweep resumed here rewrites its own files, and never yours")
 
     def _start_folder(self, fingerprint: str) -> None:
         """Create the folder, its manifest (first: a folder holding it, and nothing else yet, is one this sweep
@@ -91,7 +94,8 @@ class Store:
                 "spec": sweep.spec.model_dump(mode="json"),
                 "runs": [{"run": v.index, "id": v.id, "params": v.params} for v in sweep.variants],
             }, indent=1) + "\n")
-        destination.mark(out, LAYOUT)
+        if not (out / destination.MARKER).exists():
+            destination.mark(out, [manifest.name])
         (out / "rows").mkdir(exist_ok=True)
 
     def __enter__(self) -> Store:
@@ -120,15 +124,23 @@ class Store:
     def record(self, variant: Variant, outcome: dict) -> dict:
         """Write a finished run's row (and its report, if kept) and return the row."""
         with self.writing():
+            row_file = self.out / "rows" / f"{variant.id}.json"
             if outcome.get("report") is not None:
                 folder = run_folder(self.out, variant.id)
+                destination.mark_more(self.out, [(folder / "report.json").relative_to(self.out).as_posix()])
                 folder.mkdir(parents=True, exist_ok=True)
                 write_report(outcome["report"], folder / "report.json")
             row = plain({"run": variant.index, "id": variant.id, "params": variant.params,
                          "status": outcome["status"], "error": outcome["error"], "metrics": outcome["metrics"],
                          "wall_time": outcome["wall_time"]})
-            write_text(self.out / "rows" / f"{variant.id}.json", json.dumps(row, allow_nan=False) + "\n")
+            destination.mark_more(self.out, [row_file.relative_to(self.out).as_posix()])
+            write_text(row_file, json.dumps(row, allow_nan=False) + "\n")
         return row
+
+    def claim(self, names: tuple[str, ...]) -> None:
+        """List files about to be written into the folder in its marker (destination.mark_more)."""
+        with self.writing():
+            destination.mark_more(self.out, names)
 
     @contextmanager
     def writing(self) -> Iterator[None]:
