@@ -72,6 +72,12 @@ def _parser() -> argparse.ArgumentParser:
 EXIT_LIMITS = 3
 
 
+def _say(text: str, file=None) -> None:
+    """Print `text` with every control character but its line breaks escaped (errors.printable): a description,
+    a file name or a message read from a file cannot recolour, move the cursor of or clear the user's terminal."""
+    print("\n".join(printable(line) for line in str(text).split("\n")), file=file or sys.stdout)
+
+
 def _names(text: str) -> list[str]:
     """A comma-separated list of names."""
     return [name.strip() for name in text.split(",") if name.strip()]
@@ -128,17 +134,17 @@ def _sweep(args) -> None:
             raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
     sweep = load_sweep(args.sweep)
     if args.dry_run:
-        print(_dry_run(sweep))
+        _say(_dry_run(sweep))
         return
     result = run_sweep(sweep, args.out, workers=args.workers, ray=args.ray, force=args.force,
                        progress=not args.quiet)
     if not args.quiet:
         counts = ", ".join(f"{n} {status}" for status, n in result.summary["status"].items() if n)
-        print(f"{sweep.name}: {result.summary['runs']} runs ({counts}"
+        _say(f"{sweep.name}: {result.summary['runs']} runs ({counts}"
               f"{f'; {result.resumed} from an earlier start' if result.resumed else ''}) in "
               f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
         for note in result.summary["notes"]:
-            print(f"  note: {note}")
+            _say(f"  note: {note}")
 
 
 def _reproduce(args) -> None:
@@ -146,18 +152,19 @@ def _reproduce(args) -> None:
     from simbench.reproduce import reproduce
 
     summary = reproduce(args.paper, args.out, force=args.force)
-    print("\n".join(summary.lines()))
+    _say("\n".join(summary.lines()))
 
 
 def _compare(args) -> None:
     """The compare command: the table and plots of every method, and the table on screen."""
     from simbench.compare import compare
+    from simbench.schema import file_name
 
-    out = args.out or Path("renders") / "compare" / args.scenario.stem
+    out = args.out or Path("renders") / "compare" / file_name(args.scenario.stem, str(args.scenario))
     result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
                      progress=not args.quiet)
-    print((result.out / "comparison.md").read_text())
-    print(f"table, plots and index.html in {result.out}")
+    _say((result.out / "comparison.md").read_text())
+    _say(f"table, plots and index.html in {result.out}")
 
 
 def _dry_run(sweep) -> str:
@@ -185,14 +192,14 @@ def _validate(paths: list[Path], plan: bool) -> int:
     for path in paths:
         sc = scenario.load_scenario(path)
         if not plan:
-            print(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
+            _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
             continue
         traj, verdict = pipeline.check_plan(sc)
-        print(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
+        _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
         if verdict.violations or verdict.expected is not None:
-            print("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
+            _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
         for warning in traj.warnings:
-            print(f"  plan warning: {warning}")
+            _say(f"  plan warning: {warning}")
         code = max(code, _exit_code(verdict))
     return code
 
@@ -210,9 +217,9 @@ def _run(args) -> int:
         kept = "the report and the timeseries up to then are" if err.recording is not None else "the report is"
         raise RunError(f"{err}; {kept} in {out}") from None
     if not args.quiet:
-        print(_summary(result))
+        _say(_summary(result))
     elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
-        print("\n".join(_status_lines(result.report["status"], result.report["violations"],
+        _say("\n".join(_status_lines(result.report["status"], result.report["violations"],
                                       result.report.get("expected"))), file=sys.stderr)
     return _exit_code(result.evaluation.verdict)
 
@@ -238,7 +245,7 @@ def _list() -> str:
 
 def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
     resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" else ""
-    print(f"interrupted{resume}", file=sys.stderr)
+    _say(f"interrupted{resume}", file=sys.stderr)
     return ctrl_c.exit_code
 
 
@@ -254,7 +261,7 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
     try:
         _preload()
         if args.command == "list":
-            print(_list())
+            _say(_list())
         elif args.command == "train-fk":
             from simbench.planners import learnt_fk
 
@@ -288,15 +295,15 @@ def _preload() -> None:
 def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:
     """The line and exit code of a command that raised `err`: 2 bad input, 1 a run that failed or a bug."""
     if isinstance(err, ScenarioError):
-        print(f"error: {err}", file=sys.stderr)
+        _say(f"error: {err}", file=sys.stderr)
         return 2
     if isinstance(err, OutputError):
         if ctrl_c.pressed:  # Ctrl-C reached ffmpeg too, whose broken pipe came first
             return _interrupted(args, ctrl_c)
-        print(f"error: {err}", file=sys.stderr)
+        _say(f"error: {err}", file=sys.stderr)
         return 1
     if isinstance(err, RunError):
-        print(f"run failed: {err}", file=sys.stderr)
+        _say(f"run failed: {err}", file=sys.stderr)
         return 1
     if isinstance(err, OSError) and err.filename is not None and not ctrl_c.pressed:
         return _refused(err)
@@ -307,7 +314,7 @@ def _refused(err: OSError) -> int:
     """A no of the file system that no module turned into ScenarioError or OutputError: met while looking at the
     input or the destination (bad input, 2), unless the machine ran out of space (1)."""
     path, words = os_error_line(err)
-    print(f"error: {path}: {words}", file=sys.stderr)
+    _say(f"error: {path}: {words}", file=sys.stderr)
     return 1 if err.errno in NO_SPACE else 2
 
 
@@ -317,6 +324,6 @@ def _internal_error(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exc
         return _interrupted(args, ctrl_c)
     if os.environ.get("SIMBENCH_DEBUG"):
         raise err
-    print(f"internal error: {type(err).__name__}: {printable(str(err))} (a bug in simbench: please report it with "
+    _say(f"internal error: {type(err).__name__}: {printable(str(err))} (a bug in simbench: please report it with "
           "the input; SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
     return 1

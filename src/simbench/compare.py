@@ -80,7 +80,7 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
     hold only what simbench wrote). ScenarioError (one line) for an unknown or unsuitable planner or controller,
     a bad scenario file or destination, before anything runs."""
     source = Path(scenario_path)
-    out = Path(out)
+    out = destination.followed(Path(out))
     base = load_scenario(source)
     raw = read_yaml(source)
     variants = _variants(raw, base, source, _names(planners, "planner", api.planners()),

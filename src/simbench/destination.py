@@ -105,6 +105,16 @@ def _staging(name: str) -> bool:
     return name.startswith(".") and tag.endswith((".partial", ".old")) and pid.isdigit()
 
 
+def followed(out: Path) -> Path:
+    """`out` itself, or where it leads if it is a symlink to a folder (resolved once, before anything is checked
+    or written: the outputs go into that folder, as `--out` named it, and the link stays as it was). A broken or
+    looping link is left for check_inputs to refuse."""
+    try:
+        return out.resolve() if out.is_symlink() and out.is_dir() else out
+    except (OSError, RuntimeError):
+        return out
+
+
 def check_inputs(out: Path, inputs: Iterable[Path]) -> None:
     """ScenarioError (naming `out`) if `out` is or holds an input or the working folder, is a file, or is a
     symlink that leads nowhere (broken, or a loop)."""
@@ -166,24 +176,43 @@ def locked(out: Path) -> Iterator[None]:
     """Hold the lock of `out` for the block; ScenarioError if another writer holds it, or if the file system
     refuses the lock file (a read-only folder, a file in the way, a name too long: errors.destination_error).
     The lock file is removed when the block ends (a writer that locked it just before is told apart: its file is
-    no longer the path's)."""
+    no longer the path's), and so are the folders made to hold it if `out` was not written."""
     check_name(out)
     path = out.parent / f".{out.name}.lock"
-    with refused(out):
-        out.parent.mkdir(parents=True, exist_ok=True)
-        lock = _open_lock(path)
-    with lock:
+    created = [p for p in (out.parent, *out.parent.parents) if not p.exists()]
+    try:
+        with refused(out):
+            out.parent.mkdir(parents=True, exist_ok=True)
+            lock = _open_lock(path)
+        with lock:
+            yield from _holding(lock, path, out)
+    finally:
+        if not out.exists():  # a run refused or failed before writing: the folders made for its lock go too
+            _remove_empty(created)
+
+
+def _holding(lock, path: Path, out: Path) -> Iterator[None]:
+    """locked()'s block, `lock` open: take it (ScenarioError if another writer has it), remove it at the end."""
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        if os.stat(path).st_ino != os.fstat(lock.fileno()).st_ino:
+            raise BlockingIOError
+    except (BlockingIOError, FileNotFoundError):
+        raise ScenarioError(str(out), None, "another simbench run or sweep is writing into this folder; wait for it "
+                                            "to end or pass --out to write elsewhere") from None
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove each of `folders` (deepest first) that is empty; stop at the first that is not."""
+    for folder in folders:
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            if os.stat(path).st_ino != os.fstat(lock.fileno()).st_ino:
-                raise BlockingIOError
-        except (BlockingIOError, FileNotFoundError):
-            raise ScenarioError(str(out), None, "another simbench run or sweep is writing into this folder; wait "
-                                                "for it to end or pass --out to write elsewhere") from None
-        try:
-            yield
-        finally:
-            path.unlink(missing_ok=True)
+            folder.rmdir()
+        except OSError:
+            return
 
 
 def _open_lock(path: Path):

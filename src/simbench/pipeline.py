@@ -166,7 +166,7 @@ def run(scenario: Scenario | str | os.PathLike, out: str | Path | None = None, v
     the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
     raised after they are written. `scenario` may be the path of a scenario file."""
     scenario = as_scenario(scenario, "simbench.run")
-    out = Path(out) if out is not None else Path("renders") / scenario.name
+    out = destination.followed(Path(out) if out is not None else Path("renders") / scenario.name)
     _afford(scenario, progress, video=video, outputs=True, out=out)  # before anything is written
     inputs = [Path(scenario.source)] if scenario.source and Path(scenario.source).is_file() else []
     with destination.locked(out):

@@ -34,7 +34,7 @@ from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, creat
 
 from simbench import api, verdict
 from simbench.errors import ScenarioError
-from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, seconds
+from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
 from simbench.timing import TimeLaw
 from simbench.validation import describe, kind_of, read_yaml
 
@@ -208,7 +208,7 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     except ValidationError as err:
         raise ScenarioError(source, *describe(err, cls, raw)) from None
     if scenario.name is None:
-        scenario = scenario.model_copy(update={"name": default_name})
+        scenario = scenario.model_copy(update={"name": file_name(default_name, source)})
     cameras = robot.cameras()
     if scenario.render.camera is not None and scenario.render.camera not in cameras:
         raise ScenarioError(source, "render.camera", f"no camera '{scenario.render.camera}' in the "

@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import AfterValidator, Field, ValidationInfo, model_validator
 
 from simbench.api import REVOLUTE, Robot
+from simbench.errors import ScenarioError
 from simbench.frozen import SimbenchModel
 
 _DEG = np.pi / 180.0
@@ -141,10 +142,21 @@ def _to_joints(value: list[float], info: ValidationInfo) -> list[float]:
 
 
 def _check_name(value: str) -> str:
-    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", value):
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}", value):
         raise ValueError(f"expected letters, digits, '_', '.' or '-', starting with a letter or digit (it names "
                          f"the output folder), got {value!r}")
     return value
+
+
+def file_name(stem: str, source: str) -> str:
+    """The name a file without a `name:` field gives its outputs' folder, its `stem`, held to the same rule as a
+    `name:` (a file called `..yaml` or `<b>.yaml` would name `renders/` itself, or carry markup into a page);
+    ScenarioError naming `source` and the field to add otherwise."""
+    try:
+        return _check_name(stem)
+    except ValueError as err:
+        raise ScenarioError(source, "name", f"not given, and the file's name cannot stand in for it: {err}; add a "
+                                            "name: field or rename the file") from None
 
 
 def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:

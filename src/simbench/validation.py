@@ -193,12 +193,12 @@ def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
     for part in loc:
         if isinstance(part, int):
             continue
-        named = [m for m in models if m.__name__ == part]
-        if named:
+        named = [m for m in models if part == m.__name__ or part.endswith((f", {m.__name__}]", f"[{m.__name__}]"))]
+        if named:  # a union member's tag: its class name, or a validator wrapping it (function-after[..., Name])
             models = named
             continue
         fields = [m.model_fields[part] for m in models if part in m.model_fields]
-        if not fields and len(models) > 1:
+        if not fields:
             continue  # a tag pydantic puts in the location of a tagged union's member
         models = [m for f in fields for m in _models_in(f.annotation)]
     return list(dict.fromkeys(name for m in models for name in m.model_fields))
@@ -274,6 +274,8 @@ def _first_error(errors: list[ErrorDetails], document: Any) -> ErrorDetails:
 def _unknown_field(cls: type[BaseModel], parent: tuple, name: str) -> str:
     """The message for an unknown field `name` in the model at `parent`: the fields it has, and the nearest."""
     fields = _fields_at(cls, parent)
+    if not fields:  # a mapping whose model the location does not lead to: no list to offer, rather than an empty one
+        return "unknown field (not one this mapping takes: see the README's scenario reference)"
     hint = difflib.get_close_matches(name, fields, n=1)
     suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
     return f"unknown field (expected one of: {', '.join(fields)}){suggestion}"

@@ -139,7 +139,7 @@ def write_outputs(env: control.Environment, out: str | Path | None = None, video
 
     task = _track(env)
     scenario = task.scenario
-    out = Path(out) if out is not None else Path("renders") / (scenario.name or "episode")
+    out = destination.followed(Path(out) if out is not None else Path("renders") / (scenario.name or "episode"))
     budget.check(scenario, video=video, outputs=True, out=out)
     ev = evaluation(env, control_info)
     inputs: Sequence[Path] = [Path(scenario.source)] if scenario.source and Path(scenario.source).is_file() else []

@@ -82,20 +82,21 @@ def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], N
     `log`, if given, is called with a line as each paper starts and ends.
     """
     names = _papers(paper)
-    out = Path(out)
+    out = destination.followed(Path(out))
+    folders = {name: destination.followed(out / name) for name in names}
     start = time.perf_counter()
     parts = []
     with ExitStack() as stack:
         for name in names:
-            stack.enter_context(destination.locked(out / name))
+            stack.enter_context(destination.locked(folders[name]))
         for name in names:
-            destination.check(out / name, _inputs(), force)
+            destination.check(folders[name], _inputs(), force)
         for name in names:
             module = importlib.import_module(f"simbench.reproduce.{_MODULES[name]}")
             if log:
                 log(f"paper {name}: {module.TITLE} ...")
             began = time.perf_counter()
-            with staged_folder(out / name) as tmp:
+            with staged_folder(folders[name]) as tmp:
                 part = module.reproduce(tmp)
             part = replace(part, seconds=time.perf_counter() - began)
             if log:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from simbench import destination
 from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import execute, table
@@ -42,7 +43,7 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
     """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
     summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another);
     `ray`: 'local' or a cluster's address to run on Ray instead."""
-    out = Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name
+    out = destination.followed(Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name)
     with Store(out, sweep, force=force) as store:
         rows = store.finished()
         todo = [v for v in sweep.variants if v.index not in rows]

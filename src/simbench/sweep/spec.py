@@ -41,7 +41,7 @@ from pydantic import Field, ValidationError, model_validator
 from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
 from simbench.scenario import parse_scenario
-from simbench.schema import Name, SimbenchModel
+from simbench.schema import Name, SimbenchModel, file_name
 from simbench.validation import describe, kind_of, read_yaml
 
 MAX_RUNS = 100_000
@@ -216,7 +216,7 @@ def load_sweep(path: str | Path) -> Sweep:
     paths = _paths(spec, source)
     variants = _expand(spec, document, paths, base.stem, source)
     _check_fields(variants[0], paths, source)
-    return Sweep(spec.name or path.stem, source, spec, base, tuple(variants))
+    return Sweep(spec.name or file_name(path.stem, source), source, spec, base, tuple(variants))
 
 
 def _find_base(text: str, folder: Path, source: str) -> Path:
