@@ -68,6 +68,17 @@ def run_cli(args, capsys):
 ACT = "import numpy as np\n\ndef make(scenario):\n    return lambda obs: np.zeros(3)\n"
 
 
+def act_zero(obs):
+    """A registered policy's action: no torque."""
+    return obs["q"] * 0.0
+
+
+def main_list(capsys) -> str:
+    """What `simbench list` prints."""
+    assert main(["list"]) == 0
+    return capsys.readouterr().out
+
+
 def test_a_module_path_is_not_imported_without_allow_code(tmp_path, capsys, importable):
     marker = module(tmp_path, "userpolicy", ACT)
     path = scenario(tmp_path, "userpolicy:make")
@@ -99,7 +110,7 @@ def test_validate_says_a_module_path_needs_allow_code_without_importing_it(tmp_p
 
 
 def test_a_registered_policy_is_named_and_an_unknown_name_refused(tmp_path, capsys):
-    api.register_policy(api.PolicyFactory("zero_torque_test", "zero torques", lambda sc: ACT_ZERO))
+    api.register_policy(api.PolicyFactory("zero_torque_test", "zero torques", lambda sc: act_zero))
     out = tmp_path / "out"
     code, _, _ = run_cli(["run", scenario(tmp_path, "zero_torque_test"), "--out", str(out), "--no-video",
                           "--quiet"], capsys)
@@ -111,19 +122,10 @@ def test_a_registered_policy_is_named_and_an_unknown_name_refused(tmp_path, caps
     assert code == 2 and len(lines) == 1 and lines[0].startswith(f"error: {path}: control.policy: unknown policy")
 
 
-def ACT_ZERO(obs):
-    return obs["q"] * 0.0
-
-
-def main_list(capsys) -> str:
-    assert main(["list"]) == 0
-    return capsys.readouterr().out
-
-
 def test_a_sweep_over_control_obeys_allow_code_per_variant(tmp_path, capsys, importable):
     marker = module(tmp_path, "userpolicy", ACT)
     base = scenario(tmp_path, "zero_torque_sweep_test")
-    api.register_policy(api.PolicyFactory("zero_torque_sweep_test", "zero torques", lambda sc: ACT_ZERO))
+    api.register_policy(api.PolicyFactory("zero_torque_sweep_test", "zero torques", lambda sc: act_zero))
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(yaml.safe_dump({"base": os.path.basename(base),
                                      "grid": {"control.policy": ["userpolicy:make", "zero_torque_sweep_test"]}}))
