@@ -101,7 +101,7 @@ def run_cli(args, capsys):
 
 @pytest.mark.parametrize("scenario", ["line_policy", "line_joint_pd"])
 def test_an_outside_policy_and_controller_run_through_the_cli(scenario, tmp_path, capsys):
-    """The example package's policy (named in the scenario) and its controller (an entry point) track its line
+    """The example package's policy and its controller (each an entry point, named in the scenario) track its line
     as its servo does (the same PD law), and report.json says which ran."""
     out = tmp_path / "out"
     code, _ = run_cli(["run", f"{PLANAR3R}/{scenario}.yaml", "--out", str(out), "--no-video", "--quiet"], capsys)
@@ -143,7 +143,7 @@ def importable(tmp_path, monkeypatch):
 def test_a_policy_that_cannot_be_made_is_refused_before_the_run(body, policy, expected, tmp_path, capsys,
                                                                 importable):
     path = _policy_scenario(tmp_path, body, policy)
-    code, lines = run_cli(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"], capsys)
+    code, lines = run_cli(["run", str(path), "--out", str(tmp_path / "out"), "--quiet", "--allow-code"], capsys)
     assert (code, lines) == (2, [f"error: {path}: {expected}"])
     assert not (tmp_path / "out").exists()
 
@@ -165,7 +165,7 @@ def test_a_bad_action_is_exit_1_with_the_time(act, when, cause, tmp_path, capsys
     body = f"import numpy as np\n\ndef make(scenario):\n    def act(obs):\n        {act}\n    return act\n"
     path = _policy_scenario(tmp_path, body)
     out = tmp_path / "out"
-    code, lines = run_cli(["run", str(path), "--out", str(out), "--quiet", "--no-video"], capsys)
+    code, lines = run_cli(["run", str(path), "--out", str(out), "--quiet", "--no-video", "--allow-code"], capsys)
     assert code == 1 and len(lines) == 1 and lines[0].startswith(f"run failed: control failed {when}: {cause}")
     report = json.loads((out / "report.json").read_text())
     assert report["status"] == "failed" and report["failure"]["cause"] == cause

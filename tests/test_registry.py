@@ -132,7 +132,7 @@ def test_a_broken_entry_point_is_named_and_does_not_block_the_others(monkeypatch
     registry = api._Registry("simbench.robots", api.Robot)
     monkeypatch.setattr(api, "_ROBOTS", registry)
     monkeypatch.setitem(api._REGISTRIES, "robot", registry)
-    monkeypatch.setattr(api, "_load_shipped", lambda: None)
+    monkeypatch.setattr(api, "load_shipped", lambda: None)
     real = importlib.metadata.entry_points
     monkeypatch.setattr(importlib.metadata, "entry_points",
                         lambda group: [fake] if group == "simbench.robots" else real(group=group))

@@ -1,5 +1,13 @@
-"""python -m simbench: see simbench.cli."""
+"""python -m simbench: see simbench.cli. The current folder, which `-m` puts first on sys.path, is taken off it
+(as pip does), so that a stray file there (a yaml.py) is not imported in place of a dependency; `python -P -m
+simbench` and the `simbench` console script never put it there."""
 
-from simbench.cli import main
+import os
+import sys
+
+if not sys.flags.safe_path and sys.path and sys.path[0] in ("", os.getcwd()):
+    del sys.path[0]
+
+from simbench.cli import main  # noqa: E402
 
 raise SystemExit(main())

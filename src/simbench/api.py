@@ -1,4 +1,4 @@
-"""The public API: the three things a user adds to simbench (a mechanism, a planner, a controller), typed.
+"""The public API: what a user adds to simbench (a mechanism, a planner, a controller or a policy), typed.
 
     scenario.yaml --> Scenario --Planner.plan--> JointTrajectory --Controller + physics--> Recording --> Analysis
 
@@ -6,16 +6,20 @@ A **Robot** is an MJCF scene and the analytic kinematics simbench checks it with
 scenario's `task:` into joint references for the robots it supports; a **Controller** turns those references
 and the measured state into actuator commands every control step. Each is a small abstract base class: override
 the abstract methods, and the optional ones where the mechanism or method needs them. The four shipped robots,
-the shipped planners and the servo are built on these classes exactly as an outside package's are.
+the shipped planners and the servo are built on these classes exactly as an outside package's are. A
+**PolicyFactory** names a factory of callables from observations to actions, for the `policy` controller.
 
 An outside package makes its objects known in one of two ways:
 
     simbench.register_robot(MyArm())                       # at run time, from Python
 
     [project.entry-points."simbench.robots"]               # in its pyproject.toml: found on first use
-    myarm = "mypackage.robot:ROBOT"                        # (groups simbench.robots, .planners, .controllers)
+    myarm = "mypackage.robot:ROBOT"                        # (groups simbench.robots, .planners, .controllers,
+                                                           # .policies)
 
-A scenario then names them as it names the shipped ones, and `simbench list` says where each comes from.
+A scenario then names them as it names the shipped ones, and `simbench list` says where each comes from (and
+why an entry point that failed to load is not there). Entry points are outside code, loaded on first use with
+whatever they raise (SystemExit too) kept as that entry point's failure.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import importlib
 import importlib.metadata
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -34,7 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel
 
-from simbench.errors import RegistryError, RunError
+from simbench import interrupts
+from simbench.errors import RegistryError, RunError, described
 from simbench.frozen import SimbenchModel
 from simbench.trajectory import JointTrajectory, Switch
 
@@ -46,9 +52,9 @@ if TYPE_CHECKING:
     from simbench.sim import Recording
 
 __all__ = ["PRISMATIC", "REVOLUTE", "Commands", "ControlSettings", "Controller", "Decoration", "JointTrajectory",
-           "Plant", "Planner", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State", "Summariser",
-           "Summary", "Switch", "Tolerance", "broken", "controllers", "origin", "planners", "register_controller",
-           "register_planner", "register_robot", "robots"]
+           "Plant", "Planner", "PolicyFactory", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State",
+           "Summariser", "Summary", "Switch", "Tolerance", "broken", "controllers", "origin", "planners", "policies",
+           "register_controller", "register_planner", "register_policy", "register_robot", "robots"]
 
 _LAZY = {"Plant": "simbench.plant", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
 
@@ -405,6 +411,18 @@ class Controller(ABC):
         return {}
 
 
+@dataclass(frozen=True)
+class PolicyFactory:
+    """A policy a scenario names by `name` (`control: {controller: policy, policy: name}`): `make(scenario)`
+    returns the callable that gets each control step's observation (simbench.observation) and returns one action
+    per joint. Registered as the other plugins are, so that a scenario names code already installed rather than
+    a module to import (simbench.policy)."""
+
+    name: str
+    description: str
+    make: Callable[[Scenario], Callable[[dict], Any]]
+
+
 def _check_robot(robot: Robot) -> None:
     """A robot whose description does not hold together: RegistryError naming the field."""
     n = len(robot.joints)
@@ -455,16 +473,19 @@ class _Registry:
 
     def all(self) -> dict[str, Any]:
         """Every object by name, the installed packages' entry points read the first time. One that fails to
-        load or to register is kept out and remembered in `broken` (a scenario naming it is told why), so that
-        one broken package does not stop the others."""
+        load or to register, whatever it raises (sys.exit too), is kept out and remembered in `broken` (a scenario
+        naming it is told why), so that one broken package does not stop the others; the user's Ctrl-C is not
+        its failure (interrupts.is_press) and stops the loading."""
         if not self.loaded:
-            _load_shipped()
+            load_shipped()
             for ep in importlib.metadata.entry_points(group=self.group):
                 origin = f"entry point {ep.value} ({ep.dist.name if ep.dist else 'unknown package'})"
                 try:
                     self.add(ep.load(), origin)
-                except Exception as err:  # an outside package's failure, whatever it is: named, then skipped
-                    self.broken[ep.name] = f"{origin} cannot be used: {type(err).__name__}: {err}"
+                except BaseException as err:  # an outside package's failure, whatever it is: named, then skipped
+                    if interrupts.is_press(err):
+                        raise
+                    self.broken[ep.name] = f"{origin} cannot be used: {described(err)}"
             self.loaded = True
         return self.objects
 
@@ -472,13 +493,16 @@ class _Registry:
 _ROBOTS = _Registry("simbench.robots", Robot)
 _PLANNERS = _Registry("simbench.planners", Planner)
 _CONTROLLERS = _Registry("simbench.controllers", Controller, classes=True)
-_REGISTRIES = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS}
+_POLICIES = _Registry("simbench.policies", PolicyFactory)
+_REGISTRIES = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS, "policy": _POLICIES}
+Kind = Literal["robot", "planner", "controller", "policy"]
 
 
 @cache
-def _load_shipped() -> None:
+def load_shipped() -> None:
     """The robots, planners and controllers that come with simbench, registered as an outside package's are
-    (once: each registry asks for them on first use)."""
+    (once: each registry asks for them on first use; the command line first, with Ctrl-C held back while their
+    extension modules are imported, simbench.interrupts)."""
     from simbench import computed_torque, controllers, policy
     from simbench.planners import (avoidance_4567, decoupled_path, joint_move, mink_baseline, round_robin,
                                    safe_straight_path)
@@ -511,6 +535,12 @@ def register_controller(controller: type[Controller], origin: str = "registered 
     _CONTROLLERS.add(controller, origin)
 
 
+def register_policy(policy: PolicyFactory, origin: str = "registered from Python") -> None:
+    """Make `policy` known to scenarios by its name (control.policy)."""
+    _POLICIES.all()
+    _POLICIES.add(policy, origin)
+
+
 def robots() -> dict[str, Robot]:
     """Every robot by name: the shipped ones, those of installed packages' entry points, those registered."""
     return _ROBOTS.all()
@@ -526,11 +556,16 @@ def controllers() -> dict[str, type[Controller]]:
     return _CONTROLLERS.all()
 
 
-def broken(kind: Literal["robot", "planner", "controller"]) -> dict[str, str]:
+def policies() -> dict[str, PolicyFactory]:
+    """Every registered policy by name (none ship with simbench)."""
+    return _POLICIES.all()
+
+
+def broken(kind: Kind) -> dict[str, str]:
     """Entry points of this kind that failed to load or register, by name, with why."""
     return _REGISTRIES[kind].broken
 
 
-def origin(kind: Literal["robot", "planner", "controller"], name: str) -> str:
-    """Where the robot, planner or controller called `name` comes from."""
+def origin(kind: Kind, name: str) -> str:
+    """Where the robot, planner, controller or policy called `name` comes from."""
     return _REGISTRIES[kind].origins[name]

@@ -33,6 +33,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-video", action="store_true", help="skip the MP4")
     run.add_argument("--force", action="store_true", help="replace the output folder if it exists")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    _allow_code(run)
     sweep = sub.add_parser("sweep", help="run a scenario over parameter grids or random samples, into one table")
     sweep.add_argument("sweep", type=Path)
     sweep.add_argument("--out", type=Path, default=None, help="output folder (default renders/sweeps/<name>/)")
@@ -43,10 +44,11 @@ def _parser() -> argparse.ArgumentParser:
                        help="start over: replace whatever the output folder holds (default: resume)")
     sweep.add_argument("--dry-run", action="store_true", help="check the sweep and list its runs; run nothing")
     sweep.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    _allow_code(sweep)
     validate = sub.add_parser("validate", help="check scenarios and their plans without simulating")
     validate.add_argument("scenarios", type=Path, nargs="+")
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
-    sub.add_parser("list", help="list robots, planners and shipped scenarios")
+    sub.add_parser("list", help="list robots, planners, controllers, policies and shipped scenarios")
     reproduce = sub.add_parser("reproduce", help="regenerate a paper's published results beside simbench's")
     reproduce.add_argument("paper", choices=["000", "001", "002", "003", "all"])
     reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",
@@ -61,12 +63,20 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=None, help="output folder (default renders/compare/<name>/)")
     compare.add_argument("--force", action="store_true", help="replace an earlier comparison")
     compare.add_argument("--quiet", action="store_true", help="no progress")
+    _allow_code(compare)
     train = sub.add_parser("train-fk", help="retrain the Agile Eye's learnt forward kinematics (needs scikit-learn)")
     train.add_argument("--samples", type=int, default=20000, help="poses per working mode (75 %% train)")
     train.add_argument("--hidden", type=int, nargs="+", default=[64, 64], help="hidden layer sizes")
     train.add_argument("--seed", type=int, default=0)
     train.add_argument("--out", type=Path, default=None, help="weights file (default: the shipped one)")
     return parser
+
+
+def _allow_code(command: argparse.ArgumentParser) -> None:
+    """The flag that lets a scenario's control.policy name a module: importing it runs its code, as the user."""
+    command.add_argument("--allow-code", action="store_true",
+                         help="let control.policy name a Python module (package.module:factory): simbench imports "
+                              "it, which runs its code with your rights")
 
 
 EXIT_LIMITS = 3
@@ -137,12 +147,12 @@ def _sweep(args) -> None:
         _say(_dry_run(sweep))
         return
     result = run_sweep(sweep, args.out, workers=args.workers, ray=args.ray, force=args.force,
-                       progress=not args.quiet)
+                       progress=not args.quiet, allow_code=args.allow_code)
     if not args.quiet:
         counts = ", ".join(f"{n} {status}" for status, n in result.summary["status"].items() if n)
         _say(f"{sweep.name}: {result.summary['runs']} runs ({counts}"
-              f"{f'; {result.resumed} from an earlier start' if result.resumed else ''}) in "
-              f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
+             f"{f'; {result.resumed} from an earlier start' if result.resumed else ''}) in "
+             f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
         for note in result.summary["notes"]:
             _say(f"  note: {note}")
 
@@ -162,7 +172,7 @@ def _compare(args) -> None:
 
     out = args.out or Path("renders") / "compare" / file_name(args.scenario.stem, str(args.scenario))
     result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
-                     progress=not args.quiet)
+                     progress=not args.quiet, allow_code=args.allow_code)
     _say((result.out / "comparison.md").read_text())
     _say(f"table, plots and index.html in {result.out}")
 
@@ -193,6 +203,7 @@ def _validate(paths: list[Path], plan: bool) -> int:
         sc = scenario.load_scenario(path)
         if not plan:
             _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
+            _note_code(sc)
             continue
         traj, verdict = pipeline.check_plan(sc)
         _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
@@ -200,8 +211,20 @@ def _validate(paths: list[Path], plan: bool) -> int:
             _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
         for warning in traj.warnings:
             _say(f"  plan warning: {warning}")
+        _note_code(sc)
         code = max(code, _exit_code(verdict))
     return code
+
+
+def _note_code(sc) -> None:
+    """A note where the scenario's policy is a module path, which validate does not import and run refuses
+    without --allow-code."""
+    from simbench.policy import is_code
+
+    target = getattr(sc.control, "policy", None)
+    if target is not None and is_code(target):
+        _say(f"  note: control.policy {target} names Python code: run, sweep and compare import and run it only "
+             "with --allow-code")
 
 
 def _run(args) -> int:
@@ -212,7 +235,8 @@ def _run(args) -> int:
     sc = scenario.load_scenario(args.scenario)
     out = args.out if args.out is not None else Path("renders") / sc.name
     try:
-        result = pipeline.run(sc, out=out, video=not args.no_video, progress=not args.quiet, force=args.force)
+        result = pipeline.run(sc, out=out, video=not args.no_video, progress=not args.quiet, force=args.force,
+                              allow_code=args.allow_code)
     except PhysicsError as err:
         kept = "the report and the timeseries up to then are" if err.recording is not None else "the report is"
         raise RunError(f"{err}; {kept} in {out}") from None
@@ -220,27 +244,39 @@ def _run(args) -> int:
         _say(_summary(result))
     elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
         _say("\n".join(_status_lines(result.report["status"], result.report["violations"],
-                                      result.report.get("expected"))), file=sys.stderr)
+                                     result.report.get("expected"))), file=sys.stderr)
     return _exit_code(result.evaluation.verdict)
 
 
 def _list() -> str:
-    """Robots, planners and controllers with where each comes from, then the shipped scenarios and sweeps."""
+    """Robots, planners, controllers and policies with where each comes from, and under each kind the entry
+    points that failed to load and why; then the shipped scenarios and sweeps."""
     from simbench import api
 
     lines = ["robots:"]
     lines += [f"  {r.name:16s} {r.description} ({api.origin('robot', r.name)})" for r in api.robots().values()]
+    lines += _broken("robot")
     lines.append("planners:")
     for p in api.planners().values():
         works = ", ".join(p.robots) if p.robots else "any robot" + (f" with {', '.join(p.needs)}" if p.needs else "")
         lines.append(f"  {p.name:20s} {p.description} [{works}] ({api.origin('planner', p.name)})")
-    lines.append("controllers:")
-    lines += [f"  {c.name:20s} {c.description} ({api.origin('controller', c.name)})"
-              for c in api.controllers().values()]
+    lines += _broken("planner")
+    for kind, title, found in (("controller", "controllers", api.controllers()), ("policy", "policies",
+                                                                                  api.policies())):
+        lines.append(f"{title}:")
+        lines += [f"  {c.name:20s} {c.description} ({api.origin(kind, c.name)})" for c in found.values()]
+        lines += _broken(kind)
     for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):
         lines.append(f"{title}:")
         lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]
     return "\n".join(lines)
+
+
+def _broken(kind) -> list[str]:
+    """One line for each entry point of this kind that failed to load: its name and why."""
+    from simbench import api
+
+    return [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(api.broken(kind).items())]
 
 
 def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
@@ -259,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
 def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
     """Run the command; its exit code, and for a failure its one line on stderr."""
     try:
-        _preload()
+        _preload(ctrl_c)
         if args.command == "list":
             _say(_list())
         elif args.command == "train-fk":
@@ -283,31 +319,36 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
     return 0
 
 
-def _preload() -> None:
-    """Import the extension modules and every registry (outside packages' entry points too) with Ctrl-C held
-    back: while they load they would convert or swallow it."""
+def _preload(ctrl_c: interrupts.CtrlC) -> None:
+    """Import simbench's own extension modules and shipped plugins with Ctrl-C held back (while they load they
+    would convert or swallow it), then the outside packages' entry points with it deliverable: one that hangs can
+    be stopped. A press an entry point's import turned into its failure still interrupts the command."""
     with interrupts.held_back():
         from simbench import api, pipeline, scenario  # noqa: F401
 
-        api.robots(), api.planners(), api.controllers()
+        api.load_shipped()
+    api.robots(), api.planners(), api.controllers(), api.policies()
+    if ctrl_c.pressed:
+        raise interrupts.Interrupted
 
 
 def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:
-    """The line and exit code of a command that raised `err`: 2 bad input, 1 a run that failed or a bug."""
+    """The line and exit code of a command that raised `err`: 2 bad input, 1 a run that failed or a bug; 130 where
+    Ctrl-C came first (ffmpeg's broken pipe, an extension module imported late or a user's import converted it)."""
+    if ctrl_c.pressed:
+        return _interrupted(args, ctrl_c)
     if isinstance(err, ScenarioError):
         _say(f"error: {err}", file=sys.stderr)
         return 2
     if isinstance(err, OutputError):
-        if ctrl_c.pressed:  # Ctrl-C reached ffmpeg too, whose broken pipe came first
-            return _interrupted(args, ctrl_c)
         _say(f"error: {err}", file=sys.stderr)
         return 1
     if isinstance(err, RunError):
         _say(f"run failed: {err}", file=sys.stderr)
         return 1
-    if isinstance(err, OSError) and err.filename is not None and not ctrl_c.pressed:
+    if isinstance(err, OSError) and err.filename is not None:
         return _refused(err)
-    return _internal_error(args, ctrl_c, err)  # not the file system's refusal either (a closed pipe, say)
+    return _internal_error(err)  # not the file system's refusal either (a closed pipe, say)
 
 
 def _refused(err: OSError) -> int:
@@ -318,12 +359,10 @@ def _refused(err: OSError) -> int:
     return 1 if err.errno in NO_SPACE else 2
 
 
-def _internal_error(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:
+def _internal_error(err: Exception) -> int:
     """A bug: one line, unless asked for the traceback (SIMBENCH_DEBUG=1)."""
-    if ctrl_c.pressed:  # an extension module imported later turned Ctrl-C into this
-        return _interrupted(args, ctrl_c)
     if os.environ.get("SIMBENCH_DEBUG"):
         raise err
     _say(f"internal error: {type(err).__name__}: {printable(str(err))} (a bug in simbench: please report it with "
-          "the input; SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
+         "the input; SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
     return 1

@@ -30,6 +30,7 @@ import io
 import json
 import os
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +40,7 @@ from simbench import api, budget, destination
 from simbench.atomic import staged_folder
 from simbench.page import table_page, write_page
 from simbench.errors import PhysicsError, RunError, ScenarioError
+from simbench.policy import refuse_code
 from simbench.scenario import Scenario, load_scenario, parse_scenario
 from simbench.validation import read_yaml
 
@@ -74,11 +76,12 @@ class ComparisonResult:
 
 
 def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: list[str] | None, out: Path,
-            force: bool = False, progress: bool = False) -> ComparisonResult:
+            force: bool = False, progress: bool = False, allow_code: bool = False) -> ComparisonResult:
     """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own
     controller) and write the table and plots into `out` (which must be empty or absent unless `force`, and then
     hold only what simbench wrote). ScenarioError (one line) for an unknown or unsuitable planner or controller,
-    a bad scenario file or destination, before anything runs."""
+    a bad scenario file or destination, or a policy's module named without `allow_code` (simbench.policy), before
+    anything runs."""
     source = Path(scenario_path)
     out = destination.followed(Path(out))
     base = load_scenario(source)
@@ -86,13 +89,14 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
     variants = _variants(raw, base, source, _names(planners, "planner", api.planners()),
                          _names(controllers, "controller", api.controllers()) if controllers is not None
                          else [base.control.controller])
-    for *_, scenario in variants:  # every method affordable (simbench.budget) before any runs
+    for *_, scenario in variants:  # every method affordable (simbench.budget) and allowed before any runs
         budget.check(scenario)
+        refuse_code(scenario, allow_code)
     with destination.locked(out):
         destination.check(out, [source], force)
         from simbench.pipeline import evaluate  # the pipeline (MuJoCo, SciPy) once the arguments are known good
 
-        runs = tuple(_run(evaluate, *variant, progress) for variant in variants)
+        runs = tuple(_run(partial(evaluate, allow_code=allow_code), *variant, progress) for variant in variants)
         rows = tuple(row(run) for run in runs)
         with staged_folder(out) as tmp:
             files = _write(tmp, base, runs, rows)

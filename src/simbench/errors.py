@@ -30,6 +30,11 @@ class ScenarioError(Exception):
         return f"{self.field}: {self.message}" if self.field else self.message
 
 
+def described(err: BaseException) -> str:
+    """What an exception says, as `Type: message` (the type alone where it says nothing, as `sys.exit()`)."""
+    return f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+
+
 def printable(text: Any) -> str:
     """Text with control characters and line breaks escaped (a key read from a file may hold any), so that an
     error stays one line. Anything else is shown as shown() shows it."""

@@ -4,11 +4,14 @@ comes, after the same clean-up (staging folders removed, worker processes stoppe
 With CPython 3.11 and this project's dependencies, a plain KeyboardInterrupt does not always reach the command:
 - an extension module being imported turns it into an ImportError (numpy: "PyCapsule_Import could not import
   module datetime"; MuJoCo's pybind11 modules: "initialization failed") or swallows it. The command therefore
-  imports its dependencies with Ctrl-C held back (`held_back`); it is delivered the moment they are in.
+  imports its own dependencies with Ctrl-C held back (`held_back`); it is delivered the moment they are in.
+  Outside packages' entry points load afterwards with signals deliverable (one that hangs can be stopped, and
+  processes it starts do not inherit a blocked Ctrl-C); one that an import converts is still a press (`is_press`).
 - one that leaves an exec() of a string (scipy runs one while it is imported) is marked as unhandled, and the
   interpreter kills itself with SIGINT at exit even after the command caught it and returned 130. The mark is
   set for KeyboardInterrupt itself only, so Ctrl-C raises the subclass `Interrupted`.
-`CtrlC.pressed` records a press however it was converted afterwards.
+`CtrlC.pressed` records a press however it was converted afterwards. User code (a policy, a plugin) may raise
+KeyboardInterrupt or SystemExit itself: `is_press` tells that apart from the process's own Ctrl-C.
 """
 
 from __future__ import annotations
@@ -67,6 +70,17 @@ def raising_interrupted() -> Iterator[CtrlC]:
     finally:
         for signum in ours:
             signal.signal(signum, defaults[signum])
+
+
+def is_press(err: BaseException) -> bool:
+    """Whether `err`, raised out of user code, is the user's Ctrl-C or SIGTERM rather than that code's own failure
+    (a `raise KeyboardInterrupt`, a `sys.exit()`). Where `raising_interrupted` handles the signals: Interrupted,
+    or anything once a press came (an import may have converted it). Elsewhere (a Python session's own handler):
+    a KeyboardInterrupt, as Python takes it."""
+    ours = [handler for handler in map(signal.getsignal, _SIGNALS) if isinstance(handler, CtrlC)]
+    if ours:
+        return isinstance(err, Interrupted) or any(handler.pressed for handler in ours)
+    return isinstance(err, KeyboardInterrupt)
 
 
 @contextmanager

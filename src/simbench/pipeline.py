@@ -29,6 +29,7 @@ from simbench.report import build_failure_report, build_report, write_report, wr
 from simbench.robots import Tolerance
 from simbench.scenario import Scenario, as_scenario
 from simbench.plant import Plant
+from simbench.policy import refuse_code
 from simbench.sim import Recording, commanded, simulate
 from simbench.stepping import kept_rows
 from simbench.trajectory import JointTrajectory
@@ -84,12 +85,13 @@ class _Stopwatch:
         return wall
 
 
-def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False) -> Evaluation:
+def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False, allow_code: bool = False) -> Evaluation:
     """Plan, simulate and analyse a scenario (or the scenario file at a path); ScenarioError first if it asks
-    more than the machine has (simbench.budget)."""
+    more than the machine has (simbench.budget), or names a policy's module without `allow_code` (importing it
+    runs its code: simbench.policy)."""
     scenario = as_scenario(scenario, "simbench.evaluate")
     _afford(scenario, progress)
-    return _evaluate(scenario, progress)
+    return _evaluate(scenario, progress, allow_code=allow_code)
 
 
 def _afford(scenario: Scenario, progress: bool, video: bool = False, outputs: bool = False,
@@ -102,12 +104,14 @@ def _afford(scenario: Scenario, progress: bool, video: bool = False, outputs: bo
     return est
 
 
-def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | None = None) -> Evaluation:
+def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | None = None,
+              allow_code: bool = False) -> Evaluation:
     """evaluate() once the budget is checked."""
     watch = watch or _Stopwatch()
     robot = scenario.robot_def
     with watch.stage("load"):
         sim = scenario.sim
+        refuse_code(scenario, allow_code)  # before the controller imports anything
         controller = scenario.controller_def.from_scenario(scenario)
         plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation,
                            controller.actuation)
@@ -150,35 +154,37 @@ def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
     return traj, plan_verdict(robot, traj, plan_limit_events(robot, traj), scenario.expect)
 
 
-def evaluate_report(scenario: Scenario) -> dict:
-    """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps of a run)."""
+def evaluate_report(scenario: Scenario, allow_code: bool = False) -> dict:
+    """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps of a run).
+    `allow_code` as evaluate's."""
     watch = _Stopwatch()
     _afford(scenario, progress=False)
-    ev = _evaluate(scenario, watch=watch)
+    ev = _evaluate(scenario, watch=watch, allow_code=allow_code)
     return build_report(scenario, ev, watch.summary(), {}, scenario.source)
 
 
 def run(scenario: Scenario | str | os.PathLike, out: str | Path | None = None, video: bool = True,
-        progress: bool = False, force: bool = False) -> Result:
+        progress: bool = False, force: bool = False, allow_code: bool = False) -> Result:
     """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
     into `out` (default renders/<name>/), which must not hold anything yet unless `force`. A run that breaks a
     promise (status `limits`) writes everything as any other and returns normally. If the physics fails,
     the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
-    raised after they are written. `scenario` may be the path of a scenario file."""
+    raised after they are written. `scenario` may be the path of a scenario file. A policy named by its module
+    (package.module:factory) is imported, running its code, only with `allow_code` (ScenarioError first)."""
     scenario = as_scenario(scenario, "simbench.run")
     out = destination.followed(Path(out) if out is not None else Path("renders") / scenario.name)
     _afford(scenario, progress, video=video, outputs=True, out=out)  # before anything is written
     inputs = [Path(scenario.source)] if scenario.source and Path(scenario.source).is_file() else []
     with destination.locked(out):
         destination.check(out, inputs, force)
-        return _run(scenario, out, video, progress)
+        return _run(scenario, out, video, progress, allow_code)
 
 
-def _run(scenario: Scenario, out: Path, video: bool, progress: bool) -> Result:
+def _run(scenario: Scenario, out: Path, video: bool, progress: bool, allow_code: bool) -> Result:
     """run() once `out` is locked and checked."""
     watch = _Stopwatch()
     try:
-        ev = _evaluate(scenario, progress, watch)
+        ev = _evaluate(scenario, progress, watch, allow_code)
     except PhysicsError as err:
         _write_failure(scenario, err, out, watch)
         raise

@@ -1,34 +1,45 @@
-"""A user's policy as a controller: a Python object named in the scenario, asked for an action every step.
+"""A user's policy as a controller: a factory of callables a scenario names, asked for an action every step.
 
     control:
       controller: policy
-      policy: mypackage.module:make_policy    # a factory, called with the loaded Scenario
+      policy: my_policy                       # registered: simbench.api.register_policy, or the entry-point
+                                              # group simbench.policies
       action: torque                          # or position: targets for the scene's position servos
 
-The factory returns a callable; every control step it gets the observation (simbench.observation: the measured
-joints and tool, the plan's references now and ahead) and returns one action per robot joint: torques or forces
-on the joints' actuators made motors, or position targets of the scene's servos. A name that does not import
-or a factory that raises is refused before the run (ScenarioError naming control.policy); an action that is not
-a finite vector of the robot's joint count stops the run with the time (ControlError).
+The factory is called with the loaded Scenario and returns a callable; every control step it gets the observation
+(simbench.observation: the measured joints and tool, the plan's references now and ahead) and returns one action
+per robot joint: torques or forces on the joints' actuators made motors, or position targets of the scene's
+servos.
+
+A scenario is data: one that names a module instead (`package.module:factory`) asks to import and run that
+module's code, which a run does only when allowed (`--allow-code`, `allow_code=True`); the check comes before
+anything is imported (`refuse_code`). A factory that cannot be made (a module that does not import, a factory
+that raises, SystemExit included, or returns no callable) is refused before the run (ScenarioError naming
+control.policy); an action that is not a finite vector of the robot's joint count stops the run with the time
+(ControlError).
 """
 
 from __future__ import annotations
 
+import difflib
 import importlib
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 
+from simbench import api, interrupts
 from simbench.api import Array, Controller, ControlSettings, State
-from simbench.errors import ScenarioError
+from simbench.errors import ScenarioError, described
 from simbench.observation import observation
 from simbench.plant import Plant
 from simbench.scenario import Scenario
 from simbench.trajectory import JointTrajectory
 
-_TARGET = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*$"
+_IDENTIFIER = r"[A-Za-z_][A-Za-z0-9_]*"
+# A registered name, or a module path: package.module:factory.
+_TARGET = rf"^{_IDENTIFIER}((\.{_IDENTIFIER})*:{_IDENTIFIER})?$"
 
 
 class PolicySettings(ControlSettings):
@@ -37,12 +48,28 @@ class PolicySettings(ControlSettings):
     policy: Annotated[str, Field(pattern=_TARGET, max_length=300)]
     action: Literal["torque", "position"] = "torque"
 
+    @field_validator("policy")
+    @classmethod
+    def _registered(cls, name: str) -> str:
+        """A name must be a registered policy's; a module path is checked when the run is allowed to import it."""
+        if is_code(name):
+            return name
+        if name in api.broken("policy"):
+            raise ValueError(api.broken("policy")[name])
+        known = api.policies()
+        if name not in known:
+            hint = difflib.get_close_matches(name, known, n=1)
+            raise ValueError(f"unknown policy {name!r} (expected a registered one: {', '.join(sorted(known)) or 'none'}"
+                             f"{f'; did you mean {hint[0]!r}?' if hint else ''}; or package.module:factory, "
+                             "imported only with --allow-code)")
+        return name
+
 
 class Policy(Controller):
     """Every step, the observation to the user's callable, and its action to the joints' actuators."""
 
     name = "policy"
-    description = "a Python callable named in the scenario (package.module:factory), torques or position targets"
+    description = "a registered policy (or with --allow-code a package.module:factory), torques or position targets"
     reads_past = False  # the observation's references are the step's and those ahead of it
     settings = PolicySettings
 
@@ -80,20 +107,47 @@ class Policy(Controller):
         return {"policy": self.target, "action": self.actuation}
 
 
+def is_code(target: str) -> bool:
+    """Whether a control.policy names a module to import (package.module:factory) rather than a registered name."""
+    return ":" in target
+
+
+def refuse_code(scenario: Scenario, allow_code: bool) -> None:
+    """ScenarioError if the scenario's policy is a module path and running code it names is not allowed: importing
+    it runs that module's code with the user's rights. Nothing is imported here."""
+    settings = scenario.control
+    if allow_code or not isinstance(settings, PolicySettings) or not is_code(settings.policy):
+        return
+    raise ScenarioError(scenario.source or scenario.name or "scenario", "control.policy",
+                        f"{settings.policy} names Python code to import and run; allow it with --allow-code "
+                        "(Python: allow_code=True), or register the policy and name it (simbench.api.register_policy)")
+
+
 def make(target: str, scenario: Scenario) -> Callable[[dict], Any]:
-    """The callable the factory `package.module:name` makes for the scenario; ScenarioError saying what failed."""
-    module_name, _, attr = target.partition(":")
+    """The callable the registered policy `target`, or the factory `package.module:name`, makes for the scenario;
+    ScenarioError saying what failed. Whatever the user's code raises is its failure, but the user's Ctrl-C."""
     where = scenario.source or scenario.name or "scenario"
     try:
-        factory = getattr(importlib.import_module(module_name), attr)
-    except Exception as err:  # any failure of the user's import: named, not a traceback
-        raise ScenarioError(where, "control.policy", f"cannot import {target}: {type(err).__name__}: {err}") \
-            from None
+        factory = _factory(target)
+    except BaseException as err:  # any failure of the user's import: named, not a traceback
+        if interrupts.is_press(err):
+            raise
+        raise ScenarioError(where, "control.policy", f"cannot import {target}: {described(err)}") from None
     try:
         act = factory(scenario)
-    except Exception as err:  # the user's factory
-        raise ScenarioError(where, "control.policy", f"{target} raised {type(err).__name__}: {err}") from None
+    except BaseException as err:  # the user's factory
+        if interrupts.is_press(err):
+            raise
+        raise ScenarioError(where, "control.policy", f"{target} raised {described(err)}") from None
     if not callable(act):
         raise ScenarioError(where, "control.policy", f"{target} returned {type(act).__name__}, not a callable "
                                                      "taking the observation")
     return act
+
+
+def _factory(target: str) -> Callable[[Scenario], Any]:
+    """The registered policy's factory, or the module path's (imported)."""
+    if not is_code(target):
+        return api.policies()[target].make
+    module_name, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module_name), attr)

@@ -24,9 +24,9 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from simbench import pages
+from simbench import interrupts, pages
 from simbench.api import Commands, Controller, State
-from simbench.errors import RunError
+from simbench.errors import RunError, described
 from simbench.faults import (FATAL, MAX_SPEED, Fault, clear_warnings, fatal_cause, step_fault, unsound,
                              warnings_raised)
 from simbench.plant import Plant
@@ -258,8 +258,10 @@ class ClosedLoop:
         name = self.controller.name
         try:
             u = np.asarray(self.controller.commands(state), dtype=float)
-        except Exception as err:  # a user's controller: whatever it raises is reported, not a traceback
-            raise CommandFault(step, f"controller '{name}' raised {type(err).__name__}: {err}") from None
+        except BaseException as err:  # a user's controller: whatever it raises (sys.exit too) is reported
+            if interrupts.is_press(err):
+                raise
+            raise CommandFault(step, f"controller '{name}' raised {described(err)}") from None
         if u.shape != (self.nu,):
             raise CommandFault(step, f"controller '{name}' returned commands of shape {u.shape}; ({self.nu},) "
                                      "expected, one per actuator")

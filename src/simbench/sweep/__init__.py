@@ -39,17 +39,18 @@ class SweepResult:
 
 
 def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
-              force: bool = False, progress: bool = False) -> SweepResult:
+              force: bool = False, progress: bool = False, allow_code: bool = False) -> SweepResult:
     """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
     summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another);
-    `ray`: 'local' or a cluster's address to run on Ray instead."""
+    `ray`: 'local' or a cluster's address to run on Ray instead. `allow_code`: let variants import the module their
+    policy names (simbench.policy); without it such a variant is a bad_input row."""
     out = destination.followed(Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name)
     with Store(out, sweep, force=force) as store:
         rows = store.finished()
         todo = [v for v in sweep.variants if v.index not in rows]
         workers = max(1, min(workers or execute.cpu_count(), len(todo) or 1))
         start = time.perf_counter()
-        outcomes, backend = _backend(sweep, todo, out, workers, ray)
+        outcomes, backend = _backend(sweep, todo, out, workers, ray, allow_code)
         _collect(store, outcomes, rows, progress)
         columns = table.columns(list(rows.values()), sweep.params)
         store.claim(RESULTS)
@@ -92,11 +93,12 @@ def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed
     return summary
 
 
-def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None):
+def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None, allow_code: bool):
     """The outcomes of the runs still to do, as they finish, and a description of where they run."""
     kept = sweep.spec.outputs
     tasks = [(v.index, {"document": v.document, "source": f"{sweep.source} {v.id}", "outputs": kept,
-                        "out": str(run_folder(out, v.id)) if kept == "full" else None, "video": sweep.spec.video})
+                        "out": str(run_folder(out, v.id)) if kept == "full" else None, "video": sweep.spec.video,
+                        "allow_code": allow_code})
              for v in todo]
     if ray is not None:
         return execute.on_ray(tasks, ray, workers), f"ray ({ray})"

@@ -32,7 +32,7 @@ _WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
-                video: bool = False) -> dict:
+                video: bool = False, allow_code: bool = False) -> dict:
     """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | limits | bad_input |
     run_failed | crashed), `error` (for `limits`, the promises broken), `metrics`, `wall_time` (s) and, with
     outputs='report', the `report`. bad_input is the schema's refusal or the budget's (simbench.budget, checked
@@ -40,14 +40,15 @@ def run_variant(document: dict, source: str, outputs: str = "none", out: str | N
     Each variant is held to the whole machine's limits, taken when it starts (MemAvailable then), not to a
     share of them: workers running at once may together need more.
     With outputs='full' every output of `simbench run` is written into `out`, replacing whatever a run stopped
-    before its row was recorded left there."""
+    before its row was recorded left there. `allow_code` as simbench.run's."""
     start = time.perf_counter()
-    report, status, error = _attempt(document, source, outputs, out, video)
+    report, status, error = _attempt(document, source, outputs, out, video, allow_code)
     return {"status": status, "error": error, "metrics": metrics(report) if report else {},
             "wall_time": time.perf_counter() - start, "report": report if outputs == "report" else None}
 
 
-def _attempt(document: dict, source: str, outputs: str, out: str | None, video: bool) -> tuple[dict | None, str, str]:
+def _attempt(document: dict, source: str, outputs: str, out: str | None, video: bool,
+             allow_code: bool) -> tuple[dict | None, str, str]:
     """One run as (its report if it got that far, status, one-line error); every failure caught."""
     from simbench import pipeline
     from simbench.scenario import parse_scenario
@@ -56,9 +57,9 @@ def _attempt(document: dict, source: str, outputs: str, out: str | None, video: 
     try:
         scenario = parse_scenario(document, source)
         if outputs == "full":
-            report = pipeline.run(scenario, out=out, video=video, force=True).report
+            report = pipeline.run(scenario, out=out, video=video, force=True, allow_code=allow_code).report
         else:
-            report = pipeline.evaluate_report(scenario)
+            report = pipeline.evaluate_report(scenario, allow_code)
         return report, report["status"], "; ".join(f"{v['kind']}: {v['message']}" for v in report["violations"])
     except ScenarioError as err:
         return report, "bad_input", err.detail

@@ -1,5 +1,6 @@
 """Closed-loop control from outside simbench: a controller class registered through the entry-point group
-`simbench.controllers`, and a policy factory a scenario names as `simbench_planar3r.control:make_pd_policy`.
+`simbench.controllers`, and a policy factory registered through `simbench.policies` (PD_POLICY), which a scenario
+names as `policy: joint_pd_policy`.
 
 Both are the same law, a joint-space PD with velocity feed-forward on torque actuation,
 
@@ -16,7 +17,7 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
-from simbench.api import Array, Controller, ControlSettings, Plant, Scenario, State
+from simbench.api import Array, Controller, ControlSettings, Plant, PolicyFactory, Scenario, State
 from simbench.trajectory import JointTrajectory
 
 KP = (300.0, 150.0, 40.0)  # N m/rad: the example's servo stiffness (models/planar3r.xml)
@@ -66,3 +67,7 @@ def make_pd_policy(scenario: Scenario):
         return kp * (observation["q_ref"] - observation["q"]) + kd * (observation["qd_ref"] - observation["qd"])
 
     return act
+
+
+PD_POLICY = PolicyFactory("joint_pd_policy", "joint PD on torques as a policy (simbench_planar3r example)",
+                          make_pd_policy)
