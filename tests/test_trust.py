@@ -128,3 +128,20 @@ def test_an_unknown_field_anywhere_in_a_shipped_scenario_says_what_the_mapping_t
         if caught.value.message.startswith("unknown field"):
             assert "expected one of: )" not in caught.value.message
             assert "expected one of: " in caught.value.message, (where, caught.value.message)
+
+
+@pytest.mark.parametrize("raised", [SystemExit(0), SystemExit(3), SystemExit("bye"), KeyboardInterrupt()],
+                         ids=["exit0", "exit3", "exit-text", "KeyboardInterrupt"])
+def test_an_exit_raised_by_outside_code_simbench_calls_is_a_failed_run(monkeypatch, capsys, raised):
+    """An outside planner, robot or controller calling sys.exit (or raising KeyboardInterrupt) where no policy
+    guard stands: exit 1 and one line, never exit 0 with nothing said, nor 'interrupted'."""
+    from simbench import pipeline
+
+    def plan_that_exits(*args, **kwargs):
+        raise raised
+
+    monkeypatch.setattr(pipeline, "check_plan", plan_that_exits)
+    assert main(["validate", str(scenario_file("puma600", "line"))]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"run failed: outside code simbench called raised "
+                                               f"{type(raised).__name__}")

@@ -19,8 +19,8 @@ import sys
 from pathlib import Path
 
 from simbench import interrupts
-from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, os_error_line,
-                             printable)
+from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
+                             os_error_line, printable)
 from simbench.resources import scenarios_dir, sweeps_dir
 
 
@@ -312,8 +312,11 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
             return _validate(args.scenarios, plan=not args.no_plan)
         else:
             return _run(args)
-    except KeyboardInterrupt:
-        return _interrupted(args, ctrl_c)
+    except (KeyboardInterrupt, SystemExit) as err:
+        if interrupts.is_press(err):
+            return _interrupted(args, ctrl_c)
+        # Not simbench's (it raises neither): an outside planner, robot or controller exiting or raising it.
+        return _failed(args, ctrl_c, RunError(f"outside code simbench called raised {described(err)}"))
     except Exception as err:
         return _failed(args, ctrl_c, err)
     return 0
