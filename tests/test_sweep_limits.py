@@ -1,0 +1,71 @@
+"""Sweeps held to what the machine can give (issue 33): a sweep too big to expand refused before it is expanded,
+workers capped by the cores and the memory budget, Ray addresses checked and an unreachable cluster one line, a
+sweep whose every run is bad input exit 2, results.csv safe to open in a spreadsheet, and idle workers quiet."""
+
+import json
+import resource
+import subprocess
+import sys
+
+import yaml
+
+from simbench import budget
+from simbench.cli import main
+
+CASE1 = "spherical_arm/case1"
+
+
+def write(tmp_path, spec: dict, name: str = "sweep") -> str:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False, default_flow_style=True, width=1 << 20))
+    return str(path)
+
+
+def one_error_line(capsys) -> str:
+    out = capsys.readouterr()
+    lines = out.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in out.err, out.err
+    return lines[0]
+
+
+def test_a_sweep_too_big_to_expand_is_refused_before_it_is_expanded(tmp_path):
+    """The tester's 203 kB file: a 99,000-item list under two 316-value grids is 316 x 316 = 99,856 runs, each
+    holding its own copy of the list (at least 8 bytes an item: 79 GB, over the 64 GiB any machine is allowed).
+    Under the tester's 4 GiB cap (where it ended in MemoryError) it is refused with the list's field, for
+    --dry-run too, and nothing is written."""
+    spec = {"base": CASE1, "grid": {"timing.duration": [1 + k / 100 for k in range(316)],
+                                    "timing.hold": [k / 1000 for k in range(316)], "task.start": [[0] * 99_000]}}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(json.dumps(spec, separators=(",", ":")))  # JSON is YAML
+    assert 200_000 < path.stat().st_size < 210_000
+    for extra in (["--dry-run"], []):
+        done = subprocess.run([sys.executable, "-m", "simbench", "sweep", str(path), "--out", str(tmp_path / "out"),
+                               *extra], capture_output=True, text=True, timeout=300, preexec_fn=_memory_cap)
+        line = done.stderr.strip()
+        assert done.returncode == 2 and "\n" not in line, done.stderr
+        assert line.startswith(f"error: {path}: grid.task.start: "), line
+        assert "99,856 runs" in line and "expected at most" in line, line
+    assert not (tmp_path / "out").exists()
+
+
+def _memory_cap() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))
+
+
+def test_the_field_that_multiplies_the_runs_is_named(tmp_path, capsys, monkeypatch):
+    """Under a 1 MB budget 10,000 runs of case 1 (37 YAML values each: over 3 MB at 8 bytes a value) do not fit,
+    and 20 do; the refusal names the grid or random.samples, whichever gives most of the runs."""
+    monkeypatch.setattr(budget, "machine_limits", lambda out=None: budget.Limits(memory=10**6))
+    durations = {"uniform": [2, 3]}
+    cases = [({"grid": {"timing.duration": list(range(1, 101)), "timing.hold": list(range(100))}}, "grid"),
+             ({"grid": {"timing.hold": [0, 1]}, "random": {"samples": 5000, "params": {"timing.duration": durations}}},
+              "random.samples")]
+    for spec, field in cases:
+        path = write(tmp_path, {"base": CASE1, **spec})
+        assert main(["sweep", path, "--dry-run"]) == 2
+        line = one_error_line(capsys)
+        assert line.startswith(f"error: {path}: {field}: 10,000 runs of ") and "expected at most" in line, line
+    small = write(tmp_path, {"base": CASE1, "grid": {"timing.hold": [0, 1]},
+                             "random": {"samples": 10, "params": {"timing.duration": durations}}})
+    assert main(["sweep", small, "--dry-run"]) == 0
+    assert capsys.readouterr().out.startswith("sweep: 20 runs of ")
