@@ -181,12 +181,19 @@ def _die_with(parent: int) -> None:
     threading.Thread(target=watch, name="simbench-parent-watch", daemon=True).start()
 
 
+def as_worker() -> None:
+    """Signals in a process forked to work for this one: Ctrl-C ignored (the parent answers it and stops its
+    workers), SIGTERM the end at once, without the handler inherited from the parent (simbench.interrupts), which
+    would raise, with a traceback, in a worker stopped while it waits for work."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _serve(conn, parent: int) -> None:
     """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before when
     it is the same. The parent alone answers Ctrl-C and SIGTERM; the worker dies with it."""
     _die_with(parent)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    as_worker()
     with reused_plants():
         while True:
             try:

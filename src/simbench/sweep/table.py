@@ -26,6 +26,7 @@ import pyarrow as pa  # noqa: E402
 import pyarrow.parquet as pq  # noqa: E402
 
 from simbench.atomic import staged_file, staged_folder, write_text  # noqa: E402
+from simbench.sweep.execute import as_worker  # noqa: E402
 
 STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
 FINISHED = ("ok", "limits")  # runs with metrics (`limits`: ran to the end, broke a promise: simbench.verdict)
@@ -146,12 +147,13 @@ def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
     """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in
     one thread, so where there are more figures than one and `workers` > 1 they are drawn `workers` at once: this
     process draws every `workers`-th and processes forked from it the others, meanwhile (the same pixels: the same
-    code on the same state), which shortens the serial end of a sweep."""
+    code on the same state), which shortens the serial end of a sweep. The pool's workers answer signals as a
+    sweep's workers do (execute.as_worker): stopped idle, they end quietly."""
     jobs = [(draw, (*args, folder)) for draw, args in figures]
     processes = min(workers, len(jobs))
     if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return [draw(*args) for draw, args in jobs]
-    with multiprocessing.get_context("fork").Pool(processes - 1) as pool:
+    with multiprocessing.get_context("fork").Pool(processes - 1, initializer=as_worker) as pool:
         theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
         mine = iter([draw(*args) for draw, args in jobs[::processes]])
         others = iter(theirs.get())
