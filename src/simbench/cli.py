@@ -128,7 +128,9 @@ def _sweep(args) -> None:
             raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
     sweep = load_sweep(args.sweep)
     if args.dry_run:
-        print(_dry_run(sweep))
+        listing, refused = _dry_run(sweep)
+        print(listing)
+        _refuse_all_bad_input(sweep, refused)
         return
     result = run_sweep(sweep, args.out, workers=args.workers, ray=args.ray, force=args.force,
                        progress=not args.quiet)
@@ -139,6 +141,18 @@ def _sweep(args) -> None:
               f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
         for note in result.summary["notes"]:
             print(f"  note: {note}")
+    table = result.table
+    _refuse_all_bad_input(sweep, [(i, e) for i, s, e in zip(table["id"], table["status"], table["error"])
+                                  if s == "bad_input"])
+
+
+def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
+    """A sweep whose every run is bad input (a base whose runs the schema refuses, say) is bad input itself: exit
+    2, naming the first run's reason. Some runs refused among others that ran is what a sweep is for: exit 0."""
+    if refused and len(refused) == len(sweep.variants):
+        run_id, detail = refused[0]
+        raise ScenarioError(sweep.source, None, f"every one of its {len(refused)} runs is bad input (the first, "
+                                                f"{run_id}: {detail})")
 
 
 def _reproduce(args) -> None:
@@ -160,19 +174,22 @@ def _compare(args) -> None:
     print(f"table, plots and index.html in {result.out}")
 
 
-def _dry_run(sweep) -> str:
-    """What a sweep would run: each run's parameters, and which runs the scenario schema already refuses."""
+def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
+    """What a sweep would run: each run's parameters, and which runs the scenario schema already refuses (also
+    as (run id, reason) pairs)."""
     from simbench.scenario import parse_scenario
 
     lines = [f"{sweep.name}: {len(sweep.variants)} runs of {sweep.base}"]
+    refused = []
     for v in sweep.variants:
         try:
             parse_scenario(v.document, v.id)
             verdict = ""
         except ScenarioError as err:
             verdict = f"  -> bad_input: {err.detail}"
+            refused.append((v.id, err.detail))
         lines.append(f"  {v.id} " + ", ".join(f"{name}={value!r}" for name, value in v.params.items()) + verdict)
-    return "\n".join(lines)
+    return "\n".join(lines), refused
 
 
 def _validate(paths: list[Path], plan: bool) -> int:
