@@ -3,6 +3,7 @@ workers capped by the cores and the memory budget, Ray addresses checked and an 
 sweep whose every run is bad input exit 2, results.csv safe to open in a spreadsheet, and idle workers quiet."""
 
 import csv
+import html
 import json
 import resource
 import signal
@@ -14,7 +15,7 @@ from conftest import scenario_file
 
 from simbench import budget, interrupts
 from simbench.cli import main
-from simbench.sweep import table
+from simbench.sweep import load_sweep, run_sweep, table
 
 CASE1 = "spherical_arm/case1"
 
@@ -115,3 +116,26 @@ def test_a_sweep_whose_every_run_is_bad_input_exits_2(tmp_path, capsys):
     for extra in (["--dry-run"], ["--quiet"]):
         assert main(["sweep", mixed, "--out", str(tmp_path / "mixed"), *extra]) == 0
         assert capsys.readouterr().err == ""
+
+
+FORMULAS = ['=HYPERLINK("http://127.0.0.1/","click")', "+1+2", "-2+3", "@SUM(A1:A2)", "\t=1", "\r=1", "'quoted"]
+
+
+def test_results_csv_text_cells_cannot_run_as_formulas(tmp_path):
+    """Text a spreadsheet would take for a formula (OWASP's list: = + - @, tab, carriage return) is written after a
+    single quote, as is text starting with one; numbers, negative ones too, are written as they are. The sweep's
+    page shows the text as given."""
+    path = write(tmp_path, {"base": CASE1, "outputs": "none",
+                            "grid": {"timing.law": FORMULAS + ["cubic"], "timing.hold": [-0.5]}})
+    run_sweep(load_sweep(path), tmp_path / "out", workers=1)
+    with open(tmp_path / "out" / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [row["timing.law"] for row in rows] == ["'" + text for text in FORMULAS] + ["cubic"]
+    assert {row["timing.hold"] for row in rows} == {"-0.5"}
+    assert all(row["error"].startswith("timing.") for row in rows)  # every run refused, by the schema
+    with open(tmp_path / "out" / "index.html", newline="") as f:
+        page = f.read()
+    for text in FORMULAS:
+        shown = html.escape(text).encode("ascii", "xmlcharrefreplace").decode()
+        assert f"<td>{shown}</td>" in page, text
+    assert "<td>-0.5</td>" not in page and '<td class="n">-0.5</td>' in page

@@ -9,8 +9,6 @@ finished in, so the same sweep gives the same table serially, in parallel or on 
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import multiprocessing
@@ -25,6 +23,7 @@ import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
 import pyarrow.parquet as pq  # noqa: E402
 
+from simbench import csv_cells  # noqa: E402
 from simbench.atomic import staged_file, staged_folder, write_text  # noqa: E402
 from simbench.sweep.execute import as_worker  # noqa: E402
 
@@ -60,16 +59,17 @@ def _cell(value: Any) -> str:
         return repr(value)
     if isinstance(value, (list, dict)):
         return json.dumps(value)
+    if isinstance(value, str):
+        return csv_cells.safe(value)
     return str(value)
 
 
 def write_csv(table: dict[str, list], path: Path) -> None:
-    """results.csv: empty cells where a run has no value; lists as JSON."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(table)
-    writer.writerows(zip(*(map(_cell, column) for column in table.values())))
-    write_text(path, buffer.getvalue())
+    """results.csv: empty cells where a run has no value; lists as JSON; text that a spreadsheet would take for a
+    formula after a single quote (simbench.csv_cells)."""
+    lines = [csv_cells.row(table)]
+    lines += map(csv_cells.row, zip(*(map(_cell, column) for column in table.values())))
+    write_text(path, "".join(lines))
 
 
 def _arrow_column(values: list) -> pa.Array:
