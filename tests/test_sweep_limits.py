@@ -5,6 +5,7 @@ sweep whose every run is bad input exit 2, results.csv safe to open in a spreads
 import csv
 import html
 import json
+import os
 import resource
 import signal
 import subprocess
@@ -15,7 +16,7 @@ from conftest import scenario_file
 
 from simbench import budget, interrupts
 from simbench.cli import main
-from simbench.sweep import load_sweep, run_sweep, table
+from simbench.sweep import execute, load_sweep, run_sweep, table
 
 CASE1 = "spherical_arm/case1"
 
@@ -139,3 +140,45 @@ def test_results_csv_text_cells_cannot_run_as_formulas(tmp_path):
         shown = html.escape(text).encode("ascii", "xmlcharrefreplace").decode()
         assert f"<td>{shown}</td>" in page, text
     assert "<td>-0.5</td>" not in page and '<td class="n">-0.5</td>' in page
+
+
+def counted_workers(monkeypatch) -> list:
+    """Every worker process a sweep starts, recorded as it is started."""
+    started = []
+
+    class Counted(execute._Worker):
+        def __init__(self, ctx):
+            super().__init__(ctx)
+            started.append(self)
+
+    monkeypatch.setattr(execute, "_Worker", Counted)
+    return started
+
+
+def test_workers_beyond_the_cpus_are_capped_with_a_warning(tmp_path, capsys, monkeypatch):
+    """--workers 32 on this machine starts one worker per CPU it may use (os.sched_getaffinity), at most one a run,
+    and says so in one line."""
+    started = counted_workers(monkeypatch)
+    cpus = len(os.sched_getaffinity(0))
+    path = write(tmp_path, {"base": CASE1, "outputs": "none", "grid": {"timing.duration": [2, 2.5, 3, 3.5]}})
+    assert main(["sweep", path, "--out", str(tmp_path / "out"), "--workers", "32", "--quiet"]) == 0
+    line = one_error_line(capsys)
+    assert line.startswith(f"warning: 32 workers asked for, more than the {cpus} CPUs this process may use: "
+                           f"running {min(cpus, 4)} at once"), line
+    assert len(started) == (min(cpus, 4) if cpus > 1 else 0)
+
+
+def test_workers_are_capped_by_the_memory_budget(tmp_path, capsys, monkeypatch):
+    """Under a 100 MB budget there is room for one worker (a worker alone was measured at 61 MB): the sweep runs in
+    this process, saying why, whatever --workers asks; its runs still run."""
+    started = counted_workers(monkeypatch)
+    monkeypatch.setattr(execute, "cpu_count", lambda: 4)
+    monkeypatch.setattr(budget, "machine_limits", lambda out=None: budget.Limits(memory=100 * 10**6,
+                                                                                    memory_basis="test"))
+    path = write(tmp_path, {"base": CASE1, "outputs": "none", "grid": {"timing.duration": [2, 3]}})
+    assert main(["sweep", path, "--out", str(tmp_path / "out"), "--workers", "2", "--quiet"]) == 0
+    line = one_error_line(capsys)
+    assert line.startswith("warning: 2 workers asked for, each may need about ") and "of the 100 MB memory budget " \
+        "(test): running 1 at once" in line, line
+    assert started == []
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"]["ok"] == 2
