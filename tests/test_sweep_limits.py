@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 
+import pytest
 import yaml
 from conftest import scenario_file
 
@@ -182,3 +183,27 @@ def test_workers_are_capped_by_the_memory_budget(tmp_path, capsys, monkeypatch):
         "(test): running 1 at once" in line, line
     assert started == []
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"]["ok"] == 2
+
+
+@pytest.mark.parametrize("address", ["garbage", "127.0.0.1", "127.0.0.1:0", "127.0.0.1:65536", "127.0.0.1:port",
+                                     "http://127.0.0.1:6379", ":6379", "ray://", "host_name:1"])
+def test_a_malformed_ray_address_is_one_line(tmp_path, capsys, address):
+    path = write(tmp_path, {"base": CASE1, "grid": {"timing.duration": [2]}})
+    assert main(["sweep", path, "--out", str(tmp_path / "out"), "--ray", address]) == 2
+    line = one_error_line(capsys)
+    assert line == f"error: --ray: expected local, a running cluster's HOST:PORT (e.g. 10.0.0.5:6379) or " \
+                   f"ray://HOST:PORT, got {address!r}", line
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("address", ["127.0.0.1:1", "ray://127.0.0.1:1", "[::1]:1"])
+def test_an_unreachable_ray_cluster_is_one_line(tmp_path, capsys, address):
+    """Port 1 on this machine's loopback is closed: the connection is refused at once, and the sweep says so in
+    one line before its folder is made (Ray itself retried for over 590 s)."""
+    pytest.importorskip("ray", reason="the Ray extra is part of [test]; this check needs it")
+    path = write(tmp_path, {"base": CASE1, "grid": {"timing.duration": [2]}})
+    assert main(["sweep", path, "--out", str(tmp_path / "out"), "--ray", address]) == 2
+    line = one_error_line(capsys)
+    assert line.startswith(f"error: --ray: no Ray cluster answers at {address}: "), line
+    assert "connection refused" in line or "cannot assign" in line or "not available" in line, line
+    assert not (tmp_path / "out").exists()

@@ -38,7 +38,8 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", type=Path, default=None, help="output folder (default renders/sweeps/<name>/)")
     sweep.add_argument("--workers", type=int, default=None, help="runs at once (default: one per CPU)")
     sweep.add_argument("--ray", metavar="ADDRESS", default=None,
-                       help="run on a Ray cluster: 'local' starts one here, or give a running cluster's address")
+                       help="run on a Ray cluster: 'local' starts one here, or a running cluster's HOST:PORT or "
+                            "ray://HOST:PORT (refused if it does not answer within 5 s)")
     sweep.add_argument("--force", action="store_true",
                        help="start over: replace whatever the output folder holds (default: resume)")
     sweep.add_argument("--dry-run", action="store_true", help="check the sweep and list its runs; run nothing")
@@ -117,11 +118,12 @@ def _exit_code(verdict) -> int:
 
 def _sweep(args) -> None:
     """The sweep command: run (or with --dry-run, list) the sweep's runs."""
-    from simbench.sweep import load_sweep, run_sweep
+    from simbench.sweep import cluster, load_sweep, run_sweep
 
     if args.workers is not None and args.workers < 1:
         raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {args.workers}")
     if args.ray is not None:
+        cluster.check_address(args.ray)
         try:
             import ray  # noqa: F401
         except ImportError:

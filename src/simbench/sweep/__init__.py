@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from simbench.page import table_page, write_page
 from simbench.report import write_report
-from simbench.sweep import execute, table
+from simbench.sweep import cluster, execute, table
 from simbench.sweep.spec import Sweep, load_sweep
 from simbench.sweep.store import Store, run_folder
 from simbench.sweep.workers import count as worker_count
@@ -43,8 +43,10 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
     """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
     summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another), at
     most the CPUs and as many as the memory budget affords (simbench.sweep.workers); `ray`: 'local' or a cluster's
-    address to run on Ray instead."""
+    address to run on Ray instead (simbench.sweep.cluster: refused, ScenarioError, if nothing answers there)."""
     out = Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name
+    if ray is not None:
+        cluster.reach(ray)  # before the folder is made: an address nobody answers at is one line, not a hang
     with Store(out, sweep, force=force) as store:
         rows = store.finished()
         todo = [v for v in sweep.variants if v.index not in rows]
