@@ -85,7 +85,9 @@ def test_more_workers_than_runs_end_without_a_traceback(tmp_path):
     for _ in range(3):
         done = subprocess.run([sys.executable, "-m", "simbench", "sweep", path, "--out", str(tmp_path / "out"),
                                "--workers", "3", "--force", "--quiet"], capture_output=True, text=True, timeout=300)
-        assert done.returncode == 0 and done.stderr == "", done.stderr
+        lines = done.stderr.splitlines()
+        assert done.returncode == 0 and all(line.startswith("warning: 3 workers asked for") for line in lines), \
+            done.stderr  # a warning where this machine has fewer than 3 CPUs, and nothing else
 
 
 def _signal_handlers(folder) -> str:
