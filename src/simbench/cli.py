@@ -39,7 +39,8 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", type=Path, default=None, help="output folder (default renders/sweeps/<name>/)")
     sweep.add_argument("--workers", type=int, default=None, help="runs at once (default: one per CPU)")
     sweep.add_argument("--ray", metavar="ADDRESS", default=None,
-                       help="run on a Ray cluster: 'local' starts one here, or give a running cluster's address")
+                       help="run on a Ray cluster: 'local' starts one here, or a running cluster's HOST:PORT or "
+                            "ray://HOST:PORT (refused if it does not answer within 5 s)")
     sweep.add_argument("--force", action="store_true",
                        help="start over: replace whatever the output folder holds (default: resume)")
     sweep.add_argument("--dry-run", action="store_true", help="check the sweep and list its runs; run nothing")
@@ -133,18 +134,21 @@ def _exit_code(verdict) -> int:
 
 def _sweep(args) -> None:
     """The sweep command: run (or with --dry-run, list) the sweep's runs."""
-    from simbench.sweep import load_sweep, run_sweep
+    from simbench.sweep import cluster, load_sweep, run_sweep
 
     if args.workers is not None and args.workers < 1:
         raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {args.workers}")
     if args.ray is not None:
+        cluster.check_address(args.ray)
         try:
             import ray  # noqa: F401
         except ImportError:
             raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
     sweep = load_sweep(args.sweep)
     if args.dry_run:
-        _say(_dry_run(sweep))
+        listing, refused = _dry_run(sweep)
+        _say(listing)
+        _refuse_all_bad_input(sweep, refused)
         return
     result = run_sweep(sweep, args.out, workers=args.workers, ray=args.ray, force=args.force,
                        progress=not args.quiet, allow_code=args.allow_code)
@@ -155,6 +159,18 @@ def _sweep(args) -> None:
              f"{result.summary['wall_time']:.1f} s on {result.summary['backend']} -> {result.out / 'results.csv'}")
         for note in result.summary["notes"]:
             _say(f"  note: {note}")
+    table = result.table
+    _refuse_all_bad_input(sweep, [(i, e) for i, s, e in zip(table["id"], table["status"], table["error"])
+                                  if s == "bad_input"])
+
+
+def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
+    """A sweep whose every run is bad input (a base whose runs the schema refuses, say) is bad input itself: exit
+    2, naming the first run's reason. Some runs refused among others that ran is what a sweep is for: exit 0."""
+    if refused and len(refused) == len(sweep.variants):
+        run_id, detail = refused[0]
+        raise ScenarioError(sweep.source, None, f"every one of its {len(refused)} runs is bad input (the first, "
+                                                f"{run_id}: {detail})")
 
 
 def _reproduce(args) -> None:
@@ -177,19 +193,22 @@ def _compare(args) -> None:
     _say(f"table, plots and index.html in {result.out}")
 
 
-def _dry_run(sweep) -> str:
-    """What a sweep would run: each run's parameters, and which runs the scenario schema already refuses."""
+def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
+    """What a sweep would run: each run's parameters, and which runs the scenario schema already refuses (also
+    as (run id, reason) pairs)."""
     from simbench.scenario import parse_scenario
 
     lines = [f"{sweep.name}: {len(sweep.variants)} runs of {sweep.base}"]
+    refused = []
     for v in sweep.variants:
         try:
             parse_scenario(v.document, v.id)
             verdict = ""
         except ScenarioError as err:
             verdict = f"  -> bad_input: {err.detail}"
+            refused.append((v.id, err.detail))
         lines.append(f"  {v.id} " + ", ".join(f"{name}={value!r}" for name, value in v.params.items()) + verdict)
-    return "\n".join(lines)
+    return "\n".join(lines), refused
 
 
 def _validate(paths: list[Path], plan: bool) -> int:

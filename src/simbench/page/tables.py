@@ -9,6 +9,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Union
 
+from simbench.csv_cells import restored
 from simbench.page.html import cards, config_section, document, esc, figure_grid, href, number, paragraphs, table
 
 Rows = Union[str, os.PathLike, Sequence[Sequence[object]], Sequence[Mapping[str, object]]]
@@ -53,7 +54,8 @@ def _table(out: Path, caption: str, data: Rows, digits: int | None, max_rows: in
             link = f' <a href="{href(rel)}">{esc(rel.as_posix())}</a>'
         except ValueError:
             pass
-        data = path.read_text(encoding="utf-8")
+        with open(path, encoding="utf-8", newline="") as f:  # as the csv module reads: a quoted line break kept
+            data = f.read()
     header, rows = _rows(data)  # type: ignore[arg-type]  # a PathLike was read above
     if not header:
         return f'<h3>{esc(caption)}{link}</h3>\n<p class="note">(empty)</p>\n'
@@ -65,8 +67,10 @@ def _table(out: Path, caption: str, data: Rows, digits: int | None, max_rows: in
 
 def _rows(data: str | Sequence[Sequence[object]] | Sequence[Mapping[str, object]]) \
         -> tuple[list[object], list[list[object]]]:
-    """(header, rows) of CSV text, rows with a header row first, or mappings (the union of their keys, in order)."""
-    items: list = list(csv.reader(io.StringIO(data))) if isinstance(data, str) else list(data)
+    """(header, rows) of CSV text (its cells as simbench.csv_cells.restored reads them), rows with a header row
+    first, or mappings (the union of their keys, in order)."""
+    items: list = ([list(map(restored, row)) for row in csv.reader(io.StringIO(data))] if isinstance(data, str)
+                   else list(data))
     if not items:
         return [], []
     if all(isinstance(r, Mapping) for r in items):

@@ -21,9 +21,10 @@ from tqdm import tqdm
 from simbench import destination
 from simbench.page import table_page, write_page
 from simbench.report import write_report
-from simbench.sweep import execute, table
+from simbench.sweep import cluster, execute, table
 from simbench.sweep.spec import Sweep, load_sweep
 from simbench.sweep.store import RESULTS, Store, run_folder
+from simbench.sweep.workers import count as worker_count
 
 __all__ = ["Sweep", "SweepResult", "load_sweep", "run_sweep"]
 
@@ -41,14 +42,21 @@ class SweepResult:
 def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
               force: bool = False, progress: bool = False, allow_code: bool = False) -> SweepResult:
     """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
-    summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another);
-    `ray`: 'local' or a cluster's address to run on Ray instead. `allow_code`: let variants import the module their
-    policy names (simbench.policy); without it such a variant is a bad_input row."""
+    summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another), at
+    most the CPUs and as many as the memory budget affords (simbench.sweep.workers); `ray`: 'local' or a cluster's
+    address to run on Ray instead (simbench.sweep.cluster: refused, ScenarioError, if nothing answers there).
+    `allow_code`: let variants import the module their policy names (simbench.policy); without it such a variant
+    is a bad_input row."""
     out = destination.followed(Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name)
+    if ray is not None:
+        cluster.reach(ray)  # before the folder is made: an address nobody answers at is one line, not a hang
     with Store(out, sweep, force=force) as store:
         rows = store.finished()
         todo = [v for v in sweep.variants if v.index not in rows]
-        workers = max(1, min(workers or execute.cpu_count(), len(todo) or 1))
+        if ray is None or ray == "local":
+            workers = worker_count(sweep, todo, workers)
+        else:  # a cluster elsewhere has its own CPUs and memory: here the plots are drawn
+            workers = min(workers or execute.cpu_count(), execute.cpu_count())
         start = time.perf_counter()
         outcomes, backend = _backend(sweep, todo, out, workers, ray, allow_code)
         _collect(store, outcomes, rows, progress)
@@ -56,7 +64,7 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
         store.claim(RESULTS)
         with store.writing():  # a full disk here keeps the rows: the same command writes the table again
             summary = _write_results(sweep, columns, out, resumed=len(sweep.variants) - len(todo), backend=backend,
-                                     start=start, workers=min(workers, execute.cpu_count()))
+                                     start=start, workers=workers)
     return SweepResult(out, columns, summary, summary["resumed"])
 
 

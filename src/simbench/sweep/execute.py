@@ -20,7 +20,7 @@ from collections.abc import Iterable, Iterator
 from multiprocessing import connection
 from typing import Any
 
-from simbench.errors import RunError, ScenarioError
+from simbench.errors import RunError, ScenarioError, printable
 from simbench.plant import reused_plants
 
 # Report keys that describe the run rather than measure it.
@@ -182,12 +182,19 @@ def _die_with(parent: int) -> None:
     threading.Thread(target=watch, name="simbench-parent-watch", daemon=True).start()
 
 
+def as_worker() -> None:
+    """Signals in a process forked to work for this one: Ctrl-C ignored (the parent answers it and stops its
+    workers), SIGTERM the end at once, without the handler inherited from the parent (simbench.interrupts), which
+    would raise, with a traceback, in a worker stopped while it waits for work."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _serve(conn, parent: int) -> None:
     """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before when
     it is the same. The parent alone answers Ctrl-C and SIGTERM; the worker dies with it."""
     _die_with(parent)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    as_worker()
     with reused_plants():
         while True:
             try:
@@ -217,16 +224,25 @@ def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[
 
 def _join_ray(address: str, workers: int) -> bool:
     """Connect to Ray unless this process already is: 'local' starts a cluster here with `workers` CPUs, anything
-    else is a running cluster's address. Whether this call started the connection (and should end it)."""
+    else is a running cluster's address. Whether this call started the connection (and should end it). Ray's
+    refusal is one line: RunError for a cluster that cannot start here, ScenarioError naming --ray for one that
+    cannot be joined."""
     import ray
 
     if ray.is_initialized():
         return False
     options = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
-    if address == "local":
-        ray.init(num_cpus=workers, **options)
-    else:
-        ray.init(address=address, **options)
+    try:
+        if address == "local":
+            ray.init(num_cpus=workers, **options)
+        else:  # one attempt to join (about 40 s where a port answers that is not Ray's), not Ray's twenty
+            os.environ.setdefault("RAY_gcs_server_port_wait_time_s", "1")
+            ray.init(address=address, **options)
+    except Exception as err:  # noqa: BLE001  Ray's refusal, whatever its type, in one line
+        reason = printable(str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__)
+        if address == "local":
+            raise RunError(f"could not start a Ray cluster here: {reason}") from None
+        raise ScenarioError("--ray", None, f"could not join the Ray cluster at {address}: {reason}") from None
     return True
 
 

@@ -28,7 +28,6 @@ import copy
 import hashlib
 import itertools
 import json
-import math
 import os
 import re
 from dataclasses import dataclass
@@ -42,9 +41,10 @@ from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
 from simbench.scenario import parse_scenario
 from simbench.schema import Name, SimbenchModel, file_name
+from simbench.sweep import size
+from simbench.sweep.size import MAX_RUNS
 from simbench.validation import describe, kind_of, read_yaml
 
-MAX_RUNS = 100_000
 _PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
 _PART = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
 _KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
@@ -214,7 +214,8 @@ def load_sweep(path: str | Path) -> Sweep:
     document = read_yaml(base)
     parse_scenario(document, str(base), default_name=base.stem)  # the base alone must be a valid scenario
     paths = _paths(spec, source)
-    variants = _expand(spec, document, paths, base.stem, source)
+    runs = size.check(spec, document, source).runs  # before anything is expanded: it may not fit in memory
+    variants = _expand(spec, document, paths, base.stem, runs, source)
     _check_fields(variants[0], paths, source)
     return Sweep(spec.name or file_name(path.stem, source), source, spec, base, tuple(variants))
 
@@ -252,12 +253,9 @@ def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str, tuple[str | int
     return found
 
 
-def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, source: str) -> list[Variant]:
-    """Every grid point crossed with every random sample, numbered in that order."""
-    count = math.prod(len(values) for values in spec.grid.values()) * (spec.random.samples if spec.random else 1)
-    if count > MAX_RUNS:  # counted before anything is built: a grid of 10^8 points would not fit in memory
-        raise ScenarioError(source, "grid" if spec.grid else "random.samples",
-                            f"{count} runs (expected at most {MAX_RUNS})")
+def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, count: int,
+            source: str) -> list[Variant]:
+    """Every grid point crossed with every random sample (`count` runs), numbered in that order."""
     grid_points = list(itertools.product(*spec.grid.values()))
     samples: list[dict[str, Any]] = [{}]
     if spec.random:

@@ -9,8 +9,6 @@ finished in, so the same sweep gives the same table serially, in parallel or on 
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 import multiprocessing
@@ -25,7 +23,9 @@ import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
 import pyarrow.parquet as pq  # noqa: E402
 
+from simbench import csv_cells  # noqa: E402
 from simbench.atomic import staged_file, staged_folder, write_text  # noqa: E402
+from simbench.sweep.execute import as_worker  # noqa: E402
 
 STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
 FINISHED = ("ok", "limits")  # runs with metrics (`limits`: ran to the end, broke a promise: simbench.verdict)
@@ -59,16 +59,17 @@ def _cell(value: Any) -> str:
         return repr(value)
     if isinstance(value, (list, dict)):
         return json.dumps(value)
+    if isinstance(value, str):
+        return csv_cells.safe(value)
     return str(value)
 
 
 def write_csv(table: dict[str, list], path: Path) -> None:
-    """results.csv: empty cells where a run has no value; lists as JSON."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(table)
-    writer.writerows(zip(*(map(_cell, column) for column in table.values())))
-    write_text(path, buffer.getvalue())
+    """results.csv: empty cells where a run has no value; lists as JSON; text that a spreadsheet would take for a
+    formula after a single quote (simbench.csv_cells)."""
+    lines = [csv_cells.row(table)]
+    lines += map(csv_cells.row, zip(*(map(_cell, column) for column in table.values())))
+    write_text(path, "".join(lines))
 
 
 def _arrow_column(values: list) -> pa.Array:
@@ -146,12 +147,13 @@ def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
     """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in
     one thread, so where there are more figures than one and `workers` > 1 they are drawn `workers` at once: this
     process draws every `workers`-th and processes forked from it the others, meanwhile (the same pixels: the same
-    code on the same state), which shortens the serial end of a sweep."""
+    code on the same state), which shortens the serial end of a sweep. The pool's workers answer signals as a
+    sweep's workers do (execute.as_worker): stopped idle, they end quietly."""
     jobs = [(draw, (*args, folder)) for draw, args in figures]
     processes = min(workers, len(jobs))
     if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return [draw(*args) for draw, args in jobs]
-    with multiprocessing.get_context("fork").Pool(processes - 1) as pool:
+    with multiprocessing.get_context("fork").Pool(processes - 1, initializer=as_worker) as pool:
         theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
         mine = iter([draw(*args) for draw, args in jobs[::processes]])
         others = iter(theirs.get())

@@ -1,0 +1,56 @@
+"""How many runs of a sweep go at once on this machine: as asked (default: one per CPU), but no more than the CPUs
+this process may use, than the memory budget gives each its share for (simbench.budget: half of the memory
+available, against the largest run's estimate and a worker's own memory), or than the runs to do. Asking for more
+is said in one line on stderr; no process beyond these is started.
+
+A worker's own memory, beyond its run's: its proportional set size after a spherical arm case 1 run, measured
+61 MB (2026-12, forked from a process with simbench's modules loaded, which it shares): taken as WORKER_BYTES.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from simbench import budget
+from simbench.sweep import execute
+from simbench.sweep.spec import Sweep, Variant
+
+WORKER_BYTES = 64 * 10**6
+
+
+def count(sweep: Sweep, todo: list[Variant], asked: int | None, stream=None) -> int:
+    """Runs at once for `todo`; where fewer than `asked` (or, not asked, than the CPUs) for want of CPUs or
+    memory, a line on `stream` (stderr) saying why."""
+    cpus = execute.cpu_count()
+    reasons = []
+    if asked and asked > cpus:
+        reasons.append(f"more than the {cpus} CPUs this process may use")
+    workers = min(asked or cpus, cpus, max(1, len(todo)))
+    if workers > 1:
+        limits = budget.machine_limits()
+        need = _largest_run(sweep, todo) + WORKER_BYTES
+        afforded = max(1, int(limits.memory // need))
+        if afforded < workers:
+            reasons.append(f"each may need about {budget.size(need)} (its largest run and its worker) of the "
+                           f"{budget.size(limits.memory)} memory budget ({limits.memory_basis})")
+            workers = afforded
+    if reasons:
+        what = f"{asked} workers asked for" if asked else f"one worker per CPU ({cpus})"
+        print(f"warning: {what}, {'; '.join(reasons)}: running {workers} at once", file=stream or sys.stderr)
+    return workers
+
+
+def _largest_run(sweep: Sweep, todo: list[Variant]) -> int:
+    """The memory the largest of the runs will take (simbench.budget's estimate); a run the schema refuses takes
+    none."""
+    from simbench.scenario import parse_scenario
+
+    largest = 0
+    for variant in todo:
+        try:
+            ask = budget.Ask.of(parse_scenario(variant.document, variant.id), video=sweep.spec.video,
+                                outputs=sweep.spec.outputs == "full")
+        except Exception:  # noqa: BLE001  a run that cannot be estimated fails as its own row, not here
+            continue
+        largest = max(largest, budget.estimate(ask).memory)
+    return largest
