@@ -219,9 +219,10 @@ def test_the_plans_limit_events_a_window_at_a_time_are_those_of_the_whole_plan(s
     those found from the whole plan at once, and each is a span of the references beyond the bound, with its worst
     value, checked here sample by sample."""
     import simbench
+from simbench import registry
     from simbench.trajectory import JointTrajectory
 
-    robot = simbench.api.robots()["spherical_arm"]
+    robot = registry.robots()["spherical_arm"]
     rng = np.random.default_rng(seed)
     n, dof = 600, robot.dof
     t = np.arange(n) * 0.01

@@ -6,13 +6,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from simbench import api
+from simbench import registry
 
-ROBOTS = sorted(api.robots())
+ROBOTS = sorted(registry.robots())
 
 
 def robot_xml(name: str):
-    return ET.parse(api.robots()[name].scene.parent / f"{name}.xml")
+    return ET.parse(registry.robots()[name].scene.parent / f"{name}.xml")
 
 
 @pytest.mark.parametrize("name", ROBOTS)
@@ -24,7 +24,7 @@ def test_every_body_has_explicit_inertial(name):
 
 @pytest.mark.parametrize("name", ROBOTS)
 def test_scene_has_cameras_keyframe_tool_site_and_named_actuators(name):
-    robot = api.robots()[name]
+    robot = registry.robots()[name]
     model = mujoco.MjModel.from_xml_path(str(robot.scene))
     assert model.ncam >= 2
     assert model.key("home").id >= 0
@@ -57,12 +57,12 @@ def random_rollout(model: mujoco.MjModel, seed: int, steps: int = 2000) -> np.nd
 
 @pytest.mark.parametrize("name", ROBOTS)
 def test_random_controls_step_without_warnings_and_stay_finite(name):
-    model = mujoco.MjModel.from_xml_path(str(api.robots()[name].scene))
+    model = mujoco.MjModel.from_xml_path(str(registry.robots()[name].scene))
     qpos = random_rollout(model, seed=0)
     assert np.all(np.isfinite(qpos))
 
 
 @pytest.mark.parametrize("name", ROBOTS)
 def test_stepping_is_deterministic(name):
-    model = mujoco.MjModel.from_xml_path(str(api.robots()[name].scene))
+    model = mujoco.MjModel.from_xml_path(str(registry.robots()[name].scene))
     assert np.array_equal(random_rollout(model, seed=3, steps=500), random_rollout(model, seed=3, steps=500))

@@ -12,6 +12,7 @@ import yaml
 from test_sim import ClosedServo, Scripted, planned, shipped
 
 import simbench
+from simbench import registry
 from conftest import scenario_file
 from simbench import analysis, pages, pipeline, stepping, windowed
 from simbench.robots import Tolerance
@@ -181,7 +182,7 @@ def test_only_a_strided_run_of_a_robot_whose_summary_streams_is_analysed_as_it_i
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
     with pytest.raises(ValueError, match="record_every > 1"):
         simulate(plant, traj, record_every=1, analyser=analysis.Analyser(scenario.robot_def, traj, near, margin))
-    rsmg_robot, arm = type(simbench.api.robots()["rsmg"]), type(scenario.robot_def)
+    rsmg_robot, arm = type(registry.robots()["rsmg"]), type(scenario.robot_def)
 
     class OwnSummary(rsmg_robot):
         def summary(self, traj, rec, series):

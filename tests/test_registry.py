@@ -13,26 +13,26 @@ import numpy as np
 import pytest
 import yaml
 
-from simbench import api, pipeline
+from simbench import api, pipeline, registry
 from simbench.cli import main
 from simbench.errors import RegistryError, ScenarioError
 from simbench.scenario import parse_scenario
 from simbench.plant import Plant, compiled_scene
 
-ROBOTS = sorted(api.robots())
-PLANNERS = sorted(api.planners())
+ROBOTS = sorted(registry.robots())
+PLANNERS = sorted(registry.planners())
 
 
 def test_the_example_package_is_registered_through_its_entry_points():
     """examples/planar3r is installed (README's test command) and found like any outside package."""
     assert "planar3r" in ROBOTS and "dls_line" in PLANNERS
-    assert api.origin("robot", "planar3r").startswith("entry point simbench_planar3r.robot:ROBOT")
-    assert api.origin("robot", "puma600") == "simbench" and api.broken("robot") == {}
+    assert registry.origin("robot", "planar3r").startswith("entry point simbench_planar3r.robot:ROBOT")
+    assert registry.origin("robot", "puma600") == "simbench" and registry.broken("robot") == {}
 
 
 @pytest.mark.parametrize("name", ROBOTS)
 def test_the_scene_steps_under_random_controls_with_no_warning(name):
-    robot = api.robots()[name]
+    robot = registry.robots()[name]
     model = compiled_scene(str(robot.scene))
     data = mujoco.MjData(model)
     mid = (np.maximum(robot.lower, -np.pi) + np.minimum(robot.upper, np.pi)) / 2  # joints without limits: 0
@@ -48,10 +48,10 @@ def test_the_scene_steps_under_random_controls_with_no_warning(name):
     assert [model.actuator(n).name for n in robot.joints] == list(robot.joints)  # actuators named after joints
 
 
-@pytest.mark.parametrize("name", [n for n in ROBOTS if api.robots()[n].has_fk])
+@pytest.mark.parametrize("name", [n for n in ROBOTS if registry.robots()[n].has_fk])
 def test_fk_is_mujocos_tool_site(name):
     """At 30 random joint values inside the ranges (passive joints assembled), to a micrometre."""
-    robot = api.robots()[name]
+    robot = registry.robots()[name]
     plant = Plant.load(robot)
     model, data = plant.model, mujoco.MjData(plant.model)
     rng = np.random.default_rng(1)
@@ -78,7 +78,7 @@ def _joint_move(robot, seed: int = 0) -> dict:
 def test_joint_move_runs_deterministically_or_is_refused_by_name(name, tmp_path, capsys):
     """The one planner for any robot: on a robot with fk it runs, twice the same; on one without it is refused
     at validation with one line naming the planner (never a run that ends in an internal error)."""
-    robot = api.robots()[name]
+    robot = registry.robots()[name]
     doc = _joint_move(robot)
     if not robot.has_fk:
         path = tmp_path / "s.yaml"
@@ -100,7 +100,7 @@ def test_joint_move_runs_deterministically_or_is_refused_by_name(name, tmp_path,
 def test_every_pair_is_refused_at_validation_or_supported(robot, planner):
     """A planner written for other robots is refused naming them; the pairs the registry accepts are the
     planner's own robots, or any robot with what it needs."""
-    r, p = api.robots()[robot], api.planners()[planner]
+    r, p = registry.robots()[robot], registry.planners()[planner]
     doc = {"robot": robot, "planner": planner, "task": {}, "timing": {"duration": 1.0}}
     refusal = p.refuses(r)
     try:
@@ -116,9 +116,9 @@ def test_every_pair_is_refused_at_validation_or_supported(robot, planner):
 
 def test_a_wrong_plugin_is_refused_with_what_is_wrong():
     with pytest.raises(RegistryError, match="expected a simbench.api.Robot instance"):
-        api.register_robot("puma600")  # type: ignore[arg-type]
+        registry.register_robot("puma600")  # type: ignore[arg-type]
     with pytest.raises(RegistryError, match="already registered"):
-        api.register_robot(type(api.robots()["puma600"])())
+        registry.register_robot(type(registry.robots()["puma600"])())
     with pytest.raises(RegistryError, match="qd_max has 2 items, one per joint expected"):
         type("Bad", (api.Robot,), {"measures": lambda s, r: {}, "singular_sets": lambda s, r, t: []})(
             name="bad", description="", scene="x.xml", joints=("a", "b", "c"), kinds=("revolute",) * 3,
@@ -129,13 +129,12 @@ def test_a_broken_entry_point_is_named_and_does_not_block_the_others(monkeypatch
     """An installed package whose entry point fails to import: the other robots load, and a scenario naming
     it is told why."""
     fake = importlib.metadata.EntryPoint(name="ghost", value="no_such_module:ROBOT", group="simbench.robots")
-    registry = api._Registry("simbench.robots", api.Robot)
-    monkeypatch.setattr(api, "_ROBOTS", registry)
-    monkeypatch.setitem(api._REGISTRIES, "robot", registry)
-    monkeypatch.setattr(api, "load_shipped", lambda: None)
+    robots = registry._Registry("simbench.robots", api.Robot)
+    monkeypatch.setattr(registry, "_ROBOTS", robots)
+    monkeypatch.setitem(registry._REGISTRIES, "robot", robots)
     real = importlib.metadata.entry_points
     monkeypatch.setattr(importlib.metadata, "entry_points",
                         lambda group: [fake] if group == "simbench.robots" else real(group=group))
-    assert api.robots() == {} and "ModuleNotFoundError" in api.broken("robot")["ghost"]
+    assert registry.robots() == {} and "ModuleNotFoundError" in registry.broken("robot")["ghost"]
     with pytest.raises(ScenarioError, match="entry point no_such_module:ROBOT .* cannot be used"):
         parse_scenario({"robot": "ghost", "planner": "joint_move"}, "test")

@@ -12,6 +12,7 @@ import yaml
 from conftest import scenario_file
 
 import simbench
+from simbench import registry
 from simbench.api import Controller, State
 from simbench.controllers import Servo
 from simbench.errors import ControlError, PhysicsError, RegistryError
@@ -199,7 +200,7 @@ def test_a_controller_sees_the_data_of_the_state_it_is_asked_about():
 
 def test_actuators_are_found_by_the_joint_they_drive(tmp_path):
     """Renaming the actuators changes nothing; a joint driven by two actuators is refused naming it."""
-    robot = simbench.api.robots()["spherical_arm"]
+    robot = registry.robots()["spherical_arm"]
     spec = mujoco.MjSpec.from_file(str(robot.scene))
     for actuator in spec.actuators:
         actuator.name = "motor_" + actuator.name

@@ -22,7 +22,7 @@ def test_a_wrong_plugin_is_caught_by_the_type_checker(tmp_path):
     bad = tmp_path / "bad_plugin.py"
     bad.write_text(textwrap.dedent('''
         import numpy as np
-        from simbench import api
+        from simbench import api, registry
 
         class Arm(api.Robot):
             def fk(self, q: np.ndarray) -> str:                  # a string where points are due
@@ -42,7 +42,7 @@ def test_a_wrong_plugin_is_caught_by_the_type_checker(tmp_path):
             def plan(self, scenario) -> api.JointTrajectory:    # dt and robot forgotten
                 raise NotImplementedError
 
-        api.register_planner(Arm)                               # a robot class where a planner is due
+        registry.register_planner(Arm)                          # a robot class where a planner is due
     '''))
     done = subprocess.run(MYPY + [str(bad)], capture_output=True, text=True)
     out = done.stdout

@@ -21,7 +21,7 @@ import yaml
 from conftest import interrupt
 
 import simbench
-from simbench import api
+from simbench import api, registry
 from simbench.cli import main
 from simbench_planar3r import control as planar3r_control
 
@@ -110,7 +110,7 @@ def test_validate_says_a_module_path_needs_allow_code_without_importing_it(tmp_p
 
 
 def test_a_registered_policy_is_named_and_an_unknown_name_refused(tmp_path, capsys):
-    api.register_policy(api.PolicyFactory("zero_torque_test", "zero torques", lambda sc: act_zero))
+    registry.register_policy(api.PolicyFactory("zero_torque_test", "zero torques", lambda sc: act_zero))
     out = tmp_path / "out"
     code, _, _ = run_cli(["run", scenario(tmp_path, "zero_torque_test"), "--out", str(out), "--no-video",
                           "--quiet"], capsys)
@@ -125,7 +125,7 @@ def test_a_registered_policy_is_named_and_an_unknown_name_refused(tmp_path, caps
 def test_a_sweep_over_control_obeys_allow_code_per_variant(tmp_path, capsys, importable):
     marker = module(tmp_path, "userpolicy", ACT)
     base = scenario(tmp_path, "zero_torque_sweep_test")
-    api.register_policy(api.PolicyFactory("zero_torque_sweep_test", "zero torques", lambda sc: act_zero))
+    registry.register_policy(api.PolicyFactory("zero_torque_sweep_test", "zero torques", lambda sc: act_zero))
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(yaml.safe_dump({"base": os.path.basename(base),
                                      "grid": {"control.policy": ["userpolicy:make", "zero_torque_sweep_test"]}}))

@@ -15,15 +15,17 @@ import os
 # is first imported; a user's own MUJOCO_GL wins.
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-__version__ = "0.1.0"
-
 from simbench.errors import OutputError, PhysicsError, RunError, ScenarioError  # noqa: E402
+from simbench.version import __version__  # noqa: E402
 
 _LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "evaluate": "simbench.pipeline",
-         "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario"}
+         "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario",
+         **{name: "simbench.registry" for name in ("register_robot", "register_planner", "register_controller",
+                                                    "register_policy")}}
 
-__all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__", "evaluate",
-           "load_scenario", "run"]
+__all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__",
+           "evaluate", "load_scenario", "register_controller", "register_planner", "register_policy",
+           "register_robot", "run"]
 
 
 def __getattr__(name: str):

@@ -1,4 +1,4 @@
-"""The public API: what a user adds to simbench (a mechanism, a planner, a controller or a policy), typed.
+"""The public API: the types of what a user adds to simbench (a mechanism, a planner, a controller or a policy).
 
     scenario.yaml --> Scenario --Planner.plan--> JointTrajectory --Controller + physics--> Recording --> Analysis
 
@@ -9,7 +9,9 @@ the abstract methods, and the optional ones where the mechanism or method needs 
 the shipped planners and the servo are built on these classes exactly as an outside package's are. A
 **PolicyFactory** names a factory of callables from observations to actions, for the `policy` controller.
 
-An outside package makes its objects known in one of two ways:
+This module is a leaf of simbench's imports: every plugin imports it, and it imports no plugin and nothing that
+imports it back. The registries are `simbench.registry`; an outside package makes its objects known in one of
+two ways, as simbench's own are (its pyproject.toml declares them so):
 
     simbench.register_robot(MyArm())                       # at run time, from Python
 
@@ -17,21 +19,16 @@ An outside package makes its objects known in one of two ways:
     myarm = "mypackage.robot:ROBOT"                        # (groups simbench.robots, .planners, .controllers,
                                                            # .policies)
 
-A scenario then names them as it names the shipped ones, and `simbench list` says where each comes from (and
-why an entry point that failed to load is not there). Entry points are outside code, loaded on first use with
-whatever they raise (SystemExit too) kept as that entry point's failure.
+`Scenario` is named here for annotations only (under typing.TYPE_CHECKING): the scenario schema is built from
+the registries, which import this module; at run time it is `simbench.Scenario` (simbench.scenario).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib
-import importlib.metadata
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, Literal, NamedTuple, TypeVar
 
@@ -39,32 +36,30 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel
 
-from simbench import interrupts
-from simbench.errors import RegistryError, RunError, described
+from simbench.errors import RegistryError, RunError
 from simbench.frozen import SimbenchModel
+from simbench.plant import Plant, compiled_scene
+from simbench.recording import Recording
 from simbench.trajectory import JointTrajectory, Switch
 
 if TYPE_CHECKING:
     import mujoco
 
     from simbench.scenario import Scenario
-    from simbench.plant import Plant
-    from simbench.sim import Recording
 
-__all__ = ["PRISMATIC", "REVOLUTE", "Commands", "ControlSettings", "Controller", "Decoration", "JointTrajectory",
-           "Plant", "Planner", "PolicyFactory", "Recording", "Robot", "RunError", "Scenario", "SingularSet", "State",
-           "Summariser", "Summary", "Switch", "Tolerance", "broken", "controllers", "origin", "planners", "policies",
-           "register_controller", "register_planner", "register_policy", "register_robot", "robots"]
+__all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration",
+           "JointTrajectory", "Plant", "Planner", "PolicyFactory", "Recording", "Robot", "RunError", "SingularSet",
+           "State", "Summariser", "Summary", "Switch", "Tolerance"]
 
-_LAZY = {"Plant": "simbench.plant", "Recording": "simbench.sim", "Scenario": "simbench.scenario"}
 
 
 def __getattr__(name: str) -> Any:
-    """Recording, Plant and Scenario, for outside authors' annotations: imported when first asked for (they
-    import MuJoCo and the scenario schema, which import this module)."""
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
+    """Scenario, asked for at run time: where it is (this module names it for annotations only)."""
+    if name == "Scenario":
+        raise AttributeError("simbench.api.Scenario is for annotations (under typing.TYPE_CHECKING); at run time "
+                             "use simbench.Scenario")
     raise AttributeError(f"module 'simbench.api' has no attribute {name!r}")
+
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
@@ -437,135 +432,5 @@ def _check_robot(robot: Robot) -> None:
 
 
 def _camera_names(scene: str) -> tuple[str, ...]:
-    from simbench.plant import compiled_scene
-
     model = compiled_scene(scene)
     return tuple(model.camera(i).name for i in range(model.ncam))
-
-
-# --- registries ---------------------------------------------------------------------------------------------
-
-@dataclass
-class _Registry:
-    """The objects of one kind by name, each with where it came from; entry points are read on first use."""
-
-    group: str
-    kind: type
-    classes: bool = False  # holds subclasses of `kind` (a run makes its own instance), not instances
-    objects: dict[str, Any] = dataclasses.field(default_factory=dict)
-    origins: dict[str, str] = dataclasses.field(default_factory=dict)
-    broken: dict[str, str] = dataclasses.field(default_factory=dict)  # entry point name -> why it did not load
-    loaded: bool = False
-
-    def add(self, obj: Any, origin: str) -> None:
-        if not (isinstance(obj, type) and issubclass(obj, self.kind) if self.classes else isinstance(obj, self.kind)):
-            expected = "subclass" if self.classes else "instance"
-            raise RegistryError(f"{origin}: expected a simbench.api.{self.kind.__name__} {expected}, got "
-                                f"{obj!r:.80}")
-        name = getattr(obj, "name", None)
-        if not isinstance(name, str) or not name:
-            raise RegistryError(f"{origin}: a {self.kind.__name__} needs a name")
-        if name in self.objects and self.objects[name] is not obj:
-            raise RegistryError(f"{origin}: a {self.kind.__name__.lower()} called '{name}' is already registered "
-                                f"(from {self.origins[name]})")
-        self.objects[name] = obj
-        self.origins[name] = origin
-
-    def all(self) -> dict[str, Any]:
-        """Every object by name, the installed packages' entry points read the first time. One that fails to
-        load or to register, whatever it raises (sys.exit too), is kept out and remembered in `broken` (a scenario
-        naming it is told why), so that one broken package does not stop the others; the user's Ctrl-C is not
-        its failure (interrupts.is_press) and stops the loading."""
-        if not self.loaded:
-            load_shipped()
-            for ep in importlib.metadata.entry_points(group=self.group):
-                origin = f"entry point {ep.value} ({ep.dist.name if ep.dist else 'unknown package'})"
-                try:
-                    self.add(ep.load(), origin)
-                except BaseException as err:  # an outside package's failure, whatever it is: named, then skipped
-                    if interrupts.is_press(err):
-                        raise
-                    self.broken[ep.name] = f"{origin} cannot be used: {described(err)}"
-            self.loaded = True
-        return self.objects
-
-
-_ROBOTS = _Registry("simbench.robots", Robot)
-_PLANNERS = _Registry("simbench.planners", Planner)
-_CONTROLLERS = _Registry("simbench.controllers", Controller, classes=True)
-_POLICIES = _Registry("simbench.policies", PolicyFactory)
-_REGISTRIES = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS, "policy": _POLICIES}
-Kind = Literal["robot", "planner", "controller", "policy"]
-
-
-@cache
-def load_shipped() -> None:
-    """The robots, planners and controllers that come with simbench, registered as an outside package's are
-    (once: each registry asks for them on first use; the command line first, with Ctrl-C held back while their
-    extension modules are imported, simbench.interrupts)."""
-    from simbench import computed_torque, controllers, policy
-    from simbench.planners import (avoidance_4567, decoupled_path, joint_move, mink_baseline, round_robin,
-                                   safe_straight_path)
-    from simbench.robots import agile_eye, puma600, rsmg, spherical_arm
-
-    for robot in (spherical_arm.ROBOT, puma600.ROBOT, agile_eye.ROBOT, rsmg.ROBOT):
-        _ROBOTS.add(robot, "simbench")
-    for planner in (safe_straight_path.PLANNER, decoupled_path.PLANNER, avoidance_4567.PLANNER,
-                    round_robin.PLANNER, joint_move.PLANNER, mink_baseline.PLANNER):
-        _PLANNERS.add(planner, "simbench")
-    for controller in (controllers.Servo, computed_torque.ComputedTorque, policy.Policy):
-        _CONTROLLERS.add(controller, "simbench")
-
-
-def register_robot(robot: Robot, origin: str = "registered from Python") -> None:
-    """Make `robot` known to scenarios by its name."""
-    _ROBOTS.all()
-    _ROBOTS.add(robot, origin)
-
-
-def register_planner(planner: Planner, origin: str = "registered from Python") -> None:
-    """Make `planner` known to scenarios by its name."""
-    _PLANNERS.all()
-    _PLANNERS.add(planner, origin)
-
-
-def register_controller(controller: type[Controller], origin: str = "registered from Python") -> None:
-    """Make the Controller subclass `controller` known to scenarios by its name (a run makes its own instance)."""
-    _CONTROLLERS.all()
-    _CONTROLLERS.add(controller, origin)
-
-
-def register_policy(policy: PolicyFactory, origin: str = "registered from Python") -> None:
-    """Make `policy` known to scenarios by its name (control.policy)."""
-    _POLICIES.all()
-    _POLICIES.add(policy, origin)
-
-
-def robots() -> dict[str, Robot]:
-    """Every robot by name: the shipped ones, those of installed packages' entry points, those registered."""
-    return _ROBOTS.all()
-
-
-def planners() -> dict[str, Planner]:
-    """Every planner by name."""
-    return _PLANNERS.all()
-
-
-def controllers() -> dict[str, type[Controller]]:
-    """Every controller class by name."""
-    return _CONTROLLERS.all()
-
-
-def policies() -> dict[str, PolicyFactory]:
-    """Every registered policy by name (none ship with simbench)."""
-    return _POLICIES.all()
-
-
-def broken(kind: Kind) -> dict[str, str]:
-    """Entry points of this kind that failed to load or register, by name, with why."""
-    return _REGISTRIES[kind].broken
-
-
-def origin(kind: Kind, name: str) -> str:
-    """Where the robot, planner, controller or policy called `name` comes from."""
-    return _REGISTRIES[kind].origins[name]

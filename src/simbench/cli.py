@@ -270,20 +270,20 @@ def _run(args) -> int:
 def _list() -> str:
     """Robots, planners, controllers and policies with where each comes from, and under each kind the entry
     points that failed to load and why; then the shipped scenarios and sweeps."""
-    from simbench import api
+    from simbench import registry
 
     lines = ["robots:"]
-    lines += [f"  {r.name:16s} {r.description} ({api.origin('robot', r.name)})" for r in api.robots().values()]
+    lines += [f"  {r.name:16s} {r.description} ({registry.origin('robot', r.name)})" for r in registry.robots().values()]
     lines += _broken("robot")
     lines.append("planners:")
-    for p in api.planners().values():
+    for p in registry.planners().values():
         works = ", ".join(p.robots) if p.robots else "any robot" + (f" with {', '.join(p.needs)}" if p.needs else "")
-        lines.append(f"  {p.name:20s} {p.description} [{works}] ({api.origin('planner', p.name)})")
+        lines.append(f"  {p.name:20s} {p.description} [{works}] ({registry.origin('planner', p.name)})")
     lines += _broken("planner")
-    for kind, title, found in (("controller", "controllers", api.controllers()), ("policy", "policies",
-                                                                                  api.policies())):
+    for kind, title, found in (("controller", "controllers", registry.controllers()), ("policy", "policies",
+                                                                                  registry.policies())):
         lines.append(f"{title}:")
-        lines += [f"  {c.name:20s} {c.description} ({api.origin(kind, c.name)})" for c in found.values()]
+        lines += [f"  {c.name:20s} {c.description} ({registry.origin(kind, c.name)})" for c in found.values()]
         lines += _broken(kind)
     for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):
         lines.append(f"{title}:")
@@ -293,9 +293,9 @@ def _list() -> str:
 
 def _broken(kind) -> list[str]:
     """One line for each entry point of this kind that failed to load: its name and why."""
-    from simbench import api
+    from simbench import registry
 
-    return [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(api.broken(kind).items())]
+    return [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(registry.broken(kind).items())]
 
 
 def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
@@ -346,10 +346,10 @@ def _preload(ctrl_c: interrupts.CtrlC) -> None:
     would convert or swallow it), then the outside packages' entry points with it deliverable: one that hangs can
     be stopped. A press an entry point's import turned into its failure still interrupts the command."""
     with interrupts.held_back():
-        from simbench import api, pipeline, scenario  # noqa: F401
+        from simbench import pipeline, registry, scenario  # noqa: F401
 
-        api.load_shipped()
-    api.robots(), api.planners(), api.controllers(), api.policies()
+        registry.load_shipped()
+    registry.robots(), registry.planners(), registry.controllers(), registry.policies()
     if ctrl_c.pressed:
         raise interrupts.Interrupted
 

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from simbench import api, budget, destination
+from simbench import api, budget, destination, registry
 from simbench.atomic import staged_folder
 from simbench.page import table_page, write_page
 from simbench.errors import PhysicsError, RunError, ScenarioError
@@ -86,8 +86,8 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
     out = destination.followed(Path(out))
     base = load_scenario(source)
     raw = read_yaml(source)
-    variants = _variants(raw, base, source, _names(planners, "planner", api.planners()),
-                         _names(controllers, "controller", api.controllers()) if controllers is not None
+    variants = _variants(raw, base, source, _names(planners, "planner", registry.planners()),
+                         _names(controllers, "controller", registry.controllers()) if controllers is not None
                          else [base.control.controller])
     for *_, scenario in variants:  # every method affordable (simbench.budget) and allowed before any runs
         budget.check(scenario)

@@ -13,13 +13,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import mujoco
 import numpy as np
 
-from simbench.api import Robot
 from simbench.errors import RegistryError
+
+if TYPE_CHECKING:
+    from simbench.api import Robot
 
 FORCE_SENSOR = "simbench/force/"  # prefix of the actuator-force sensors added to every scene (scene_spec)
 Actuation = Literal["position", "torque"]

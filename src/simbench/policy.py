@@ -2,7 +2,7 @@
 
     control:
       controller: policy
-      policy: my_policy                       # registered: simbench.api.register_policy, or the entry-point
+      policy: my_policy                       # registered: simbench.registry.register_policy, or the entry-point
                                               # group simbench.policies
       action: torque                          # or position: targets for the scene's position servos
 
@@ -29,7 +29,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator
 
-from simbench import api, interrupts
+from simbench import interrupts, registry
 from simbench.api import Array, Controller, ControlSettings, State
 from simbench.errors import ScenarioError, described
 from simbench.observation import observation
@@ -54,9 +54,9 @@ class PolicySettings(ControlSettings):
         """A name must be a registered policy's; a module path is checked when the run is allowed to import it."""
         if is_code(name):
             return name
-        if name in api.broken("policy"):
-            raise ValueError(api.broken("policy")[name])
-        known = api.policies()
+        if name in registry.broken("policy"):
+            raise ValueError(registry.broken("policy")[name])
+        known = registry.policies()
         if name not in known:
             hint = difflib.get_close_matches(name, known, n=1)
             raise ValueError(f"unknown policy {name!r} (expected a registered one: {', '.join(sorted(known)) or 'none'}"
@@ -120,7 +120,7 @@ def refuse_code(scenario: Scenario, allow_code: bool) -> None:
         return
     raise ScenarioError(scenario.source or scenario.name or "scenario", "control.policy",
                         f"{settings.policy} names Python code to import and run; allow it with --allow-code "
-                        "(Python: allow_code=True), or register the policy and name it (simbench.api.register_policy)")
+                        "(Python: allow_code=True), or register the policy and name it (simbench.registry.register_policy)")
 
 
 def make(target: str, scenario: Scenario) -> Callable[[dict], Any]:
@@ -148,6 +148,6 @@ def make(target: str, scenario: Scenario) -> Callable[[dict], Any]:
 def _factory(target: str) -> Callable[[Scenario], Any]:
     """The registered policy's factory, or the module path's (imported)."""
     if not is_code(target):
-        return api.policies()[target].make
+        return registry.policies()[target].make
     module_name, _, attr = target.partition(":")
     return getattr(importlib.import_module(module_name), attr)

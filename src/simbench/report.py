@@ -15,6 +15,7 @@ from simbench.analysis import Analysis
 from simbench.atomic import staged_file, write_text
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
+from simbench.version import __version__
 
 
 def plain(value):
@@ -36,8 +37,6 @@ def plain(value):
 
 def versions() -> dict:
     """Versions of what produced the numbers."""
-    from simbench import __version__
-
     return {"simbench": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
             "python": platform.python_version()}
 

@@ -32,7 +32,7 @@ import numpy as np
 from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, create_model, field_validator,
                       model_validator)
 
-from simbench import api, verdict
+from simbench import api, registry, verdict
 from simbench.errors import ScenarioError
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
 from simbench.timing import TimeLaw
@@ -148,24 +148,24 @@ class Scenario(SimbenchModel):
     @property
     def robot_def(self) -> api.Robot:
         """The Robot this scenario runs."""
-        return api.robots()[self.robot]
+        return registry.robots()[self.robot]
 
     @property
     def planner_def(self) -> api.Planner:
         """The Planner this scenario uses."""
-        return api.planners()[self.planner]
+        return registry.planners()[self.planner]
 
     @property
     def controller_def(self) -> type[api.Controller]:
         """The Controller class this scenario runs with."""
-        return api.controllers()[self.control.controller]
+        return registry.controllers()[self.control.controller]
 
 
 @cache
 def _scenario_class(planner_name: str, controller_name: str = "servo") -> type[Scenario]:
     """The schema of a scenario with this planner's `task:` and this controller's `control:` section."""
-    task = api.planners()[planner_name].task
-    settings = api.controllers()[controller_name].settings
+    task = registry.planners()[planner_name].task
+    settings = registry.controllers()[controller_name].settings
     return create_model(f"Scenario_{planner_name}_{controller_name}", __base__=Scenario, task=(task, ...),
                         control=(settings, Field(default_factory=settings)))
 
@@ -193,8 +193,8 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     """Validate a scenario already read into Python objects."""
     if not isinstance(raw, dict):
         raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {kind_of(raw)}")
-    robot = api.robots()[_name_field(raw, "robot", api.robots(), source)]
-    planner = api.planners()[_name_field(raw, "planner", api.planners(), source)]
+    robot = registry.robots()[_name_field(raw, "robot", registry.robots(), source)]
+    planner = registry.planners()[_name_field(raw, "planner", registry.planners(), source)]
     refusal = planner.refuses(robot)
     if refusal:
         raise ScenarioError(source, "planner", refusal)
@@ -227,7 +227,7 @@ def _controller_name(raw: dict, source: str) -> str:
                                                f"{kind_of(control)}")
     if "controller" not in control:
         return "servo"
-    return _name_field(control, "controller", api.controllers(), source, path="control.controller")
+    return _name_field(control, "controller", registry.controllers(), source, path="control.controller")
 
 
 def _name_field(raw: dict, field: str, known: dict, source: str, path: str | None = None) -> str:
@@ -237,8 +237,8 @@ def _name_field(raw: dict, field: str, known: dict, source: str, path: str | Non
     options = ", ".join(sorted(known))
     if value is None:
         raise ScenarioError(source, path, f"missing: this field is required (one of: {options})")
-    if isinstance(value, str) and value in api.broken(field):
-        raise ScenarioError(source, path, api.broken(field)[value])
+    if isinstance(value, str) and value in registry.broken(field):
+        raise ScenarioError(source, path, registry.broken(field)[value])
     if not isinstance(value, str) or value not in known:
         hint = difflib.get_close_matches(str(value), known, n=1)
         suggestion = f"; did you mean '{hint[0]}'?" if hint else ""

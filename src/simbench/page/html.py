@@ -13,6 +13,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from urllib.parse import quote
 
+from simbench.version import __version__
+
 _STYLE = """
 :root { --ink: #1d2330; --muted: #5b6475; --rule: #d9dde5; --band: #f4f6f9; --ok: #1e7b34; --limits: #b35c00;
         --failed: #b3261e; }
@@ -207,8 +209,6 @@ def paragraphs(text: str | None, css: str = "") -> str:
 def document(title: str, body: str) -> str:
     """The whole page: no script, no request beyond its own folder (the empty icon stops a favicon request);
     written as ASCII with character references, so it reads the same whatever encoding writes it."""
-    from simbench import __version__
-
     page = ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
             f'<link rel="icon" href="data:,">\n<title>{esc(title)}</title>\n<style>{_STYLE}</style>\n</head>\n'

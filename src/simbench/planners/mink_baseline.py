@@ -39,7 +39,7 @@ import numpy as np
 from pydantic import Field, ValidationError, ValidationInfo, field_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from simbench import api
+from simbench import registry
 from simbench.api import Planner, Robot
 from simbench.errors import RunError
 from simbench.plant import compiled_scene
@@ -65,7 +65,7 @@ class Task(SimbenchModel):
     @field_validator("follow")
     @classmethod
     def _known_planner(cls, name: str, info: ValidationInfo) -> str:
-        planners = api.planners()
+        planners = registry.planners()
         if name == NAME:
             raise ValueError(f"'{NAME}' follows another planner's plan, not its own")
         if name not in planners:
@@ -96,7 +96,7 @@ class Task(SimbenchModel):
             return value
         if not isinstance(value, dict):
             raise ValueError(f"expected a mapping: the task of '{follow}', as its own scenarios write it")
-        schema = api.planners()[follow].task
+        schema = registry.planners()[follow].task
         try:
             return schema.model_validate(value, context=info.context)
         except ValidationError as err:

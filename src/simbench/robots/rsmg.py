@@ -22,7 +22,8 @@ Design (the surviving text does not give it; models/rsmg/README.md justifies eac
 of a regular tetrahedron, one from below; ALPHA = BETA = 70 deg; three candidate contact points per arm, 120 deg
 apart on the rotor's great circle normal to that arm's axis at the home pose.
 
-What a run's outputs show of the RSMG (report entries, switch events, the EMs' colours, the gamma plot) is in
+The design's constants and contact points are simbench.robots.rsmg_geometry's (named here too); what a run's
+outputs show of the RSMG (report entries, switch events, the EMs' colours, the gamma plot) is in
 simbench.robots.rsmg_outputs.
 """
 
@@ -31,44 +32,11 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.api import Summary
-from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
+from simbench.robots import Robot, SingularSet, Tolerance, rsmg_outputs, scene
+from simbench.robots.rsmg_geometry import (ALPHA, ARMS, BETA, CANDIDATES, CHUNK, DET_A_MIN, GAMMA_BAND,  # noqa: F401
+                                          JOINTS, KINDS, LOWER, POINTS, QD_MAX, RADIUS, UPPER, U, X_REF, Y_REF,
+                                          gripping)
 from simbench.vectors import cross, triple
-
-ALPHA = np.deg2rad(70.0)
-BETA = np.deg2rad(70.0)
-RADIUS = 0.05  # m: the rotor
-ARMS = 4
-CANDIDATES = 3
-GAMMA_BAND = np.deg2rad([10.0, 170.0])  # eq. 45
-DET_A_MIN = 0.01  # eq. 46
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _tetrahedron() -> np.ndarray:
-    """Arm axes u_i: one straight down, three at 109.47 deg from it, 120 deg apart in azimuth."""
-    up = 1.0 / 3.0
-    side = np.sqrt(1.0 - up**2)
-    azimuth = np.deg2rad([0.0, 120.0, 240.0])
-    return np.vstack([[0.0, 0.0, -1.0], np.stack([side * np.cos(azimuth), side * np.sin(azimuth),
-                                                  np.full(3, up)], axis=-1)])
-
-
-U = _tetrahedron()
-X_REF = _unit(np.vstack([[1.0, 0.0, 0.0]] + [[0.0, 0.0, 1.0] - u[2] * u for u in U[1:]]))
-Y_REF = np.cross(U, X_REF)
-# Candidate contact points (rotor frame): arm i's three, 120 deg apart on the great circle normal to u_i.
-_PHASE = 2 * np.pi / 3 * np.arange(CANDIDATES)
-POINTS = np.stack([np.cos(_PHASE)[:, None] * X_REF[i] + np.sin(_PHASE)[:, None] * Y_REF[i] for i in range(ARMS)])
-JOINTS = tuple(f"theta{i + 1}" for i in range(ARMS)) + tuple(f"gamma{i + 1}" for i in range(ARMS))
-KINDS = (REVOLUTE,) * (2 * ARMS)
-LOWER = np.full(2 * ARMS, -np.inf)
-UPPER = np.full(2 * ARMS, np.inf)
-QD_MAX = np.full(2 * ARMS, 4 * np.pi)  # 2 turns/s: a small direct-drive motor's speed, the base joints' and gammas'
-CHUNK = 1 << 16  # samples the measures and rsmg_outputs' errors work on at once: memory bounded on a long run
-
 
 def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
     """w_i (N, 3) for base angles theta (N,) of arm `arm` (eq. 12). Component by component: a product of (N, 1)
@@ -165,11 +133,6 @@ def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     return best
 
 
-def gripping(rec) -> np.ndarray:
-    """Which arms grip (their welds on) at each recorded sample (N, 4), bool."""
-    return np.stack([rec.eq_active[f"grip{i + 1}"] for i in range(ARMS)], axis=1).astype(bool)
-
-
 def _rows(q: np.ndarray) -> np.ndarray:
     """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once, from joints q (N, 8): jacobian_rows' (eqs. 12,
     24-27, 34) expanded.
@@ -222,8 +185,7 @@ def sets_of_measures(found: dict[str, np.ndarray]) -> list[SingularSet]:
 
 class RSMG(Robot):
     """simbench.api.Robot of the RSMG (paper 001), whose rotor pose depends on the gripped points: no fk of the
-    joints alone. Its report entries, video colours and plot are rsmg_outputs', imported when first asked for (it
-    imports this module, and only its plot needs simbench.plots)."""
+    joints alone. Its report entries, video colours and plot are rsmg_outputs'."""
 
     def __init__(self):
         super().__init__(
@@ -253,23 +215,15 @@ class RSMG(Robot):
         return sets_of_measures(measures)
 
     def summary(self, traj, rec, series: dict) -> Summary:
-        from simbench.robots import rsmg_outputs
-
         return rsmg_outputs.summary(traj, rec, series)
 
     def summariser(self, traj):
-        from simbench.robots import rsmg_outputs
-
         return rsmg_outputs.Summariser(traj)
 
     def paint(self, model, rec, row: int) -> None:
-        from simbench.robots import rsmg_outputs
-
         rsmg_outputs.paint(model, rec, row)
 
     def plots(self, traj, rec, analysis, folder) -> list[str]:
-        from simbench.robots import rsmg_outputs
-
         return rsmg_outputs.plots(traj, rec, analysis, folder)
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from simbench import api
 from simbench.api import Summary
-from simbench.robots.rsmg import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
+from simbench.robots.rsmg_geometry import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.rotations import quat_to_matrix, rotation_angle
 
 _GRIPPING_RGBA = [0.2, 0.85, 0.3, 1.0]  # an EM that grips: green

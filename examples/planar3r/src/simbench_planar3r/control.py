@@ -12,13 +12,16 @@ plain callable on the observation dictionary (what a learned policy would get).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 from pydantic import Field
 
-from simbench.api import Array, Controller, ControlSettings, Plant, PolicyFactory, Scenario, State
+from simbench.api import Array, Controller, ControlSettings, Plant, PolicyFactory, State
 from simbench.trajectory import JointTrajectory
+
+if TYPE_CHECKING:  # simbench.api names the scenario's type for annotations; at run time it is simbench.Scenario
+    from simbench.api import Scenario
 
 KP = (300.0, 150.0, 40.0)  # N m/rad: the example's servo stiffness (models/planar3r.xml)
 KD = (12.0, 4.0, 1.0)  # N m s/rad

@@ -1,0 +1,166 @@
+"""The registries: every robot, planner, controller and policy a scenario can name, by name, with where each came
+from.
+
+simbench's own are declared as entry points in its pyproject.toml, exactly as an outside package declares its
+(groups simbench.robots, .planners, .controllers, .policies), and are read first, in the order of their names. One of
+simbench's own that fails to load is a bug of simbench's and raises; an outside package's, whatever it raises
+(sys.exit too), is kept out and remembered in `broken` (a scenario naming it is told why), so that one broken
+package does not stop the others; the user's Ctrl-C is not its failure (interrupts.is_press) and stops the
+loading. `register_*` adds an object from Python at run time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from simbench import interrupts
+from simbench.api import Controller, Planner, PolicyFactory, Robot
+from simbench.errors import RegistryError, described
+
+SHIPPED = "simbench"  # the distribution whose entry points are simbench's own
+Kind = Literal["robot", "planner", "controller", "policy"]
+
+
+@dataclass
+class _Registry:
+    """The objects of one kind by name, each with where it came from; entry points are read on first use."""
+
+    group: str
+    kind: type
+    classes: bool = False  # holds subclasses of `kind` (a run makes its own instance), not instances
+    objects: dict[str, Any] = dataclasses.field(default_factory=dict)
+    origins: dict[str, str] = dataclasses.field(default_factory=dict)
+    broken: dict[str, str] = dataclasses.field(default_factory=dict)  # entry point name -> why it did not load
+    shipped: bool = False  # simbench's own entry points read
+    loaded: bool = False  # every entry point read
+
+    def add(self, obj: Any, origin: str) -> None:
+        if not (isinstance(obj, type) and issubclass(obj, self.kind) if self.classes else isinstance(obj, self.kind)):
+            expected = "subclass" if self.classes else "instance"
+            raise RegistryError(f"{origin}: expected a simbench.api.{self.kind.__name__} {expected}, got "
+                                f"{obj!r:.80}")
+        name = getattr(obj, "name", None)
+        if not isinstance(name, str) or not name:
+            raise RegistryError(f"{origin}: a {self.kind.__name__} needs a name")
+        if name in self.objects and self.objects[name] is not obj:
+            raise RegistryError(f"{origin}: a {self.kind.__name__.lower()} called '{name}' is already registered "
+                                f"(from {self.origins[name]})")
+        self.objects[name] = obj
+        self.origins[name] = origin
+
+    def load_shipped(self) -> None:
+        """simbench's own entry points of this group, registered with origin 'simbench'."""
+        if self.shipped:
+            return
+        for ep in _own(self.group):
+            try:
+                obj = ep.load()
+            except Exception as err:
+                raise RegistryError(f"simbench's own {ep.name} ({ep.value}) cannot be loaded: {described(err)} (a "
+                                    "bug in simbench: please report it)") from err
+            self.add(obj, SHIPPED)
+        self.shipped = True
+
+    def all(self) -> dict[str, Any]:
+        """Every object by name, the installed packages' entry points read the first time."""
+        if not self.loaded:
+            self.load_shipped()
+            for ep in importlib.metadata.entry_points(group=self.group):
+                if _is_own(ep):
+                    continue
+                origin = f"entry point {ep.value} ({ep.dist.name if ep.dist else 'unknown package'})"
+                try:
+                    self.add(ep.load(), origin)
+                except BaseException as err:  # an outside package's failure, whatever it is: named, then skipped
+                    if interrupts.is_press(err):
+                        raise
+                    self.broken[ep.name] = f"{origin} cannot be used: {described(err)}"
+            self.loaded = True
+        return self.objects
+
+
+def _is_own(ep: importlib.metadata.EntryPoint) -> bool:
+    return ep.dist is not None and ep.dist.name == SHIPPED
+
+
+def _own(group: str) -> list[importlib.metadata.EntryPoint]:
+    """simbench's own entry points of `group`; RegistryError if simbench is not installed (its own plugins are
+    declared in its package metadata, which a source tree alone does not have)."""
+    try:
+        importlib.metadata.distribution(SHIPPED)
+    except importlib.metadata.PackageNotFoundError:
+        raise RegistryError("simbench is not installed, so its robots, planners and controllers cannot be found "
+                            "(they are entry points of its package): pip install -e . in its folder") from None
+    return [ep for ep in importlib.metadata.entry_points(group=group) if _is_own(ep)]
+
+
+_ROBOTS = _Registry("simbench.robots", Robot)
+_PLANNERS = _Registry("simbench.planners", Planner)
+_CONTROLLERS = _Registry("simbench.controllers", Controller, classes=True)
+_POLICIES = _Registry("simbench.policies", PolicyFactory)
+_REGISTRIES: dict[str, _Registry] = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS,
+                                     "policy": _POLICIES}
+
+
+def load_shipped() -> None:
+    """simbench's own robots, planners, controllers and policies (the command line loads them first, with Ctrl-C
+    held back while their extension modules are imported, simbench.interrupts)."""
+    for registry in _REGISTRIES.values():
+        registry.load_shipped()
+
+
+def register_robot(robot: Robot, origin: str = "registered from Python") -> None:
+    """Make `robot` known to scenarios by its name."""
+    _ROBOTS.all()
+    _ROBOTS.add(robot, origin)
+
+
+def register_planner(planner: Planner, origin: str = "registered from Python") -> None:
+    """Make `planner` known to scenarios by its name."""
+    _PLANNERS.all()
+    _PLANNERS.add(planner, origin)
+
+
+def register_controller(controller: type[Controller], origin: str = "registered from Python") -> None:
+    """Make the Controller subclass `controller` known to scenarios by its name (a run makes its own instance)."""
+    _CONTROLLERS.all()
+    _CONTROLLERS.add(controller, origin)
+
+
+def register_policy(policy: PolicyFactory, origin: str = "registered from Python") -> None:
+    """Make `policy` known to scenarios by its name (control.policy)."""
+    _POLICIES.all()
+    _POLICIES.add(policy, origin)
+
+
+def robots() -> dict[str, Robot]:
+    """Every robot by name: the shipped ones, those of installed packages' entry points, those registered."""
+    return _ROBOTS.all()
+
+
+def planners() -> dict[str, Planner]:
+    """Every planner by name."""
+    return _PLANNERS.all()
+
+
+def controllers() -> dict[str, type[Controller]]:
+    """Every controller class by name."""
+    return _CONTROLLERS.all()
+
+
+def policies() -> dict[str, PolicyFactory]:
+    """Every registered policy by name (none ship with simbench)."""
+    return _POLICIES.all()
+
+
+def broken(kind: Kind) -> dict[str, str]:
+    """Entry points of this kind that failed to load or register, by name, with why."""
+    return _REGISTRIES[kind].broken
+
+
+def origin(kind: Kind, name: str) -> str:
+    """Where the robot, planner, controller or policy called `name` comes from."""
+    return _REGISTRIES[kind].origins[name]
