@@ -218,8 +218,7 @@ def test_the_plans_limit_events_a_window_at_a_time_are_those_of_the_whole_plan(s
     window edges (windows of 1 to 40 rows): `joint_limit` and `velocity_limit` events found a window at a time are
     those found from the whole plan at once, and each is a span of the references beyond the bound, with its worst
     value, checked here sample by sample."""
-    import simbench
-from simbench import registry
+    from simbench import registry
     from simbench.trajectory import JointTrajectory
 
     robot = registry.robots()["spherical_arm"]
