@@ -28,11 +28,16 @@ simbench.robots.rsmg_outputs.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from simbench.api import Summary
 from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 from simbench.vectors import cross, triple
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 ALPHA = np.deg2rad(70.0)
 BETA = np.deg2rad(70.0)
@@ -267,10 +272,10 @@ class RSMG(Robot):
 
         rsmg_outputs.paint(model, rec, row)
 
-    def plots(self, traj, rec, analysis, folder) -> list[str]:
+    def plots(self, traj, rec, analysis) -> dict[str, Figure]:
         from simbench.robots import rsmg_outputs
 
-        return rsmg_outputs.plots(traj, rec, analysis, folder)
+        return rsmg_outputs.plots(traj, rec, analysis)
 
 
 ROBOT = RSMG()
