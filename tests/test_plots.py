@@ -133,3 +133,24 @@ def test_the_command_line_takes_a_plot_format_and_refuses_others(tmp_path, capsy
     assert exit_.value.code == 2 and "invalid choice: 'jpg'" in capsys.readouterr().err
     with pytest.raises(ScenarioError, match="plot_format: expected one of png, svg, pdf, got 'jpg'"):
         simbench.run(scenario_file("spherical_arm", "case1"), out=tmp_path / "jpg", video=False, plot_format="jpg")
+
+
+def test_an_exit_or_an_unpicklable_error_from_a_plots_hook_is_one_line_and_exit_1(tmp_path, monkeypatch, capsys):
+    """What a hook raises in the process drawing the plots reaches the command as the run's own code would: an
+    exit is outside code's failure (exit 1, one line), and an error that cannot cross back between processes is
+    named."""
+    arm = type(api.robots()["spherical_arm"])
+
+    class Odd(Exception):  # a local class: not picklable
+        pass
+
+    for raised, said in ((SystemExit(3), "outside code simbench called raised SystemExit: 3"),
+                         (Odd("lost"), "drawing the plots raised Odd: lost")):
+        def hook(self, traj, rec, analysis, raised=raised):
+            raise raised
+
+        monkeypatch.setattr(arm, "plots", hook)
+        out = tmp_path / type(raised).__name__
+        assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
+                     "--quiet"]) == 1
+        assert said in capsys.readouterr().err and not out.exists()
