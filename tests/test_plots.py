@@ -154,3 +154,18 @@ def test_an_exit_or_an_unpicklable_error_from_a_plots_hook_is_one_line_and_exit_
         assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
                      "--quiet"]) == 1
         assert said in capsys.readouterr().err and not out.exists()
+
+
+def test_a_sweeps_worker_draws_each_runs_plots_too(tmp_path):
+    """A sweep that keeps every run's outputs runs them in worker processes, which fork the plots' process in
+    turn: each run's plots are written and listed."""
+    sweep = tmp_path / "full.yaml"
+    sweep.write_text(f"name: full\nbase: {scenario_file('spherical_arm', 'case1')}\noutputs: full\n"
+                     "grid: {timing.duration: [2, 3]}\n")
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--workers", "2", "--quiet"]) == 0
+    reports = sorted((tmp_path / "out" / "runs").glob("*/report.json"))
+    assert len(reports) == 2
+    for report in reports:
+        outputs = json.loads(report.read_text())["outputs"]
+        assert outputs["plots"] == [f"plots/{stem}.png" for stem in STEMS]
+        assert all((report.parent / name).is_file() for name in listed(outputs))

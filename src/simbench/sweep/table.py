@@ -152,6 +152,8 @@ def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
         theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
         mine = iter([draw(*args) for draw, args in jobs[::processes]])
         others = iter(theirs.get())
+        pool.close()  # the workers end on their own: terminated (the block's end) as they hand back their
+        pool.join()  # last figure, one raised Interrupted from simbench's SIGTERM handler
     return [next(mine) if i % processes == 0 else next(others) for i in range(len(jobs))]
 
 
