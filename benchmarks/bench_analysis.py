@@ -1,12 +1,9 @@
-"""The analysis against the simulation on every shipped scenario, and the demo's plots (project issue 14).
+"""The analysis against the simulation on every shipped scenario (project issue 14).
 
 Per scenario, planned once, then in alternation: the simulation as `simbench.evaluate`'s `simulate` stage makes it
 (`sim.simulate` with the scenario's controller, then `sim.commanded`) and the analysis as its `analyse` stage makes
 it (`analysis.analyse` and `verdict.run_verdict` on that recording); the ratio is the median of the pairwise
 ratios, so that a busy machine slows both alike. Target: at most 0.5 on every scenario.
-
-The demo's plots: `plots.write_plots` and the robot's own plots into a fresh folder, as `simbench.run` draws them
-(median of PLOT_REPEATS). Target: at most 0.3 s.
 
 BEFORE holds the same figures for the code of commit 0ca0635, measured by this module (run on a copy of that
 revision's src/) on the same machine on the same day, just before the figures after.
@@ -14,27 +11,20 @@ revision's src/) on the same machine on the same day, just before the figures af
 
 from __future__ import annotations
 
-import tempfile
-import time
-from pathlib import Path
-
 import numpy as np
 
 from benchmarks.common import interleaved, shipped
 from simbench.analysis import analyse
 from simbench.plant import Plant
-from simbench.plots import write_plots
 from simbench.resources import scenarios_dir
 from simbench.robots import Tolerance
 from simbench.sim import commanded, simulate
 from simbench.verdict import run_verdict
 
 REPEATS = 15  # pairs a scenario: with 5, one loaded run of the circle swung by +-0.05
-PLOT_REPEATS = 7
-PLOTS = "spherical_arm/demo"
 # Commit 0ca0635, measured by this module on 2026-11-23 (AMD EPYC, 2 cores, shared with other work) just before
 # the figures after in BENCHMARKS.md:
-# scenario: (simulate ms, analyse ms, median ratio); and the demo's plots in s.
+# scenario: (simulate ms, analyse ms, median ratio).
 BEFORE = {
     "agile_eye/avoidance": (99.3, 329.6, 3.31),
     "agile_eye/through_singularity": (81.2, 2964.9, 41.34),
@@ -52,7 +42,6 @@ BEFORE = {
     "spherical_arm/case4": (40.8, 92.5, 2.48),
     "spherical_arm/demo": (35.6, 96.4, 2.77),
 }
-BEFORE_PLOTS = 1.693
 
 
 def measure_scenario(name: str) -> dict:
@@ -79,28 +68,10 @@ def measure_scenario(name: str) -> dict:
             "analyse": float(np.median(t_ana)), "ratio": float(np.median(t_ana / t_sim))}
 
 
-def measure_plots(name: str = PLOTS) -> dict:
-    """Median seconds of the scenario's plots, drawn as `simbench.run` draws them."""
-    sc = shipped(name)
-    from simbench import evaluate
-
-    ev = evaluate(sc)
-    robot = sc.robot_def
-    times = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for i in range(PLOT_REPEATS + 1):  # the first warms matplotlib's caches (fonts, glyphs)
-            folder = Path(tmp) / f"plots{i}"
-            start = time.perf_counter()
-            names = write_plots(robot, ev.trajectory, ev.recording, ev.analysis, folder)
-            names += robot.plots(ev.trajectory, ev.recording, ev.analysis, folder)
-            times.append(time.perf_counter() - start)
-    return {"scenario": name, "plots": len(names), "seconds": float(np.median(times[1:]))}
-
-
 def measure() -> dict:
-    """Every shipped scenario, and the demo's plots."""
+    """Every shipped scenario."""
     names = [str(p.relative_to(scenarios_dir()).with_suffix("")) for p in sorted(scenarios_dir().glob("*/*.yaml"))]
-    return {"scenarios": [measure_scenario(name) for name in names], "plots": measure_plots()}
+    return {"scenarios": [measure_scenario(name) for name in names]}
 
 
 def markdown(result: dict) -> str:
@@ -112,9 +83,8 @@ def markdown(result: dict) -> str:
         rows.append(f"| `{r['scenario']}` | {r['samples']:,} | {1e3 * r['simulate']:.1f} | {1e3 * r['analyse']:.1f} | "
                     f"{r['ratio']:.2f} | {was} |")
     worst = max(result["scenarios"], key=lambda r: r["ratio"])
-    p = result["plots"]
     return "\n".join([
-        f"### Analysis against simulation, and the demo's plots ({REPEATS} interleaved pairs a scenario)",
+        f"### Analysis against simulation ({REPEATS} interleaved pairs a scenario)",
         "",
         "`python -m benchmarks.bench_analysis`. Before: commit 0ca0635 measured by this module (on a copy of its "
         "src/), on the same machine the same day.",
@@ -126,9 +96,6 @@ def markdown(result: dict) -> str:
         "",
         f"Target: analysis at most 0.5 of the simulation on every scenario; the largest ratio is "
         f"{worst['ratio']:.2f} (`{worst['scenario']}`).",
-        "",
-        f"Plots of `{p['scenario']}` ({p['plots']} PNGs, median of {PLOT_REPEATS}): {p['seconds']:.3f} s "
-        f"(before {BEFORE_PLOTS:.3f} s). Target: at most 0.3 s.",
     ])
 
 

@@ -184,34 +184,6 @@ def test_deviation_near_reference_gives_what_the_k_d_tree_search_gave(group, mon
         assert np.allclose(whole, _kd_tree_rule(path, points), rtol=0, atol=1e-11)
 
 
-def test_a_plotted_series_keeps_its_look_at_the_figures_resolution():
-    """plots._envelope keeps, in every pixel column, the column's first, last, least and greatest sample, and the
-    ends of every gap (NaN), so that the drawn line has the same extent in every column."""
-    from simbench.plots import _envelope
-
-    rng = np.random.default_rng(7)
-    t = np.linspace(0, 10, 10_001)
-    y = np.cumsum(rng.normal(size=t.size))
-    y[rng.integers(0, t.size, 20)] += 300  # spikes one sample wide
-    y[4000:4100] = np.nan
-    y[7777] = np.nan
-    columns = 750
-    tk, yk = _envelope(t, y, columns)
-    assert len(tk) < len(t) / 2 and tk[0] == t[0] and tk[-1] == t[-1] and np.all(np.diff(tk) > 0)
-    size = -(-t.size // columns)
-    for c in range(0, t.size, size):
-        inside = (t[c] <= tk) & (tk <= t[min(c + size, t.size) - 1])
-        column = y[c:c + size]
-        if np.isfinite(column).any():
-            assert np.nanmax(yk[inside]) == np.nanmax(column) and np.nanmin(yk[inside]) == np.nanmin(column)
-    kept = np.isin(t, tk)
-    gap = np.isnan(y)
-    edges = np.flatnonzero(gap[1:] != gap[:-1])
-    assert kept[edges].all() and kept[edges + 1].all()
-    short = np.arange(100.0)
-    assert _envelope(short, short, columns)[0] is short
-
-
 @pytest.mark.parametrize("seed", range(4))
 def test_the_plans_limit_events_a_window_at_a_time_are_those_of_the_whole_plan(seed):
     """A random plan whose references pass the joints' ranges and speed limits in spans, many of them across

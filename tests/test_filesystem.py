@@ -29,9 +29,10 @@ import numpy as np
 import pytest
 import yaml
 from conftest import scenario_file
+from matplotlib.figure import Figure
 
 import simbench
-from simbench import atomic, chart, destination, pipeline, report, validation
+from simbench import atomic, destination, pipeline, report, validation
 from simbench.cli import main
 from simbench.errors import (OutputError, PhysicsError, RunError, ScenarioError, name_max, os_words, printable,
                              shown)
@@ -373,7 +374,7 @@ def during(monkeypatch, owner, name: str, fault):
     monkeypatch.setattr(owner, name, wrapped)
 
 
-def _quick_plots(robot, traj, rec, result, folder):
+def _quick_plots(robot, traj, rec, result, folder, plot_format="png"):
     """write_plots' stand-in where plots are not the stage under test (not the stage under test)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "joints.png").write_bytes(b"\x89PNG stand-in")
@@ -381,7 +382,7 @@ def _quick_plots(robot, traj, rec, result, folder):
 
 
 # stage: (where its fault goes, the lowest write it calls, the path the line names relative to out or "")
-SAVE_PNG = (chart.Figure, "save", lambda args: args[1])  # (figure, file name)
+SAVE_PNG = (Figure, "savefig", lambda args: args[1])  # (figure, file name)
 SAVEZ = (report, "savez_fast", lambda args: args[0])  # (open file, arrays)
 WRITE_TEXT = (Path, "write_text", lambda args: args[0])  # (path, text)
 RUN_STAGES = {
@@ -442,7 +443,8 @@ def test_a_full_disk_while_the_video_is_encoded_is_one_line_and_exit_1(ws, monke
 
 
 def test_the_real_command_line_under_a_file_size_limit_prints_one_line(ws):
-    """The whole process (and what it starts) under RLIMIT_FSIZE: the first plot is refused."""
+    """The whole process (and what it starts) under RLIMIT_FSIZE: the timeseries, the run's first write while its
+    plots are drawn beside it, is refused."""
     script = ("import resource, signal, sys; signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
               "resource.setrlimit(resource.RLIMIT_FSIZE, (1000, resource.getrlimit(resource.RLIMIT_FSIZE)[1])); "
               "from simbench.cli import main; sys.exit(main(sys.argv[1:]))")
@@ -450,8 +452,8 @@ def test_the_real_command_line_under_a_file_size_limit_prints_one_line(ws):
     proc = subprocess.run([sys.executable, "-c", script, "run", "case1.yaml", "--out", "out", "--no-video"],
                           capture_output=True, text=True, cwd=ws, timeout=120)
     assert proc.returncode == 1 and proc.stdout == "" and "Traceback" not in proc.stderr
-    assert proc.stderr.splitlines() == [f"error: out: {EFBIG_WORDS} (while writing the outputs; nothing was written "
-                                        "to out)"]
+    assert proc.stderr.splitlines() == [f"error: out/timeseries.npz: {EFBIG_WORDS} (while writing the outputs; "
+                                        "nothing was written to out)"]
     assert files(ws) == before and leftovers(ws) == []
 
 

@@ -44,6 +44,7 @@ from simbench.trajectory import JointTrajectory, Switch
 
 if TYPE_CHECKING:
     import mujoco
+    from matplotlib.figure import Figure
 
     from simbench.scenario import Scenario
 
@@ -248,9 +249,10 @@ class Robot(ABC):
     def paint(self, model: mujoco.MjModel, rec: Recording, row: int) -> None:
         """Change the model's colours for the video frame of recorded row `row` (a magnet on or off)."""
 
-    def plots(self, traj: JointTrajectory, rec: Recording, analysis: Any, folder: Path) -> list[str]:
-        """Write this mechanism's own plots into `folder`; their file names."""
-        return []
+    def plots(self, traj: JointTrajectory, rec: Recording, analysis: Any) -> dict[str, Figure]:
+        """This mechanism's own plots, by file stem: matplotlib Figures (e.g. `simbench.plots.time_panels`'s, whose
+        Axes take any matplotlib call), which simbench saves into plots/ in the run's plot format."""
+        return {}
 
 
 TaskT = TypeVar("TaskT", bound=BaseModel)

@@ -21,6 +21,7 @@ from pathlib import Path
 from simbench import interrupts
 from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
                              os_error_line, printable)
+from simbench.plot_formats import FORMATS
 from simbench.resources import scenarios_dir, sweeps_dir
 
 
@@ -33,6 +34,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-video", action="store_true", help="skip the MP4")
     run.add_argument("--force", action="store_true", help="replace the output folder if it exists")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    run.add_argument("--plot-format", choices=FORMATS, default="png", help="the plots' file format (default png)")
     _allow_code(run)
     sweep = sub.add_parser("sweep", help="run a scenario over parameter grids or random samples, into one table")
     sweep.add_argument("sweep", type=Path)
@@ -64,6 +66,7 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=None, help="output folder (default renders/compare/<name>/)")
     compare.add_argument("--force", action="store_true", help="replace an earlier comparison")
     compare.add_argument("--quiet", action="store_true", help="no progress")
+    compare.add_argument("--plot-format", choices=FORMATS, default="png", help="the plots' file format (default png)")
     _allow_code(compare)
     train = sub.add_parser("train-fk", help="retrain the Agile Eye's learnt forward kinematics (needs scikit-learn)")
     train.add_argument("--samples", type=int, default=20000, help="poses per working mode (75 %% train)")
@@ -188,7 +191,7 @@ def _compare(args) -> None:
 
     out = args.out or Path("renders") / "compare" / file_name(args.scenario.stem, str(args.scenario))
     result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
-                     progress=not args.quiet, allow_code=args.allow_code)
+                     progress=not args.quiet, allow_code=args.allow_code, plot_format=args.plot_format)
     _say((result.out / "comparison.md").read_text())
     _say(f"table, plots and index.html in {result.out}")
 
@@ -255,7 +258,7 @@ def _run(args) -> int:
     out = args.out if args.out is not None else Path("renders") / sc.name
     try:
         result = pipeline.run(sc, out=out, video=not args.no_video, progress=not args.quiet, force=args.force,
-                              allow_code=args.allow_code)
+                              allow_code=args.allow_code, plot_format=args.plot_format)
     except PhysicsError as err:
         kept = "the report and the timeseries up to then are" if err.recording is not None else "the report is"
         raise RunError(f"{err}; {kept} in {out}") from None

@@ -38,6 +38,7 @@ import numpy as np
 
 from simbench import api, budget, destination, registry
 from simbench.atomic import staged_folder
+from simbench.plot_formats import check_format
 from simbench.page import table_page, write_page
 from simbench.errors import PhysicsError, RunError, ScenarioError
 from simbench.policy import refuse_code
@@ -76,13 +77,15 @@ class ComparisonResult:
 
 
 def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: list[str] | None, out: Path,
-            force: bool = False, progress: bool = False, allow_code: bool = False) -> ComparisonResult:
+            force: bool = False, progress: bool = False, allow_code: bool = False,
+            plot_format: str = "png") -> ComparisonResult:
     """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own
-    controller) and write the table and plots into `out` (which must be empty or absent unless `force`, and then
-    hold only what simbench wrote). ScenarioError (one line) for an unknown or unsuitable planner or controller,
+    controller) and write the table and plots (in `plot_format`: png, svg or pdf) into `out` (which must be empty
+    or absent unless `force`, and then hold only what simbench wrote). ScenarioError (one line) for an unknown or unsuitable planner or controller,
     a bad scenario file or destination, or a policy's module named without `allow_code` (simbench.policy), before
     anything runs."""
     source = Path(scenario_path)
+    check_format(plot_format, "simbench.compare")
     out = destination.followed(Path(out))
     base = load_scenario(source)
     raw = read_yaml(source)
@@ -99,7 +102,7 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
         runs = tuple(_run(partial(evaluate, allow_code=allow_code), *variant, progress) for variant in variants)
         rows = tuple(row(run) for run in runs)
         with staged_folder(out) as tmp:
-            files = _write(tmp, base, runs, rows)
+            files = _write(tmp, base, runs, rows, plot_format)
     return ComparisonResult(out=out, scenario=base.name or source.stem, robot=base.robot, methods=runs, rows=rows,
                             files=tuple(files))
 
@@ -301,11 +304,12 @@ def table_markdown(base: Scenario, rows: tuple[dict, ...]) -> str:
 
 # --- the outputs ----------------------------------------------------------------------------------------------
 
-def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tuple[dict, ...]) -> list[str]:
+def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tuple[dict, ...],
+           plot_format: str) -> list[str]:
     """Every output into `folder`; their names."""
     (folder / "comparison.csv").write_text(table_csv(rows))
     (folder / "comparison.md").write_text(table_markdown(base, rows))
-    plots = _plots(folder / "plots", base, runs)
+    plots = _plots(folder / "plots", base, runs, plot_format)
     files = ["comparison.csv", "comparison.md", "comparison.json", *(f"plots/{p}" for p in plots)]
     document = {
         "scenario": {"name": base.name, "file": base.source, "description": base.description},
@@ -329,34 +333,36 @@ def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tupl
     return [*files, "index.html"]
 
 
-def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[str]:
-    """The methods overlaid against time: tool error, joint speeds, distance to each singular set. Drawn by
-    `simbench.chart` as a run's own plots are, each series through its envelope at the figure's resolution."""
-    from simbench.chart import color_cycle
-    from simbench.plots import save_png, time_line, time_panels
+def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_format: str) -> list[str]:
+    """The methods overlaid against time: tool error, joint speeds, distance to each singular set; drawn as a
+    run's own plots are (simbench.plots)."""
+    from matplotlib import rcParams
+
+    from simbench.plots import save, time_panels
 
     folder.mkdir(parents=True, exist_ok=True)
     ran = [r for r in runs if r.evaluation is not None]
     robot = base.robot_def
-    color = {r.label: color_cycle()[i % len(color_cycle())] for i, r in enumerate(runs)}
+    cycle = rcParams["axes.prop_cycle"].by_key()["color"]
+    color = {r.label: cycle[i % len(cycle)] for i, r in enumerate(runs)}
     floor = 1e-4  # mm: the log scales' floor
 
     fig, axes = time_panels(2, 8, 5.5)
     for r in ran:
         series, t = r.evaluation.analysis.series, r.evaluation.recording.t
-        time_line(axes[0, 0], t, np.maximum(series["path_deviation"] * 1e3, floor), color=color[r.label], lw=1.2,
-                  label=r.label)
-        time_line(axes[1, 0], t, np.maximum(series["tool_error"] * 1e3, floor), color=color[r.label], lw=1.2)
+        axes[0, 0].plot(t, np.maximum(series["path_deviation"] * 1e3, floor), color=color[r.label], lw=1.2,
+                        label=r.label)
+        axes[1, 0].plot(t, np.maximum(series["tool_error"] * 1e3, floor), color=color[r.label], lw=1.2)
     axes[0, 0].axhline(base.analysis.path_tolerance * 1e3, color="k", ls=":", lw=0.8, label="path tolerance")
     axes[0, 0].set_ylabel("distance from path (mm)")
     axes[1, 0].set_ylabel("tool error (mm)")
     axes[1, 0].set_xlabel("time (s)")
-    axes[0, 0].set_title(f"{base.name}: the simulated tool against the plan's reference")
+    axes[0, 0].set_title(f"{base.name}: the simulated tool against the plan's reference", y=1.0)
     for ax in axes[:, 0]:
         ax.set_yscale("log")
         ax.grid(alpha=0.3, which="both")
     axes[0, 0].legend(fontsize=8, loc="best")
-    save_png(fig, folder / "tool_error.png")
+    files = [save(fig, folder, "tool_error", plot_format)]
 
     fig, axes = time_panels(robot.dof, 8, 1.7 * robot.dof + 0.8)
     for j, ax in enumerate(axes[:, 0]):
@@ -364,22 +370,20 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[st
         scale, unit = (180 / np.pi, "deg/s") if revolute else (1e3, "mm/s")
         for r in ran:
             ev = r.evaluation
-            time_line(ax, ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2,
-                      label=r.label)
+            ax.plot(ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2, label=r.label)
             rec = ev.recording.thinned()  # qd is kept at every record_every-th state
-            time_line(ax, rec.t, rec.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--")
+            ax.plot(rec.t, rec.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--")
         for sign in (-1, 1):
             ax.axhline(sign * robot.qd_max[j] * scale, color="k", ls=":", lw=0.8)
         ax.set_ylabel(f"{robot.joints[j]} ({unit})")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, loc="best")
-    axes[0, 0].set_title("Joint speeds: planned (solid), simulated (dashed), speed limits (dotted)")
+    axes[0, 0].set_title("Joint speeds: planned (solid), simulated (dashed), speed limits (dotted)", y=1.0)
     axes[-1, 0].set_xlabel("time (s)")
-    save_png(fig, folder / "joint_speeds.png")
+    files.append(save(fig, folder, "joint_speeds", plot_format))
 
     sets = {r.label: singular_sets(r) for r in ran}
     first = next(iter(sets.values()), [])
-    files = ["tool_error.png", "joint_speeds.png"]
     if first:
         cols = 1 if len(first) <= 4 else 3
         rows_ = -(-len(first) // cols)
@@ -387,17 +391,16 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...]) -> list[st
         fig.suptitle("Distance to each singular set, in multiples of the near tolerance (dotted: near)")
         for i, (ax, sset) in enumerate(zip(axes.flat, first)):
             for r in ran:
-                time_line(ax, r.evaluation.recording.t, np.maximum(sets[r.label][i].distance, 1e-3),
-                          color=color[r.label], lw=1.2, label=r.label)
+                ax.plot(r.evaluation.recording.t, np.maximum(sets[r.label][i].distance, 1e-3), color=color[r.label],
+                        lw=1.2, label=r.label)
             ax.axhline(1.0, color="k", ls=":", lw=0.8)
             ax.set_yscale("log")
-            ax.set_title(f"{sset.name}: {sset.condition}", fontsize=8)
+            ax.set_title(f"{sset.name}: {sset.condition}", fontsize=8, y=1.0)
             ax.grid(alpha=0.3, which="both")
         for ax in list(axes.flat)[len(first):]:
-            fig.panels.remove(ax)
+            ax.remove()
         axes[0, 0].legend(fontsize=8, loc="best")
         for ax in axes[-1]:
             ax.set_xlabel("time (s)")
-        save_png(fig, folder / "singular_distance.png")
-        files.append("singular_distance.png")
+        files.append(save(fig, folder, "singular_distance", plot_format))
     return files

@@ -22,7 +22,9 @@ from simbench import budget, destination, heap
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
+from simbench.forked import forked
 from simbench.page import run_page, write_page
+from simbench.plot_formats import check_format
 from simbench.plots import write_plots
 from simbench.render import render_video
 from simbench.report import build_failure_report, build_report, write_report, write_timeseries
@@ -164,23 +166,25 @@ def evaluate_report(scenario: Scenario, allow_code: bool = False) -> dict:
 
 
 def run(scenario: Scenario | str | os.PathLike, out: str | Path | None = None, video: bool = True,
-        progress: bool = False, force: bool = False, allow_code: bool = False) -> Result:
-    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
-    into `out` (default renders/<name>/), which must not hold anything yet unless `force`. A run that breaks a
+        progress: bool = False, force: bool = False, allow_code: bool = False, plot_format: str = "png") -> Result:
+    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ (in `plot_format`: png, svg or pdf)
+    and (unless video=False) video.mp4 into `out` (default renders/<name>/), which must not hold anything yet unless
+    `force`. A run that breaks a
     promise (status `limits`) writes everything as any other and returns normally. If the physics fails,
     the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
     raised after they are written. `scenario` may be the path of a scenario file. A policy named by its module
     (package.module:factory) is imported, running its code, only with `allow_code` (ScenarioError first)."""
     scenario = as_scenario(scenario, "simbench.run")
+    check_format(plot_format, "simbench.run")
     out = destination.followed(Path(out) if out is not None else Path("renders") / scenario.name)
     _afford(scenario, progress, video=video, outputs=True, out=out)  # before anything is written
     inputs = [Path(scenario.source)] if scenario.source and Path(scenario.source).is_file() else []
     with destination.locked(out):
         destination.check(out, inputs, force)
-        return _run(scenario, out, video, progress, allow_code)
+        return _run(scenario, out, video, progress, allow_code, plot_format)
 
 
-def _run(scenario: Scenario, out: Path, video: bool, progress: bool, allow_code: bool) -> Result:
+def _run(scenario: Scenario, out: Path, video: bool, progress: bool, allow_code: bool, plot_format: str) -> Result:
     """run() once `out` is locked and checked."""
     watch = _Stopwatch()
     try:
@@ -188,24 +192,23 @@ def _run(scenario: Scenario, out: Path, video: bool, progress: bool, allow_code:
     except PhysicsError as err:
         _write_failure(scenario, err, out, watch)
         raise
-    return write_outputs(scenario, ev, out, video, watch)
+    return write_outputs(scenario, ev, out, video, watch, plot_format)
 
 
 def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = True,
-                  watch: _Stopwatch | None = None) -> Result:
-    """Write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4 of an evaluated run into
-    `out` at once: what `run` writes after it has simulated, also for a run simulated elsewhere (an episode of
-    simbench.env). `out` is taken as it is: locking and checking it is the caller's (see `run`)."""
+                  watch: _Stopwatch | None = None, plot_format: str = "png") -> Result:
+    """Write report.json, timeseries.npz, plots/ (in `plot_format`) and (unless video=False) video.mp4 of an
+    evaluated run into `out` at once: what `run` writes after it has simulated, also for a run simulated elsewhere
+    (an episode of simbench.env). `out` is taken as it is: locking and checking it is the caller's (see `run`).
+    The plots are drawn in a forked process while the video renders (simbench.forked); the `plots` stage is the
+    time the run then waits for them."""
+    check_format(plot_format, "simbench.write_outputs")
     watch = watch or _Stopwatch()
     robot = scenario.robot_def
     traj, rec = thinned(ev.trajectory, ev.recording)
     result = ev.analysis
-    with staged_folder(out) as tmp:
+    with staged_folder(out) as tmp, forked(write_plots, robot, traj, rec, result, tmp / "plots", plot_format) as plots:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz", "page": "index.html"}
-        with watch.stage("plots"):
-            names = write_plots(robot, traj, rec, result, tmp / "plots")
-            names += robot.plots(traj, rec, result, tmp / "plots")
-            outputs["plots"] = [f"plots/{name}" for name in names]
         if video:
             r = scenario.render
             planner = scenario.planner_def
@@ -218,6 +221,8 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
                                                      paint=robot.paint)
         with watch.stage("write"):
             write_timeseries(robot, traj, rec, result, tmp / "timeseries.npz")
+        with watch.stage("plots"):
+            outputs["plots"] = [f"plots/{name}" for name in plots()]
         report = build_report(scenario, ev, watch.summary(), outputs, scenario.source)
         write_report(report, tmp / "report.json")
         write_page(tmp, run_page(tmp, report))

@@ -1,37 +1,39 @@
-"""Plots of a run (PNG): joints, the tool's deviation, singularity measures, the path.
+"""Plots of a run: joints, the tool's deviation, singularity measures, the path; by matplotlib, in the run's plot
+format (PNG, SVG or PDF).
 
 Plots are for reading, so angles are drawn in degrees and lengths in millimetres; the data files stay SI.
 
-Drawn at the pace of the rest of a run (issue 14) by `simbench.chart`, a light raster renderer that takes its
-limits, ticks, labels, dash patterns, colours and font from matplotlib; margins, axis labels and titles at fixed
-places in inches; and each time series drawn through its envelope at the figure's pixel columns (`_envelope`:
-what the line looks like at that resolution, every peak kept). The robots' own plots draw through
-`time_panels`, `time_line` and `save_png`.
+Figures are `matplotlib.figure.Figure` objects made without pyplot (no global state), drawn by `simbench.run` in
+a forked process while the video renders (simbench.forked). A robot's own plots (its `plots` hook) are such
+figures too, laid out by `time_panels`; simbench saves them beside its own (`save`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from simbench.analysis import Analysis
-from simbench.chart import DPI, Figure, Panel
 from simbench.robots import REVOLUTE, Robot
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+DPI = 110  # a PNG's pixels an inch
 _MARGINS = (1.0, 0.15, 0.36, 0.59)  # in: left (tick labels and y label), right, top (title), bottom (x label)
 _GAP = 0.22  # in: between panels that share their time axis
 _COLUMN_GAP = 1.05  # in: between columns of panels (the next column's tick labels and y label)
-_LABEL_X, _LABEL_Y = 0.72, 0.36  # in: the centre of a y label left of its panel, the top of the x label below it
 
 
 def _display(kind: str) -> tuple[float, str]:
     return (180.0 / np.pi, "deg") if kind == REVOLUTE else (1e3, "mm")
 
 
-def _shade(ax: Panel, events: list[dict], kinds: set[str] | None, color: str, joint: str | None = None) -> None:
+def _shade(ax, events: list[dict], kinds: set[str] | None, color: str, joint: str | None = None) -> None:
     """Shade the spans of the events of these kinds (all if None), only those of `joint` where given."""
     for e in events:
         if joint is not None and e["detail"].get("joint", joint) != joint:
@@ -40,91 +42,65 @@ def _shade(ax: Panel, events: list[dict], kinds: set[str] | None, color: str, jo
             ax.axvspan(e["t_start"], max(e["t_end"], e["t_start"] + 1e-3), color=color, alpha=0.25, lw=0)
 
 
+def figure(width: float, height: float) -> Figure:
+    """An empty figure of `width` x `height` inches, at simbench's resolution. matplotlib is imported here, when a
+    figure is first made: a run without plots (a sweep's, simbench.evaluate) does not pay for it."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width, height), dpi=DPI)
+
+
 def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: float = _GAP,
                 top: float = _MARGINS[2]) -> tuple[Figure, np.ndarray]:
-    """A figure of `rows` x `cols` panels over one time axis, `width` x `height` inches, laid out with simbench's
-    fixed margins (`top` inches over the first row, `gap` between rows; the x tick labels on the lowest row
-    only); (figure, panels as an array (rows, cols)). The panels take matplotlib's Axes calls
-    (`simbench.chart.Panel`)."""
-    fig = Figure(width, height)
+    """A figure of `rows` x `cols` matplotlib Axes over one shared time axis, `width` x `height` inches, with
+    simbench's fixed margins (`top` inches over the first row, `gap` between rows; x tick labels on the lowest row
+    only); (figure, Axes as an array (rows, cols))."""
     left, right, _, bottom = _MARGINS
     panel = (height - top - bottom - (rows - 1) * gap) / rows
     column = (width - left - right - (cols - 1) * _COLUMN_GAP) / cols
-    axes = np.empty((rows, cols), dtype=object)
-    for i in range(rows):
-        for j in range(cols):
-            x0, y0 = left + j * (column + _COLUMN_GAP), top + i * (panel + gap)
-            ax = fig.panel(tuple(v * DPI for v in (x0, y0, x0 + column, y0 + panel)))
-            ax.xticklabels = i == rows - 1
-            ax.ylabel_x, ax.xlabel_y = _LABEL_X * DPI, _LABEL_Y * DPI
-            axes[i, j] = ax
-    return fig, axes
+    fig = figure(width, height)
+    fig.subplots_adjust(left=left / width, right=1 - right / width, top=1 - top / height, bottom=bottom / height,
+                        hspace=gap / panel, wspace=_COLUMN_GAP / column)
+    return fig, fig.subplots(rows, cols, sharex=True, squeeze=False)
 
 
-def time_line(ax: Panel, t: np.ndarray, y: np.ndarray, *args, **kwargs) -> None:
-    """ax.plot of y(t) through its envelope at the figure's resolution (`_envelope`): for a robot's own plots as
-    for simbench's."""
-    ax.plot(*_envelope(t, y, max(1, round(ax.rect[2] - ax.rect[0]))), *args, **kwargs)
-
-
-def save_png(fig: Figure, path: Path) -> None:
-    """Write the figure as simbench writes its plots."""
-    fig.save(path)
-
-
-def _envelope(t: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.ndarray, np.ndarray]:
-    """The samples of y(t) a line at `columns` pixels across shows: in each run of samples one column wide, the
-    first, the least, the greatest and the last (in their order; M4 aggregation), so that every peak and every
-    step survives, and either side of every gap (NaN). Series already that short are kept whole."""
-    count = len(t)
-    size = -(-count // columns)  # samples a column
-    if size <= 4:
-        return t, y
-    whole = count // size * size
-    gap = np.isnan(y)
-    block = y[:whole].reshape(-1, size)
-    blank = gap[:whole].reshape(-1, size)
-    start = np.arange(0, whole, size)
-    least = np.where(blank, np.inf, block).argmin(axis=1)
-    greatest = np.where(blank, -np.inf, block).argmax(axis=1)
-    keep = [start, start + size - 1, np.arange(whole, count), start + least, start + greatest]
-    if gap.any():
-        edge = np.flatnonzero(gap[1:] != gap[:-1])
-        keep += [edge, edge + 1]
-    keep = np.unique(np.concatenate(keep))
-    return t[keep], y[keep]
+def save(fig: Figure, folder: Path, stem: str, plot_format: str = "png") -> str:
+    """Write the figure as folder/<stem>.<plot_format>; the file's name."""
+    name = f"{stem}.{plot_format}"
+    fig.savefig(folder / name, format=plot_format)
+    return name
 
 
 def _joint_panels(robot: Robot, t: np.ndarray, planned: np.ndarray, simulated: np.ndarray, labels: tuple[str, str],
-                  per_second: bool, title: str, path: Path, decorate) -> None:
-    """One panel a joint: planned (dashed) against simulated, in degrees or millimetres; decorate(ax, j) adds
-    each panel's limits and shading."""
+                  per_second: bool, title: str, decorate) -> Figure:
+    """One panel a joint: planned (dashed) against simulated, in degrees or millimetres; decorate(ax, j, scale)
+    adds each panel's limits and shading."""
     fig, axes = time_panels(robot.dof, 8, 1.8 * robot.dof + 0.6)
     for j, ax in enumerate(axes[:, 0]):
         scale, unit = _display(robot.kinds[j])
-        time_line(ax, t, planned[:, j] * scale, "--", color="tab:blue", lw=1.4, label=labels[0])
-        time_line(ax, t, simulated[:, j] * scale, color="tab:orange", lw=1.0, label=labels[1])
+        ax.plot(t, planned[:, j] * scale, "--", color="tab:blue", lw=1.4, label=labels[0])
+        ax.plot(t, simulated[:, j] * scale, color="tab:orange", lw=1.0, label=labels[1])
         decorate(ax, j, scale)
         ax.set_ylabel(f"{robot.joints[j]} ({unit}{'/s' if per_second else ''})")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=8)
-    axes[0, 0].set_title(title, y=1.0)
+    axes[0, 0].set_title(title, y=1.0)  # y given: no search for a place above the ticks
     axes[-1, 0].set_xlabel("time (s)")
-    save_png(fig, path)
+    return fig
 
 
-def plot_joints(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
+def plot_joints(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis) -> Figure:
     """Each joint's reference against the simulated value; jumps and limit breaks shaded."""
 
     def decorate(ax, j, scale):
         _shade(ax, result.limit_events, {"reference_jump", "joint_limit", "velocity_limit"}, "tab:red",
                robot.joints[j])
 
-    _joint_panels(robot, traj.t, traj.q_ref, rec.q, ("reference", "simulated"), False,
-                  "Joint reference and simulated joint values (red: jumps and limit breaks)", path, decorate)
+    return _joint_panels(robot, traj.t, traj.q_ref, rec.q, ("reference", "simulated"), False,
+                         "Joint reference and simulated joint values (red: jumps and limit breaks)", decorate)
 
 
-def plot_joint_speeds(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, path: Path) -> None:
+def plot_joint_speeds(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis) -> Figure:
     """Each joint's planned and simulated speed against its speed limit; singular spans shaded orange."""
 
     def decorate(ax, j, scale):
@@ -133,35 +109,35 @@ def plot_joint_speeds(robot: Robot, traj: JointTrajectory, rec: Recording, resul
         _shade(ax, result.singularity_events, None, "tab:orange")
         _shade(ax, result.limit_events, {"velocity_limit"}, "tab:red", robot.joints[j])
 
-    _joint_panels(robot, traj.t, traj.qd_ref, rec.qd, ("planned", "simulated"), True,
-                  "Joint speeds (dotted: speed limits; orange: near a singularity; red: over the limit)", path,
-                  decorate)
+    return _joint_panels(robot, traj.t, traj.qd_ref, rec.qd, ("planned", "simulated"), True,
+                         "Joint speeds (dotted: speed limits; orange: near a singularity; red: over the limit)",
+                         decorate)
 
 
-def plot_tool(traj: JointTrajectory, result: Analysis, path: Path) -> None:
+def plot_tool(traj: JointTrajectory, result: Analysis) -> Figure:
     """The tool's distance from the planned path and its lag along it."""
     fig, axes = time_panels(2, 8, 5)
     ax1, ax2 = axes[:, 0]
-    time_line(ax1, traj.t, result.series["path_deviation"] * 1e3, color="tab:red")
+    ax1.plot(traj.t, result.series["path_deviation"] * 1e3, color="tab:red")
     ax1.axhline(1.0, color="k", ls=":", lw=0.8)
     ax1.set_ylabel("distance from path (mm)")
     ax1.set_title(f"Tool against the planned path: RMS {result.tracking['tool_rms'] * 1e3:.3f} mm, "
                   f"max {result.tracking['tool_max'] * 1e3:.3f} mm", y=1.0)
-    time_line(ax2, traj.t, result.series["path_lag"] * 1e3, color="tab:purple")
+    ax2.plot(traj.t, result.series["path_lag"] * 1e3, color="tab:purple")
     ax2.set_ylabel("lag along path (mm)")
     ax2.set_xlabel("time (s)")
     for ax in (ax1, ax2):
         _shade(ax, result.limit_events, {"reference_jump"}, "tab:red")
         ax.grid(alpha=0.3)
-    save_png(fig, path)
+    return fig
 
 
-def plot_singularity(robot: Robot, rec: Recording, result: Analysis, path: Path) -> None:
+def plot_singularity(robot: Robot, rec: Recording, result: Analysis) -> Figure:
     """The robot's singularity measures over time, with the spans near a singular set shaded and named."""
     names = list(result.measures)
     fig, axes = time_panels(len(names), 8, 2.4 * len(names) + 0.6)
     for ax, name in zip(axes[:, 0], names):
-        time_line(ax, rec.t, result.series[name], color="tab:green")
+        ax.plot(rec.t, result.series[name], color="tab:green")
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
         _shade(ax, result.singularity_events, None, "tab:orange")
@@ -173,13 +149,14 @@ def plot_singularity(robot: Robot, rec: Recording, result: Analysis, path: Path)
             seen.add(e["kind"])
     axes[0, 0].set_title("Singularity measures (orange: near a singular set)", y=1.0)
     axes[-1, 0].set_xlabel("time (s)")
-    save_png(fig, path)
+    return fig
 
 
-def plot_path(traj: JointTrajectory, rec: Recording, path: Path) -> None:
+def plot_path(traj: JointTrajectory, rec: Recording) -> Figure:
     """The planned path and the simulated tool trace in 3-D, with the method's waypoints."""
-    fig = Figure(6.5, 6)
-    ax = fig.box3d((0.15 * DPI, 0.15 * DPI, (6.5 - 0.3) * DPI, (6 - 0.2) * DPI))
+    fig = figure(6.5, 6)
+    fig.subplots_adjust(left=0.02, right=0.95, bottom=0.04, top=0.98)
+    ax = fig.add_subplot(projection="3d")
     ref, tool = traj.tool_ref * 1e3, rec.tool * 1e3
     ax.plot(*ref.T, "--", color="tab:blue", lw=2, label="planned")
     ax.plot(*tool.T, color="tab:red", lw=1, label="simulated tool")
@@ -190,15 +167,17 @@ def plot_path(traj: JointTrajectory, rec: Recording, path: Path) -> None:
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
     ax.legend(loc="upper left", fontsize=8)
-    save_png(fig, path)
+    return fig
 
 
-def write_plots(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, folder: Path) -> list[str]:
-    """All plots into folder; returns their file names."""
+def write_plots(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, folder: Path,
+                plot_format: str = "png") -> list[str]:
+    """simbench's plots and the robot's own (its `plots` hook) into folder, in `plot_format`; their file names."""
     folder.mkdir(parents=True, exist_ok=True)
-    plot_joints(robot, traj, rec, result, folder / "joints.png")
-    plot_joint_speeds(robot, traj, rec, result, folder / "joint_speeds.png")
-    plot_tool(traj, result, folder / "tool_deviation.png")
-    plot_singularity(robot, rec, result, folder / "singularity.png")
-    plot_path(traj, rec, folder / "path.png")
-    return ["joints.png", "joint_speeds.png", "tool_deviation.png", "singularity.png", "path.png"]
+    figures = {"joints": plot_joints(robot, traj, rec, result),
+               "joint_speeds": plot_joint_speeds(robot, traj, rec, result),
+               "tool_deviation": plot_tool(traj, result),
+               "singularity": plot_singularity(robot, rec, result),
+               "path": plot_path(traj, rec),
+               **robot.plots(traj, rec, result)}
+    return [save(fig, folder, stem, plot_format) for stem, fig in figures.items()]

@@ -12,6 +12,7 @@ import struct
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from urllib.parse import quote
+from xml.etree import ElementTree
 
 from simbench.version import __version__
 
@@ -140,6 +141,16 @@ def png_size(path: Path) -> tuple[int, int] | None:
     return struct.unpack(">II", head[16:24])
 
 
+def svg_size(path: Path) -> tuple[float, float] | None:
+    """An SVG's width and height in its own units, from its root's viewBox (matplotlib writes one), or None."""
+    try:
+        _, root = next(ElementTree.iterparse(path, events=("start",)))
+        box = [float(v) for v in root.get("viewBox", "").replace(",", " ").split()]
+    except (OSError, StopIteration, ElementTree.ParseError, ValueError):
+        return None
+    return (box[2], box[3]) if len(box) == 4 else None
+
+
 def inside(out: Path, rel: str | os.PathLike) -> None:
     """Refuse a path that is not relative to `out` and inside it: the page must move with its folder."""
     if Path(rel).is_absolute() or not (Path(out) / rel).resolve().is_relative_to(Path(out).resolve()):
@@ -148,8 +159,9 @@ def inside(out: Path, rel: str | os.PathLike) -> None:
 
 
 def figure_grid(out: Path, items: Iterable[str | os.PathLike | tuple[str | os.PathLike, str]]) -> str:
-    """Images by their paths relative to `out`, each a <figure> with a caption (its name unless given). One that
-    is not in `out` is named as missing rather than shown broken; one outside it is a ValueError (inside())."""
+    """Images by their paths relative to `out`, each a <figure> with a caption (its name unless given); a PDF,
+    which no <img> shows, as a link. One that is not in `out` is named as missing rather than shown broken; one
+    outside it is a ValueError (inside())."""
     shown, missing = [], []
     for item in items:
         rel, caption = item if isinstance(item, tuple) else (item, Path(item).stem.replace("_", " "))
@@ -157,9 +169,14 @@ def figure_grid(out: Path, items: Iterable[str | os.PathLike | tuple[str | os.Pa
         if not (Path(out) / rel).is_file():
             missing.append(str(rel))
             continue
+        if Path(rel).suffix == ".pdf":
+            shown.append(f'<figure><a href="{href(rel)}">{esc(caption)} (PDF)</a>'
+                         f"<figcaption>{esc(caption)}</figcaption></figure>\n")
+            continue
         size = png_size(Path(out) / rel)
         dims = f' width="{size[0]}" height="{size[1]}"' if size else ""
-        wide = ' class="wide"' if size and size[0] > 1.6 * size[1] else ""  # a row of panels: the page's width
+        shape = size or svg_size(Path(out) / rel)
+        wide = ' class="wide"' if shape and shape[0] > 1.6 * shape[1] else ""  # a row of panels: the page's width
         shown.append(f'<figure{wide}><img src="{href(rel)}" alt="{esc(caption)}"{dims}>'
                      f"<figcaption>{esc(caption)}</figcaption></figure>\n")
     body = f'<div class="figures">\n{"".join(shown)}</div>\n' if shown else ""

@@ -8,11 +8,9 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from simbench.page import table_page, write_page  # noqa: E402
+from simbench.page import table_page, write_page
 
 TYPO = "typo in the paper"
 ERROR = "error in the paper"
@@ -102,15 +100,15 @@ DIFFERENCES_HEADER = ("class", "where", "printed", "simbench", "shown by")
 
 
 def figure(nrows: int = 1, ncols: int = 1, **kwargs):
-    """A figure of the common size and its axes."""
-    return plt.subplots(nrows, ncols, figsize=FIGSIZE, **kwargs)
+    """A figure of the common size and its axes (as pyplot.subplots gives them, without pyplot's global state)."""
+    fig = Figure(figsize=FIGSIZE, dpi=DPI)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
-def save(fig, path: Path) -> str:
-    """Save a figure at the common size (no tight bounding box, so every PNG has PIXELS) and close it."""
+def save(fig: Figure, path: Path) -> str:
+    """Save a figure at the common size (no tight bounding box, so every PNG has PIXELS)."""
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
     return path.name
 
 

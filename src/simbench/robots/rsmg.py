@@ -29,6 +29,8 @@ simbench.robots.rsmg_outputs.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from simbench.api import Summary
@@ -37,6 +39,10 @@ from simbench.robots.rsmg_geometry import (ALPHA, ARMS, BETA, CANDIDATES, CHUNK,
                                           JOINTS, KINDS, LOWER, POINTS, QD_MAX, RADIUS, UPPER, U, X_REF, Y_REF,
                                           gripping)
 from simbench.vectors import cross, triple
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 
 def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
     """w_i (N, 3) for base angles theta (N,) of arm `arm` (eq. 12). Component by component: a product of (N, 1)
@@ -223,8 +229,8 @@ class RSMG(Robot):
     def paint(self, model, rec, row: int) -> None:
         rsmg_outputs.paint(model, rec, row)
 
-    def plots(self, traj, rec, analysis, folder) -> list[str]:
-        return rsmg_outputs.plots(traj, rec, analysis, folder)
+    def plots(self, traj, rec, analysis) -> dict[str, Figure]:
+        return rsmg_outputs.plots(traj, rec, analysis)
 
 
 ROBOT = RSMG()

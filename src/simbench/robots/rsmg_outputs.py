@@ -2,12 +2,12 @@
 its electromagnets coloured by state in the video, and a plot of every arm's gamma (paper 001's Fig. 11).
 
 The robot's hooks (RSMG.summary, .paint, .plots) call these. The plotting (simbench.plots) is imported only when
-the plot is drawn: the analysis and the video need none of it.
+the plot is drawn: the analysis and the video need none of it (nor matplotlib).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +15,9 @@ from simbench import api
 from simbench.api import Summary
 from simbench.robots.rsmg_geometry import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.rotations import quat_to_matrix, rotation_angle
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _GRIPPING_RGBA = [0.2, 0.85, 0.3, 1.0]  # an EM that grips: green
 _FREE_RGBA = [0.55, 0.55, 0.58, 1.0]  # an EM that is free: grey
@@ -144,9 +147,9 @@ def paint(model, rec, row: int) -> None:
         model.geom(f"em{i + 1}").rgba = _GRIPPING_RGBA if on else _FREE_RGBA
 
 
-def plots(traj, rec, result, folder: Path) -> list[str]:
+def plots(traj, rec, result) -> dict[str, Figure]:
     """gamma of every arm against time with its switches (paper 001's Fig. 11 is arm 1's)."""
-    from simbench.plots import save_png, time_panels
+    from simbench.plots import time_panels
 
     engaged = gripping(rec)
     fig, axes = time_panels(ARMS, 8, 7)
@@ -156,18 +159,15 @@ def plots(traj, rec, result, folder: Path) -> list[str]:
     axes[0].legend(loc="upper right", fontsize=8)
     axes[0].set_title("gamma of each arm (red: re-grips; dotted: the 10-170 deg band)", y=1.0)
     axes[-1].set_xlabel("time (s)")
-    save_png(fig, folder / "gamma.png")
-    return ["gamma.png"]
+    return {"gamma": fig}
 
 
 def _plot_gamma(ax, rec, arm: int, engaged: np.ndarray, switch_events: list[dict]) -> None:
     """Arm `arm`'s gamma (deg) on `ax`: green while it grips, grey while it swings, its re-grips in red and the
     band of eq. 45 dotted."""
     g = np.rad2deg(rec.q[:, ARMS + arm])
-    from simbench.plots import time_line
-
-    time_line(ax, rec.t, np.where(engaged, g, np.nan), color="tab:green", lw=1.2, label="gripping")
-    time_line(ax, rec.t, np.where(engaged, np.nan, g), color="tab:gray", lw=1.0, label="swinging")
+    ax.plot(rec.t, np.where(engaged, g, np.nan), color="tab:green", lw=1.2, label="gripping")
+    ax.plot(rec.t, np.where(engaged, np.nan, g), color="tab:gray", lw=1.0, label="swinging")
     for bound in np.rad2deg(GAMMA_BAND):
         ax.axhline(bound, color="k", ls=":", lw=0.8)
     for e in switch_events:

@@ -15,17 +15,14 @@ import multiprocessing
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pyarrow as pa  # noqa: E402
-import pyarrow.parquet as pq  # noqa: E402
-
-from simbench import csv_cells  # noqa: E402
-from simbench.atomic import staged_file, staged_folder, write_text  # noqa: E402
-from simbench.sweep.execute import as_worker  # noqa: E402
+from simbench import csv_cells
+from simbench.atomic import staged_file, staged_folder, write_text
+from simbench.sweep.execute import as_worker
 
 STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
 FINISHED = ("ok", "limits")  # runs with metrics (`limits`: ran to the end, broke a promise: simbench.verdict)
@@ -157,6 +154,8 @@ def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
         theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
         mine = iter([draw(*args) for draw, args in jobs[::processes]])
         others = iter(theirs.get())
+        pool.close()  # the workers end on their own: terminated (the block's end) as they hand back their
+        pool.join()  # last figure, one raised Interrupted from simbench's SIGTERM handler
     return [next(mine) if i % processes == 0 else next(others) for i in range(len(jobs))]
 
 
@@ -165,7 +164,8 @@ def _call(draw, args: tuple) -> str:
 
 
 def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], axes: dict, folder: Path) -> str:
-    fig, panels = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.6), squeeze=False, sharey=True)
+    fig = Figure(figsize=(4.2 * len(params), 3.6))
+    panels = fig.subplots(1, len(params), squeeze=False, sharey=True)
     ok = np.isin(status, FINISHED)
     finite = ok & np.isfinite(y)
     broke = finite & (status == "limits")
@@ -192,7 +192,6 @@ def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], 
     fig.tight_layout()
     name = f"{_safe(metric)}.png"
     fig.savefig(folder / name, dpi=100)
-    plt.close(fig)
     return name
 
 
@@ -207,7 +206,8 @@ def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table:
     cells = np.full((len(ys), len(xs)), np.nan)
     for (xv, yv), values in by_cell.items():
         cells[ys.index(yv), xs.index(xv)] = np.median(values)
-    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    fig = Figure(figsize=(5.5, 4.2))
+    ax = fig.subplots()
     image = ax.imshow(cells, origin="lower", aspect="auto", cmap="viridis")
     ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs])
     ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys])
@@ -217,7 +217,6 @@ def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table:
     fig.tight_layout()
     name = f"{_safe(metric)}_grid.png"
     fig.savefig(folder / name, dpi=100)
-    plt.close(fig)
     return name
 
 

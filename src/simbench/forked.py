@@ -1,0 +1,80 @@
+"""A function run in a forked child process while this one goes on: a run's plots are drawn so while its video
+renders, on a CPU of their own and with an interpreter lock of their own (on a thread, matplotlib's Python
+stalled the render loop). The child inherits the arguments (only the result or the error is pickled, back through
+a pipe); it ignores Ctrl-C and SIGTERM's handlers as the sweep's workers do: the parent answers them and stops it.
+A plain os.fork, not multiprocessing's, so that a sweep's (daemonic) worker may fork one too. Where processes
+cannot be forked, the function runs in this process when its result is asked for."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any, NoReturn
+
+from simbench.errors import RunError, described
+
+
+@contextmanager
+def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
+    """Start fn(*args) in a forked child; yields `result`, which waits for it and returns what it returned or
+    raises what it raised. Leaving the block stops a child whose result was not asked for, and waits for it."""
+    if not hasattr(os, "fork"):
+        yield lambda: fn(*args)
+        return
+    readable, writable = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(readable)
+        _child(writable, fn, args)
+    os.close(writable)
+    reaped = False
+
+    def result() -> Any:
+        nonlocal reaped
+        with os.fdopen(readable, "rb", closefd=False) as pipe:
+            sent = pipe.read()
+        status = os.waitpid(pid, 0)[1]
+        reaped = True
+        if not sent:
+            raise RunError(f"the process drawing the plots ended (exit code {os.waitstatus_to_exitcode(status)}) "
+                           "before it finished")
+        done, value = pickle.loads(sent)
+        if done:
+            return value
+        raise value
+
+    try:
+        yield result
+    finally:
+        if not reaped:
+            os.kill(pid, signal.SIGTERM)
+            os.waitpid(pid, 0)
+        os.close(readable)
+
+
+def _child(writable: int, fn: Callable[..., Any], args: tuple) -> NoReturn:
+    """fn(*args) in the child: what it returned or raised, pickled into the pipe; then the child ends at once
+    (os._exit: none of the parent's clean-up, buffers or exit handlers run twice)."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        try:
+            sent = pickle.dumps((True, fn(*args)))
+        except BaseException as err:  # the parent raises it (an outside robot's plots hook may raise anything)
+            sent = pickle.dumps((False, _sendable(err)))
+        with os.fdopen(writable, "wb") as pipe:
+            pipe.write(sent)
+    finally:
+        os._exit(0)
+
+
+def _sendable(err: BaseException) -> BaseException:
+    """The error itself where it survives pickling, else a RunError that says what it was."""
+    try:
+        pickle.loads(pickle.dumps(err))
+    except Exception:
+        return RunError(f"drawing the plots raised {described(err)}")
+    return err
