@@ -11,10 +11,11 @@ import os
 import pickle
 import signal
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from typing import Any, NoReturn
 
 from simbench.errors import RunError, described
+from simbench.interrupts import held_back
 
 
 @contextmanager
@@ -25,10 +26,10 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         yield lambda: fn(*args)
         return
     readable, writable = os.pipe()
-    pid = os.fork()
-    if pid == 0:
-        os.close(readable)
-        _child(writable, fn, args)
+    with held_back():  # until the child has its own handlers: the parent's would run the parent's code in it
+        pid = os.fork()
+        if pid == 0:
+            _child(readable, writable, fn, args)
     os.close(writable)
     reaped = False
 
@@ -49,18 +50,23 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
     try:
         yield result
     finally:
-        if not reaped:
-            os.kill(pid, signal.SIGTERM)
-            os.waitpid(pid, 0)
+        if not reaped:  # (a Ctrl-C may have come between its end and waitpid's return: then it is gone already)
+            with suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGTERM)
+            with suppress(ChildProcessError):
+                os.waitpid(pid, 0)
         os.close(readable)
 
 
-def _child(writable: int, fn: Callable[..., Any], args: tuple) -> NoReturn:
+def _child(readable: int, writable: int, fn: Callable[..., Any], args: tuple) -> NoReturn:
     """fn(*args) in the child: what it returned or raised, pickled into the pipe; then the child ends at once
-    (os._exit: none of the parent's clean-up, buffers or exit handlers run twice)."""
+    (os._exit: none of the parent's clean-up, buffers or exit handlers run twice). It starts with Ctrl-C and
+    SIGTERM held back (forked), sets its own handlers, then takes them."""
     try:
+        os.close(readable)
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             sent = pickle.dumps((True, fn(*args)))
         except BaseException as err:  # the parent raises it (an outside robot's plots hook may raise anything)
