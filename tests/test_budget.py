@@ -3,6 +3,7 @@ machine cannot afford, before anything big is allocated: exit 2, one line naming
 small process; a large but possible run says what it will cost."""
 
 import dataclasses
+import os
 import subprocess
 import sys
 import textwrap
@@ -120,6 +121,29 @@ def test_the_machine_limits_are_what_it_has():
     assert 0 < limits.memory <= budget.MEMORY_CAP
     assert limits.memory <= 1.1 * budget.MEMORY_FRACTION * budget.available_memory()
     assert limits.disk is not None and limits.disk > 0 and limits.seconds == budget.TIME_LIMIT
+
+
+def _mem_available() -> int:
+    """The kernel's MemAvailable, read from /proc/meminfo."""
+    with open("/proc/meminfo") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/meminfo"), reason="no /proc/meminfo to compare with")
+def test_the_memory_available_is_the_kernels_or_the_cgroups_left(tmp_path, monkeypatch):
+    """Without a cgroup limit, the kernel's MemAvailable (/proc/meminfo; it moves a little between two looks);
+    under a cgroup limit lower than that (v2 or v1 files), the limit less the usage; a limit of "max" is none."""
+    limit, usage, none = tmp_path / "memory.max", tmp_path / "memory.current", tmp_path / "none"
+    monkeypatch.setattr(budget, "_CGROUP_FILES", ((str(none), str(none)), (str(limit), str(usage))))
+    assert budget.available_memory() == pytest.approx(_mem_available(), rel=0.05)
+    limit.write_text("max\n")
+    usage.write_text("123\n")
+    assert budget.available_memory() == pytest.approx(_mem_available(), rel=0.05)
+    limit.write_text(f"{2**30}\n")
+    usage.write_text(f"{2**28}\n")
+    assert budget.available_memory() == 2**30 - 2**28
+    usage.write_text(f"{2**31}\n")
+    assert budget.available_memory() == 0
 
 
 # Each way to ask too much: the fields changed, and the field the refusal must name. Durations and timesteps are

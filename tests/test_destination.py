@@ -192,13 +192,17 @@ def test_force_replaces_a_folder_whose_marker_lists_a_folder_by_name_only_if_it_
     assert (out / "plots" / "mine.png").read_bytes() == b"the user's figure"
 
 
-def test_the_lock_file_never_follows_a_symlink(tmp_path, capsys):
+@pytest.mark.parametrize("there", [True, False])
+def test_the_lock_file_never_follows_a_symlink(tmp_path, capsys, there):
+    """A symlink where the lock file goes, to the user's file or to a name not yet taken: refused in one line,
+    the file untouched, nothing created at the link's target."""
     victim = tmp_path / "victim.txt"
-    victim.write_text("the user's file")
+    if there:
+        victim.write_text("the user's file")
     (tmp_path / ".out.lock").symlink_to(victim)
     out = tmp_path / "out"
     assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
                  "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and ".out.lock" in err[0] and "symlink" in err[0]
-    assert victim.read_text() == "the user's file" and not out.exists()
+    assert (victim.read_text() == "the user's file" if there else not victim.exists()) and not out.exists()

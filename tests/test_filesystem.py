@@ -543,7 +543,10 @@ def test_every_errno_has_its_words(tmp_path, code, words):
 
 
 def test_an_errno_without_words_says_the_systems_own_in_one_line():
+    """os.strerror's words, in lower case, whatever text the error came with (none, or two lines)."""
     assert os_words(OSError(errno.ETIMEDOUT, "Connection timed out\nsecond line")) == "connection timed out"
+    assert os_words(OSError(errno.EBUSY, "")) == os.strerror(errno.EBUSY).lower()  # "device or resource busy"
+    assert os_words(OSError(errno.EISDIR, "whatever a library said")) == os.strerror(errno.EISDIR).lower()
 
 
 def test_an_integer_too_long_to_write_out_never_breaks_an_error_message():

@@ -394,6 +394,20 @@ def test_a_listed_output_missing_from_the_folder_is_named_not_shown(tmp_path):
     assert "Not found in this folder: plots/gone.png" in html and "Not found in this folder: video.mp4" in html
 
 
+def test_a_figure_has_its_pictures_size_and_a_file_that_is_not_one_none(tmp_path):
+    """Each figure's width and height are those of the array written as its PNG (a wide one spans the page); a
+    file named .png that is not a picture is shown without them."""
+    from simbench.page.html import figure_grid
+
+    for name, (height, width) in {"tall.png": (301, 200), "wide.png": (90, 500)}.items():
+        imageio.imwrite(tmp_path / name, np.zeros((height, width, 3), np.uint8))
+    (tmp_path / "text.png").write_text("not a picture")
+    html = figure_grid(tmp_path, ["tall.png", "wide.png", "text.png"])
+    assert '<figure><img src="tall.png" alt="tall" width="200" height="301">' in html
+    assert '<figure class="wide"><img src="wide.png" alt="wide" width="500" height="90">' in html
+    assert '<img src="text.png" alt="text">' in html
+
+
 def test_a_figure_outside_the_folder_is_refused(tmp_path):
     """A page refers to its pictures by paths inside its folder, so that it moves with the folder."""
     for path in ("/etc/hostname", "../elsewhere.png", "plots/../../elsewhere.png"):

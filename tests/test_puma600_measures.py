@@ -1,11 +1,8 @@
-"""PUMA 600 manipulability and condition number against NumPy's SVD of `puma600.jacobian`, and the small
-eigenvalue solver they use against matrices of known spectrum."""
+"""PUMA 600 manipulability and condition number against NumPy's SVD of `puma600.jacobian`."""
 
 import numpy as np
-import pytest
 
 from simbench.robots import puma600 as P
-from simbench.robots.small_eigen import extreme_eigenvalues
 
 RNG_SEED = 14
 
@@ -70,30 +67,3 @@ def test_frame3_jacobian_has_the_chain_jacobians_gram_matrix():
     jac[:, :3] /= P.A2 + P.D4
     j3 = P.frame3_jacobian(q)
     np.testing.assert_allclose(j3.transpose(0, 2, 1) @ j3, jac.transpose(0, 2, 1) @ jac, atol=1e-14)
-
-
-def known_spectrum(eigenvalues: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Q diag(eigenvalues) Q^T (N, n, n) with random orthogonal Q."""
-    q, _ = np.linalg.qr(rng.normal(size=eigenvalues.shape + eigenvalues.shape[-1:]))
-    return np.einsum("nij,nj,nkj->nik", q, eigenvalues, q)
-
-
-@pytest.mark.parametrize("spectrum", ["spread", "top_triple", "bottom_double", "all_equal", "singular"])
-def test_extreme_eigenvalues_of_known_spectra(spectrum):
-    rng = np.random.default_rng(RNG_SEED + 3)
-    lam = rng.uniform(0.01, 3.0, (500, 6))
-    if spectrum == "top_triple":
-        lam[:, 3:] = lam[:, [5]]
-    elif spectrum == "bottom_double":
-        lam[:, 1] = lam[:, 0]
-    elif spectrum == "all_equal":
-        lam[:] = lam[:, [0]]
-    elif spectrum == "singular":
-        lam[:, 0] = 0.0
-    m = known_spectrum(lam, rng)
-    low, high, settled = extreme_eigenvalues([[m[:, i, j] for j in range(6)] for i in range(6)])
-    top, least = lam.max(axis=1), lam.min(axis=1)
-    # Settled means right (to LAPACK's 1e-16 of the largest); the caller takes the SVD where not.
-    assert np.all(np.abs(high - top)[settled] <= 1e-14 * top[settled])
-    assert np.all(np.abs(low - least)[settled] <= 1e-14 * top[settled])
-    assert settled.mean() > (0.999 if spectrum == "spread" else 0.25)  # a multiple root converges linearly

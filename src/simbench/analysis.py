@@ -76,15 +76,15 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
                planned_at: int | None = None) -> np.ndarray:
     """Distance of points[a:b] from the polyline path[first:last + 1], for each block (a, b, first, last).
 
-    Exact to about 1e-12 of the coordinates' scale: a branch and bound over a tree of the path's stretches of 2^l
-    segments (`_capsules`), each bounded by a capsule about its chord, so that each point examines a few stretches a
-    level (`_nearest`). `planned_at`: points[k] is planned at path[k + planned_at], and the segment there gives the
-    first bound.
-    Repeated samples are dropped first: the polyline is the same.
+    Exact to 1e-13 of the coordinates' scale, near the path or far from it: a branch and bound over a tree of
+    the path's stretches of 2^l segments (`_capsules`), each bounded by a capsule about its chord, so that each
+    point examines a few stretches a level (`_nearest`). `planned_at`: points[k] is planned at path[k + planned_at],
+    and the segment there gives the first bound. Repeated samples are dropped first: the polyline is the same.
 
-    Far from its stretch of path (nearest vertex r > 100 h), a point's distance is the one the k-d tree search
-    that this replaced gave, from the nearest vertex of the stretch with its segments cut into pieces of at most
-    2h: within h^2 / 2r < h / 200 of the exact distance (`_far_rule`; where that is more than 1e-11 of the scale).
+    Own code, not scipy's cKDTree with an exact refinement: a k-d tree bounds a piece of path by a ball about its
+    middle, which a point far from a path curving about it, or near a path crawling into motion (hundreds of short
+    segments in one place), cannot tell apart, where a capsule about a chord can: it took 1.5 to 11 times as long on
+    the shipped scenarios (BENCHMARKS.md, issue 34).
     """
     if len(path) == 0:
         raise ValueError("path_deviation needs a path of at least one point")
@@ -100,7 +100,6 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
     for a, b, lo, hi in blocks:
         first[a:b], last[a:b] = index[lo], index[hi]
     out = np.empty(len(points))
-    segment = np.full(len(points), -1)
     single = first == last
     out[single] = _norms(points[single] - vertices[first[single]])
     todo = np.flatnonzero(~single)
@@ -108,16 +107,7 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
         tree = _capsules(vertices)
         for part in np.array_split(todo, -(-todo.size // _BATCH)):  # memory bounded on a long run
             guess = first[part] if planned is None else np.clip(planned[part], first[part], last[part] - 1)
-            out[part], segment[part] = _nearest(tree, points[part], first[part], last[part] - 1, guess)
-        lengths = np.sqrt(np.einsum("ij,ij->i", *(2 * [np.diff(vertices, axis=0)])))
-        # each stretch's `_pieces` once: on a short run, every block of `deviation_near_reference` has the whole path
-        pieces: dict[tuple[int, int], tuple[np.ndarray, float]] = {}
-        for a, b, _, _ in blocks:
-            if a < b and first[a] < last[a]:
-                stretch = int(first[a]), int(last[a])
-                if stretch not in pieces:
-                    pieces[stretch] = _pieces(lengths[stretch[0]:stretch[1]])
-                _far_rule(tree, vertices, points, out, first, last, segment, a, b, *pieces[stretch])
+            out[part] = _nearest(tree, points[part], first[part], last[part] - 1, guess)
     return out
 
 
@@ -140,8 +130,7 @@ class _Capsules:
     """A polyline's vertices (padded to 2^depth segments with copies of the last; x, y and z apart) and, for
     every level l >= _LEAF, its stretches of 2^l segments each as a capsule: the chord a -> a + ab from its first
     vertex to its last, and a radius r within which every point of the stretch lies of the chord. Level l's rows:
-    ax, ay, az, abx, aby, abz, 1 / |ab|^2 (0 for a stretch that closes), r and |ab| + 2 r (the stretch's points
-    are that near one another)."""
+    ax, ay, az, abx, aby, abz, 1 / |ab|^2 (0 for a stretch that closes) and r."""
 
     xyz: tuple[np.ndarray, np.ndarray, np.ndarray]
     levels: list[np.ndarray | None]  # None below _LEAF
@@ -170,7 +159,7 @@ def _capsules(vertices: np.ndarray) -> _Capsules:
         mx, my, mz = mx - u * abx, my - u * aby, mz - u * abz
         radius = np.maximum(radius[0::2], radius[1::2]) + np.sqrt(mx * mx + my * my + mz * mz)
         if level >= _LEAF:
-            levels.append(np.array([ax, ay, az, abx, aby, abz, inverse, radius, np.sqrt(length2) + 2 * radius]))
+            levels.append(np.array([ax, ay, az, abx, aby, abz, inverse, radius]))
     return _Capsules((x, y, z), levels, float(np.abs(vertices).max()))
 
 
@@ -189,24 +178,22 @@ def _cover(first: int, last: int) -> list[tuple[int, int]]:
     return out
 
 
-def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.ndarray, guess: np.ndarray,
-             which: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.ndarray,
+             guess: np.ndarray) -> np.ndarray:
     """Each point's distance from segments first..last of the tree's polyline (the same for runs of points), to
-    1e-12 of the coordinates' scale, and, if `which`, the segment at that distance (else `guess`).
+    1e-13 of the scale of the path's and the point's coordinates (1e-12 m within 9 m of the origin).
 
     Branch and bound, level by level from the largest stretches that make up a point's range (`_cover`) down to
     stretches of 2^_LEAF segments, whose segments are then measured one by one: a stretch's capsule bounds its
     distance from a point from below (the distance from its chord less its radius) and from above (plus the radius:
     every point of the chord lies within the radius of the stretch). The first upper bound is the distance from
-    segment `guess` or the one before it. A stretch that cannot come nearer than the least upper bound so far is
-    dropped, the others split in two; to tell the segment, a stretch whose points all lie within the tolerance of
-    one another counts as its first segment, and otherwise a stretch is dropped only if it cannot come nearer by the
-    tolerance.
+    segment `guess` or the one before it. A stretch that cannot come nearer than the least upper bound so far by
+    the tolerance is dropped, the others split in two.
     """
     vx, vy, vz = tree.xyz
     px, py, pz = (np.ascontiguousarray(c) for c in points.T)
     count = len(points)
-    tol = 1e-12 * (1.0 + max(tree.scale, float(np.abs(points).max())))
+    tol = 1e-13 * (1.0 + np.maximum(tree.scale, np.abs(points).max(axis=1)))  # each point's: 25 times rounding's
 
     def exact(k: np.ndarray, seg: np.ndarray) -> np.ndarray:
         """Each point k's distance from its segment seg, _BATCH pairs at a time: the leaves' pairs, some ten a
@@ -219,10 +206,7 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
 
     everyone = np.arange(count)
     before = np.maximum(guess - 1, first)
-    bound, at_before = exact(everyone, guess), exact(everyone, before)
-    segment = np.where(at_before < bound, before, guess)
-    bound = np.minimum(bound, at_before)
-    found = [(everyone, segment, bound.copy())]  # exact distances met, for `which`
+    bound = np.minimum(exact(everyone, guess), exact(everyone, before))
     heads = np.flatnonzero(np.concatenate(([True], (first[1:] != first[:-1]) | (last[1:] != last[:-1]))))
     fresh: dict[int, list[tuple[int, int, int]]] = {}
     for a, b in zip(heads.tolist(), np.append(heads[1:], count).tolist()):
@@ -239,7 +223,7 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
             continue
         table = tree.levels[level]
         assert table is not None
-        ax, ay, az, abx, aby, abz, inverse, radius, extent = table.take(j, axis=1)
+        ax, ay, az, abx, aby, abz, inverse, radius = table.take(j, axis=1)
         rx, ry, rz = px[k] - ax, py[k] - ay, pz[k] - az
         u = (rx * abx + ry * aby + rz * abz) * inverse
         np.clip(u, 0.0, 1.0, out=u)
@@ -248,71 +232,15 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
         rz -= u * abz
         d = np.sqrt(rx * rx + ry * ry + rz * rz)
         np.minimum.at(bound, k, d + radius)
-        if which:
-            small = extent <= tol
-            if small.any():
-                seg = j[small] << level
-                dist = exact(k[small], seg)
-                np.minimum.at(bound, k[small], dist)
-                found.append((k[small], seg, dist))
-            keep = (d - radius <= bound[k] + tol) & ~small
-        else:
-            keep = d - radius < bound[k] - tol
+        keep = d - radius < bound[k] - tol[k]
         k, j = k[keep], 2 * j[keep]
         k, j = np.concatenate([k, k]), np.concatenate([j, j + 1])
     span = 1 << (_LEAF - 1)  # the children of the last level's stretches, segment by segment
     leaves.append((np.repeat(k, span), (j[:, None] * span + np.arange(span)).ravel()))
     k, seg = (np.concatenate(parts) for parts in zip(*leaves))
     if k.size:
-        dist = exact(k, seg)
-        np.minimum.at(bound, k, dist)
-        if which:
-            found.append((k, seg, dist))
-    if not which:
-        return bound, segment
-    k, seg, dist = (np.concatenate(parts) for parts in zip(*found))
-    order = np.lexsort((dist, k))
-    least = order[np.concatenate(([True], k[order[1:]] != k[order[:-1]]))]  # each point's nearest, k ascending
-    return dist[least], seg[least]
-
-
-def _pieces(length: np.ndarray) -> tuple[np.ndarray, float]:
-    """A stretch's segments (their lengths) cut into pieces no longer than the typical one (the median, or 1e-5 of
-    the whole length if that is longer), as the k-d tree search that `_nearest` replaced cut them: each segment's
-    number of pieces, and h, half the longest piece (`_far_rule`)."""
-    cuts = np.ones(len(length), int)
-    if len(length) >= 2:
-        cuts = np.maximum(np.ceil(length / max(float(np.median(length)), 1e-5 * float(length.sum()))), 1).astype(int)
-    return cuts, 0.5 * float((length / cuts).max())
-
-
-def _far_rule(tree: _Capsules, vertices: np.ndarray, points: np.ndarray, out: np.ndarray, first: np.ndarray,
-              last: np.ndarray, guess: np.ndarray, a: int, b: int, cuts: np.ndarray, half: float) -> None:
-    """Where one of points[a:b] (searched on vertices first..last, the same for all, of at least one segment) lies
-    far from that stretch, its distance as the k-d tree search that `_nearest` replaced gave it, in place in `out`:
-    with the stretch's segments cut into `cuts` pieces each and h (`half`) half the longest piece (`_pieces`), a
-    point whose nearest piece end lies beyond 100 h took that end's distance, within h^2 / 2r of the exact one; only
-    where h^2 / 2r exceeds 1e-11 of the coordinates' scale does it differ from the exact one here. `guess`: a
-    segment near each point."""
-    tol = 1e-11 * (1.0 + tree.scale)
-    far = a + np.flatnonzero((out[a:b] > 99.99 * half) & (half * half > 2 * tol * out[a:b]))
-    if far.size == 0:
-        return
-    exact, nearest = _nearest(tree, points[far], first[far], last[far] - 1, guess[far], which=True)
-    # The piece ends nearest each point: either side of its foot on its nearest segment and on the segments
-    # before and after that one.
-    p, ends = points[far], []
-    for shift in (-1, 0, 1):
-        seg = np.clip(nearest + shift, first[a], last[a] - 1)
-        start, end, n = vertices[seg], vertices[seg + 1], cuts[seg - first[a]]
-        ab = end - start
-        u = np.clip(np.einsum("ij,ij->i", p - start, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-        for step in (0, 1):
-            piece = np.minimum(np.floor(u * n).astype(int) + step, n)
-            at = np.where((piece == n)[:, None], end, start + (piece / n)[:, None] * ab)
-            ends.append(_norms(p - at))
-    nearest_end = np.min(ends, axis=0)
-    out[far] = np.where(nearest_end > 100 * half, nearest_end, exact)
+        np.minimum.at(bound, k, exact(k, seg))
+    return bound
 
 
 def _norms(v: np.ndarray) -> np.ndarray:

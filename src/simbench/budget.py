@@ -52,8 +52,8 @@ tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, Nu
 - Disk: the timeseries 0.75 R a sample compressed (0.66-0.70 measured), the plots 1 MB, the MP4 200 B + 0.0005 B
   a pixel a frame (x264 CRF 23 on these scenes: 288 B a 640x480 frame, 914 at 1920x1080).
 
-Limits (Limits.of_machine): memory half of what the machine has available now (MemAvailable, and the cgroup's
-limit less its usage where lower), at most 64 GiB; time 24 h; disk the free space where the outputs go.
+Limits (Limits.of_machine): memory half of what the machine has available now (psutil's: MemAvailable, and the
+cgroup's limit less its usage where lower), at most 64 GiB; time 24 h; disk the free space where the outputs go.
 """
 
 from __future__ import annotations
@@ -65,6 +65,8 @@ import sys
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
+
+import psutil
 
 from simbench import windowed
 from simbench.errors import ScenarioError
@@ -90,6 +92,8 @@ _FRAMES_QUEUED = 6  # frames alive at once while rendering (simbench.render: the
 _TIMESERIES_FACTOR = 0.75
 _PLOT_BYTES = 1e6
 _MP4_BYTES = (200.0, 0.0005)  # a frame, a pixel
+_CGROUP_FILES = (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),  # cgroup v2, then v1
+                 ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"))
 
 
 @dataclass(frozen=True)
@@ -243,24 +247,11 @@ class Limits:
 
 
 def available_memory() -> int:
-    """Bytes of memory available to this process now: the kernel's MemAvailable (else the free physical pages),
-    and the memory cgroup's limit less its usage where that is lower."""
-    found = None
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    found = int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    if found is None:
-        try:
-            found = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        except (OSError, ValueError, AttributeError):
-            found = 8 * 2**30  # no way to know: a modest machine
-    for limit_file, usage_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-                                   ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
-                                    "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+    """Bytes of memory available to this process now: psutil's available memory (the kernel's MemAvailable), and
+    the memory cgroup's limit less its usage where that is lower (psutil reads the whole machine's figures, not a
+    container's limit)."""
+    found = psutil.virtual_memory().available
+    for limit_file, usage_file in _CGROUP_FILES:
         try:
             limit = int(Path(limit_file).read_text().strip())
             usage = int(Path(usage_file).read_text().strip())

@@ -7,14 +7,13 @@ whose files arrive one by one, a line `{"files": [...]}` appended before each ba
 written whole (a sweep's plots, a full run inside a sweep) holds its own marker, which accounts for its files.
 `--force` replaces a folder only if every file in it, at every depth, is accounted for; anything else is the
 user's, and the run is refused naming it. A folder that holds the input, or the working folder, is never
-replaced. A lock file beside the folder (`.<name>.lock`, flock, opened without following a symlink) keeps a
-second writer out; the kernel lets go of it when its holder dies, however it dies.
+replaced. A lock file beside the folder (`.<name>.lock`: filelock's FileLock, an flock on a file it opens without
+following a symlink) keeps a second writer out; the kernel lets go of it when its holder dies, however it dies.
 """
 
 from __future__ import annotations
 
 import errno
-import fcntl
 import glob
 import json
 import os
@@ -22,6 +21,8 @@ import shutil
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from filelock import FileLock, Timeout
 
 from simbench.errors import ScenarioError, destination_error, name_max
 
@@ -175,35 +176,26 @@ def check(out: Path, inputs: Iterable[Path], force: bool) -> None:
 def locked(out: Path) -> Iterator[None]:
     """Hold the lock of `out` for the block; ScenarioError if another writer holds it, or if the file system
     refuses the lock file (a read-only folder, a file in the way, a name too long: errors.destination_error).
-    The lock file is removed when the block ends (a writer that locked it just before is told apart: its file is
-    no longer the path's), and so are the folders made to hold it if `out` was not written."""
+    The lock file is removed when the block ends, while still held (a writer that opened it just before finds
+    it unlinked and is refused: filelock checks), and so are the folders made to hold it if `out` was not
+    written."""
     check_name(out)
     path = out.parent / f".{out.name}.lock"
     created = [p for p in (out.parent, *out.parent.parents) if not p.exists()]
     try:
         with refused(out):
             out.parent.mkdir(parents=True, exist_ok=True)
-            lock = _open_lock(path)
-        with lock:
-            yield from _holding(lock, path, out)
+            lock = _take(path, out)
+        try:
+            yield
+        finally:
+            try:
+                path.unlink(missing_ok=True)
+            finally:
+                lock.release()
     finally:
         if not out.exists():  # a run refused or failed before writing: the folders made for its lock go too
             _remove_empty(created)
-
-
-def _holding(lock, path: Path, out: Path) -> Iterator[None]:
-    """locked()'s block, `lock` open: take it (ScenarioError if another writer has it), remove it at the end."""
-    try:
-        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        if os.stat(path).st_ino != os.fstat(lock.fileno()).st_ino:
-            raise BlockingIOError
-    except (BlockingIOError, FileNotFoundError):
-        raise ScenarioError(str(out), None, "another simbench run or sweep is writing into this folder; wait for it "
-                                            "to end or pass --out to write elsewhere") from None
-    try:
-        yield
-    finally:
-        path.unlink(missing_ok=True)
 
 
 def _remove_empty(folders: list[Path]) -> None:
@@ -215,17 +207,22 @@ def _remove_empty(folders: list[Path]) -> None:
             return
 
 
-def _open_lock(path: Path):
-    """The lock file, created if need be, never truncated and never through a symlink (one there could make
-    simbench write to any file the user can write); ScenarioError naming it if a symlink is in the way."""
+def _take(path: Path, out: Path) -> FileLock:
+    """The lock at `path`, taken without waiting: ScenarioError if another writer has it, or naming `path` if a
+    symlink is in the way (filelock opens the file with O_NOFOLLOW and never truncates it: a link there could
+    otherwise make simbench write to any file the user can write)."""
+    lock = FileLock(path, blocking=False)
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        lock.acquire()
+    except Timeout:
+        raise ScenarioError(str(out), None, "another simbench run or sweep is writing into this folder; wait for it "
+                                            "to end or pass --out to write elsewhere") from None
     except OSError as err:
         if err.errno == errno.ELOOP and path.is_symlink():
             raise ScenarioError(str(path), None, "is a symlink where simbench keeps its lock file; simbench does "
                                                  "not follow it: remove it, or pass --out to write elsewhere") from None
         raise
-    return os.fdopen(fd, "r+")
+    return lock
 
 
 def check_name(out: Path) -> None:

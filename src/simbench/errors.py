@@ -103,20 +103,13 @@ class OutputError(RunError):
 # meets one failed (exit 1), wherever it meets it.
 NO_SPACE = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 
+# Where the system's own words (os.strerror) would mislead or say too little: a full disk, a file-size limit and a
+# quota all say "no space" (NO_SPACE: exit 1); a symlink loop and a move across file systems are named as such.
 _WORDS = {
-    errno.EACCES: "permission denied",
-    errno.EPERM: "operation not permitted",
-    errno.EROFS: "read-only file system",
     errno.ENOSPC: "no space left on the device",
     errno.EFBIG: "no space for a file this large: over the file system's or this process's file-size limit",
     errno.EDQUOT: "no space left: disk quota exceeded",
     errno.ELOOP: "a symlink loop (too many levels of symbolic links)",
-    errno.ENOENT: "no such file or folder",
-    errno.EISDIR: "is a folder, not a file",
-    errno.EIO: "input/output error (a failing disk, or a network file system gone?)",
-    errno.EMFILE: "too many open files",
-    errno.ENFILE: "too many open files on this machine",
-    errno.EBUSY: "busy (in use by another program?)",
     errno.EXDEV: "on another file system",
 }
 
@@ -179,8 +172,8 @@ def _file_in_the_way(filename: str) -> str | None:
 
 
 def os_words(err: OSError) -> str:
-    """What the file system refused, in words: the errno's (EACCES "permission denied", ENOSPC "no space left
-    on the device", ...), naming the file in the way for ENOTDIR and the lengths for ENAMETOOLONG."""
+    """What the file system refused, in words: the errno's (os.strerror's, as EACCES "permission denied", or
+    `_WORDS`' for a few), naming the file in the way for ENOTDIR and the lengths for ENAMETOOLONG."""
     code, filename = err.errno, err.filename
     text = (err.strerror or str(err) or "").strip()
     if code is None and (m := _ERRNO_IN_TEXT.match(text)):  # an OSError made of another's text (imageio's)
@@ -197,6 +190,8 @@ def os_words(err: OSError) -> str:
         return _too_long(name) if name is not None else "name too long"
     if code in _WORDS:
         return _WORDS[code]
+    if code is not None:
+        text = os.strerror(code)
     return printable(text.splitlines()[0] if text else type(err).__name__).lower()
 
 

@@ -8,13 +8,14 @@ import json
 import math
 import os
 import re
-import struct
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from urllib.parse import quote
 from xml.etree import ElementTree
 
 from simbench.version import __version__
+
+from PIL import Image
 
 _STYLE = """
 :root { --ink: #1d2330; --muted: #5b6475; --rule: #d9dde5; --band: #f4f6f9; --ok: #1e7b34; --limits: #b35c00;
@@ -130,15 +131,13 @@ def cards(items: Iterable[tuple[str, str, str]]) -> str:
 
 
 def png_size(path: Path) -> tuple[int, int] | None:
-    """A PNG's width and height from its header, or None if the file is not a readable PNG."""
+    """A PNG's (or any picture Pillow reads) width and height, from its header alone (Pillow reads no pixels until
+    asked), or None if the file is not a picture Pillow can read."""
     try:
-        with open(path, "rb") as f:
-            head = f.read(24)
-    except OSError:
+        with Image.open(path) as picture:
+            return picture.size
+    except (OSError, ValueError, Image.DecompressionBombError):
         return None
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
-        return None
-    return struct.unpack(">II", head[16:24])
 
 
 def svg_size(path: Path) -> tuple[float, float] | None:

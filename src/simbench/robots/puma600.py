@@ -26,7 +26,6 @@ import numpy as np
 
 from simbench.robots import REVOLUTE, SingularSet, Tolerance
 from simbench.robots.serial import SerialArm
-from simbench.robots.small_eigen import extreme_eigenvalues, gram
 
 A2, A3, D3, D4 = 0.432, 0.02, 0.149, 0.432
 D6 = 0.056  # wrist centre to tool flange along z6 (PUMA 560 flange)
@@ -254,7 +253,12 @@ def _frame3_columns_of(q: np.ndarray, c3: np.ndarray, s3: np.ndarray, c4: np.nda
 
 def frame3_jacobian(q: np.ndarray) -> np.ndarray:
     """The tool Jacobian (N, 6, 6) in frame 3's coordinates with its linear rows divided by a2 + d4."""
-    columns = [np.stack(np.broadcast_arrays(*column), -1) for column in _frame3_columns(q)]
+    return _matrices(_frame3_columns(q))
+
+
+def _matrices(columns: list[tuple]) -> np.ndarray:
+    """The matrices (N, 6, 6) of `_frame3_columns`' columns."""
+    columns = [np.stack(np.broadcast_arrays(*column), -1) for column in columns]
     return np.stack(np.broadcast_arrays(*columns), -1)
 
 
@@ -271,22 +275,16 @@ def _manipulability(h: np.ndarray, r: np.ndarray, s5: np.ndarray) -> np.ndarray:
 
 
 def condition(q: np.ndarray) -> np.ndarray:
-    """Condition number of the tool Jacobian with its linear rows divided by a2 + d4: its extreme singular values
-    as the square roots of J^T J's extreme eigenvalues (`small_eigen`, to 1e-15 of the largest, as LAPACK's);
-    from J's SVD where the condition number comes out over 1000 (the least singular value then off by more than
-    1e-9 of itself) or the iteration did not settle."""
+    """Condition number of the tool Jacobian with its linear rows divided by a2 + d4: the ratio of its extreme
+    singular values (NumPy's SVD, over the stack of samples at once)."""
     q = np.atleast_2d(q)
-    return _condition(q, _frame3_columns(q))
+    return _condition(_frame3_columns(q))
 
 
-def _condition(q: np.ndarray, columns: list[tuple]) -> np.ndarray:
-    """`condition` of q (N, 6) whose `_frame3_columns` are given."""
-    low, high, settled = extreme_eigenvalues(gram(columns))
-    sv = np.sqrt(np.maximum(np.stack([high, low], -1), 0.0))
-    near = np.flatnonzero(~settled | (sv[:, 0] > 1e3 * sv[:, 1]))
-    if near.size:
-        sv[near] = np.linalg.svd(frame3_jacobian(q[near]), compute_uv=False)[:, [0, -1]]
-    return sv[:, 0] / np.maximum(sv[:, 1], 1e-300)
+def _condition(columns: list[tuple]) -> np.ndarray:
+    """`condition` of the samples whose `_frame3_columns` are given."""
+    sv = np.linalg.svd(_matrices(columns), compute_uv=False)
+    return sv[:, 0] / np.maximum(sv[:, -1], 1e-300)
 
 
 def measures(q: np.ndarray) -> dict[str, np.ndarray]:
@@ -298,7 +296,7 @@ def measures(q: np.ndarray) -> dict[str, np.ndarray]:
     c2, s2, c3, s3, c4, s4, c5, s5 = (f(q[:, i]) for i in (1, 2, 3, 4) for f in (np.cos, np.sin))
     h, r = _elbow_and_shoulder_of(c2, s2, c3, s3)
     return {"manipulability": _manipulability(h, r, s5),
-            "condition": _condition(q, _frame3_columns_of(q, c3, s3, c4, s4, c5, s5)),
+            "condition": _condition(_frame3_columns_of(q, c3, s3, c4, s4, c5, s5)),
             "shoulder_gap": np.abs(r), "elbow_gap": elbow_gap(q), "wrist_gap": np.abs(np.arcsin(s5))}
 
 
