@@ -2,7 +2,7 @@
 scenario as a multiple of its simulation time, and the planning time over random tasks whose plain path runs
 into one or two obstacles.
 
-  - `agile_eye/avoidance`: plan (`avoidance_4567.plan`, everything the planner does for a run) and simulate
+  - `agile_eye/avoidance`: plan (`avoidance_4567.PLANNER.plan`, everything the planner does for a run) and simulate
     (`sim.simulate` with the scenario's controller and settle, as `simbench.evaluate` times its stages), in
     turn, REPEATS pairs; the median of the pairwise ratios plan / simulate. Target: at most 5.
   - TASKS random tasks (seed SEED): start and goal orientations drawn from the learnt FK's training workspace
@@ -40,6 +40,7 @@ from benchmarks.bench_agile_eye_crossing import _quat, plain_path_crosses, task_
 from benchmarks.common import interleaved, shipped  # noqa: E402
 from simbench.errors import RunError  # noqa: E402
 from simbench.planners import avoidance_4567, learnt_fk  # noqa: E402
+from simbench.planners.avoidance_4567 import windows  # noqa: E402
 from simbench.plant import Plant  # noqa: E402
 from simbench.robots import agile_eye  # noqa: E402
 from simbench.rotations import rotation_angle  # noqa: E402
@@ -118,7 +119,7 @@ def _outcome(traj) -> str:
     return "bent" if traj.info["windows"] else "plain"
 
 
-def _shipped_simulation(plan=avoidance_4567.plan):
+def _shipped_simulation(plan=avoidance_4567.PLANNER.plan):
     """The shipped scenario, its dt, and a function that simulates its plan as `simbench.evaluate` does."""
     sc = shipped("agile_eye/avoidance")
     s = sc.sim
@@ -134,7 +135,7 @@ def _shipped_simulation(plan=avoidance_4567.plan):
     return sc, dt, traj, simulation
 
 
-def measure_scenario(plan=avoidance_4567.plan, repeats: int = REPEATS) -> dict:
+def measure_scenario(plan=avoidance_4567.PLANNER.plan, repeats: int = REPEATS) -> dict:
     """Plan and simulate the shipped scenario in turn; medians and the median of the pairwise ratios."""
     sc, dt, traj, simulation = _shipped_simulation(plan)
 
@@ -148,7 +149,7 @@ def measure_scenario(plan=avoidance_4567.plan, repeats: int = REPEATS) -> dict:
             "kci": info["kci"], "clearance": info["clearance"], "windows": info["windows"]}
 
 
-def measure_tasks(plan=avoidance_4567.plan) -> list[dict]:
+def measure_tasks(plan=avoidance_4567.PLANNER.plan) -> list[dict]:
     """Plan every random task once; outcome, planning time and the independent check of each, and the time of
     one simulation of the shipped scenario just before it (the machine's pace at that moment)."""
     robot = agile_eye.ROBOT
@@ -180,8 +181,8 @@ def measure_tasks(plan=avoidance_4567.plan) -> list[dict]:
 
 
 def measure_gradients(repeats: int = REPEATS) -> dict:
-    """The shipped scenario's planning time with SLSQP's own finite differences (avoidance_4567's
-    _ANALYTIC_GRADIENTS off) and with the analytic gradients, in turn; everything else as shipped."""
+    """The shipped scenario's planning time with SLSQP's own finite differences (avoidance_4567.windows'
+    ANALYTIC_GRADIENTS off) and with the analytic gradients, in turn; everything else as shipped."""
     sc = shipped("agile_eye/avoidance")
     robot = sc.robot_def
     dt = float(Plant.load(robot, sc.sim.timestep).model.opt.timestep)
@@ -189,11 +190,11 @@ def measure_gradients(repeats: int = REPEATS) -> dict:
 
     def planner(analytic: bool):
         def run():
-            avoidance_4567._ANALYTIC_GRADIENTS = analytic
+            windows.ANALYTIC_GRADIENTS = analytic
             try:
-                results[analytic] = avoidance_4567.plan(sc, robot, dt).info
+                results[analytic] = avoidance_4567.PLANNER.plan(sc, robot, dt).info
             finally:
-                avoidance_4567._ANALYTIC_GRADIENTS = True
+                windows.ANALYTIC_GRADIENTS = True
         return run
 
     t_fd, t_analytic = interleaved(planner(False), planner(True), repeats)
@@ -202,12 +203,12 @@ def measure_gradients(repeats: int = REPEATS) -> dict:
             "kci_mean": {"finite_differences": results[False]["kci"]["mean"], "analytic": results[True]["kci"]["mean"]}}
 
 
-def measure(plan=avoidance_4567.plan) -> dict:
+def measure(plan=avoidance_4567.PLANNER.plan) -> dict:
     """Every measure."""
     clock = time.perf_counter()
     scenario = measure_scenario(plan)
     rows = measure_tasks(plan)
-    gradients = measure_gradients() if plan is avoidance_4567.plan else None
+    gradients = measure_gradients() if plan == avoidance_4567.PLANNER.plan else None
     return {"scenario": scenario, "rows": rows, "gradients": gradients, "seconds": time.perf_counter() - clock}
 
 

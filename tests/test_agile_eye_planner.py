@@ -5,6 +5,9 @@ import numpy as np
 import pytest
 
 from simbench.planners import avoidance_4567 as method
+from simbench.planners.avoidance_4567.estimators import Estimator
+from simbench.planners.avoidance_4567.path import plain_plan
+from simbench.planners.avoidance_4567.windows import WindowFit
 from simbench.robots import agile_eye as E
 from simbench.timing import TimeLaw
 
@@ -204,11 +207,11 @@ def test_window_gradients_match_finite_differences(estimator):
 
     task = simbench.load_scenario(scenario_file("agile_eye", "avoidance")).task
     law = TimeLaw("4567", 4.0)
-    plan = method._plain_plan(task, law)
+    plan = plain_plan(task, law)
     t0 = 0.5
-    exact = method._Estimator("exact", task.working_mode)
+    exact = Estimator("exact", task.working_mode)
     anchor = exact(plan.theta(np.linspace(0.0, t0, 26)), task.start.matrix())[-1]
-    fit = method._WindowFit(plan, t0, task, method._Estimator(estimator, task.working_mode), anchor)
+    fit = WindowFit(plan, t0, task, Estimator(estimator, task.working_mode), anchor)
     rng = np.random.default_rng(18)
     h = 1e-6
     checked = 0

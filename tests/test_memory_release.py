@@ -8,7 +8,8 @@ from conftest import scenario_file
 import simbench
 from simbench import sim
 from simbench.errors import RunError
-from simbench.planners import round_robin
+from simbench.planners.round_robin import paths
+from simbench.planners.round_robin.paths import Orientations
 from simbench.plant import Plant
 from simbench.robots import rsmg as S
 from simbench.robots import rsmg_outputs
@@ -92,14 +93,14 @@ def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_p
     """The feedback finds the rotor's commanded orientations a block at a time as grips ask for them, dropping the
     blocks behind: the same numbers as all of them found at once, bit for bit, for rows asked for in time order
     and out of it, across blocks; and those of the plan's own rotor quaternions."""
-    monkeypatch.setattr(round_robin, "_BLOCK", 1000)  # the plan's own quaternions too, from 1,000 rows at a time
+    monkeypatch.setattr(paths, "BLOCK", 1000)  # the plan's own quaternions too, from 1,000 rows at a time
     scenario = simbench.load_scenario(scenario_file("rsmg", "tumble"))
     dt = float(Plant.load(scenario.robot_def, scenario.sim.timestep).model.opt.timestep)
     plan = scenario.planner_def.plan(scenario, scenario.robot_def, dt)
     motion, s = scenario.task.motion, plan.s
     every = motion.orientation(s)
     assert np.abs(every - quat_to_matrix(plan.series["rotor_quat_ref"])).max() < 1e-12
-    rot = round_robin._Orientations(motion, s)
+    rot = Orientations(motion, s)
     rng = np.random.default_rng(7)
     starts = np.sort(rng.integers(0, len(s) - 1, 30)).tolist() + rng.integers(0, len(s) - 1, 10).tolist()
     for a in starts:

@@ -11,6 +11,8 @@ from scipy.spatial.transform import Rotation
 import simbench
 from simbench.errors import RunError
 from simbench.planners import round_robin
+from simbench.planners.round_robin.feedback import EASE
+from simbench.planners.round_robin.schedule import gammas
 from simbench.robots import rsmg as S
 from simbench.plant import Plant
 from simbench.switches import apply_switch
@@ -126,7 +128,7 @@ def test_three_turns_are_scheduled_at_every_speed_the_swings_allow():
     base = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
     for duration in range(6, 16):
         sc = base.model_copy(update={"timing": base.timing.model_copy(update={"duration": float(duration)})})
-        traj = round_robin.plan(sc, S.ROBOT, 0.001)
+        traj = round_robin.PLANNER.plan(sc, S.ROBOT, 0.001)
         engaged = traj.series["engaged_ref"]
         assert engaged.sum(axis=1).min() >= 3, duration
         gamma = traj.q_ref[:, S.ARMS:][engaged]
@@ -134,9 +136,9 @@ def test_three_turns_are_scheduled_at_every_speed_the_swings_allow():
         assert S.GAMMA_BAND[0] + margin - 1e-9 < gamma.min() and gamma.max() < S.GAMMA_BAND[1] - margin + 1e-9
     fast = base.model_copy(update={"timing": base.timing.model_copy(update={"duration": 5.0})})
     with pytest.raises(RunError, match=r"at t = 1\.\d+ s arm 2 has no next contact point"):
-        round_robin.plan(fast, S.ROBOT, 0.001)
+        round_robin.PLANNER.plan(fast, S.ROBOT, 0.001)
     direct = fast.model_copy(update={"task": fast.task.model_copy(update={"approach_time": 0.0})})
-    assert round_robin.plan(direct, S.ROBOT, 0.001).series["engaged_ref"].sum(axis=1).min() >= 3
+    assert round_robin.PLANNER.plan(direct, S.ROBOT, 0.001).series["engaged_ref"].sum(axis=1).min() >= 3
 
 
 def test_control_samples_past_the_schedules_end_hold_the_last_reference():
@@ -147,7 +149,7 @@ def test_control_samples_past_the_schedules_end_hold_the_last_reference():
     base = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
     for dt, duration in ((0.003, 6.7647), (0.002, 7.0013), (0.007, 9.304)):
         sc = base.model_copy(update={"timing": base.timing.model_copy(update={"duration": duration})})
-        traj = round_robin.plan(sc, S.ROBOT, dt)
+        traj = round_robin.PLANNER.plan(sc, S.ROBOT, dt)
         assert traj.t[-1] > duration + sc.timing.hold, dt
         assert np.isfinite(traj.q_ref).all() and np.isfinite(traj.qd_ref).all(), dt
         assert np.array_equal(traj.q_ref[-1], traj.q_ref[-2]), dt
@@ -157,7 +159,7 @@ def test_impossible_band_is_a_run_error():
     task = round_robin.Task.model_validate({"motion": {"kind": "turns", "axis": [1, 0, 0], "turns": 2},
                                             "gamma_margin": np.deg2rad(75)})
     law_grid = np.linspace(0, 1, 400)
-    _, gamma = round_robin._gammas(task.motion.orientation(law_grid))
+    _, gamma = gammas(task.motion.orientation(law_grid))
     firm = np.broadcast_to(S.U[:, None, None, :], gamma.shape + (3,))  # rows of A far from rank loss
     with pytest.raises(RunError, match="contact point"):
         round_robin.schedule(gamma, firm, task, 60)
@@ -257,7 +259,7 @@ def test_grip_feedback_re_solves_each_hold_for_the_point_really_gripped(evaluate
     traj, rec = ev.trajectory, ev.recording
     rot = matrices(rec.sensors["rotor_quat"])
     ref = matrices(traj.series["rotor_quat_ref"])
-    ease = int(round(round_robin._EASE / traj.dt))
+    ease = int(round(EASE / traj.dt))
     grips = [w for w in traj.switches if w.active and w.t > 0]
     assert grips
     for w in grips:

@@ -76,7 +76,7 @@ def test_general_is_the_default_and_the_shipped_scenarios_keep_the_papers_three(
     for name in ("three_turns", "tumble"):
         assert yaml.safe_load(scenario_file("rsmg", name).read_text())["task"]["contacts"] == "fixed"
         sc = simbench.load_scenario(scenario_file("rsmg", name))
-        traj = round_robin.plan(sc, S.ROBOT, DT)
+        traj = round_robin.PLANNER.plan(sc, S.ROBOT, DT)
         assert {w.detail["to_point"] for w in traj.switches if w.active} <= {"a", "b", "c"}
         assert traj.info["contacts"] == "fixed" and traj.info["design"]["candidates"] == 3
 
@@ -101,7 +101,7 @@ def test_general_contacts_schedule_random_motions_firmly_and_within_the_speed_li
                         max(rsmg_contacts.FIRM_CAP, sc.task.det_a_min))
         assert (largest_minor(np.cross(w, v), gripping) >= floor - 0.01).all(), doc["name"]
         try:
-            round_robin.plan(scenario(doc, "fixed"), S.ROBOT, DT)
+            round_robin.PLANNER.plan(scenario(doc, "fixed"), S.ROBOT, DT)
         except RunError:
             fixed_refused += 1
     assert fixed_refused >= 2
@@ -114,7 +114,7 @@ def test_physics_of_general_schedules(index):
     doc = MOTIONS[index]
     if index in FIXED_REFUSES:
         with pytest.raises(RunError, match="no next contact point"):
-            round_robin.plan(scenario(doc, "fixed"), S.ROBOT, DT)
+            round_robin.PLANNER.plan(scenario(doc, "fixed"), S.ROBOT, DT)
     ev = simbench.evaluate(scenario(doc))
     rec, analysis = ev.recording, ev.analysis
     gripping = S.gripping(rec)
@@ -161,7 +161,7 @@ def test_the_floor_on_det_a_rises_with_the_rotors_speed():
 def test_a_bounded_cache_once_cleared_holds_as_much_as_a_new_one():
     """BoundedCache.clear (GeneralContacts.forget) drops the entries and their count: afterwards the cache keeps
     up to its bound again (before, the old count made every new entry evict the one before it)."""
-    from simbench.planners.rsmg_contacts import BoundedCache
+    from simbench.planners.rsmg_lazy import BoundedCache
 
     cache = BoundedCache(10)
     cache.keep("a", np.zeros(6))

@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 import simbench
 from simbench.errors import RunError
 from simbench.planners import round_robin
+from simbench.planners.round_robin import paths
 from simbench.robots import rsmg as S
 from simbench.rotations import matrix_to_quat
 from simbench.trajectory import PER_SAMPLE
@@ -106,7 +107,7 @@ def check_plan(traj, task) -> float:
 def test_the_issues_motion_is_rescheduled_to_keep_a_firm():
     for motion, duration in (ISSUE, NO_REGRIP):
         sc = scenario(motion, duration)
-        assert check_plan(round_robin.plan(sc, S.ROBOT, DT), sc.task) >= sc.task.det_a_min - 2e-3
+        assert check_plan(round_robin.PLANNER.plan(sc, S.ROBOT, DT), sc.task) >= sc.task.det_a_min - 2e-3
 
 
 def test_random_motions_keep_det_a_and_the_band_over_the_whole_schedule():
@@ -117,7 +118,7 @@ def test_random_motions_keep_det_a_and_the_band_over_the_whole_schedule():
     for _ in range(48):
         sc = scenario(*random_motion(rng))
         try:
-            traj = round_robin.plan(sc, S.ROBOT, DT)
+            traj = round_robin.PLANNER.plan(sc, S.ROBOT, DT)
         except RunError as e:
             refused += 1
             assert "\n" not in str(e) and f"|det A| >= det_a_min = {sc.task.det_a_min:g} (eq. 46)" in str(e)
@@ -170,16 +171,16 @@ def _on_own_pages(array: np.ndarray) -> bool:
 
 
 def test_the_plans_rows_found_a_block_at_a_time_are_those_of_the_whole_arrays(monkeypatch):
-    """The RSMG plan's per-sample arrays are found _BLOCK rows at a time (here 97, so that blocks end mid-hold and
+    """The RSMG plan's per-sample arrays are found paths.BLOCK rows at a time (here 97, so that blocks end mid-hold and
     mid-swing), to the bit as from whole arrays at once: the joint rates np.gradient's of the whole q_ref (at the
     control period, as the grip feedback's revisions take them: trajectory.revise), the
     marker's point and the rotor's quaternion those of every orientation of the motion at once; and they lie on
     pages of their own (pages.releasable), which a run streamed with a stride hands back as it passes them."""
     sc = scenario({"kind": "tumble", "spin_axis": [0.6, 0.0, 0.8], "spin_turns": 1.3, "precession_axis": [0, 1, 0],
                    "precession_turns": 0.4}, 9.0)
-    whole = round_robin.plan(sc, S.ROBOT, DT)
-    monkeypatch.setattr(round_robin, "_BLOCK", 97)
-    blocks = round_robin.plan(sc, S.ROBOT, DT)
+    whole = round_robin.PLANNER.plan(sc, S.ROBOT, DT)
+    monkeypatch.setattr(paths, "BLOCK", 97)
+    blocks = round_robin.PLANNER.plan(sc, S.ROBOT, DT)
     assert len(whole.switches) > 4  # re-grips: holds and swings
     for name in PER_SAMPLE:
         assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name

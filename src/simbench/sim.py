@@ -20,7 +20,7 @@ reported.
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -85,12 +85,49 @@ def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
     return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref, feedback=None)
 
 
+class Revisions:
+    """A plan's references as its feedback revises them during a run (trajectory.revise): the plan's own until the
+    first change, then copies of them, or with `in_place` the plan's own arrays, changed (simulate's docstring)."""
+
+    def __init__(self, traj: JointTrajectory, in_place: bool = False):
+        self.traj, self.in_place = traj, in_place
+        self.q_ref, self.qd_ref, self.revised = traj.q_ref, traj.qd_ref, False
+
+    def apply(self, change: tuple | None) -> tuple[int, int] | None:
+        """Apply a feedback change (k0, columns, q): the rows it changed (k0, hi), or None where there is none."""
+        if change is None:
+            return None
+        if not self.revised:
+            if not self.in_place:
+                self.q_ref, self.qd_ref = self.q_ref.copy(), self.qd_ref.copy()
+            self.revised = True
+        return revise(self.q_ref, self.qd_ref, change, self.traj.dt)
+
+    def recorded(self) -> dict[str, np.ndarray]:
+        """Recording's q_ref and qd_ref: the references as revised; none where the feedback never changed them."""
+        return {"q_ref": self.q_ref, "qd_ref": self.qd_ref} if self.revised else {}
+
+
+def recording(plant: Plant, model: mujoco.MjModel, t: np.ndarray, readings: np.ndarray, q: np.ndarray,
+              qpos: np.ndarray, qvel: np.ndarray, eq_active: np.ndarray, ctrl: np.ndarray, warnings: list[dict],
+              **more) -> Recording:
+    """A Recording of the run of `model` (the plant's, or its copy that switches edit): sensor readings, joint
+    positions q and the constraints in force (a column per equality) at the times t, full states (qpos, qvel) and
+    commands ctrl; `more`: Recording's other fields."""
+    recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
+    return Recording(t=t, qpos=qpos, q=q, qd=qvel[:, plant.dof_adr], ctrl=ctrl,
+                     tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
+                     warnings=tuple(warnings), sensors=recorded,
+                     eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)},
+                     force=readings[:, _columns(plant.force_sensors)], force_limit=plant.force_limit(), **more)
+
+
 class _Run:
     """One simulation: the model and data, the recorded rows, the stepper, and the references as revised."""
 
     def __init__(self, plant: Plant, traj: JointTrajectory, controller: Controller, settle: float, every: int,
                  in_place: bool = False, analyser: Analyser | None = None):
-        self.plant, self.traj, self.controller, self.every, self.in_place = plant, traj, controller, every, in_place
+        self.plant, self.traj, self.controller, self.every = plant, traj, controller, every
         self.ctrl = controller.open_loop()  # (N, nu) (an array or Commands), or None for a closed loop
         if self.ctrl is not None:
             _check_finite(self.ctrl, traj)
@@ -111,7 +148,7 @@ class _Run:
         # eq_active[r]: the constraints in force from row r's time on (after the switches at that step).
         self.eq_active = (pages.releasable if analyser is not None else np.empty)((traj.t.size, self.model.neq), bool)
         self.warnings: list[dict] = []
-        self.revised: tuple | None = None  # (q_ref, qd_ref) once the plan's feedback has changed them
+        self.references = Revisions(traj, in_place)
         self.stream = None if analyser is None else _Stream(self, analyser)
 
     def _start(self, t: float) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
@@ -162,14 +199,10 @@ class _Run:
         """Apply a feedback change (k0, columns, q) to the references (copies of the plan's from the first change
         on, or the plan's own in place), and to the controller (whose open-loop commands the steps still to come
         then take)."""
-        if change is None:
+        rows = self.references.apply(change)
+        if rows is None:
             return
-        traj = self.traj
-        if self.revised is None:
-            self.revised = (traj.q_ref, traj.qd_ref) if self.in_place else (traj.q_ref.copy(), traj.qd_ref.copy())
-        q_ref, qd_ref = self.revised
-        k0, hi = revise(q_ref, qd_ref, change, traj.dt)
-        self.controller.revise_rows(k0, hi, q_ref, qd_ref)
+        self.controller.revise_rows(*rows, self.references.q_ref, self.references.qd_ref)
         if isinstance(self.stepper, OpenLoop):
             self.ctrl = self.stepper.planned = self.controller.open_loop()
 
@@ -196,25 +229,18 @@ class _Run:
         rows = len(readings)
         kept = self.rows.kept[self.rows.kept < rows]
         ctrl = self._commands(slice(0, rows) if self.every == 1 else kept) if commands else np.zeros((0, self.model.nu))
-        revised = {} if self.revised is None else {"q_ref": self.revised[0], "qd_ref": self.revised[1]}
         t = self.traj.t[:rows]
         return self._recording(t.copy() if commands else t, readings, self.rows.q[:rows], self.eq_active[:rows], ctrl,
-                               len(kept), kept=None if self.every == 1 else kept, **revised)
+                               len(kept), kept=None if self.every == 1 else kept, **self.references.recorded())
 
     def _recording(self, t: np.ndarray, readings: np.ndarray, q: np.ndarray, eq_active: np.ndarray,
                    ctrl: np.ndarray, n_kept: int, **more) -> Recording:
         """A Recording of readings, joint positions and constraints in force at the times t, the first n_kept
         kept rows' full states (qpos, qd) and commands ctrl; `more`: Recording's other fields."""
-        plant, model = self.plant, self.model
         states = self.rows.states[:n_kept]
-        sl = state_slices(model)
-        qpos, qvel = states[:, sl["mjSTATE_QPOS"]], states[:, sl["mjSTATE_QVEL"]]
-        recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
-        return Recording(t=t, qpos=qpos, q=q, qd=qvel[:, plant.dof_adr], ctrl=ctrl,
-                         tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
-                         warnings=tuple(self.warnings), sensors=recorded,
-                         eq_active={model.equality(i).name: eq_active[:, i] for i in range(model.neq)},
-                         force=readings[:, _columns(plant.force_sensors)], force_limit=plant.force_limit(),
+        sl = state_slices(self.model)
+        return recording(self.plant, self.model, t, readings, q, states[:, sl["mjSTATE_QPOS"]],
+                         states[:, sl["mjSTATE_QVEL"]], eq_active, ctrl, self.warnings,
                          qd_peak=self.rows.qd_peak.copy(), **more)
 
     def _commands(self, k: slice | np.ndarray) -> np.ndarray:

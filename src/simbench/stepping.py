@@ -119,7 +119,7 @@ def state_slices(model: mujoco.MjModel) -> dict[str, slice]:
     return slices
 
 
-def _warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
+def warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
     """The non-fatal warnings counted since they were last cleared, as the report lists them; then cleared."""
     found = [{"t": float(data.time - t0), "kind": mujoco.mjtWarning(code).name,
               "count": int(data.warning[code].number)} for code in warnings_raised(data)]
@@ -169,7 +169,7 @@ class OpenLoop:
                 rows.keep(k, k + step)  # the steps before the one at fault
                 raise Fault(k + step, cause)
             rows.keep(k, end)
-            found += _warning_rows(data, rows.t0)
+            found += warning_rows(data, rows.t0)
             if progress is not None:
                 progress.update(end - k)
             if after is not None:
@@ -277,7 +277,7 @@ class ClosedLoop:
         cause = step_fault(model, data)
         if cause:
             raise Fault(step, cause)
-        return _warning_rows(data, t0)
+        return warning_rows(data, t0)
 
 
 class CommandFault(Fault):

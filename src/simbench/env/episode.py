@@ -17,14 +17,13 @@ from dm_env import specs
 from simbench.api import Array, JointTrajectory, State
 from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
-from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault, warnings_raised
+from simbench.faults import MAX_SPEED, Fault, fatal_cause, quiet_mujoco, step_fault
 from simbench.observation import observation
 from simbench.plant import Actuation, Plant
 from simbench.scenario import Scenario
-from simbench.sim import Recording
-from simbench.stepping import ClosedLoop, OpenLoop, Rows
+from simbench.sim import Recording, Revisions, recording
+from simbench.stepping import ClosedLoop, OpenLoop, Rows, warning_rows
 from simbench.switches import apply_switch, switch_steps
-from simbench.trajectory import revise
 
 _REWARD_AT_TOLERANCE = 0.5  # the reward when the tool is analysis.path_tolerance off its reference
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -111,11 +110,21 @@ class Track(control.Task):
         """An empty recording, and the references and sample of an episode's start."""
         n = self.n
         self.k = 0
-        self.q_ref, self.qd_ref, self.revised = self.plan.q_ref, self.plan.qd_ref, False
+        self.references = Revisions(self.plan)  # as the plan's feedback revises them, in copies
         self.warnings: list[dict] = []
         self._qpos, self._qvel = np.empty((n, model.nq)), np.empty((n, model.nv))
         self._readings, self._ctrl = np.empty((n, model.nsensordata)), np.zeros((n, model.nu))
         self._eq = np.empty((n, model.neq), bool)
+
+    @property
+    def q_ref(self) -> Array:
+        """The joint references (N, dof) as the plan's feedback has revised them so far."""
+        return self.references.q_ref
+
+    @property
+    def qd_ref(self) -> Array:
+        """Their rates (N, dof), revised with them."""
+        return self.references.qd_ref
 
     # --- control.Task -----------------------------------------------------------------------------------------
 
@@ -169,24 +178,14 @@ class Track(control.Task):
         self.k = k = self.k + 1
         self._qpos[k], self._qvel[k] = data.qpos, data.qvel
         if physics.counts.any():
-            self.warnings += [{"t": float(data.time - physics.t0), "kind": mujoco.mjtWarning(code).name,
-                               "count": int(data.warning[code].number)} for code in warnings_raised(data)]
-            clear_warnings(data)
+            self.warnings += warning_rows(data, physics.t0)
         if k in self._switches:
             for switch in self._switches[k]:
                 apply_switch(model, data, switch)
                 if self.plan.feedback is not None:
-                    self._revise(self.plan.feedback(switch, model, data, k))
+                    self.references.apply(self.plan.feedback(switch, model, data, k))
             mujoco.mj_step1(model, data)  # the constraints as they now are, for the next step
         self._eq[k] = data.eq_active
-
-    def _revise(self, change: tuple | None) -> None:
-        """A feedback change (k0, columns, q) applied to the references, as simulate applies it (sim._Run)."""
-        if change is None:
-            return
-        if not self.revised:
-            self.q_ref, self.qd_ref, self.revised = self.plan.q_ref.copy(), self.plan.qd_ref.copy(), True
-        revise(self.q_ref, self.qd_ref, change, self.plan.dt)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
         """One value per robot joint, within its actuator's control range where it has one."""
@@ -225,13 +224,9 @@ class Track(control.Task):
         end = copy.copy(physics.data.ptr)
         mujoco.mj_forward(model, end)
         readings = np.concatenate([self._readings[:rows - 1], end.sensordata[None]])
-        qpos, qvel = self._qpos[:rows].copy(), self._qvel[:rows]
+        qpos = self._qpos[:rows].copy()
         given = self._ctrl[:rows - 1]
         ctrl = np.concatenate([given, given[-1:] if len(given) else end.ctrl[None]])
-        recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
-        revised = {"q_ref": self.q_ref.copy(), "qd_ref": self.qd_ref.copy()} if self.revised else {}
-        return Recording(t=self.plan.t[:rows].copy(), qpos=qpos, q=qpos[:, plant.qpos_adr],
-                         qd=qvel[:, plant.dof_adr], ctrl=ctrl, tool=recorded.pop(plant.robot.tool_sensor),
-                         timestep=self.dt, warnings=tuple(self.warnings), sensors=recorded,
-                         eq_active={model.equality(i).name: self._eq[:rows, i].copy() for i in range(model.neq)},
-                         force=readings[:, plant.force_sensors], force_limit=plant.force_limit(), **revised)
+        revised = {name: ref.copy() for name, ref in self.references.recorded().items()}  # the episode goes on
+        return recording(plant, model, self.plan.t[:rows].copy(), readings, qpos[:, plant.qpos_adr], qpos,
+                         self._qvel[:rows], self._eq[:rows].copy(), ctrl, self.warnings, **revised)

@@ -353,54 +353,6 @@ def _branch_changes(chosen: Candidate, t: np.ndarray, s: np.ndarray) -> list[dic
     return [{"t": float(t[k]), "s": float(s[k]), "to": "noflip" if chosen.flags[k, 2] > 0 else "flip"} for k in flips]
 
 
-def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """Solve the tool path at every control sample by paper 002's method."""
-    task = scenario.task
-    path = task.build_path()
-    law = scenario.timing.law_fn()
-    t = control_grid(law.duration, scenario.timing.hold, dt)
-    s, ds = law(t, order=1)
-    _require_reach(task, path, t, s)
-    chosen, choice = choose(task, path, t, s, ds)
-    tool_ref = path.point(s)
-    speed = np.linalg.norm(np.gradient(tool_ref, t, axis=0), axis=1)
-    info = {
-        "method": "paper 002: q3 from the wrist distance (eqs. 9-19, corrected), q1 and q2 closed form, "
-                  "spherical wrist",
-        "configuration": choice,
-        "wrist_branch_changes": _branch_changes(chosen, t, s),
-        "segments": [("line" if seg.line else "arc") for seg in task.path],
-        "path_length": path.length,
-        "tool_speed_max": float(speed.max()),
-    }
-    return JointTrajectory(t=t, s=s, q_ref=chosen.q, qd_ref=chosen.qd, tool_ref=tool_ref,
-                           waypoints=_waypoints(path, s, chosen.q), info=info)
-
-
-def check(scenario, robot) -> tuple[str, str] | None:
-    """Segments must join end to start, and every segment's ends must be within the wrist's reach."""
-    task = scenario.task
-    segments = [seg.build() for seg in task.path]
-    for i in range(1, len(segments)):
-        gap = np.linalg.norm(segments[i].point(np.array([0.0]))[0] - segments[i - 1].point(np.array([1.0]))[0])
-        if gap > _JOIN_TOL:
-            return f"task.path[{i}]", f"starts {gap * 1e3:.3f} mm from where task.path[{i - 1}] ends"
-    bounds = Composite(tuple(segments)).bounds
-    for i, seg in enumerate(segments):
-        ends = np.array([0.0, 1.0])
-        # each end with the orientation the torch has there (s of the whole path), in any configuration: the
-        # reach is the wrist centre's distances alone
-        q = solve(seg.point(ends), task.rotations(bounds[i:i + 2]), CONFIGURATIONS[0].flags())
-        for j, name in enumerate(("start", "end")):
-            if np.isnan(q[j]).any():
-                point = seg.point(ends[j:j + 1])[0]
-                kind = "line" if task.path[i].line else "arc"
-                return (f"task.path[{i}].{kind}", f"its {name} [{point[0]:.4f}, {point[1]:.4f}, {point[2]:.4f}] m is "
-                        "outside the workspace (the wrist centre cannot be reached)")
-    return None
-
-
-
 class DecoupledPath(Planner):
     """Paper 002: lines, circle arcs and composite tool paths by the wrist-distance method."""
 
@@ -410,10 +362,49 @@ class DecoupledPath(Planner):
     robots = ("puma600",)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        return plan(scenario, robot, dt)
+        """Solve the tool path at every control sample by paper 002's method."""
+        task = scenario.task
+        path = task.build_path()
+        law = scenario.timing.law_fn()
+        t = control_grid(law.duration, scenario.timing.hold, dt)
+        s, ds = law(t, order=1)
+        _require_reach(task, path, t, s)
+        chosen, choice = choose(task, path, t, s, ds)
+        tool_ref = path.point(s)
+        speed = np.linalg.norm(np.gradient(tool_ref, t, axis=0), axis=1)
+        info = {
+            "method": "paper 002: q3 from the wrist distance (eqs. 9-19, corrected), q1 and q2 closed form, "
+                      "spherical wrist",
+            "configuration": choice,
+            "wrist_branch_changes": _branch_changes(chosen, t, s),
+            "segments": [("line" if seg.line else "arc") for seg in task.path],
+            "path_length": path.length,
+            "tool_speed_max": float(speed.max()),
+        }
+        return JointTrajectory(t=t, s=s, q_ref=chosen.q, qd_ref=chosen.qd, tool_ref=tool_ref,
+                               waypoints=_waypoints(path, s, chosen.q), info=info)
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        return check(scenario, robot)
+        """Segments must join end to start, and every segment's ends must be within the wrist's reach."""
+        task = scenario.task
+        segments = [seg.build() for seg in task.path]
+        for i in range(1, len(segments)):
+            gap = np.linalg.norm(segments[i].point(np.array([0.0]))[0] - segments[i - 1].point(np.array([1.0]))[0])
+            if gap > _JOIN_TOL:
+                return f"task.path[{i}]", f"starts {gap * 1e3:.3f} mm from where task.path[{i - 1}] ends"
+        bounds = Composite(tuple(segments)).bounds
+        for i, seg in enumerate(segments):
+            ends = np.array([0.0, 1.0])
+            # each end with the orientation the torch has there (s of the whole path), in any configuration: the
+            # reach is the wrist centre's distances alone
+            q = solve(seg.point(ends), task.rotations(bounds[i:i + 2]), CONFIGURATIONS[0].flags())
+            for j, name in enumerate(("start", "end")):
+                if np.isnan(q[j]).any():
+                    point = seg.point(ends[j:j + 1])[0]
+                    kind = "line" if task.path[i].line else "arc"
+                    return (f"task.path[{i}].{kind}", f"its {name} [{point[0]:.4f}, {point[1]:.4f}, "
+                            f"{point[2]:.4f}] m is outside the workspace (the wrist centre cannot be reached)")
+        return None
 
 
 PLANNER = DecoupledPath()

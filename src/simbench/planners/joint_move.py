@@ -16,27 +16,6 @@ class Task(SimbenchModel):
     goal: JointVector
 
 
-def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """q(t) = q_start + (q_goal - q_start) s(t)."""
-    law = scenario.timing.law_fn()
-    t = control_grid(law.duration, scenario.timing.hold, dt)
-    s, ds = law(t, order=1)
-    q0, dq = np.array(scenario.task.start), np.array(scenario.task.goal) - np.array(scenario.task.start)
-    q_ref = q0 + s[:, None] * dq
-    waypoints = tuple({"s": float(v), "X": robot.fk(q0 + v * dq)[0].tolist(), "q": (q0 + v * dq).tolist()}
-                      for v in (0.0, 1.0))
-    return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=ds[:, None] * dq, tool_ref=robot.fk(q_ref),
-                           waypoints=waypoints, info={"method": "joint-space interpolation"})
-
-
-def check(scenario, robot) -> tuple[str, str] | None:
-    """A move to where the robot already is has nothing to do."""
-    if np.allclose(scenario.task.start, scenario.task.goal, rtol=0.0, atol=1e-12):
-        return "task.goal", "equals start: a zero-length move"
-    return None
-
-
-
 class JointMove(Planner):
     """Joint-space move: every joint on the time law from start to goal (any robot)."""
 
@@ -46,10 +25,22 @@ class JointMove(Planner):
     needs = ("fk",)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        return plan(scenario, robot, dt)
+        """q(t) = q_start + (q_goal - q_start) s(t)."""
+        law = scenario.timing.law_fn()
+        t = control_grid(law.duration, scenario.timing.hold, dt)
+        s, ds = law(t, order=1)
+        q0, dq = np.array(scenario.task.start), np.array(scenario.task.goal) - np.array(scenario.task.start)
+        q_ref = q0 + s[:, None] * dq
+        waypoints = tuple({"s": float(v), "X": robot.fk(q0 + v * dq)[0].tolist(), "q": (q0 + v * dq).tolist()}
+                          for v in (0.0, 1.0))
+        return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=ds[:, None] * dq, tool_ref=robot.fk(q_ref),
+                               waypoints=waypoints, info={"method": "joint-space interpolation"})
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        return check(scenario, robot)
+        """A move to where the robot already is has nothing to do."""
+        if np.allclose(scenario.task.start, scenario.task.goal, rtol=0.0, atol=1e-12):
+            return "task.goal", "equals start: a zero-length move"
+        return None
 
 
 PLANNER = JointMove()

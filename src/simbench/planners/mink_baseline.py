@@ -210,62 +210,6 @@ def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tup
                    "costs": (position_cost, orientation_cost)}
 
 
-def plan(scenario, robot: Robot, dt: float) -> JointTrajectory:
-    """The followed planner's plan, then mink along its poses, on the same time grid and with its tool_ref."""
-    from simbench.analysis import path_deviation  # the analysis's own measure of distance from a sampled path
-
-    task: Task = scenario.task
-    inner = followed(scenario)
-    reference = inner.planner_def.plan(inner, robot, dt)
-    if reference.switches or reference.initial or reference.feedback is not None:
-        raise RunError(f"'{task.follow}' switches, assembles or re-plans during its run; '{NAME}' follows only a "
-                       "plan of joint references")
-    q, qd, met = follow(scenario, robot, dt, reference)
-    t, tool_ref = reference.t, reference.tool_ref
-    tool_error = np.linalg.norm(met["tool"] - tool_ref, axis=1)
-    orientation_error = _orientation_gap(met["quat"], met["poses"][:, :4])
-    deviation = path_deviation(tool_ref, met["tool"])
-    held = np.abs(qd) >= _SPEED_SHARE * robot.qd_max
-    k_dev = int(np.argmax(deviation))
-    info = {
-        "method": "differential inverse kinematics with mink: per control step, a QP for the joint step towards "
-                  "the next pose of the followed plan (FrameTask, PostureTask; joint ranges and speed limits)",
-        "follows": {"planner": task.follow, "plan": reference.info, "warnings": list(reference.warnings)},
-        "solver": task.solver,
-        "damping": task.damping,
-        "costs": {"position": met["costs"][0], "orientation": met["costs"][1], "posture": task.posture_cost},
-        "qp_failures": len(met["failed"]),
-        "plan_path_deviation_max": float(deviation[k_dev]),
-        "plan_tool_error_max": float(tool_error.max()),
-        "plan_orientation_error_max": float(orientation_error.max()) if met["costs"][1] > 0 else None,
-        "speed_limited_time": {name: float(held[:, j].sum() * dt) for j, name in enumerate(robot.joints)},
-    }
-    warnings, violations = [], []
-    if met["failed"]:
-        first = met["failed"][0]
-        warnings.append(f"mink's QP ({task.solver}) found no solution at {len(met['failed'])} step(s), the first at "
-                        f"t = {t[first]:.3f} s; there the joint ranges were dropped (speed limits kept), or the arm "
-                        "held still")
-    tol = scenario.analysis
-    if deviation[k_dev] > 0.1 * tol.path_tolerance:
-        joints = [name for j, name in enumerate(robot.joints) if held[:, j].any()]
-        why = f" ({', '.join(joints)} held at the speed limit)" if joints else ""
-        warnings.append(f"the plan leaves the followed path by up to {deviation[k_dev] * 1e3:.3f} mm at t = "
-                        f"{t[k_dev]:.3f} s{why}")
-    if deviation[k_dev] > tol.path_tolerance:
-        violations.append({"kind": "off_path", "message": f"the plan leaves the followed path by up to "
-                           f"{deviation[k_dev] * 1e3:.2f} mm at t = {t[k_dev]:.3f} s (tolerance "
-                           f"{tol.path_tolerance * 1e3:g} mm)"})
-    if tool_error[-1] > tol.goal_tolerance:
-        violations.append({"kind": "goal_missed", "message": f"the plan ends {tool_error[-1] * 1e3:.2f} mm from the "
-                           f"followed plan's end (tolerance {tol.goal_tolerance * 1e3:g} mm)"})
-    index = np.clip(np.searchsorted(reference.s, [w["s"] for w in reference.waypoints]), 0, len(t) - 1)
-    waypoints = tuple({**w, "q": q[i].tolist()} for w, i in zip(reference.waypoints, index))
-    return JointTrajectory(t=t, s=reference.s, q_ref=q, qd_ref=qd, tool_ref=tool_ref, waypoints=waypoints,
-                           info=info, warnings=tuple(warnings), violations=tuple(violations),
-                           series={"plan_tool_error": tool_error, "plan_orientation_error": orientation_error})
-
-
 class MinkBaseline(Planner[Task]):
     """Differential inverse kinematics with mink along another planner's Cartesian reference (any serial arm)."""
 
@@ -292,7 +236,59 @@ class MinkBaseline(Planner[Task]):
         return None
 
     def plan(self, scenario, robot: Robot, dt: float) -> JointTrajectory:
-        return plan(scenario, robot, dt)
+        """The followed planner's plan, then mink along its poses, on the same time grid and with its tool_ref."""
+        from simbench.analysis import path_deviation  # the analysis's own measure of distance from a sampled path
+
+        task: Task = scenario.task
+        inner = followed(scenario)
+        reference = inner.planner_def.plan(inner, robot, dt)
+        if reference.switches or reference.initial or reference.feedback is not None:
+            raise RunError(f"'{task.follow}' switches, assembles or re-plans during its run; '{NAME}' follows only a "
+                           "plan of joint references")
+        q, qd, met = follow(scenario, robot, dt, reference)
+        t, tool_ref = reference.t, reference.tool_ref
+        tool_error = np.linalg.norm(met["tool"] - tool_ref, axis=1)
+        orientation_error = _orientation_gap(met["quat"], met["poses"][:, :4])
+        deviation = path_deviation(tool_ref, met["tool"])
+        held = np.abs(qd) >= _SPEED_SHARE * robot.qd_max
+        k_dev = int(np.argmax(deviation))
+        info = {
+            "method": "differential inverse kinematics with mink: per control step, a QP for the joint step towards "
+                      "the next pose of the followed plan (FrameTask, PostureTask; joint ranges and speed limits)",
+            "follows": {"planner": task.follow, "plan": reference.info, "warnings": list(reference.warnings)},
+            "solver": task.solver,
+            "damping": task.damping,
+            "costs": {"position": met["costs"][0], "orientation": met["costs"][1], "posture": task.posture_cost},
+            "qp_failures": len(met["failed"]),
+            "plan_path_deviation_max": float(deviation[k_dev]),
+            "plan_tool_error_max": float(tool_error.max()),
+            "plan_orientation_error_max": float(orientation_error.max()) if met["costs"][1] > 0 else None,
+            "speed_limited_time": {name: float(held[:, j].sum() * dt) for j, name in enumerate(robot.joints)},
+        }
+        warnings, violations = [], []
+        if met["failed"]:
+            first = met["failed"][0]
+            warnings.append(f"mink's QP ({task.solver}) found no solution at {len(met['failed'])} step(s), the first "
+                            f"at t = {t[first]:.3f} s; there the joint ranges were dropped (speed limits kept), or the "
+                            "arm held still")
+        tol = scenario.analysis
+        if deviation[k_dev] > 0.1 * tol.path_tolerance:
+            joints = [name for j, name in enumerate(robot.joints) if held[:, j].any()]
+            why = f" ({', '.join(joints)} held at the speed limit)" if joints else ""
+            warnings.append(f"the plan leaves the followed path by up to {deviation[k_dev] * 1e3:.3f} mm at t = "
+                            f"{t[k_dev]:.3f} s{why}")
+        if deviation[k_dev] > tol.path_tolerance:
+            violations.append({"kind": "off_path", "message": f"the plan leaves the followed path by up to "
+                               f"{deviation[k_dev] * 1e3:.2f} mm at t = {t[k_dev]:.3f} s (tolerance "
+                               f"{tol.path_tolerance * 1e3:g} mm)"})
+        if tool_error[-1] > tol.goal_tolerance:
+            violations.append({"kind": "goal_missed", "message": f"the plan ends {tool_error[-1] * 1e3:.2f} mm from "
+                               f"the followed plan's end (tolerance {tol.goal_tolerance * 1e3:g} mm)"})
+        index = np.clip(np.searchsorted(reference.s, [w["s"] for w in reference.waypoints]), 0, len(t) - 1)
+        waypoints = tuple({**w, "q": q[i].tolist()} for w, i in zip(reference.waypoints, index))
+        return JointTrajectory(t=t, s=reference.s, q_ref=q, qd_ref=qd, tool_ref=tool_ref, waypoints=waypoints,
+                               info=info, warnings=tuple(warnings), violations=tuple(violations),
+                               series={"plan_tool_error": tool_error, "plan_orientation_error": orientation_error})
 
     def check(self, scenario, robot: Robot) -> tuple[str, str] | None:
         """The followed planner's own check of its task, its field named inside `task.task`."""

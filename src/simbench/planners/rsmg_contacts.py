@@ -8,12 +8,12 @@ rotor (a Fibonacci sphere, _DENSE points about 10 deg apart) and, at each re-gri
 long they keep the arm's gamma inside eq. 45's band and how firmly (|det A|, eqs. 36-39, 46) the arms holding the
 rotor hold it with the new point over the coming motion.
 
-Both answer the schedule's questions (planners.round_robin._Scheduler) the same way: for each arm and point, on the
-schedule's grid, the first step from each step at which the point leaves the band (`next_bad`), the arm's row of A
-(`rows`), its base angle and gamma (`path`), the points to try next, best first (`next_points`), and the floor on
-the holding arms' |det A| (`floor`). The fixed three come as whole arrays; general contacts' arrays are `Lazy`,
-computed block by block as the search reads them, so that planning grows with the motion's length, not with its
-square (ten minutes of tumbling: 227 re-grips planned in 14 s).
+Both answer the schedule's questions (planners.round_robin.search.Scheduler) the same way: for each arm and point,
+on the schedule's grid, the first step from each step at which the point leaves the band (`next_bad`), the arm's row
+of A (`rows`), its base angle and gamma (`path`), the points to try next, best first (`next_points`), and the floor
+on the holding arms' |det A| (`floor`). The fixed three come as whole arrays; general contacts' arrays are `Lazy`
+(planners.rsmg_lazy), computed block by block as the search reads them, so that planning grows with the motion's
+length, not with its square (ten minutes of tumbling: 227 re-grips planned in 14 s).
 
 The band in gamma is a band in the angle d between the EM axis v_i and the arm's axis u_i (eqs. 10-11 and the
 spherical triangle u_i, w_i, v_i): cos d = cos ALPHA cos BETA + sin ALPHA sin BETA cos gamma, whatever theta. In the
@@ -29,11 +29,11 @@ and is left as it was: its plan's speeds are checked by the run.
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from typing import NamedTuple
 
 import numpy as np
 
+from simbench.planners.rsmg_lazy import CACHE_FLOATS, BoundedCache, Lazy, LazyExit, first_false, first_out
 from simbench.robots import rsmg
 from simbench.vectors import cross
 
@@ -43,14 +43,12 @@ _APART = np.deg2rad(25.0)  # the shortlist's points at least this far apart from
 SPEED_SHARE = 0.9  # a hold or a swing asks a joint for at most this share of its speed limit
 _HORIZON = 8  # swings (with their approach): the dwell beyond which a point is as good as any longer one
 _FIRM_WEIGHT = 2.0  # the firmness's weight in a point's score against its dwell (both about 0-1)
-CACHE_FLOATS = 1e7  # floats that a cache of arrays along the grid may hold (80 MB); the least recently read go first
 _QUINTIC_SAMPLES = 41  # where a swing's quintic's speed is checked
 # The floor on |det A| general contacts keep: the task's det_a_min up to FIRM_SPEED of the rotor, then in proportion
 # to its speed, up to FIRM_CAP (see GeneralContacts.floor).
 FIRM_SPEED = np.deg2rad(150.0)  # rad/s
 FIRM_CAP = 0.5
 _FIRM_STRIDE = 4  # schedule steps between the samples a point's firmness is ranked on
-_LAZY_BLOCK = 1024  # schedule steps in a block of a Lazy array
 _BLOCK_STEPS = 256  # schedule steps in a cached block of the dense set's band test
 _BLOCK_SAMPLES = 64  # firmness samples in a cached block of the dense set's rows of A
 
@@ -70,20 +68,6 @@ def cos_d(gamma: np.ndarray) -> np.ndarray:
     return np.cos(rsmg.ALPHA) * np.cos(rsmg.BETA) + np.sin(rsmg.ALPHA) * np.sin(rsmg.BETA) * np.cos(gamma)
 
 
-def first_false(ok: np.ndarray) -> np.ndarray:
-    """For each step along the last axis (and one past the end), the first step at or after it where `ok` is false
-    (the length if never)."""
-    n = ok.shape[-1]
-    first = np.minimum.accumulate(np.where(ok, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
-    return np.concatenate([first, np.full(ok.shape[:-1] + (1,), n)], axis=-1)
-
-
-def first_out(ok: np.ndarray) -> np.ndarray:
-    """first_false(ok)[..., 0] alone: the first step along the last axis where `ok` is false (the length if never),
-    without first_false's pass over every later step."""
-    n = ok.shape[-1]
-    return np.where(ok.all(axis=-1), n, ok.argmin(axis=-1)) if n else np.zeros(ok.shape[:-1], np.int64)
-
 
 def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
     """The rotor's angular speed (N,) in rad/s along orientations (N, 3, 3) sampled `step` s apart."""
@@ -91,152 +75,6 @@ def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
     cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
     speed = np.arccos(cos) / step
     return np.concatenate([speed, speed[-1:]]) if speed.size else np.zeros(len(rot))
-
-
-class BoundedCache(OrderedDict):
-    """A cache dropping its oldest entries once they hold more than `floats` numbers (read through `fetch`: those
-    least recently read)."""
-
-    def __init__(self, floats: float):
-        super().__init__()
-        self.floats, self.held = floats, 0
-
-    def keep(self, key, value):
-        """Keep value under key (an array counts its size, anything else 1); return it."""
-        self[key] = value
-        self.held += _floats(value)
-        while self.held > self.floats and len(self) > 1:
-            _, old = self.popitem(last=False)
-            self.held -= _floats(old)
-        return value
-
-    def clear(self) -> None:
-        """Drop every entry."""
-        super().clear()
-        self.held = 0
-
-    def fetch(self, key, make):
-        """The value under key, or make()'s kept there; either way now the newest entry, the last to go (the search
-        moves on in time, and what it read last it reads again: the held points' blocks)."""
-        if key in self:
-            self.move_to_end(key)
-            return self[key]
-        return self.keep(key, make())
-
-
-def _floats(value) -> int:
-    """What a cached value counts against its cache's bound: an array's size, anything else 1."""
-    return value.size if isinstance(value, np.ndarray) else 1
-
-
-class Lazy:
-    """An array along the grid (n steps, any trailing shape) computed block by block when first read, the blocks
-    kept in a shared BoundedCache: what keeps general contacts' planning linear in the motion's length (a point held
-    a few seconds costs a few blocks, not the whole grid). make(first, stop) computes steps first to stop. Reads as
-    an array does: lazy[step], lazy[steps], lazy[first:stop]."""
-
-    _tags = iter(range(1 << 62))
-
-    def __init__(self, n: int, make, cache: BoundedCache, size: int = _LAZY_BLOCK):
-        self.n, self.make, self.cache, self.size, self.tag = n, make, cache, size, next(Lazy._tags)
-
-    def block(self, b: int) -> np.ndarray:
-        """Block b: steps b * size to (b + 1) * size (fewer at the end)."""
-        return self.cache.fetch((self.tag, b), lambda: self.make(b * self.size, min((b + 1) * self.size, self.n)))
-
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            first, stop, _ = index.indices(self.n)
-            if stop <= first:
-                return self.block(0)[:0]
-            parts = [self.block(b) for b in range(first // self.size, (stop - 1) // self.size + 1)]
-            whole = parts[0] if len(parts) == 1 else np.concatenate(parts)
-            offset = (first // self.size) * self.size
-            return whole[first - offset:stop - offset]
-        steps = np.asarray(index)
-        if steps.ndim == 0:
-            return self.block(int(steps) // self.size)[int(steps) % self.size]
-        blocks = steps // self.size
-        first = self.block(int(blocks.flat[0])) if steps.size else self.block(0)
-        out = np.empty(steps.shape + first.shape[1:], first.dtype)
-        for b in _distinct(blocks):
-            here = blocks == b
-            out[here] = self.block(int(b))[steps[here] - b * self.size]
-        return out
-
-
-def _distinct(blocks: np.ndarray) -> np.ndarray:
-    """The distinct blocks a read touches, in order: np.unique's, without its sort where they are one (most reads)."""
-    if blocks.size and blocks.min() == blocks.max():
-        return blocks.reshape(-1)[:1]
-    return np.unique(blocks)
-
-
-class LazyExit:
-    """first_false of a Lazy of booleans, block by block: for each step (and one past the end, n), the first at or
-    after it where `ok` is false (n if never); read as first_false's array is (exit[step], exit[steps])."""
-
-    def __init__(self, ok: Lazy):
-        self.ok, self.n, self.size = ok, ok.n, ok.size
-        self._from_start: dict[int, int] = {}  # block -> the first false at or after its first step
-
-    def _local(self, b: int) -> np.ndarray:
-        """first_false within block b (its length where none)."""
-        return self.ok.cache.fetch((self.ok.tag, b, "exit"), lambda: first_false(self.ok.block(b)))
-
-    def _from(self, b: int, limit: int) -> int:
-        """The first false at or after block b's first step, or `limit` if there is none before it (the blocks
-        from `limit` on are then not computed)."""
-        pending = []
-        while b * self.size < min(limit, self.n) and b not in self._from_start:
-            local = self._local(b)
-            if local[0] < len(local) - 1:
-                self._from_start[b] = b * self.size + int(local[0])
-                break
-            pending.append(b)
-            b += 1
-        if b not in self._from_start and b * self.size < self.n:
-            return limit  # not looked beyond: nothing to remember
-        found = self._from_start.get(b, self.n)
-        for p in pending:
-            self._from_start[p] = found
-        return min(found, limit)
-
-    def __getitem__(self, index):
-        return self.upto(index, self.n)
-
-    def upto(self, index, limit: int):
-        """min(self[index], limit), computing no block from `limit` on beyond those holding the steps: all that a
-        test of the exit against a bound under `limit` needs (round_robin's choices look a few swings ahead, not
-        to where a point leaves the band)."""
-        steps = np.asarray(index)
-        if steps.ndim == 0:
-            return self._one(int(steps), limit)
-        flat = steps.ravel()
-        out = np.full(flat.shape, self.n, dtype=np.int64)
-        inside = flat < self.n
-        blocks = flat // self.size
-        for b in _distinct(blocks[inside]):
-            here = inside & (blocks == b)
-            local = self._local(int(b))
-            found = local[flat[here] - b * self.size]
-            ahead = found >= len(local) - 1  # none left in this block: the first from the next one on
-            out[here] = np.where(ahead, self._from(int(b) + 1, limit), b * self.size + found)
-        return np.minimum(out, limit).reshape(steps.shape)
-
-    def _one(self, step: int, limit: int) -> int:
-        """upto of a single step, without the arrays (the search's deadlines and its starts read one at a time)."""
-        if step >= self.n:
-            return min(self.n, limit)
-        b, at = divmod(step, self.size)
-        local = self._local(b)
-        found = int(local[at])
-        return min(self._from(b + 1, limit) if found >= len(local) - 1 else b * self.size + found, limit)
-
-
-def exit_upto(exit: np.ndarray | LazyExit, steps: np.ndarray, limit: int) -> np.ndarray:
-    """min(exit[steps], limit) of a first_false array or a LazyExit (LazyExit.upto)."""
-    return exit.upto(steps, limit) if isinstance(exit, LazyExit) else np.minimum(exit[steps], limit)
 
 
 class FixedContacts:

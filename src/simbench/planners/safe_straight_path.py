@@ -305,36 +305,6 @@ def _moved_start(given: Line, line: Line, reasons: list[dict], chosen: str) -> s
             f"the tool's start {1e3 * np.linalg.norm(line.x_init - given.x_init):.1f} mm from the task's")
 
 
-def plan(scenario, robot, dt: float) -> JointTrajectory:
-    """Paper 000's method on the scenario's start and goal, solved at every control sample."""
-    task = scenario.task
-    line = build(np.array(task.start), np.array(task.goal))
-    reasons = exit_reasons(line, task.nd)
-    repair_info = None
-    warnings = []
-    if reasons and task.workspace_repair:
-        given = line
-        line, repair_info = repair(line, task.nd)
-        warnings.append(_moved_start(given, line, reasons, repair_info["chosen"]))
-    elif reasons:
-        warnings.append("the straight path leaves the workspace (workspace_repair is off): "
-                        + "; ".join(f"{r['condition']} at s = {r['s']:.4f}" for r in reasons))
-    law = scenario.timing.law_fn()
-    t = control_grid(law.duration, scenario.timing.hold, dt)
-    s, ds = law(t, order=1)
-    return JointTrajectory(t=t, s=s, q_ref=evaluate(line, s), qd_ref=derivative(line, s) * ds[:, None],
-                           tool_ref=line.points(s)[0], waypoints=waypoints(line, task.nd),
-                           info=_info(line, reasons, repair_info), warnings=tuple(warnings))
-
-
-def check(scenario, robot) -> tuple[str, str] | None:
-    """A goal whose tool point is the start's gives no line to follow."""
-    if np.linalg.norm(fk(np.array(scenario.task.goal)) - fk(np.array(scenario.task.start))) < 1e-9:
-        return "task.goal", "its tool point equals the start's: a zero-length path"
-    return None
-
-
-
 class SafeStraightPath(Planner):
     """Paper 000: straight tool path between two configurations, with workspace repair."""
 
@@ -344,10 +314,31 @@ class SafeStraightPath(Planner):
     robots = ("spherical_arm",)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        return plan(scenario, robot, dt)
+        """Paper 000's method on the scenario's start and goal, solved at every control sample."""
+        task = scenario.task
+        line = build(np.array(task.start), np.array(task.goal))
+        reasons = exit_reasons(line, task.nd)
+        repair_info = None
+        warnings = []
+        if reasons and task.workspace_repair:
+            given = line
+            line, repair_info = repair(line, task.nd)
+            warnings.append(_moved_start(given, line, reasons, repair_info["chosen"]))
+        elif reasons:
+            warnings.append("the straight path leaves the workspace (workspace_repair is off): "
+                            + "; ".join(f"{r['condition']} at s = {r['s']:.4f}" for r in reasons))
+        law = scenario.timing.law_fn()
+        t = control_grid(law.duration, scenario.timing.hold, dt)
+        s, ds = law(t, order=1)
+        return JointTrajectory(t=t, s=s, q_ref=evaluate(line, s), qd_ref=derivative(line, s) * ds[:, None],
+                               tool_ref=line.points(s)[0], waypoints=waypoints(line, task.nd),
+                               info=_info(line, reasons, repair_info), warnings=tuple(warnings))
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        return check(scenario, robot)
+        """A goal whose tool point is the start's gives no line to follow."""
+        if np.linalg.norm(fk(np.array(scenario.task.goal)) - fk(np.array(scenario.task.start))) < 1e-9:
+            return "task.goal", "its tool point equals the start's: a zero-length path"
+        return None
 
 
 PLANNER = SafeStraightPath()

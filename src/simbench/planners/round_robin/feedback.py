@@ -1,0 +1,66 @@
+"""Closing the loop at each grip (regrip_feedback): the gripping arm's references re-solved for the point it
+really holds (see simbench.planners.round_robin's docstring)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simbench.planners.round_robin.paths import Orientations
+from simbench.planners.round_robin.search import Hold
+from simbench.planners.round_robin.task import Motion
+from simbench.robots import rsmg
+from simbench.timing import TimeLaw
+from simbench.trajectory import Switch
+
+EASE = 0.1  # s: a grip's revised hold blends in from the old one over this time
+_QUINTIC = TimeLaw("quintic", 1.0)
+
+
+class RegripFeedback:
+    """At a grip during the run, the gripping arm's references from then until its release and over the swing
+    after it, up to its next grip, re-solved for the point it really gripped (see the package's docstring). A change
+    ends by the arm's next grip, whose own change takes over there: so no change touches the rows a later one
+    reads, and the references revised in place (simbench.run) are those revised in copies."""
+
+    def __init__(self, motion: Motion, s: np.ndarray, q_ref: np.ndarray, holds: list[Hold], grid: np.ndarray,
+                 dt: float, n_swing: int):
+        self.rot, self.q_ref, self.dt, self.n_swing = Orientations(motion, s), q_ref, dt, n_swing
+        rows = len(q_ref)
+
+        def row(step: int) -> int:  # a schedule step's control row (the end of the reference past the schedule)
+            return min(int(round(grid[step] / dt)), rows) if step < grid.size else rows
+
+        # (arm, grip row) -> its release row and the arm's next grip row (the end of the reference if none)
+        self.release: dict[tuple[int, int], tuple[int, int]] = {}
+        for arm in {h.arm for h in holds}:
+            own = sorted((h for h in holds if h.arm == arm), key=lambda h: h.start)
+            for h, after in zip(own, own[1:] + [None]):
+                if h.start > 0:
+                    self.release[arm, row(h.start)] = row(h.end), rows if after is None else row(after.start)
+
+    def __call__(self, switch: Switch, model, data, k: int):
+        if not switch.active:
+            return None
+        arm = switch.detail["arm"] - 1
+        k_release, k_next = self.release[arm, k]
+        tip = data.site(f"em{arm + 1}_tip").xpos
+        point = data.body("rotor").xmat.reshape(3, 3).T @ (tip / np.linalg.norm(tip))  # in the rotor's frame
+        theta, gamma = rsmg.ik(arm, self.rot.rows(k, k_release) @ point)
+        if not (np.isfinite(theta).all() and np.isfinite(gamma).all()):
+            return None  # the point leaves the arm's reach before its release: keep the plan
+        columns = [arm, rsmg.ARMS + arm]
+        old = self.q_ref[k:k_release][:, columns]
+        theta = np.unwrap(theta)
+        theta += 2 * np.pi * np.round((old[0, 0] - theta[0]) / (2 * np.pi))
+        change = np.stack([theta, gamma], axis=1) - old
+        ease = _smoothstep(np.arange(k_release - k) * self.dt / EASE)
+        swing = self.q_ref[k_release:min(k_release + self.n_swing, k_next)][:, columns]
+        out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
+        q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
+        return k, columns, q
+
+
+def _smoothstep(u: np.ndarray) -> np.ndarray:
+    """0 before u = 0, 1 after u = 1, the quintic time law between (zero rate and acceleration at both ends)."""
+    return _QUINTIC(u, order=0)[0]
+
