@@ -10,6 +10,7 @@ import pytest
 
 from simbench import analysis, windowed
 from simbench.analysis import analyse, along_path
+from simbench.report import plain
 from simbench.robots import Tolerance
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
 
@@ -135,8 +136,7 @@ def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, 
             else:
                 assert np.allclose(cut.series[key], values, rtol=1e-9, atol=1e-12), (window, key)
         for part in ("tracking", "singularity_events", "limit_events", "extra"):
-            assert _close(json.loads(json.dumps(getattr(once, part), default=float)),
-                          json.loads(json.dumps(getattr(cut, part), default=float)), 1e-12 if exact else 1e-9), part
+            assert _close(plain(getattr(once, part)), plain(getattr(cut, part)), 1e-12 if exact else 1e-9), part
         for key, rises in once.rises.items():
             if not exact and key == "path_deviation":
                 continue

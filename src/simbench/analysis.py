@@ -1,8 +1,7 @@
 """Metrics and events from a Recording: how well the tool followed the plan, and what it came near.
 
 Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points),
-its lag along the path, and its error against the time-indexed reference. Events, each
-{t_start, t_end, kind, detail}:
+its lag along the path, and its error against the time-indexed reference. Events (simbench.api.Event):
   singularity_events  spans where the recorded configuration lies near one of the robot's singular sets;
   limit_events        `joint_limit` (the plan asks for a value beyond a joint's range), `at_limit` (the joint
                       sits at a limit), `reference_jump` (the plan steps farther in one sample than the joint's
@@ -18,8 +17,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from simbench.robots import Robot, Tolerance
 from simbench import windowed
+from simbench.api import Event
+from simbench.robots import Robot, Tolerance
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory, gradient_rows, joined
@@ -386,8 +386,8 @@ class Analysis:
     tolerance)."""
 
     tracking: dict
-    singularity_events: list[dict]
-    limit_events: list[dict]
+    singularity_events: list[Event]
+    limit_events: list[Event]
     series: dict[str, np.ndarray]
     measures: tuple[str, ...] = ()
     extra: dict = field(default_factory=dict)
@@ -396,8 +396,8 @@ class Analysis:
     extremes: dict = field(default_factory=dict)
 
 
-def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dict:
-    return {"t_start": float(t[span[0]]), "t_end": float(t[span[1]]), "kind": kind, "detail": detail}
+def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> Event:
+    return Event(float(t[span[0]]), float(t[span[1]]), kind, detail)
 
 
 def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int] | None:
@@ -410,14 +410,14 @@ def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int]
     return [i + 1, j + 1]
 
 
-def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
+def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[Event]:
     """The limits the plan itself breaks, found without simulating: `joint_limit` (a reference beyond a joint's
     range), `velocity_limit` (a reference rate beyond its speed limit) and `reference_jump` (without its cost in
     physics)."""
     limits = _PlanLimits(robot)
     limits.add(traj, 0)
     return sorted(limits.events(traj.t) + _jump_events(robot, traj, _jumps(robot, traj, 0, len(traj.t) - 1)),
-                  key=lambda e: (e["t_start"], e["kind"]))
+                  key=lambda e: (e.t_start, e.kind))
 
 
 class _Bounds:
@@ -463,7 +463,7 @@ class _PlanLimits:
             self.fast[j].add(speed > robot.qd_max[j], lo, lambda a, b, speed=speed: float(speed[a:b + 1].max()))
             self.peak[j] = max(self.peak[j], float(speed.max(initial=0.0)))
 
-    def events(self, t: np.ndarray) -> list[dict]:
+    def events(self, t: np.ndarray) -> list[Event]:
         """The spans' events, a joint at a time (its range, then its speed limit), t the whole plan's times."""
         robot, events = self.robot, []
         for j, bound, first, last, worst in self.beyond.finish():
@@ -501,7 +501,7 @@ def _jumps(robot: Robot, traj: JointTrajectory, first: int, stop: int) -> list[_
 
 
 def _jump_events(robot: Robot, traj: JointTrajectory, jumps: list[_Jump],
-                 departures: dict[int, Departure] | None = None) -> list[dict]:
+                 departures: dict[int, Departure] | None = None) -> list[Event]:
     """The plan's jumps (`_jumps`); with the tool's departure from the path after each (the recorded path
     deviation's), what each cost: how far and how long the tool left the path."""
     t, events = traj.t, []
@@ -682,7 +682,7 @@ class Analyser:
             if whole.kept is not None:
                 series = {name: v[whole.kept] for name, v in series.items()}
         return Analysis(tracking=self._summary(), singularity_events=sorted(
-                            singular + events, key=lambda e: (e["t_start"], e["kind"])),
+                            singular + [Event.of(e) for e in events], key=lambda e: (e.t_start, e.kind)),
                         limit_events=self._limit_events(), series=series, measures=self.measures, extra=extra,
                         samples=self.samples,
                         rises={k: v for k, v in self.rises.items() if k is not None and v.at},
@@ -709,7 +709,7 @@ class Analyser:
                            orientation_final=float(sums.last["orientation"]))
         return summary
 
-    def _limit_events(self) -> list[dict]:
+    def _limit_events(self) -> list[Event]:
         """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
         robot, traj, t = self.robot, self.traj, self.traj.t
         events = self.plan_limits.events(t)
@@ -722,4 +722,4 @@ class Analyser:
             events += [_event(t, (first, last), "actuator_saturation", {
                 "joint": robot.joints[j], "limit": float(self.force_limit[j]), "force": force,
                 "duration": float(t[last] - t[first] + self.timestep)}) for first, last, force in spans_of.finish()]
-        return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
+        return sorted(events, key=lambda e: (e.t_start, e.kind))

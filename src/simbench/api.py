@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel
 
 from simbench.errors import RegistryError, RunError
+from simbench.events import Event, Violation
 from simbench.frozen import SimbenchModel
 from simbench.plant import Plant, compiled_scene
 from simbench.recording import Recording
@@ -47,9 +48,9 @@ if TYPE_CHECKING:
 
     from simbench.scenario import Scenario
 
-__all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration",
+__all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration", "Event",
            "JointTrajectory", "Plant", "Planner", "PolicyFactory", "Recording", "Robot", "RunError", "SingularSet",
-           "State", "Summariser", "Summary", "Switch", "Tolerance"]
+           "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
 
 
 
@@ -94,11 +95,11 @@ class SingularSet:
 
 
 class Summary(NamedTuple):
-    """What a robot adds to a run's analysis: report entries, events (each a dict with at least "t" and
-    "kind"), and per-sample series written to timeseries.npz."""
+    """What a robot adds to a run's analysis: report entries, events, and per-sample series written to
+    timeseries.npz."""
 
     entries: dict[str, Any]
-    events: list[dict[str, Any]]
+    events: list[Event]
     series: dict[str, Array]
 
 
@@ -117,7 +118,7 @@ class Summariser(ABC):
         (Summary.series)."""
 
     @abstractmethod
-    def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    def finish(self) -> tuple[dict[str, Any], list[Event]]:
         """The whole run's report entries and events (Summary.entries, Summary.events)."""
 
     def whole(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
@@ -137,7 +138,7 @@ class _NoSummary(Summariser):
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
         return {}
 
-    def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    def finish(self) -> tuple[dict[str, Any], list[Event]]:
         return {}, []
 
 
