@@ -114,11 +114,12 @@ _CASES = [("rsmg", "three_turns"), ("agile_eye", "through_singularity"), ("spher
 
 
 @pytest.mark.parametrize("robot, name", _CASES)
-def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, robot, name):
+def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, peak_speed, robot, name):
     """A run analysed in windows of the path search's blocks (a block a group) has the series of the run analysed
     at once, bit for bit, and its figures and events (RMS to rounding); in windows of odd lengths, that cut blocks,
     re-grips and spans, every series but the path deviation bit for bit (its blocks are searched on other
-    stretches of path), and the figures and events to 1e-9."""
+    stretches of path), and the figures and events to 1e-9. An outside metric's figures (conftest.PEAK_SPEED) are
+    the recording's own, however the run is cut."""
     scenario, ev = evaluated(robot, name)
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
@@ -126,6 +127,8 @@ def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, 
     monkeypatch.setattr(windowed, "GROUP", block)
     n = ev.recording.t.size
     once = analyse(scenario.robot_def, ev.trajectory, ev.recording, near, margin, window=n)
+    truth = np.abs(ev.recording.qd).max(axis=0)
+    assert once.metrics["peak_speed"] == {"qd0_max": truth[0], "qd_max": truth.tolist(), "samples": n}
     for window, exact in ((block, True), (2 * block, True), (997, False), (3001, False)):
         if window >= n:
             continue
@@ -135,6 +138,7 @@ def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, 
                 assert np.array_equal(cut.series[key], values), (window, key)
             else:
                 assert np.allclose(cut.series[key], values, rtol=1e-9, atol=1e-12), (window, key)
+        assert cut.metrics == once.metrics
         for part in ("tracking", "singularity_events", "limit_events", "extra"):
             assert _close(plain(getattr(once, part)), plain(getattr(cut, part)), 1e-12 if exact else 1e-9), part
         for key, rises in once.rises.items():

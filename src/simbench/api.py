@@ -26,8 +26,7 @@ the registries, which import this module; at run time it is `simbench.Scenario` 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, Literal, NamedTuple, TypeVar
@@ -49,8 +48,8 @@ if TYPE_CHECKING:
     from simbench.scenario import Scenario
 
 __all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration", "Event",
-           "JointTrajectory", "Plant", "Planner", "PolicyFactory", "Recording", "Robot", "RunError", "SingularSet",
-           "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
+           "Figures", "JointTrajectory", "Metric", "Plant", "Planner", "PolicyFactory", "Recording", "Robot",
+           "RunError", "SingularSet", "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
 
 
 
@@ -140,6 +139,38 @@ class _NoSummary(Summariser):
 
     def finish(self) -> tuple[dict[str, Any], list[Event]]:
         return {}, []
+
+
+Figures = dict[str, float | list[float] | dict[str, float]]  # a metric's figures by name, SI units
+
+
+class Metric(ABC):
+    """A figure of merit of a run, found a window of samples at a time as the analysis is (simbench.analysis), so
+    that a long run streamed through it gives the figures of the whole run at once. A run makes its own with
+    `for_run`, then calls `add` with each window in turn and `finish` once. Registered as the Controller subclasses
+    are, as a class: `simbench.register_metric(MyMetric)`, or an entry point of group `simbench.metrics`. Its
+    figures are written to report.json under metrics.<name>, shown on the run's page and as columns
+    <name>.<figure> of a sweep's results.csv. simbench's tracking figures are the shipped metric `tracking`."""
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+
+    @classmethod
+    def for_run(cls, robot: Robot, traj: JointTrajectory, scenario: Scenario | None) -> Metric | None:
+        """The metric of a run of plan `traj` by `robot` (`scenario` None where a script analyses a recording
+        without one), or None where it does not apply to this run. By default cls()."""
+        return cls()
+
+    @abstractmethod
+    def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> None:
+        """The next window, as Summariser.add gets it: the plan and the recording at its samples (Recording.rows:
+        with a recording stride, qpos, qd and ctrl at its kept rows only), and the analysis' per-sample series there
+        (joint_error, path_deviation, path_lag, tool_error, the robot's measures and its summary's series). Keep
+        what the figures need, not the window's arrays."""
+
+    @abstractmethod
+    def finish(self) -> Figures:
+        """The whole run's figures: names to numbers, short lists of numbers, or numbers by name (a joint's)."""
 
 
 class Decoration(NamedTuple):

@@ -89,6 +89,7 @@ def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | Non
         "control": ev.control,
         "samples": result.samples,
         "tracking": result.tracking,
+        **({"metrics": result.metrics} if result.metrics else {}),
         "singularity_events": result.singularity_events,
         "limit_events": result.limit_events,
         "warnings": list(rec.warnings),
