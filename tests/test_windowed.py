@@ -2,6 +2,7 @@
 analysis holds a window's arrays, and must say what the analysis of the whole run at once says. The truths: the
 whole arrays' own reductions (brute force), and the same run analysed as one window."""
 
+import copy
 import json
 import math
 
@@ -190,3 +191,26 @@ def test_a_block_sum_is_the_same_float_however_the_series_is_cut():
         naive.add(sum(float(np.sum(piece)) for piece in np.split(x, cuts)))
     assert abs(whole.value() - math.fsum(x)) <= 1e-13 * math.fsum(np.abs(x))
     assert len(naive) > 1
+
+
+def test_a_robot_whose_summary_needs_the_whole_run_gives_its_metrics_the_whole_run(evaluated, peak_speed):
+    """The Agile Eye made to summarise only the whole run (its `summary` overridden without a Summariser): analysed
+    in windows, its metrics get the whole run at the end, and their figures, the orientation's among tracking's,
+    are those of the Agile Eye analysed as it streams."""
+    scenario, ev = evaluated("agile_eye", "through_singularity")
+    eye = scenario.robot_def
+
+    class WholeRun(type(eye)):
+        def summary(self, traj, rec, series):
+            return super().summary(traj, rec, series)
+
+    whole = copy.copy(eye)
+    whole.__class__ = WholeRun
+    assert eye.streams and not whole.streams
+    a = scenario.analysis
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    streamed = analyse(eye, ev.trajectory, ev.recording, near, margin)
+    at_the_end = analyse(whole, ev.trajectory, ev.recording, near, margin, window=997)
+    assert "orientation_max" in at_the_end.tracking
+    assert _close(plain(at_the_end.tracking), plain(streamed.tracking), 1e-12)
+    assert at_the_end.metrics == streamed.metrics and streamed.metrics["peak_speed"]["samples"] == ev.recording.t.size

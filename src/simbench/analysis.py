@@ -25,9 +25,9 @@ from simbench.api import Event, Metric
 from simbench.registry import metrics_for
 from simbench.robots import Robot, Tolerance
 from simbench.sim import Recording
+from simbench.trajectory import JointTrajectory, gradient_rows, joined
 from simbench.windowed import Departure, Rises, Spans, spans
 from simbench.windowed import norms as _norms
-from simbench.trajectory import JointTrajectory, gradient_rows, joined
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario
