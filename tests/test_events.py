@@ -32,9 +32,9 @@ def test_old_style_dicts_are_read_at_the_boundary():
     assert Event.of({"t_start": 1.0, "t_end": 1.0, "kind": "assembly_mode_change", "detail": {"det_a": [1, -1]}}) \
         == Event(1.0, 1.0, "assembly_mode_change", {"det_a": [1, -1]})
     typed = Violation("off_path", "typed already")
-    traj = SimpleNamespace(violations=({"kind": "goal_missed", "message": "ends 3 mm away", "error": 0.003},
-                                       {"kind": "singular_crossing", "t": 0.9, "message": "crosses", "crossings": [0.9]},
-                                       typed))
+    traj = SimpleNamespace(violations=(
+        {"kind": "goal_missed", "message": "ends 3 mm away", "error": 0.003},
+        {"kind": "singular_crossing", "t": 0.9, "message": "crosses", "crossings": [0.9]}, typed))
     found = _planner_violations(traj)
     assert found == [Violation("goal_missed", "ends 3 mm away", None, 0, {"error": 0.003}),
                      Violation("singular_crossing", "crosses", 0.9, 0, {"crossings": [0.9]}), typed]
