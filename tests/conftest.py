@@ -60,3 +60,42 @@ def evaluated():
         return cache[key]
 
     return get
+
+
+# An outside package's metric, as its module would read: joint 0's largest speed, every joint's, and the samples
+# it was given (a window at a time). Tests register it in-process (peak_speed) or install it by an entry point.
+PEAK_SPEED = '''
+import numpy as np
+
+from simbench.api import Metric
+
+
+class PeakSpeed(Metric):
+    name = "peak_speed"
+    description = "the joints' largest measured speeds and the samples measured"
+
+    def __init__(self):
+        self.peaks, self.samples = None, 0
+
+    def add(self, traj, rec, series):
+        peaks = np.abs(rec.qd).max(axis=0)
+        self.peaks = peaks if self.peaks is None else np.maximum(self.peaks, peaks)
+        self.samples += rec.t.size
+
+    def finish(self):
+        return {"qd0_max": float(self.peaks[0]), "qd_max": self.peaks.tolist(), "samples": self.samples}
+'''
+
+
+@pytest.fixture
+def peak_speed(monkeypatch):
+    """The PEAK_SPEED metric registered for one test (as simbench.register_metric would), its class."""
+    from simbench import registry
+
+    namespace: dict = {}
+    exec(PEAK_SPEED, namespace)
+    metric = namespace["PeakSpeed"]
+    registry.metrics()
+    monkeypatch.setitem(registry._METRICS.objects, metric.name, metric)
+    monkeypatch.setitem(registry._METRICS.origins, metric.name, "registered from Python")
+    return metric

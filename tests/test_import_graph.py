@@ -134,7 +134,7 @@ def test_simbench_s_own_plugins_load_through_its_entry_points():
     """Each shipped robot, planner and controller is an entry point of the simbench distribution, and the
     registry's object by that name is the one the entry point loads."""
     kinds = {"simbench.robots": registry.robots(), "simbench.planners": registry.planners(),
-             "simbench.controllers": registry.controllers()}
+             "simbench.controllers": registry.controllers(), "simbench.metrics": registry.metrics()}
     for group, objects in kinds.items():
         own = [ep for ep in importlib.metadata.entry_points(group=group) if ep.dist and ep.dist.name == "simbench"]
         assert own, group
@@ -143,3 +143,4 @@ def test_simbench_s_own_plugins_load_through_its_entry_points():
             assert registry.origin(group.split(".")[1].rstrip("s"), ep.name) == "simbench"
     assert {"spherical_arm", "puma600", "agile_eye", "rsmg"} <= set(kinds["simbench.robots"])
     assert {"servo", "computed_torque", "policy"} <= set(kinds["simbench.controllers"])
+    assert "tracking" in kinds["simbench.metrics"]

@@ -143,11 +143,13 @@ def _windows_of_a_block(monkeypatch, dt: float) -> int:
 
 @pytest.mark.parametrize("robot, name, k", [("rsmg", "three_turns", 10), ("agile_eye", "through_singularity", 9),
                                             ("spherical_arm", "case2", 7), ("puma600", "wrist_singularity", 4)])
-def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch, robot, name, k):
+def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch, peak_speed, robot, name, k):
     """A strided run is analysed while it is simulated, a window at a time, and each window's every-step arrays
     are handed back after it (pages.release: every sample once, in order): its evaluation is the stride-1 run's
     (simulated whole and analysed after, in the same windows) at the kept rows, bit for bit, with the same
-    figures, events (re-grips, reference jumps and their cost, spans cut by windows) and verdict."""
+    figures, events (re-grips, reference jumps and their cost, spans cut by windows) and verdict; an outside
+    metric's figures (conftest.PEAK_SPEED: the joints' speeds, recorded at the kept rows) are the stride-1
+    recording's own at those rows, from every window."""
     whole = simbench.evaluate(_strided(robot, name, 1))
     window = _windows_of_a_block(monkeypatch, whole.trajectory.dt)
     whole = simbench.evaluate(_strided(robot, name, 1))
@@ -169,6 +171,8 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
         assert np.array_equal(ctrl, whole.recording.ctrl[lo + kept])
         assert np.array_equal(qpos, whole.recording.qpos[lo + kept])
     _same_at_the_kept_rows(thin, whole, k)
+    truth = np.abs(whole.recording.qd[_rows(n, k)]).max(axis=0)  # qd is recorded at the kept rows
+    assert thin.analysis.metrics == {"peak_speed": {"qd0_max": truth[0], "qd_max": truth.tolist(), "samples": n}}
 
 
 def test_only_a_strided_run_of_a_robot_whose_summary_streams_is_analysed_as_it_is_simulated():

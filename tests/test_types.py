@@ -1,5 +1,5 @@
 """The public API is typed so that a type checker catches a wrong plugin: mypy passes on simbench.api, the
-shipped controller and the example package, and fails on a plugin that breaks the contract."""
+shipped controller, the shipped metric and the example package, and fails on a plugin that breaks the contract."""
 
 import subprocess
 import sys
@@ -11,7 +11,7 @@ MYPY = [sys.executable, "-m", "mypy", "--ignore-missing-imports", "--follow-impo
 
 
 def test_the_public_api_and_the_example_type_check():
-    files = [ROOT / "src/simbench/api.py", ROOT / "src/simbench/controllers.py",
+    files = [ROOT / "src/simbench/api.py", ROOT / "src/simbench/controllers.py", ROOT / "src/simbench/tracking.py",
              ROOT / "src/simbench/computed_torque.py", ROOT / "src/simbench/policy.py",
              ROOT / "examples/planar3r/src/simbench_planar3r"]
     done = subprocess.run(MYPY + [str(f) for f in files], capture_output=True, text=True)

@@ -2,6 +2,7 @@
 analysis holds a window's arrays, and must say what the analysis of the whole run at once says. The truths: the
 whole arrays' own reductions (brute force), and the same run analysed as one window."""
 
+import copy
 import json
 import math
 
@@ -10,6 +11,7 @@ import pytest
 
 from simbench import analysis, windowed
 from simbench.analysis import analyse, along_path
+from simbench.report import plain
 from simbench.robots import Tolerance
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
 
@@ -113,11 +115,12 @@ _CASES = [("rsmg", "three_turns"), ("agile_eye", "through_singularity"), ("spher
 
 
 @pytest.mark.parametrize("robot, name", _CASES)
-def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, robot, name):
+def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, peak_speed, robot, name):
     """A run analysed in windows of the path search's blocks (a block a group) has the series of the run analysed
     at once, bit for bit, and its figures and events (RMS to rounding); in windows of odd lengths, that cut blocks,
     re-grips and spans, every series but the path deviation bit for bit (its blocks are searched on other
-    stretches of path), and the figures and events to 1e-9."""
+    stretches of path), and the figures and events to 1e-9. An outside metric's figures (conftest.PEAK_SPEED) are
+    the recording's own, however the run is cut."""
     scenario, ev = evaluated(robot, name)
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
@@ -125,6 +128,8 @@ def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, 
     monkeypatch.setattr(windowed, "GROUP", block)
     n = ev.recording.t.size
     once = analyse(scenario.robot_def, ev.trajectory, ev.recording, near, margin, window=n)
+    truth = np.abs(ev.recording.qd).max(axis=0)
+    assert once.metrics["peak_speed"] == {"qd0_max": truth[0], "qd_max": truth.tolist(), "samples": n}
     for window, exact in ((block, True), (2 * block, True), (997, False), (3001, False)):
         if window >= n:
             continue
@@ -134,9 +139,9 @@ def test_an_analysis_by_windows_is_the_analysis_at_once(evaluated, monkeypatch, 
                 assert np.array_equal(cut.series[key], values), (window, key)
             else:
                 assert np.allclose(cut.series[key], values, rtol=1e-9, atol=1e-12), (window, key)
+        assert cut.metrics == once.metrics
         for part in ("tracking", "singularity_events", "limit_events", "extra"):
-            assert _close(json.loads(json.dumps(getattr(once, part), default=float)),
-                          json.loads(json.dumps(getattr(cut, part), default=float)), 1e-12 if exact else 1e-9), part
+            assert _close(plain(getattr(once, part)), plain(getattr(cut, part)), 1e-12 if exact else 1e-9), part
         for key, rises in once.rises.items():
             if not exact and key == "path_deviation":
                 continue
@@ -186,3 +191,26 @@ def test_a_block_sum_is_the_same_float_however_the_series_is_cut():
         naive.add(sum(float(np.sum(piece)) for piece in np.split(x, cuts)))
     assert abs(whole.value() - math.fsum(x)) <= 1e-13 * math.fsum(np.abs(x))
     assert len(naive) > 1
+
+
+def test_a_robot_whose_summary_needs_the_whole_run_gives_its_metrics_the_whole_run(evaluated, peak_speed):
+    """The Agile Eye made to summarise only the whole run (its `summary` overridden without a Summariser): analysed
+    in windows, its metrics get the whole run at the end, and their figures, the orientation's among tracking's,
+    are those of the Agile Eye analysed as it streams."""
+    scenario, ev = evaluated("agile_eye", "through_singularity")
+    eye = scenario.robot_def
+
+    class WholeRun(type(eye)):
+        def summary(self, traj, rec, series):
+            return super().summary(traj, rec, series)
+
+    whole = copy.copy(eye)
+    whole.__class__ = WholeRun
+    assert eye.streams and not whole.streams
+    a = scenario.analysis
+    near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
+    streamed = analyse(eye, ev.trajectory, ev.recording, near, margin)
+    at_the_end = analyse(whole, ev.trajectory, ev.recording, near, margin, window=997)
+    assert "orientation_max" in at_the_end.tracking
+    assert _close(plain(at_the_end.tracking), plain(streamed.tracking), 1e-12)
+    assert at_the_end.metrics == streamed.metrics and streamed.metrics["peak_speed"]["samples"] == ev.recording.t.size

@@ -21,11 +21,11 @@ from simbench.version import __version__  # noqa: E402
 _LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "evaluate": "simbench.pipeline",
          "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario",
          **{name: "simbench.registry" for name in ("register_robot", "register_planner", "register_controller",
-                                                    "register_policy")}}
+                                                    "register_policy", "register_metric")}}
 
 __all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__",
-           "evaluate", "load_scenario", "register_controller", "register_planner", "register_policy",
-           "register_robot", "run"]
+           "evaluate", "load_scenario", "register_controller", "register_metric", "register_planner",
+           "register_policy", "register_robot", "run"]
 
 
 def __getattr__(name: str):

@@ -1,8 +1,9 @@
 """Metrics and events from a Recording: how well the tool followed the plan, and what it came near.
 
 Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points),
-its lag along the path, and its error against the time-indexed reference. Events, each
-{t_start, t_end, kind, detail}:
+its lag along the path, and its error against the time-indexed reference, as per-sample series; the metrics
+(simbench.api.Metric, the shipped `tracking` among them: simbench.tracking) reduce them to figures. Events
+(simbench.api.Event):
   singularity_events  spans where the recorded configuration lies near one of the robot's singular sets;
   limit_events        `joint_limit` (the plan asks for a value beyond a joint's range), `at_limit` (the joint
                       sits at a limit), `reference_jump` (the plan steps farther in one sample than the joint's
@@ -15,14 +16,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simbench.robots import Robot, Tolerance
 from simbench import windowed
-from simbench.windowed import Departure, Rises, Spans, Sums, spans
+from simbench.api import Event, Metric
+from simbench.registry import metrics_for
+from simbench.robots import Robot, Tolerance
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory, gradient_rows, joined
+from simbench.windowed import Departure, Rises, Spans, spans
+from simbench.windowed import norms as _norms
+
+if TYPE_CHECKING:
+    from simbench.scenario import Scenario
 
 _JUMP_FACTOR = 10.0
 _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path within this distance
@@ -243,15 +251,6 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
     return bound
 
 
-def _norms(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1)
-    gives (the squares added in the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array
-    across its short rows several times as slowly as it does the arithmetic, so the analysis works a column at a
-    time there."""
-    x, y, z = v[:, 0], v[:, 1], v[:, 2]
-    return np.sqrt(x * x + y * y + z * z)
-
-
 def along_path(points: np.ndarray) -> np.ndarray:
     """Unit tangent (N, 3) of a sampled path; where it rests, the direction it last moved in (or first will)."""
     return _Tangents(points).rows(0, len(points))
@@ -311,21 +310,23 @@ class Analysis:
     sample before them (windowed.Rises: the verdict's first sample beyond a tolerance). `extremes`: what every
     sample shows and the kept rows of a strided run may miss: "qd_ref_peak", each joint's largest planned rate
     magnitude (dof,), and "singular_min", each singular set's least distance (in multiples of the near
-    tolerance)."""
+    tolerance). `tracking`: the figures of the shipped metric `tracking`; `metrics`: every other metric's, by its
+    name."""
 
     tracking: dict
-    singularity_events: list[dict]
-    limit_events: list[dict]
+    singularity_events: list[Event]
+    limit_events: list[Event]
     series: dict[str, np.ndarray]
     measures: tuple[str, ...] = ()
     extra: dict = field(default_factory=dict)
     samples: int = 0
     rises: dict[str, Rises] = field(default_factory=dict)
     extremes: dict = field(default_factory=dict)
+    metrics: dict[str, dict] = field(default_factory=dict)
 
 
-def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> dict:
-    return {"t_start": float(t[span[0]]), "t_end": float(t[span[1]]), "kind": kind, "detail": detail}
+def _event(t: np.ndarray, span: tuple[int, int], kind: str, detail: dict) -> Event:
+    return Event(float(t[span[0]]), float(t[span[1]]), kind, detail)
 
 
 def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int] | None:
@@ -338,14 +339,14 @@ def _waypoint_interval(traj: JointTrajectory, s0: float, s1: float) -> list[int]
     return [i + 1, j + 1]
 
 
-def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[dict]:
+def plan_limit_events(robot: Robot, traj: JointTrajectory) -> list[Event]:
     """The limits the plan itself breaks, found without simulating: `joint_limit` (a reference beyond a joint's
     range), `velocity_limit` (a reference rate beyond its speed limit) and `reference_jump` (without its cost in
     physics)."""
     limits = _PlanLimits(robot)
     limits.add(traj, 0)
     return sorted(limits.events(traj.t) + _jump_events(robot, traj, _jumps(robot, traj, 0, len(traj.t) - 1)),
-                  key=lambda e: (e["t_start"], e["kind"]))
+                  key=lambda e: (e.t_start, e.kind))
 
 
 class _Bounds:
@@ -391,7 +392,7 @@ class _PlanLimits:
             self.fast[j].add(speed > robot.qd_max[j], lo, lambda a, b, speed=speed: float(speed[a:b + 1].max()))
             self.peak[j] = max(self.peak[j], float(speed.max(initial=0.0)))
 
-    def events(self, t: np.ndarray) -> list[dict]:
+    def events(self, t: np.ndarray) -> list[Event]:
         """The spans' events, a joint at a time (its range, then its speed limit), t the whole plan's times."""
         robot, events = self.robot, []
         for j, bound, first, last, worst in self.beyond.finish():
@@ -429,7 +430,7 @@ def _jumps(robot: Robot, traj: JointTrajectory, first: int, stop: int) -> list[_
 
 
 def _jump_events(robot: Robot, traj: JointTrajectory, jumps: list[_Jump],
-                 departures: dict[int, Departure] | None = None) -> list[dict]:
+                 departures: dict[int, Departure] | None = None) -> list[Event]:
     """The plan's jumps (`_jumps`); with the tool's departure from the path after each (the recorded path
     deviation's), what each cost: how far and how long the tool left the path."""
     t, events = traj.t, []
@@ -452,12 +453,13 @@ def _closest(a: tuple, b: tuple) -> tuple:
 
 
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
-            window: int | None = None) -> Analysis:
+            window: int | None = None, scenario: Scenario | None = None) -> Analysis:
     """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
     `windowed.window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds
     a window of per-sample arrays and what it keeps of them: the figures and events of the whole run, and the
-    per-sample series at the recording's kept rows (every row without a recording stride)."""
-    run = Analyser(robot, traj, near, margin, window)
+    per-sample series at the recording's kept rows (every row without a recording stride). `scenario` (a Scenario,
+    or None) is what the metrics are made for (Metric.for_run)."""
+    run = Analyser(robot, traj, near, margin, window, scenario)
     for lo in range(0, rec.t.size, run.window):
         run.add(rec.rows(lo, min(lo + run.window, rec.t.size)))
     return run.finish(rec)
@@ -468,20 +470,21 @@ class Analyser:
     whose windows' samples are then let go). A window's plan is final: the plan's feedback revises the references
     of samples still to come only.
 
-    Tracking: joint errors; the tool's distance from the planned path (the polyline of the planned tool points)
-    near its reference (the stretch within windowed.NEAR_REFERENCE s: `deviation_near_reference`; reported as
-    tool_rms and tool_max) and its lag: the error's component along the path's tangent at the reference point,
-    positive when the tool trails; and its error against the time-indexed reference. The robot's measures,
-    singular sets and summary (a Summariser's windows, or with none the whole run's `summary` at the end). Spans of
-    events that reach a window's edge go on into the next (windowed.Spans)."""
+    Tracking series: joint errors; the tool's distance from the planned path (the polyline of the planned tool
+    points) near its reference (the stretch within windowed.NEAR_REFERENCE s: `deviation_near_reference`) and its
+    lag: the error's component along the path's tangent at the reference point, positive when the tool trails; and
+    its error against the time-indexed reference. The robot's measures, singular sets and summary (a Summariser's
+    windows, or with none the whole run's `summary` at the end), then every registered metric (registry.metrics_for)
+    given the same windows: with no Summariser, the whole run as one at the end. Spans of events that reach a
+    window's edge go on into the next (windowed.Spans)."""
 
     def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
-                 window: int | None = None):
+                 window: int | None = None, scenario: Scenario | None = None):
         self.robot, self.traj, self.near = robot, traj, near
         self.window = window or windowed.window_size(traj.dt, len(traj.t))  # samples a window (`analyse`, sim)
         self.samples, self.seconds = 0, 0.0  # analysed so far, and the time `add` took
         self.tangents = _Tangents(traj.tool_ref)
-        self.sums, self.arc = Sums(), 0.0
+        self.metrics: list[Metric] = metrics_for(robot, traj, scenario)
         self.rises = {"path_deviation": Rises(), robot.orientation_error: Rises()}
         self.kept: dict[str, list[np.ndarray]] = {}  # each series' kept rows, window by window
         self.measures: tuple[str, ...] = ()
@@ -528,31 +531,34 @@ class Analyser:
         if self.summariser is not None:
             series.update(self.summariser.add(traj, rec, series))
             self._orientation(series, lo)
+            self._measure(traj, rec, series)
         self._limits(rec, lo)
         keep = slice(None) if self.summariser is None or rec.kept is None else rec.kept
         for name, values in series.items():
             self.kept.setdefault(name, []).append(values[keep])
 
     def _tracking(self, traj: JointTrajectory, rec: Recording, lo: int, hi: int) -> dict[str, np.ndarray]:
-        """The tracking series of samples lo..hi-1, added to the sums."""
+        """The tracking series of samples lo..hi-1."""
         joint_error = rec.q - traj.q_ref
         deviation = deviation_near_reference(self.traj.tool_ref, rec.tool, windowed.near_reference(self.traj.dt), lo)
         behind = traj.tool_ref - rec.tool  # the tool to its reference: its error, and along the tangent its lag
         lag = np.einsum("ij,ij->i", behind, self.tangents.rows(lo, hi))
         tool_error = _norms(behind)
-        self.sums.add(joint_error=joint_error, path_deviation=deviation, path_lag=lag, tool_error=tool_error)
-        self.arc += float(np.sum(_norms(np.diff(self.traj.tool_ref[lo:hi + 1], axis=0))))
         self.rises["path_deviation"].add(deviation, lo)
         for away in self.departures.values():
             away.add(deviation, lo)
         return {"joint_error": joint_error, "path_deviation": deviation, "path_lag": lag, "tool_error": tool_error}
 
     def _orientation(self, series: dict[str, np.ndarray], lo: int) -> None:
-        """The orientation error's sums, where the task is an orientation (beside the tool point's)."""
+        """Where the orientation error rose, where the task is an orientation (beside the tool point's)."""
         error = series.get(self.robot.orientation_error)
         if error is not None:
-            self.sums.add(orientation=error)
             self.rises[self.robot.orientation_error].add(error, lo)
+
+    def _measure(self, traj: JointTrajectory, rec: Recording, series: dict[str, np.ndarray]) -> None:
+        """The metrics' next window."""
+        for metric in self.metrics:
+            metric.add(traj, rec, series)
 
     def _singular(self, sets: list, lo: int) -> None:
         """The spans where the recorded state lies near each of the robot's singular sets, with the closest sample."""
@@ -607,37 +613,18 @@ class Analyser:
             extra, events, more = robot.summary(traj, whole, series)
             series.update(more)
             self._orientation(series, 0)
+            self._measure(traj, whole, series)
             if whole.kept is not None:
                 series = {name: v[whole.kept] for name, v in series.items()}
-        return Analysis(tracking=self._summary(), singularity_events=sorted(
-                            singular + events, key=lambda e: (e["t_start"], e["kind"])),
+        figures = {metric.name: metric.finish() for metric in self.metrics}
+        return Analysis(tracking=figures.pop("tracking"), metrics=figures, singularity_events=sorted(
+                            singular + [Event.of(e) for e in events], key=lambda e: (e.t_start, e.kind)),
                         limit_events=self._limit_events(), series=series, measures=self.measures, extra=extra,
                         samples=self.samples,
                         rises={k: v for k, v in self.rises.items() if k is not None and v.at},
                         extremes={"qd_ref_peak": self.plan_limits.peak.copy(), "singular_min": dict(self.least)})
 
-    def _summary(self) -> dict:
-        """The tracking summary (SI units)."""
-        sums, joints = self.sums, self.robot.joints
-        summary = {
-            "joint_rms": dict(zip(joints, sums.rms("joint_error").tolist())),
-            "joint_max": {name: float(v) for name, v in zip(joints, sums.largest["joint_error"])},
-            "tool_rms": float(sums.rms("path_deviation")),
-            "tool_max": sums.highest["path_deviation"],
-            "tool_lag_rms": float(sums.rms("path_lag")),
-            "tool_lag_max": float(sums.largest["path_lag"]),
-            "tool_error_rms": float(sums.rms("tool_error")),
-            "tool_error_max": sums.highest["tool_error"],
-            "tool_error_final": float(sums.last["tool_error"]),
-            "path_length": self.arc,
-        }
-        if "orientation" in sums.squares:
-            summary.update(orientation_rms=float(sums.rms("orientation")),
-                           orientation_max=sums.highest["orientation"],
-                           orientation_final=float(sums.last["orientation"]))
-        return summary
-
-    def _limit_events(self) -> list[dict]:
+    def _limit_events(self) -> list[Event]:
         """Joint-limit, at-limit, reference-jump, velocity-limit and actuator-saturation events."""
         robot, traj, t = self.robot, self.traj, self.traj.t
         events = self.plan_limits.events(t)
@@ -650,4 +637,4 @@ class Analyser:
             events += [_event(t, (first, last), "actuator_saturation", {
                 "joint": robot.joints[j], "limit": float(self.force_limit[j]), "force": force,
                 "duration": float(t[last] - t[first] + self.timestep)}) for first, last, force in spans_of.finish()]
-        return sorted(events, key=lambda e: (e["t_start"], e["kind"]))
+        return sorted(events, key=lambda e: (e.t_start, e.kind))

@@ -26,8 +26,7 @@ the registries, which import this module; at run time it is `simbench.Scenario` 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, Literal, NamedTuple, TypeVar
@@ -37,6 +36,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel
 
 from simbench.errors import RegistryError, RunError
+from simbench.events import Event, Violation
 from simbench.frozen import SimbenchModel
 from simbench.plant import Plant, compiled_scene
 from simbench.recording import Recording
@@ -48,9 +48,9 @@ if TYPE_CHECKING:
 
     from simbench.scenario import Scenario
 
-__all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration",
-           "JointTrajectory", "Plant", "Planner", "PolicyFactory", "Recording", "Robot", "RunError", "SingularSet",
-           "State", "Summariser", "Summary", "Switch", "Tolerance"]
+__all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration", "Event",
+           "Figures", "JointTrajectory", "Metric", "Plant", "Planner", "PolicyFactory", "Recording", "Robot",
+           "RunError", "SingularSet", "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
 
 
 
@@ -95,11 +95,11 @@ class SingularSet:
 
 
 class Summary(NamedTuple):
-    """What a robot adds to a run's analysis: report entries, events (each a dict with at least "t" and
-    "kind"), and per-sample series written to timeseries.npz."""
+    """What a robot adds to a run's analysis: report entries, events, and per-sample series written to
+    timeseries.npz."""
 
     entries: dict[str, Any]
-    events: list[dict[str, Any]]
+    events: list[Event]
     series: dict[str, Array]
 
 
@@ -118,7 +118,7 @@ class Summariser(ABC):
         (Summary.series)."""
 
     @abstractmethod
-    def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    def finish(self) -> tuple[dict[str, Any], list[Event]]:
         """The whole run's report entries and events (Summary.entries, Summary.events)."""
 
     def whole(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
@@ -138,8 +138,40 @@ class _NoSummary(Summariser):
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
         return {}
 
-    def finish(self) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    def finish(self) -> tuple[dict[str, Any], list[Event]]:
         return {}, []
+
+
+Figures = dict[str, float | list[float] | dict[str, float]]  # a metric's figures by name, SI units
+
+
+class Metric(ABC):
+    """A figure of merit of a run, found a window of samples at a time as the analysis is (simbench.analysis), so
+    that a long run streamed through it gives the figures of the whole run at once. A run makes its own with
+    `for_run`, then calls `add` with each window in turn and `finish` once. Registered as the Controller subclasses
+    are, as a class: `simbench.register_metric(MyMetric)`, or an entry point of group `simbench.metrics`. Its
+    figures are written to report.json under metrics.<name>, shown on the run's page and as columns
+    <name>.<figure> of a sweep's results.csv. simbench's tracking figures are the shipped metric `tracking`."""
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+
+    @classmethod
+    def for_run(cls, robot: Robot, traj: JointTrajectory, scenario: Scenario | None) -> Metric | None:
+        """The metric of a run of plan `traj` by `robot` (`scenario` None where a script analyses a recording
+        without one), or None where it does not apply to this run. By default cls()."""
+        return cls()
+
+    @abstractmethod
+    def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> None:
+        """The next window, as Summariser.add gets it: the plan and the recording at its samples (Recording.rows:
+        with a recording stride, qpos, qd and ctrl at its kept rows only), and the analysis' per-sample series there
+        (joint_error, path_deviation, path_lag, tool_error, the robot's measures and its summary's series). Keep
+        what the figures need, not the window's arrays."""
+
+    @abstractmethod
+    def finish(self) -> Figures:
+        """The whole run's figures: names to numbers, short lists of numbers, or numbers by name (a joint's)."""
 
 
 class Decoration(NamedTuple):

@@ -51,7 +51,7 @@ def _parser() -> argparse.ArgumentParser:
     validate = sub.add_parser("validate", help="check scenarios and their plans without simulating")
     validate.add_argument("scenarios", type=Path, nargs="+")
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
-    sub.add_parser("list", help="list robots, planners, controllers, policies and shipped scenarios")
+    sub.add_parser("list", help="list robots, planners, controllers, policies, metrics and shipped scenarios")
     reproduce = sub.add_parser("reproduce", help="regenerate a paper's published results beside simbench's")
     reproduce.add_argument("paper", choices=["000", "001", "002", "003", "all"])
     reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",
@@ -271,8 +271,8 @@ def _run(args) -> int:
 
 
 def _list() -> str:
-    """Robots, planners, controllers and policies with where each comes from, and under each kind the entry
-    points that failed to load and why; then the shipped scenarios and sweeps."""
+    """Robots, planners, controllers, policies and metrics with where each comes from, and under each kind the
+    entry points that failed to load and why; then the shipped scenarios and sweeps."""
     from simbench import registry
 
     lines = ["robots:"]
@@ -283,8 +283,8 @@ def _list() -> str:
         works = ", ".join(p.robots) if p.robots else "any robot" + (f" with {', '.join(p.needs)}" if p.needs else "")
         lines.append(f"  {p.name:20s} {p.description} [{works}] ({registry.origin('planner', p.name)})")
     lines += _broken("planner")
-    for kind, title, found in (("controller", "controllers", registry.controllers()), ("policy", "policies",
-                                                                                  registry.policies())):
+    for kind, title, found in (("controller", "controllers", registry.controllers()),
+                               ("policy", "policies", registry.policies()), ("metric", "metrics", registry.metrics())):
         lines.append(f"{title}:")
         lines += [f"  {c.name:20s} {c.description} ({registry.origin(kind, c.name)})" for c in found.values()]
         lines += _broken(kind)
@@ -352,7 +352,7 @@ def _preload(ctrl_c: interrupts.CtrlC) -> None:
         from simbench import pipeline, registry, scenario  # noqa: F401
 
         registry.load_shipped()
-    registry.robots(), registry.planners(), registry.controllers(), registry.policies()
+    registry.robots(), registry.planners(), registry.controllers(), registry.policies(), registry.metrics()
     if ctrl_c.pressed:
         raise interrupts.Interrupted
 

@@ -41,6 +41,7 @@ from simbench.atomic import staged_folder
 from simbench.plot_formats import check_format
 from simbench.page import table_page, write_page
 from simbench.errors import PhysicsError, RunError, ScenarioError
+from simbench.figures import columns
 from simbench.policy import refuse_code
 from simbench.scenario import Scenario, load_scenario, parse_scenario
 from simbench.validation import read_yaml
@@ -183,9 +184,10 @@ def singular_sets(run: MethodRun) -> list[api.SingularSet]:
 def row(run: MethodRun) -> dict:
     """The table's row of a method, SI units: its status, tool error and path deviation (the simulated tool, as
     the analysis measures them, and the plan's own tool by the robot's fk), each joint's planned speed peak and
-    its share of the speed limit, the least distance to each singular set, and its events counted by kind. The
-    peaks, least distances and the simulated speed share are of every sample (Analysis.extremes,
-    Recording.qd_peak), with a recording stride too; the plan's own tool deviation is of the kept rows."""
+    its share of the speed limit, the least distance to each singular set, each outside metric's figures
+    (<name>.<figure>: figures.columns), and its events counted by kind. The peaks, least distances and the
+    simulated speed share are of every sample (Analysis.extremes, Recording.qd_peak), with a recording stride too;
+    the plan's own tool deviation is of the kept rows."""
     out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
                            "status": run.status, "error": run.error, "violations": ""}
     ev = run.evaluation
@@ -207,6 +209,8 @@ def row(run: MethodRun) -> dict:
     out["qd_share_max_simulated"] = float((simulated / robot.qd_max).max())  # every state's, a stride's too
     for name, least in ev.analysis.extremes["singular_min"].items():
         out[f"singular_min_{name}"] = least
+    for name, figures in ev.analysis.metrics.items():
+        out.update(columns(name, figures))
     for prefix, events in (("singular_events", ev.analysis.singularity_events),
                            ("limit_events", ev.analysis.limit_events)):
         for kind in sorted({e["kind"] for e in events}):

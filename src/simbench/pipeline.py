@@ -124,7 +124,8 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
     # A run with a recording stride is analysed as it is simulated, where the robot's summary comes a window at a
     # time (Robot.streams): every step's readings are then let go a window at a time (sim.simulate's analyser).
-    analyser = Analyser(robot, traj, near, margin) if sim.record_every > 1 and robot.streams else None
+    streamed = sim.record_every > 1 and robot.streams
+    analyser = Analyser(robot, traj, near, margin, scenario=scenario) if streamed else None
     with watch.stage("simulate"):
         rec = simulate(plant, traj, controller, settle=sim.settle, progress=progress, record_every=sim.record_every,
                        revise_in_place=True,  # the plan as planned is not needed after the run
@@ -136,7 +137,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
     if analyser is not None:
         watch.move(analyser.seconds, "simulate", "analyse")
     with watch.stage("analyse"):
-        result = analyse(robot, traj, rec, near, margin) if analyser is None else analyser.finish()
+        result = analyser.finish() if analyser else analyse(robot, traj, rec, near, margin, scenario=scenario)
         found = run_verdict(robot, traj, result, a, scenario.expect)
     if sim.record_every > 1:  # the analysis has read every sample: what is kept of them is the outputs' rows
         # (a streamed run's plan at them as its analyser kept them: its other rows may have been let go)

@@ -1,11 +1,11 @@
-"""The registries: every robot, planner, controller and policy a scenario can name, by name, with where each came
-from.
+"""The registries: every robot, planner, controller and policy a scenario can name, and every metric a run is
+measured by, by name, with where each came from.
 
 simbench's own are declared as entry points in its pyproject.toml, exactly as an outside package declares its
-(groups simbench.robots, .planners, .controllers, .policies), and are read first, in the order of their names. One of
-simbench's own that fails to load is a bug of simbench's and raises; an outside package's, whatever it raises
-(sys.exit too), is kept out and remembered in `broken` (a scenario naming it is told why), so that one broken
-package does not stop the others; the user's Ctrl-C is not its failure (interrupts.is_press) and stops the
+(groups simbench.robots, .planners, .controllers, .policies, .metrics), and are read first, in the order of their
+names. One of simbench's own that fails to load is a bug of simbench's and raises; an outside package's, whatever
+it raises (sys.exit too), is kept out and remembered in `broken` (a scenario naming it is told why), so that one
+broken package does not stop the others; the user's Ctrl-C is not its failure (interrupts.is_press) and stops the
 loading. `register_*` adds an object from Python at run time.
 """
 
@@ -14,14 +14,17 @@ from __future__ import annotations
 import dataclasses
 import importlib.metadata
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from simbench import interrupts
-from simbench.api import Controller, Planner, PolicyFactory, Robot
+from simbench.api import Controller, JointTrajectory, Metric, Planner, PolicyFactory, Robot
 from simbench.errors import RegistryError, described
 
+if TYPE_CHECKING:
+    from simbench.scenario import Scenario
+
 SHIPPED = "simbench"  # the distribution whose entry points are simbench's own
-Kind = Literal["robot", "planner", "controller", "policy"]
+Kind = Literal["robot", "planner", "controller", "policy", "metric"]
 
 
 @dataclass
@@ -101,13 +104,14 @@ _ROBOTS = _Registry("simbench.robots", Robot)
 _PLANNERS = _Registry("simbench.planners", Planner)
 _CONTROLLERS = _Registry("simbench.controllers", Controller, classes=True)
 _POLICIES = _Registry("simbench.policies", PolicyFactory)
+_METRICS = _Registry("simbench.metrics", Metric, classes=True)
 _REGISTRIES: dict[str, _Registry] = {"robot": _ROBOTS, "planner": _PLANNERS, "controller": _CONTROLLERS,
-                                     "policy": _POLICIES}
+                                     "policy": _POLICIES, "metric": _METRICS}
 
 
 def load_shipped() -> None:
-    """simbench's own robots, planners, controllers and policies (the command line loads them first, with Ctrl-C
-    held back while their extension modules are imported, simbench.interrupts)."""
+    """simbench's own robots, planners, controllers, policies and metrics (the command line loads them first, with
+    Ctrl-C held back while their extension modules are imported, simbench.interrupts)."""
     for registry in _REGISTRIES.values():
         registry.load_shipped()
 
@@ -136,6 +140,12 @@ def register_policy(policy: PolicyFactory, origin: str = "registered from Python
     _POLICIES.add(policy, origin)
 
 
+def register_metric(metric: type[Metric], origin: str = "registered from Python") -> None:
+    """Make the Metric subclass `metric` measure every run from now on (each run makes its own: Metric.for_run)."""
+    _METRICS.all()
+    _METRICS.add(metric, origin)
+
+
 def robots() -> dict[str, Robot]:
     """Every robot by name: the shipped ones, those of installed packages' entry points, those registered."""
     return _ROBOTS.all()
@@ -156,11 +166,22 @@ def policies() -> dict[str, PolicyFactory]:
     return _POLICIES.all()
 
 
+def metrics() -> dict[str, type[Metric]]:
+    """Every metric class by name: the shipped `tracking`, installed packages' and those registered."""
+    return _METRICS.all()
+
+
+def metrics_for(robot: Robot, traj: JointTrajectory, scenario: Scenario | None) -> list[Metric]:
+    """Every metric of a run (Metric.for_run), in the registry's order, but those that do not apply to it."""
+    made = (cls.for_run(robot, traj, scenario) for cls in metrics().values())
+    return [metric for metric in made if metric is not None]
+
+
 def broken(kind: Kind) -> dict[str, str]:
     """Entry points of this kind that failed to load or register, by name, with why."""
     return _REGISTRIES[kind].broken
 
 
 def origin(kind: Kind, name: str) -> str:
-    """Where the robot, planner, controller or policy called `name` comes from."""
+    """Where the robot, planner, controller, policy or metric called `name` comes from."""
     return _REGISTRIES[kind].origins[name]

@@ -6,6 +6,7 @@ import json
 import math
 import platform
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
 
 import mujoco
@@ -19,8 +20,9 @@ from simbench.version import __version__
 
 
 def plain(value):
-    """JSON-ready copy: NumPy scalars and arrays to Python, NaN and infinities to null."""
-    if isinstance(value, dict):
+    """JSON-ready copy: NumPy scalars and arrays to Python, NaN and infinities to null; mappings (an api.Event
+    or Violation too) to dicts."""
+    if isinstance(value, Mapping):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
@@ -87,6 +89,7 @@ def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | Non
         "control": ev.control,
         "samples": result.samples,
         "tracking": result.tracking,
+        **({"metrics": result.metrics} if result.metrics else {}),
         "singularity_events": result.singularity_events,
         "limit_events": result.limit_events,
         "warnings": list(rec.warnings),

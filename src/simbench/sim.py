@@ -273,11 +273,13 @@ class _Stream:
         """Analyse the whole windows among the first `done` samples (with `last`, the rest too), then let them go."""
         while self.lo + self.window <= done or (last and self.lo < done):
             hi = min(self.lo + self.window, done)
-            kept = self.run.rows.kept
-            at = kept[np.searchsorted(kept, self.lo):np.searchsorted(kept, hi)]  # the window's kept rows
-            self.analyser.add(replace(self.every.rows(self.lo, hi), ctrl=self.run._commands(at)))
+            rows = self.run.rows
+            k0, k1 = np.searchsorted(rows.kept, [self.lo, hi])  # the window's kept rows: their states' rows
+            # qd read now: `every`'s is a copy (its joints' columns picked out) of the states before the run
+            qd = rows.states[k0:k1][:, rows.qd_columns]
+            self.analyser.add(replace(self.every.rows(self.lo, hi), ctrl=self.run._commands(rows.kept[k0:k1]), qd=qd))
             self._copy(hi)
-            rows, settle = self.run.rows, self.run.rows.n_settle
+            settle = rows.n_settle
             first = 0 if self.lo == 0 else settle + self.lo  # the settling steps' readings go with the first window
             # a closed loop's last command stays: the run's last sample, maybe the next window's only, repeats it
             for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi - 1),

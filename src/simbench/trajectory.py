@@ -7,6 +7,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from simbench.events import Violation
+
 
 @dataclass(frozen=True)
 class Switch:
@@ -39,7 +41,8 @@ class JointTrajectory:
     or (k0, columns, q): new references q for those joints from row k0 on (an RSMG arm
     re-solving its hold for the point it really gripped); the pipeline (simbench.run, evaluate) applies those to
     q_ref and qd_ref in place (sim.simulate's revise_in_place). `violations` are the promises the planner knows its
-    plan breaks (it ends away from the task's goal, say), each {"kind", "message"}: the run cannot end `ok`.
+    plan breaks (it ends away from the task's goal, say), each a simbench.api.Violation (or the dict {"kind",
+    "message", ...} it reads as, as planners written before it give): the run cannot end `ok`.
 
     A planner of long runs may make the per-sample arrays with simbench.pages.releasable: a run with a recording
     stride, analysed as it is simulated, then hands back the rows it has passed (all but t), keeping the plan at its
@@ -58,7 +61,7 @@ class JointTrajectory:
     switches: tuple[Switch, ...] = ()
     initial: dict = field(default_factory=dict)
     feedback: Callable | None = None
-    violations: tuple[dict, ...] = ()
+    violations: tuple[Violation | dict, ...] = ()
 
     @property
     def dt(self) -> float:

@@ -1,7 +1,7 @@
 """Whether a run kept every promise its report makes: the status, and each promise broken, in one line.
 
 A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked.
-Otherwise its status is `limits`, with one violation per broken promise, `{kind, message, t, ...}`:
+Otherwise its status is `limits`, with one violation per broken promise (simbench.api.Violation):
 
   joint_limit          the plan asks a joint for a value beyond its range
   velocity_limit       the plan asks a joint for more than its speed limit
@@ -19,7 +19,8 @@ Otherwise its status is `limits`, with one violation per broken promise, `{kind,
   <event kind>         an event the robot declares breaking (`Robot.breaking`: the Agile Eye's
                        `assembly_mode_change`, the RSMG's type A and B singularities while gripping)
 
-A planner reports what it knows its plan breaks in `JointTrajectory.violations`, with kinds from KINDS.
+A planner reports what it knows its plan breaks in `JointTrajectory.violations` (Violations, or the dicts
+{kind, message, ...} that planners written before them give), with kinds from KINDS.
 
 A scenario that demonstrates a failure says so (`expect: {status: limits, violations: [...]}`); the status
 stays what it is, and the verdict says whether it is the one expected: the same status and the same kinds.
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simbench.api import Event, Violation
 from simbench.robots import REVOLUTE, Robot
 from simbench.trajectory import JointTrajectory
 
@@ -46,7 +48,7 @@ class Verdict:
     (None when the scenario expects nothing: then only `ok` is as expected)."""
 
     status: str
-    violations: tuple[dict, ...]
+    violations: tuple[Violation, ...]
     expected: dict | None = None
 
     @property
@@ -68,73 +70,72 @@ def _quantity(value: float, kind: str, rate: bool = False) -> str:
     return f"{np.rad2deg(value):.2f} deg{per}" if kind == REVOLUTE else f"{value * 1e3:.2f} mm{per}"
 
 
-def _violation(kind: str, message: str, events: list[dict], **detail) -> dict:
-    return {"kind": kind, "message": message, "t": events[0]["t_start"] if events else detail.pop("t", None),
-            "events": len(events), **detail}
+def _violation(kind: str, message: str, events: list[Event], **detail) -> Violation:
+    return Violation(kind, message, events[0].t_start if events else detail.pop("t", None), len(events), detail)
 
 
-def _by_joint(events: list[dict]) -> dict[str, list[dict]]:
-    out: dict[str, list[dict]] = {}
+def _by_joint(events: list[Event]) -> dict[str, list[Event]]:
+    out: dict[str, list[Event]] = {}
     for e in events:
-        out.setdefault(e["detail"]["joint"], []).append(e)
+        out.setdefault(e.detail["joint"], []).append(e)
     return out
 
 
-def _limit_violations(robot: Robot, limit_events: list[dict]) -> list[dict]:
+def _limit_violations(robot: Robot, limit_events: list[Event]) -> list[Violation]:
     """One violation per kind and joint of the limit events that break a promise (not `at_limit`: a joint may
     rest at its limit)."""
     kind_of = dict(zip(robot.joints, robot.kinds))
 
-    def each_joint(kind: str) -> list[tuple[str, list[dict], str]]:  # (joint, its events of this kind, its kind)
-        events = [e for e in limit_events if e["kind"] == kind]
+    def each_joint(kind: str) -> list[tuple[str, list[Event], str]]:  # (joint, its events of this kind, its kind)
+        events = [e for e in limit_events if e.kind == kind]
         return [(name, found, kind_of[name]) for name, found in _by_joint(events).items()]
 
     out = [_joint_limit(*found) for found in each_joint("joint_limit")]
     out += [_velocity_limit(*found) for found in each_joint("velocity_limit")]
-    jumps = [e for e in limit_events if e["kind"] == "reference_jump"]
+    jumps = [e for e in limit_events if e.kind == "reference_jump"]
     if jumps:
         out.append(_reference_jump(robot, jumps))
     out += [_actuator_saturation(*found) for found in each_joint("actuator_saturation")]
     return out
 
 
-def _joint_limit(name: str, events: list[dict], kind: str) -> dict:
+def _joint_limit(name: str, events: list[Event], kind: str) -> Violation:
     """A joint the plan takes beyond its range: the worst excess, and when it starts."""
-    worst = max(events, key=lambda e: e["detail"]["excess"])["detail"]
+    worst = max(events, key=lambda e: e.detail["excess"]).detail
     return _violation("joint_limit", f"{name} is asked for {_quantity(worst['worst'], kind)}, "
                       f"{_quantity(worst['excess'], kind)} beyond its {worst['bound']} limit "
-                      f"{_quantity(worst['limit'], kind)}, from t = {events[0]['t_start']:.3f} s",
+                      f"{_quantity(worst['limit'], kind)}, from t = {events[0].t_start:.3f} s",
                       events, joint=name, excess=worst["excess"])
 
 
-def _velocity_limit(name: str, events: list[dict], kind: str) -> dict:
+def _velocity_limit(name: str, events: list[Event], kind: str) -> Violation:
     """A joint the plan drives faster than its speed limit: the worst speed, and when it starts."""
-    worst = max(events, key=lambda e: e["detail"]["worst"])["detail"]
+    worst = max(events, key=lambda e: e.detail["worst"]).detail
     return _violation("velocity_limit", f"{name} is asked for {_quantity(worst['worst'], kind, True)} against its "
-                      f"speed limit {_quantity(worst['limit'], kind, True)}, from t = {events[0]['t_start']:.3f} s",
+                      f"speed limit {_quantity(worst['limit'], kind, True)}, from t = {events[0].t_start:.3f} s",
                       events, joint=name, ratio=worst["worst"] / worst["limit"])
 
 
-def _reference_jump(robot: Robot, jumps: list[dict]) -> dict:
+def _reference_jump(robot: Robot, jumps: list[Event]) -> Violation:
     """The plan's discontinuities, in one violation: the joints that step, and what the worst cost the tool."""
-    joints = sorted({j for e in jumps for j in e["detail"]["joints"]}, key=robot.joints.index)
-    cost = max((e["detail"].get("cost", {}).get("tool_off_path_max", 0.0) for e in jumps), default=0.0)
-    costly = f", the tool leaving the path by {cost * 1e3:.1f} mm" if "cost" in jumps[0]["detail"] else ""
+    joints = sorted({j for e in jumps for j in e.detail["joints"]}, key=robot.joints.index)
+    cost = max((e.detail.get("cost", {}).get("tool_off_path_max", 0.0) for e in jumps), default=0.0)
+    costly = f", the tool leaving the path by {cost * 1e3:.1f} mm" if "cost" in jumps[0].detail else ""
     return _violation("reference_jump", f"the plan steps {', '.join(joints)} discontinuously at t = "
-                      f"{jumps[0]['t_start']:.3f} s ({len(jumps)} jump{'s' * (len(jumps) > 1)}){costly}",
+                      f"{jumps[0].t_start:.3f} s ({len(jumps)} jump{'s' * (len(jumps) > 1)}){costly}",
                       jumps, joints=joints)
 
 
-def _actuator_saturation(name: str, events: list[dict], kind: str) -> dict:
+def _actuator_saturation(name: str, events: list[Event], kind: str) -> Violation:
     """A joint's actuator at its force limit: for how long in all, and from when."""
-    total = sum(e["detail"]["duration"] for e in events)
+    total = sum(e.detail["duration"] for e in events)
     unit = "N m" if kind == REVOLUTE else "N"
     return _violation("actuator_saturation", f"{name}'s actuator sits at its force limit "
-                      f"{events[0]['detail']['limit']:g} {unit} for {total:.3f} s from t = "
-                      f"{events[0]['t_start']:.3f} s", events, joint=name, duration=total)
+                      f"{events[0].detail['limit']:g} {unit} for {total:.3f} s from t = "
+                      f"{events[0].t_start:.3f} s", events, joint=name, duration=total)
 
 
-def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[dict]:
+def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[Violation]:
     """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal. The first
     sample beyond a tolerance is among those where the series rose above every sample before it (Analysis.rises),
     found from every sample of a run recorded with a stride too."""
@@ -156,30 +157,31 @@ def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[di
                                   f"{np.rad2deg(worst):.2f} deg (tolerance "
                                   f"{np.rad2deg(tol.orientation_tolerance):g} deg), from t = {t[k]:.3f} s",
                                   [], t=float(t[k]), worst=worst))
-        if final > tol.goal_orientation_tolerance and not any(v["kind"] == "goal_missed" for v in out):
+        if final > tol.goal_orientation_tolerance and not any(v.kind == "goal_missed" for v in out):
             out.append(_violation("goal_missed", f"the orientation ends {np.rad2deg(final):.2f} deg from the "
                                   f"plan's end (tolerance {np.rad2deg(tol.goal_orientation_tolerance):g} deg)", [],
                                   t=float(t[-1]), error=final))
     return out
 
 
-def _breaking_violations(robot: Robot, events: list[dict]) -> list[dict]:
+def _breaking_violations(robot: Robot, events: list[Event]) -> list[Violation]:
     """The robot's breaking events (an assembly-mode change, say), one violation per kind."""
     out = []
     for kind in robot.breaking:
-        found = [e for e in events if e["kind"] == kind]
+        found = [e for e in events if e.kind == kind]
         if found:
-            times = ", ".join(f"{e['t_start']:.3f}" for e in found[:3]) + (", ..." if len(found) > 3 else "")
+            times = ", ".join(f"{e.t_start:.3f}" for e in found[:3]) + (", ..." if len(found) > 3 else "")
             count = "once" if len(found) == 1 else f"{len(found)} times"
             out.append(_violation(kind, f"{kind.replace('_', ' ')} {count}, at t = {times} s", found))
     return out
 
 
-def _planner_violations(traj: JointTrajectory) -> list[dict]:
-    return [{"t": None, "events": 0, **v} for v in traj.violations]
+def _planner_violations(traj: JointTrajectory) -> list[Violation]:
+    """What the planner reports its plan breaks, as Violations (a planner's dicts read as one)."""
+    return [Violation.of(v) for v in traj.violations]
 
 
-def plan_verdict(robot: Robot, traj: JointTrajectory, limit_events: list[dict], expect=None) -> Verdict:
+def plan_verdict(robot: Robot, traj: JointTrajectory, limit_events: list[Event], expect=None) -> Verdict:
     """What can be known before simulating: the limits the plan breaks and what its planner reported."""
     found = _limit_violations(robot, limit_events) + _planner_violations(traj)
     return _verdict(found, expect, complete=False)
@@ -195,13 +197,13 @@ def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expec
     return _verdict(found, expect)
 
 
-def _verdict(found: list[dict], expect, complete: bool = True) -> Verdict:
+def _verdict(found: list[Violation], expect, complete: bool = True) -> Verdict:
     """The status of the violations found, checked against the scenario's expectation. Before the physics
     (`complete` false) only some kinds can show, so the plan meets the expectation if it breaks none other."""
     status = LIMITS if found else OK
     expected = None
     if expect is not None:
-        kinds = sorted({v["kind"] for v in found})
+        kinds = sorted({v.kind for v in found})
         wanted = sorted(set(expect.violations))
         met = (status == expect.status and kinds == wanted) if complete else set(kinds) <= set(wanted)
         expected = {"status": expect.status, "violations": wanted, "reason": expect.reason, "met": met}

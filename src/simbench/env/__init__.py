@@ -123,7 +123,7 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
     traj = commanded(task.plan, rec)
     a = scenario.analysis
     result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
-                     margin=Tolerance(a.limit_angle, a.limit_length))
+                     margin=Tolerance(a.limit_angle, a.limit_length), scenario=scenario)
     verdict = run_verdict(robot, traj, result, a, scenario.expect)
     info = {"controller": "simbench.env", "actuation": task.actuation, **(control_info or {})}
     return Evaluation(traj, rec, result, verdict, info)

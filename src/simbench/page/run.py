@@ -26,7 +26,7 @@ _HEADLINE = (
 )
 _SHOWN = {"scenario", "robot", "planner", "control", "versions", "timestep", "duration", "hold", "settle",
           "time_law", "status", "violations", "expected", "failure", "samples", "tracking", "singularity_events",
-          "limit_events", "switch_events", "warnings", "plan", "waypoints", "wall_time", "outputs", "config"}
+          "limit_events", "switch_events", "warnings", "plan", "waypoints", "wall_time", "outputs", "config", "metrics"}
 # a robot's own figures (report.json beyond the common entries), in the units a reader thinks in
 _EXTRA_UNITS = {"closure_error_max": (_MM, "mm"), "rotor_error_max": (_DEG, "deg"),
                 "orientation_error_max": (_DEG, "deg"), "gripping_gamma": (_DEG, "deg")}
@@ -42,7 +42,7 @@ def run_page(out: Path, report: dict) -> str:
     title = f"{name}: {report.get('robot', '?')} / {report.get('planner', '?')}"
     outputs = report.get("outputs") or {}
     body = [f"<h1>{esc(title)}</h1>\n", paragraphs(scenario.get("description"), "sub"), _subtitle(report),
-            _status(report), _headline(report), _events(report), _video(out, outputs)]
+            _status(report), _headline(report), _metrics(report), _events(report), _video(out, outputs)]
     plots = outputs.get("plots") or []
     if plots:
         body.append(f'<h2 id="plots">Plots</h2>\n{figure_grid(out, plots)}')
@@ -122,6 +122,16 @@ def _headline(report: dict) -> str:
                 rows.append([path, scaled(leaf, scale, unit) if unit else number(leaf)])
         parts.append(table(["figure", "value"], rows, "The robot's own figures"))
     return "".join(parts)
+
+
+def _metrics(report: dict) -> str:
+    """Each outside metric's figures (report.json metrics.<name>: simbench.api.Metric), a table each."""
+    found = report.get("metrics")
+    if not isinstance(found, dict) or not found:
+        return ""
+    tables = [table(["figure", "value"], [[path, number(value)] for path, value in flatten(figures)],
+                    f"{name} (report.json metrics.{name}, SI units)") for name, figures in found.items()]
+    return '<h2 id="metrics">Metrics</h2>\n' + "".join(tables)
 
 
 def _events(report: dict) -> str:

@@ -342,7 +342,7 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
                         {f"v{i + 1}": gaps[:, i] for i in range(3)})]
 
 
-def summary(traj, rec, series: dict) -> tuple[dict, list[dict], dict]:
+def summary(traj, rec, series: dict) -> tuple[dict, list[api.Event], dict]:
     """Report entries (closure error, KCI, orientation error), assembly-mode changes as events, and the
     platform orientation series: the Summariser's of the whole run as one window."""
     return tuple(Summariser(traj).whole(traj, rec, series))
@@ -359,7 +359,7 @@ class Summariser(api.Summariser):
         self.closure, self.orientation = -np.inf, -np.inf
         self.kci_sum, self.kci_min = BlockSum(), np.inf
         self.det_a: np.ndarray = np.zeros(0)  # det A at the sample before the window
-        self.events: list[dict] = []
+        self.events: list[api.Event] = []
 
     def add(self, traj, rec, series: dict) -> dict:
         kci, det_a = series["kci"], series["det_a"]
@@ -374,13 +374,13 @@ class Summariser(api.Summariser):
         det = np.concatenate([self.det_a, det_a])
         sign = np.sign(det)
         first = self.lo - len(self.det_a)  # the sample of det's first
-        self.events += [{"t_start": float(self.t[first + k]), "t_end": float(self.t[first + k + 1]),
-                         "kind": "assembly_mode_change", "detail": {"det_a": [float(det[k]), float(det[k + 1])]}}
+        self.events += [api.Event(float(self.t[first + k]), float(self.t[first + k + 1]), "assembly_mode_change",
+                                  {"det_a": [float(det[k]), float(det[k + 1])]})
                         for k in np.flatnonzero(sign[1:] * sign[:-1] < 0)]
         self.det_a, self.lo = det_a[-1:].copy(), self.lo + rec.t.size
         return extra
 
-    def finish(self) -> tuple[dict, list[dict]]:
+    def finish(self) -> tuple[dict, list[api.Event]]:
         report = {"closure_error_max": self.closure, "kci": {"mean": self.kci_sum.value() / self.lo,
                                                              "min": self.kci_min}}
         if self.planned:

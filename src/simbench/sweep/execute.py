@@ -21,6 +21,7 @@ from multiprocessing import connection
 from typing import Any
 
 from simbench.errors import RunError, ScenarioError, printable
+from simbench.figures import columns
 from simbench.plant import reused_plants
 
 # Report keys that describe the run rather than measure it.
@@ -71,8 +72,9 @@ def _attempt(document: dict, source: str, outputs: str, out: str | None, video: 
 
 def metrics(report: dict) -> dict[str, Any]:
     """The report's measurements as flat columns: tracking's entries by their own names (`tool_rms`,
-    `joint_rms.q1`), other numbers by theirs (`kci.mean`, `rotor_error_max`), and for each list of events its
-    count and its kinds (`singularity_events`, `singularity_events.kinds`)."""
+    `joint_rms.q1`), each other metric's as <name>.<figure> (figures.columns), other numbers by theirs (`kci.mean`,
+    `rotor_error_max`), and for each list of events its count and its kinds (`singularity_events`,
+    `singularity_events.kinds`)."""
     flat: dict[str, Any] = {}
     for key, value in report.items():
         if key in _NOT_METRICS:
@@ -81,6 +83,9 @@ def metrics(report: dict) -> dict[str, Any]:
             flat[key] = len(value)
             flat[f"{key}.kinds"] = ",".join(sorted({str(e["kind"]) for e in value if isinstance(e, dict)
                                                     and "kind" in e}))
+        elif key == "metrics":
+            for name, figures in value.items():
+                flat.update(columns(name, figures))
         else:
             _flatten("" if key == "tracking" else key, value, flat)
     return flat

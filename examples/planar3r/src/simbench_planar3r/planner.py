@@ -20,7 +20,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import AfterValidator, Field, ValidationInfo
 
-from simbench.api import Planner, Robot
+from simbench.api import Planner, Robot, Violation
 from simbench.errors import RunError
 from simbench.schema import MAX_LENGTH, Angle, JointVector, SimbenchModel
 from simbench.trajectory import JointTrajectory, control_grid
@@ -114,7 +114,8 @@ class DLSLine(Planner[Task]):
             "max_line_deviation": float(deviation[k_dev]),
             "min_abs_det_J": float(np.min(np.abs(L1 * L2 * np.sin(q[:, 1])))),
         }
-        warnings, violations = [], []
+        warnings: list[str] = []
+        violations: list[Violation] = []
         tol = scenario.analysis
         k_sing = int(np.argmin(np.minimum(stretched, folded)))
         gap, which = ((stretched[k_sing], "stretched (q2 = 0)") if stretched[k_sing] <= folded[k_sing]
@@ -127,14 +128,14 @@ class DLSLine(Planner[Task]):
                             f"the planned tool is up to {deviation[k_dev] * 1e3:.3f} mm off the line "
                             f"(t = {t[k_dev]:.3f} s)")
         if deviation[k_dev] > tol.path_tolerance:
-            violations.append({"kind": "off_path", "message": f"the plan leaves the line by up to "
-                               f"{deviation[k_dev] * 1e3:.2f} mm at t = {t[k_dev]:.3f} s (tolerance "
-                               f"{tol.path_tolerance * 1e3:g} mm; the elbow comes within {np.rad2deg(gap):.2f} deg "
-                               f"of {which})"})
+            violations.append(Violation("off_path", f"the plan leaves the line by up to "
+                                        f"{deviation[k_dev] * 1e3:.2f} mm at t = {t[k_dev]:.3f} s (tolerance "
+                                        f"{tol.path_tolerance * 1e3:g} mm; the elbow comes within "
+                                        f"{np.rad2deg(gap):.2f} deg of {which})"))
         end_error, end_phi = float(np.linalg.norm(err[-1, :2])), float(abs(err[-1, 2]))
         if end_error > tol.goal_tolerance or end_phi > tol.goal_orientation_tolerance:
-            violations.append({"kind": "goal_missed", "message": f"the plan ends {end_error * 1e3:.2f} mm and "
-                               f"{np.rad2deg(end_phi):.2f} deg from the goal"})
+            violations.append(Violation("goal_missed", f"the plan ends {end_error * 1e3:.2f} mm and "
+                                        f"{np.rad2deg(end_phi):.2f} deg from the goal"))
         waypoints = tuple({"s": float(v), "X": [*x.tolist()[:2], Z], "phi": float(x[2]), "q": qk.tolist()}
                           for v, x, qk in ((0.0, x0, q[0]), (1.0, x1, q[-1])))
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=tool_ref, waypoints=waypoints, info=info,
