@@ -5,9 +5,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simbench import analysis, windowed
-from simbench.analysis import along_path, deviation_near_reference, path_deviation, spans
+from simbench import windowed
+from simbench.analysis import along_path, deviation_near_reference, path_deviation
+from simbench.analysis.limit_events import PlanLimits
+from simbench.analysis.path_distance import _capsules, _nearest
 from simbench.render import simplify
+from simbench.windowed import spans
 
 coords = st.floats(-1.0, 1.0, allow_nan=False)
 point = st.tuples(coords, coords, coords).map(np.array)
@@ -63,12 +66,12 @@ def test_lag_is_the_error_along_the_tangent_even_where_the_path_closes():
 
 
 def test_row_norms_are_numpys_to_the_bit():
-    """_norms adds the squares in np.linalg.norm's order: the same numbers, on rows of any scale and on a strided
-    view (a recording's columns)."""
+    """windowed.norms adds the squares in np.linalg.norm's order: the same numbers, on rows of any scale and on a
+    strided view (a recording's columns)."""
     rng = np.random.default_rng(14)
     rows = rng.normal(size=(5000, 7)) * 10.0 ** rng.integers(-150, 150, (5000, 1))
     for v in (rows[:, :3], rows[:, 4:], np.diff(rows[:, 2:5], axis=0), np.zeros((0, 3))):
-        assert np.array_equal(analysis._norms(v), np.linalg.norm(v, axis=1))
+        assert np.array_equal(windowed.norms(v), np.linalg.norm(v, axis=1))
 
 
 def test_spans_of_a_mask():
@@ -89,7 +92,7 @@ def test_simplified_polyline_stays_within_tolerance(seed, tol):
     assert dist.max() <= tol + 1e-12
 
 
-# --- the search of the planned path (analysis._nearest, ._deviation) against brute force --------------------------
+# --- the search of the planned path (path_distance._nearest, ._deviation) against brute force -------------------------
 
 def _segment_distances(path: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Distance of p from every segment of path, one by one."""
@@ -148,8 +151,6 @@ def test_the_distance_from_a_path_is_the_least_over_every_segment():
 def test_the_branch_and_bound_finds_every_points_nearest_segment_in_its_range():
     """_nearest against every segment of each point's range, ranges and paths at random (fixed seed): the distance
     within its tolerance (1e-12 of the scale)."""
-    from simbench.analysis import _capsules, _nearest
-
     rng = np.random.default_rng(14)
     for n in (2, 3, 5, 17, 300, 1000):
         path = _random_path(rng, n) if n > 16 else rng.normal(size=(n, 3))
@@ -208,9 +209,9 @@ def test_the_plans_limit_events_a_window_at_a_time_are_those_of_the_whole_plan(s
     q = middle + 1.2 * half * np.sin(np.cumsum(rng.normal(scale=0.08, size=(n, dof)), axis=0))
     qd = robot.qd_max * 1.3 * np.sin(np.cumsum(rng.normal(scale=0.1, size=(n, dof)), axis=0))
     traj = JointTrajectory(t=t, s=t / t[-1], q_ref=q, qd_ref=qd, tool_ref=np.zeros((n, 3)))
-    whole = analysis._PlanLimits(robot)
+    whole = PlanLimits(robot)
     whole.add(traj, 0)
-    windows = analysis._PlanLimits(robot)
+    windows = PlanLimits(robot)
     lo = 0
     while lo < n:
         hi = min(lo + int(rng.integers(1, 41)), n)

@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from simbench import analysis, windowed
+from simbench import windowed
 from simbench.analysis import analyse, along_path
+from simbench.analysis.tangents import Tangents
 from simbench.report import plain
 from simbench.robots import Tolerance
 from simbench.windowed import Departure, Rises, Spans, Sums, spans
@@ -94,7 +95,7 @@ def test_tangents_a_window_at_a_time_are_along_paths():
     whole = along_path(path)
     assert np.all(np.isclose(np.linalg.norm(whole, axis=1), 1.0))
     for cuts in ([(0, len(path))], _cuts(len(path), _RNG), [(k, k + 1) for k in range(len(path))]):
-        tangents = analysis._Tangents(path)
+        tangents = Tangents(path)
         assert np.array_equal(np.concatenate([tangents.rows(lo, hi) for lo, hi in cuts]), whole)
     assert np.array_equal(along_path(np.zeros((5, 3))), np.zeros((5, 3)))
 

@@ -185,7 +185,11 @@ def _det3(m00, m01, m02, m11, m12, m22):
 def _extreme_eigenvalues(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The least and greatest eigenvalues (N,) of symmetric positive semi-definite G (N, 3, 3) in closed form
     (Smith's trigonometric formula; the least from det G / (lambda_max lambda_mid) where that is the better
-    conditioned), and where G is a multiple of the identity (all three equal)."""
+    conditioned), and where G is a multiple of the identity (all three equal).
+
+    Own code, not numpy.linalg.eigvalsh: LAPACK's least eigenvalue is exact to the rounding of the greatest, so
+    near a singular curve (agile_eye/through_singularity, KCI down to 1.2e-4) its KCI was 2.7e-9 off that of G's
+    exact eigenvalues where this one's was 2.8e-10; away from the curves the two agree to 1.3e-14 (issue 34)."""
     g00, g01, g02, g11, g12, g22 = g[:, 0, 0], g[:, 0, 1], g[:, 0, 2], g[:, 1, 1], g[:, 1, 2], g[:, 2, 2]
     q = (g00 + g11 + g22) / 3
     d0, d1, d2 = g00 - q, g11 - q, g22 - q
