@@ -1,4 +1,4 @@
-"""Command line: `simbench run | sweep | validate | list | train-fk`.
+"""Command line: `simbench run | sweep | validate | list | inspect | compare | reproduce | train-fk`.
 
 Exit codes: 0 done, every promise kept (or the failure the scenario expects); 3 done, but the run broke a
 promise (status `limits`: a joint limit, a speed limit, a motor at its force limit, the path or goal missed, a
@@ -52,6 +52,9 @@ def _parser() -> argparse.ArgumentParser:
     validate.add_argument("scenarios", type=Path, nargs="+")
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
     sub.add_parser("list", help="list robots, planners, controllers, policies, metrics and shipped scenarios")
+    inspect = sub.add_parser("inspect", help="print the arm simbench derives from an MJCF model, a robot file or a "
+                                             "scenario's robot mapping")
+    inspect.add_argument("model", type=Path, help="an MJCF (.xml), a robot file or a scenario (.yaml)")
     reproduce = sub.add_parser("reproduce", help="regenerate a paper's published results beside simbench's")
     reproduce.add_argument("paper", choices=["000", "001", "002", "003", "all"])
     reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",
@@ -320,6 +323,10 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         _preload(ctrl_c)
         if args.command == "list":
             _say(_list())
+        elif args.command == "inspect":
+            from simbench.robots.inspect_arm import inspect
+
+            _say(inspect(args.model))
         elif args.command == "train-fk":
             from simbench.planners import learnt_fk
 

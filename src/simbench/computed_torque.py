@@ -73,10 +73,9 @@ class ComputedTorque(Controller):
 
     def _gains(self) -> tuple[Array, Array]:
         """The scenario's gains, or those of the bandwidth for the effective inertia at the start."""
-        c, inertia = self.config, self.inertia
-        kp = np.array(c.kp) if c.kp is not None else inertia * c.bandwidth ** 2
-        kd = np.array(c.kd) if c.kd is not None else 2 * c.damping_ratio * inertia * c.bandwidth
-        return kp, kd
+        c = self.config
+        kp, kd = pd_gains(self.inertia, c.bandwidth, c.damping_ratio)
+        return (np.array(c.kp) if c.kp is not None else kp), (np.array(c.kd) if c.kd is not None else kd)
 
     def _inverse_dynamics(self, q_ref: Array, qd_ref: Array, qdd_ref: Array) -> Array:
         """tau_ff (N, dof): mj_inverse at every planned sample, the other DOFs at rest."""
@@ -123,6 +122,13 @@ class ComputedTorque(Controller):
                        else "inverse dynamics at the planned state")
         return {"kp": self.kp.tolist(), "kd": self.kd.tolist(), "feedforward": feedforward,
                 "bandwidth": self.config.bandwidth, "damping_ratio": self.config.damping_ratio}
+
+
+def pd_gains(inertia: Array, bandwidth: float, damping_ratio: float) -> tuple[Array, Array]:
+    """The PD gains (Kp, Kd) that give joints of these inertias a second-order error response of natural frequency
+    `bandwidth` (rad/s) and damping ratio `damping_ratio`: Kp = I w^2, Kd = 2 zeta I w."""
+    inertia = np.asarray(inertia, float)
+    return inertia * bandwidth ** 2, 2 * damping_ratio * inertia * bandwidth
 
 
 def effective_inertia(plant: Plant, trajectory: JointTrajectory) -> Array:

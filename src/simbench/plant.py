@@ -9,7 +9,7 @@ motors: force = ctrl, within the same force limits, so a controller's commands a
 from __future__ import annotations
 
 import copy
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
@@ -28,6 +28,9 @@ Actuation = Literal["position", "torque"]
 
 # While plants are reused (reused_plants): the last Plant built and the arguments it was built from; else None.
 _kept: list[tuple[tuple, Plant]] | None = None
+# Scenes built in code rather than read from a file (a robot derived from a model: robots.model_scene), by the key
+# that stands for them where a scene's path is asked for (Robot.scene); see register_scene.
+_built: dict[str, Callable[[], mujoco.MjSpec]] = {}
 
 
 @dataclass(frozen=True)
@@ -176,10 +179,18 @@ def _sensor_slices(model: mujoco.MjModel, names: tuple[str, ...]) -> dict[str, s
     return slices
 
 
+def register_scene(key: str, build: Callable[[], mujoco.MjSpec]) -> None:
+    """Make `key` stand for the scene `build()` makes, wherever a scene's path is asked for (scene_spec,
+    compiled_scene): a scene built in code from a model file, with no file of its own. `build` must give the same
+    scene every time it is called with the same key."""
+    _built[key] = build
+
+
 def scene_spec(scene: str) -> mujoco.MjSpec:
-    """A scene as simbench runs it: the MJCF, plus an actuator-force sensor (FORCE_SENSOR + name) on every
-    actuator, so that the recording holds the force MuJoCo really applied, force limits included."""
-    spec = mujoco.MjSpec.from_file(scene)
+    """A scene as simbench runs it: the MJCF (or the scene registered under this key, register_scene), plus an
+    actuator-force sensor (FORCE_SENSOR + name) on every actuator, so that the recording holds the force MuJoCo
+    really applied, force limits included."""
+    spec = _built[scene]() if scene in _built else mujoco.MjSpec.from_file(scene)
     for actuator in spec.actuators:
         spec.add_sensor(name=FORCE_SENSOR + actuator.name, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator.name)

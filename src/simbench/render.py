@@ -42,6 +42,7 @@ _TRACE_RADIUS = 0.0035  # m
 _SIMPLIFY_TOL = 1e-3
 QUALITY = ("fast", "pretty")
 _QUEUED_FRAMES = 4
+FREE_CAMERA = "free"  # the name a video of a scene without cameras gives the free camera it is seen from
 
 
 class _Encoder:
@@ -236,16 +237,17 @@ class _Overlay:
                          mujoco.mjtGeom.mjGEOM_CAPSULE)
 
 
-def _frames(model: mujoco.MjModel, renderer: mujoco.Renderer, rec: Recording, rows: np.ndarray, camera: str,
-            overlay: _Overlay, paint) -> Iterator[np.ndarray]:
-    """Each frame's pixels: the model posed at its row, painted, seen from `camera`, with the overlay."""
+def _frames(model: mujoco.MjModel, renderer: mujoco.Renderer, rec: Recording, rows: np.ndarray,
+            camera: str | None, overlay: _Overlay, paint) -> Iterator[np.ndarray]:
+    """Each frame's pixels: the model posed at its row, painted, seen from `camera` (None: the free camera), with
+    the overlay."""
     data = mujoco.MjData(model)
     for row in rows:
         data.qpos[:] = rec.qpos[row]
         mujoco.mj_forward(model, data)
         if paint is not None:
             paint(model, rec, row)
-        renderer.update_scene(data, camera=camera)
+        renderer.update_scene(data, camera=-1 if camera is None else camera)
         overlay.draw(renderer.scene, row)
         yield renderer.render()
 
@@ -268,10 +270,11 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
                  trace: bool = True, decorations: Sequence[Decoration] = (), paint=None) -> dict:
     """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
     shapes to draw in every frame (simbench.api.Decoration; ValueError for a kind simbench cannot draw);
-    `paint(model, rec, row)` may recolour the model for each frame (an electromagnet by whether it grips)."""
+    `paint(model, rec, row)` may recolour the model for each frame (an electromagnet by whether it grips). A scene
+    without cameras is seen from MuJoCo's free camera (FREE_CAMERA), which frames the model's extent."""
     _check_decorations(decorations)
     model = copy.copy(compiled_scene(str(scene)))  # the run's own compilation; the copy's sizes are set below
-    camera = camera or model.camera(0).name
+    camera = camera or (model.camera(0).name if model.ncam else None)
     rows = _frame_rows(rec.t, fps)
     overlay = _Overlay(planned, rec.tool if trace else None, decorations)
     renderer = _open_renderer(model, width, height, quality)
@@ -279,5 +282,5 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
         _encode(path, fps, _frames(model, renderer, rec, rows, camera, overlay, paint))
     finally:
         renderer.close()
-    return {"frames": int(len(rows)), "fps": fps, "width": width, "height": height, "camera": camera,
+    return {"frames": int(len(rows)), "fps": fps, "width": width, "height": height, "camera": camera or FREE_CAMERA,
             "quality": quality}

@@ -4,7 +4,7 @@ A scenario is a YAML mapping:
 
     name: case1                      # optional: the file's stem; names the output folder
     description: ...
-    robot: spherical_arm
+    robot: spherical_arm             # a registered robot, or an arm from its MJCF (robots.robot_mapping)
     planner: safe_straight_path
     units: {angle: deg, length: mm}  # how this file writes angles and lengths (default rad, m)
     task:                            # the planner's own fields
@@ -34,6 +34,7 @@ from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, creat
 
 from simbench import api, registry, verdict
 from simbench.errors import ScenarioError
+from simbench.robots import robot_mapping
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
 from simbench.timing import TimeLaw
 from simbench.validation import describe, kind_of, read_yaml
@@ -129,7 +130,7 @@ class Scenario(SimbenchModel):
 
     name: Name | None = None
     description: str = ""
-    robot: str
+    robot: str  # a registered robot's name, or the name of the arm a robot mapping derives (robots.robot_mapping)
     planner: str
     units: Units = Units()
     timing: Timing
@@ -139,6 +140,7 @@ class Scenario(SimbenchModel):
     render: Render = Render()
     expect: Expect | None = None
     _source: str | None = PrivateAttr(None)
+    _robot: api.Robot | None = PrivateAttr(None)  # the arm derived from a robot mapping; None: a registered robot
 
     @property
     def source(self) -> str | None:
@@ -148,7 +150,7 @@ class Scenario(SimbenchModel):
     @property
     def robot_def(self) -> api.Robot:
         """The Robot this scenario runs."""
-        return registry.robots()[self.robot]
+        return self._robot if self._robot is not None else registry.robots()[self.robot]
 
     @property
     def planner_def(self) -> api.Planner:
@@ -193,22 +195,27 @@ def parse_scenario(raw: Any, source: str, default_name: str = "scenario") -> Sce
     """Validate a scenario already read into Python objects."""
     if not isinstance(raw, dict):
         raise ScenarioError(source, None, f"expected a mapping of scenario fields, got {kind_of(raw)}")
-    robot = registry.robots()[_name_field(raw, "robot", registry.robots(), source)]
-    planner = registry.planners()[_name_field(raw, "planner", registry.planners(), source)]
-    refusal = planner.refuses(robot)
-    if refusal:
-        raise ScenarioError(source, "planner", refusal)
     try:
         units = Units.model_validate(raw.get("units", {}))
     except ValidationError as err:
         raise ScenarioError(source, *describe(err, Units, raw.get("units"), prefix=("units",))) from None
+    derived = robot_mapping.is_mapping(raw.get("robot"))
+    robot = (robot_mapping.load_robot(raw["robot"], source, units) if derived
+             else registry.robots()[_name_field(raw, "robot", registry.robots(), source)])
+    planner = registry.planners()[_name_field(raw, "planner", registry.planners(), source)]
+    refusal = planner.refuses(robot)
+    if refusal:
+        raise ScenarioError(source, "planner", refusal)
     cls = _scenario_class(planner.name, _controller_name(raw, source))
     try:
-        scenario = cls.model_validate(raw, context={"robot": robot, "units": units})
+        scenario = cls.model_validate({**raw, "robot": robot.name} if derived else raw,
+                                      context={"robot": robot, "units": units})
     except ValidationError as err:
         raise ScenarioError(source, *describe(err, cls, raw)) from None
     if scenario.name is None:
         scenario = scenario.model_copy(update={"name": file_name(default_name, source)})
+    if derived:
+        scenario._robot = robot
     cameras = robot.cameras()
     if scenario.render.camera is not None and scenario.render.camera not in cameras:
         raise ScenarioError(source, "render.camera", f"no camera '{scenario.render.camera}' in the "

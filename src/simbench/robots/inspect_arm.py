@@ -1,0 +1,58 @@
+"""`simbench inspect MODEL_OR_SCENARIO`: what simbench derives from an arm's model, in words, before a run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from simbench.errors import ScenarioError
+from simbench.robots import robot_mapping
+from simbench.robots.chain import ArmError
+from simbench.robots.model_scene import ArmOptions, DerivedArm
+from simbench.schema import Units
+from simbench.validation import read_yaml
+
+
+def inspect(path: Path) -> str:
+    """The derived arm of an MJCF file (its default tool, no speed limits), of a robot file, or of a scenario's
+    robot mapping; ScenarioError for anything else."""
+    source = str(path)
+    if path.suffix.lower() == ".xml":
+        try:
+            model = robot_mapping.model_path(str(path.resolve()), source, "")
+            return describe(robot_mapping.derived(model, ArmOptions()), None)
+        except ArmError as err:
+            raise ScenarioError(source, err.field, str(err)) from None
+    raw = read_yaml(path)
+    value = raw.get("robot", raw) if isinstance(raw, dict) and "model" not in raw else raw
+    if not robot_mapping.is_mapping(value) and not (isinstance(value, dict) and "model" in value):
+        raise ScenarioError(source, "robot", "expected a robot mapping (model, tool, speed_limits) or an MJCF file: "
+                                             "a registered robot is described by `simbench list`")
+    units = Units.model_validate(raw.get("units", {})) if isinstance(raw.get("units"), dict) else Units()
+    robot = robot_mapping.load_robot(value if value is not raw else str(path.resolve()), source, units)
+    return describe(robot.arm, robot.qd_max)
+
+
+def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
+    """The arm in lines: its joints with kind and range, how each is driven, the tool, the camera, the reach, what
+    the scene adds, and whether qpos0 lies inside the ranges."""
+    chain = arm.chain
+    lines = [f"{arm.name}: {len(chain.joints)} joints from {arm.path}", "joints (SI: rad or m):"]
+    for i, (name, kind, lo, hi) in enumerate(zip(chain.joints, chain.kinds, chain.lower, chain.upper)):
+        span = "continuous" if not np.isfinite(hi - lo) else f"[{lo:.6g}, {hi:.6g}]"
+        speed = "" if qd_max is None else f", speed limit {qd_max[i]:.6g}/s"
+        lines.append(f"  {name:12s} {kind:9s} {span}{speed}")
+    lines.append("actuators:")
+    lines += [f"  {d.joint:12s} {d.describe()}" for d in arm.drives]
+    limits = [d.force_limit for d in arm.drives]
+    lines.append("force limits: " + (", ".join("none" if np.isinf(f) else f"{f:g}" for f in limits)
+                                     if np.isfinite(limits).any() else "none (the model gives none)"))
+    lines.append(f"tool: {chain.tool.describe()}")
+    lines.append(f"camera: {arm.camera}")
+    lines.append(f"reach L: {chain.reach:.4g} m (the unit-consistent Jacobian's characteristic length)")
+    lines.append(f"scene adds: {', '.join(arm.added) or 'nothing'}; gravity compensation "
+                 f"{'on' if arm.options.gravity_compensation else 'off'}")
+    lines.append("qpos0: inside the ranges" if not arm.outside else
+                 f"qpos0: outside the range of {', '.join(arm.outside)} (a scenario's start must lie inside)")
+    return "\n".join(lines)

@@ -1,0 +1,232 @@
+"""An arm's MJCF model made into a scene simbench runs (MjSpec), with what was done to it said.
+
+Every joint of the chain (robots.chain) ends with exactly one position servo on it, of unit gear: the model's own
+where it has one, kept; else one added, its gains those of computed_torque's defaults (computed_torque.pd_gains)
+for the joint's effective inertia at the start (the diagonal of the joint-space inertia matrix, armature included,
+at qpos0 with each joint clipped into its range): Kp = I w^2, Kd = 2 zeta I w, w the `bandwidth` (rad/s, default
+50) and zeta the `damping_ratio` (default 1). A velocity servo, a motor or a general actuator on a chain joint is
+replaced by such a servo, never driven as if it were one; the force bound it had is carried over (a motor's
+control range times its gear). The scene also gets a site on the tool where it needs one, a `framepos` sensor on
+it, gravity compensation on every body the chain moves (unless turned off), and where the model lacks them a floor,
+a light and a camera framing the arm's reach.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from simbench.computed_torque import pd_gains
+from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
+
+TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset
+TOOL_SENSOR = "simbench/tool_pos"
+CAMERA = "simbench/view"
+_FOVY = 45.0  # deg, the added camera's (MuJoCo's default)
+
+
+@dataclass(frozen=True)
+class ArmOptions:
+    """A robot mapping's choices about its model (SI): the tool, the joints (None: the chain's), per-joint force
+    limits (None: the model's), the added servos' bandwidth (rad/s) and damping ratio, gravity compensation."""
+
+    tool: Tool | None = None
+    joints: tuple[str, ...] | None = None
+    force_limits: tuple[float, ...] | None = None
+    bandwidth: float = 50.0
+    damping_ratio: float = 1.0
+    gravity_compensation: bool = True
+
+
+@dataclass(frozen=True)
+class Drive:
+    """How one joint of the chain is driven: `action` kept, added or replaced; `found` what actuated it in the model
+    ('' for nothing); `keep` the model's position servo kept (None: one is added); `removed` the model's actuators
+    taken off it; the servo's gains (SI) and force bound (inf: none)."""
+
+    joint: str
+    action: str
+    found: str
+    keep: int | None
+    removed: tuple[int, ...]
+    kp: float
+    kv: float
+    force_limit: float
+
+    def describe(self) -> str:
+        bound = "no force limit" if np.isinf(self.force_limit) else f"force limit {self.force_limit:g}"
+        servo = f"position servo kp {self.kp:.4g}, kv {self.kv:.4g} ({bound})"
+        if self.action == "kept":
+            return f"kept its {servo}"
+        if self.action == "added":
+            return f"no actuator: added a {servo}"
+        if self.keep is not None:
+            return f"kept its {servo}; removed its {self.found}"
+        return f"{self.found} replaced by a {servo}"
+
+
+@dataclass(frozen=True)
+class DerivedArm:
+    """What simbench made of a model file: its chain, how each joint is driven, what the scene adds."""
+
+    path: str
+    name: str
+    chain: Chain
+    drives: tuple[Drive, ...]
+    camera: str
+    added: tuple[str, ...]
+    outside: tuple[str, ...]
+    options: ArmOptions
+
+    def notes(self) -> list[str]:
+        """One line for each actuator the scene does not run as the model has it."""
+        return [f"{d.joint}: {d.describe()}" for d in self.drives if d.action != "kept"]
+
+    def spec(self) -> mujoco.MjSpec:
+        """The scene (built anew at each call: a spec is changed by compiling it into a scene with sensors)."""
+        return _scene(self)
+
+
+def derive(path: str, options: ArmOptions) -> DerivedArm:
+    """The arm in the MJCF at `path` (absolute), as `options` ask; ArmError naming the field at fault."""
+    try:
+        model = mujoco.MjModel.from_xml_path(path)
+    except ValueError as err:
+        raise ArmError("model", f"MuJoCo cannot load it: {str(err).strip().splitlines()[0]}") from None
+    chain = chain_of(model, options.tool, options.joints)
+    limits = _force_limits(options, chain)
+    inertia = _start_inertia(model, chain)
+    drives = tuple(_drive(model, name, inertia[i], options, limits[i]) for i, name in enumerate(chain.joints))
+    added = [what for what, missing in (("floor", not (model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE).any()),
+                                        ("light", model.nlight == 0), ("camera", model.ncam == 0)) if missing]
+    camera = (f"'{CAMERA}' (added, framing the reach)" if model.ncam == 0
+              else f"'{model.camera(0).name}' (the model's, of {model.ncam})")
+    name = mujoco.MjSpec.from_file(path).modelname or path.rsplit("/", 1)[-1].removesuffix(".xml")
+    return DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=tuple(added),
+                      outside=tuple(qpos0_outside(model, chain)), options=options)
+
+
+def _force_limits(options: ArmOptions, chain: Chain) -> tuple[float | None, ...]:
+    """The force limits asked for, one per joint (None: the model's)."""
+    if options.force_limits is None:
+        return (None,) * len(chain.joints)
+    if len(options.force_limits) != len(chain.joints):
+        raise ArmError("force_limits", f"expected {len(chain.joints)} values, one per joint "
+                                       f"({', '.join(chain.joints)}), got {len(options.force_limits)}")
+    return options.force_limits
+
+
+def _start_inertia(model: mujoco.MjModel, chain: Chain) -> np.ndarray:
+    """Each chain joint's effective inertia at the start: the diagonal of the joint-space inertia matrix (armature
+    included) at qpos0, the chain's joints clipped into their ranges."""
+    data = mujoco.MjData(model)
+    for name, lo, hi in zip(chain.joints, chain.lower, chain.upper):
+        adr = model.joint(name).qposadr[0]
+        data.qpos[adr] = np.clip(data.qpos[adr], lo, hi)
+    mujoco.mj_forward(model, data)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    dofs = [model.joint(name).dofadr[0] for name in chain.joints]
+    return full[dofs, dofs]
+
+
+def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOptions, limit: float | None) -> Drive:
+    """How `joint` is driven: its position servo kept, or one added in place of what it has."""
+    found = actuators_of(model, joint)
+    kinds = [actuator_kind(model, i) for i in found]
+    if "position" in kinds:
+        keep = found[kinds.index("position")]
+        removed = tuple(i for i in found if i != keep)
+        bound = limit if limit is not None else _bound(model, keep)
+        return Drive(joint, "replaced" if removed else "kept", _names(model, removed), keep, removed,
+                     float(model.actuator_gainprm[keep, 0]), float(-model.actuator_biasprm[keep, 2]), bound)
+    kp, kv = pd_gains(np.array([inertia]), options.bandwidth, options.damping_ratio)
+    bound = limit if limit is not None else min((_bound(model, i) for i in found), default=np.inf)
+    return Drive(joint, "replaced" if found else "added", _names(model, tuple(found)), None, tuple(found),
+                 float(kp[0]), float(kv[0]), bound)
+
+
+_WORDS = {"position": "position servo", "velocity": "velocity servo", "motor": "motor", "general": "general actuator"}
+
+
+def _names(model: mujoco.MjModel, which: tuple[int, ...]) -> str:
+    """The actuators `which`, each as its kind and name."""
+    return " and ".join(f"{_WORDS[actuator_kind(model, i)]} '{model.actuator(i).name or i}'" for i in which)
+
+
+def _bound(model: mujoco.MjModel, i: int) -> float:
+    """The force actuator i can give: its force range where limited, else a motor's control range times its gear;
+    inf where neither bounds it."""
+    if model.actuator_forcelimited[i]:
+        return float(np.abs(model.actuator_forcerange[i]).min())
+    if actuator_kind(model, i) == "motor" and model.actuator_ctrllimited[i]:
+        return float(np.abs(model.actuator_ctrlrange[i]).min() * abs(model.actuator_gear[i, 0]))
+    return float(np.inf)
+
+
+def _scene(arm: DerivedArm) -> mujoco.MjSpec:
+    """The scene of DerivedArm.spec."""
+    spec = mujoco.MjSpec.from_file(arm.path)
+    model = spec.compile()
+    actuators = list(spec.actuators)
+    for i in sorted({i for drive in arm.drives for i in drive.removed}, reverse=True):
+        spec.delete(actuators[i])
+    taken = {a.name for a in spec.actuators}
+    for drive, lo, hi in zip(arm.drives, arm.chain.lower, arm.chain.upper):
+        if drive.keep is not None:
+            actuator = actuators[drive.keep]
+        else:
+            actuator = spec.add_actuator(name=drive.joint if drive.joint not in taken else f"simbench/{drive.joint}",
+                                         target=drive.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            actuator.set_to_position(kp=drive.kp, kv=drive.kv)
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE if np.isfinite(hi - lo) else 0
+            actuator.ctrlrange = [lo, hi] if np.isfinite(hi - lo) else [0, 0]
+        if np.isfinite(drive.force_limit):
+            actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.forcerange = [-drive.force_limit, drive.force_limit]
+    site = arm.chain.tool.site
+    if site is None:
+        site = TOOL_SITE
+        spec.body(arm.chain.tool.body).add_site(name=site, pos=list(arm.chain.tool.offset))
+    spec.add_sensor(name=TOOL_SENSOR, type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                    objname=site)
+    if arm.options.gravity_compensation:
+        _compensate(spec.body(model.body(model.jnt_bodyid[model.joint(arm.chain.joints[0]).id]).name))
+    _stage(spec, model, arm)
+    return spec
+
+
+def _compensate(body: mujoco.MjsBody) -> None:
+    """Gravity compensation (`gravcomp` 1) on `body` and every body below it."""
+    body.gravcomp = 1.0
+    for child in body.bodies:
+        _compensate(child)
+
+
+def _stage(spec: mujoco.MjSpec, model: mujoco.MjModel, arm: DerivedArm) -> None:
+    """The floor, light and camera the model lacks (DerivedArm.added): the floor at the chain's root body, the
+    camera at 2.6 reaches (the distance at which MuJoCo's 45 degree view holds a sphere of one reach) from the first
+    joint, looking at it from the front right and above."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    first = model.joint(arm.chain.joints[0])
+    centre = data.xanchor[first.id].copy()
+    root = data.xpos[model.body_rootid[first.bodyid[0]]]
+    reach = arm.chain.reach
+    if "floor" in arm.added:
+        spec.worldbody.add_geom(name="simbench/floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
+                                pos=[centre[0], centre[1], root[2]], rgba=[0.35, 0.4, 0.45, 1], contype=0,
+                                conaffinity=0)
+    if "light" in arm.added:
+        spec.worldbody.add_light(name="simbench/light", pos=centre + [0, 0, 3 * reach], dir=[0, 0, -1],
+                                 type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+    if "camera" in arm.added:
+        away = np.array([1.0, -1.0, 0.7]) / np.linalg.norm([1.0, -1.0, 0.7])
+        position = centre + away * reach / np.sin(np.deg2rad(_FOVY / 2))
+        right = np.cross(-away, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, np.column_stack([right, np.cross(away, right), away]).ravel())
+        spec.worldbody.add_camera(name=CAMERA, pos=position, quat=quat, fovy=_FOVY)

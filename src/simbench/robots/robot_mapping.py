@@ -1,0 +1,153 @@
+"""A scenario's `robot:` given as a mapping, or as the path of a YAML robot file holding one: an arm derived from
+its MJCF model (robots.model_scene), with no code of its own.
+
+    robot:
+      model: arms/jaco_arm.xml                 # an MJCF, relative to the scenario's folder (or absolute)
+      tool: {site: wristsite}                  # or {body: b_6, offset: [0, 0, 160]} (the scenario's length unit)
+      speed_limits: [36, 36, 36, 48, 48, 48]   # the scenario's angle (or length) unit per second, one per joint
+      joints: [joint_1, ...]                   # optional: the chain's joints to drive, in this order
+      force_limits: [30, 30, 30, 10, 10, 10]   # optional: N m or N (SI), one per joint or one for all
+      servo: {bandwidth: 50, damping_ratio: 1} # optional: the added position servos' (rad/s)
+      gravity_compensation: true               # optional: gravcomp on the bodies the chain moves
+
+A robot file's relative paths are relative to its own folder, and it may state its own `units:` (default: the
+scenario's). Reading the model runs no code: MJCF only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import cache
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import Field, ValidationError
+
+from simbench.errors import ScenarioError
+from simbench.robots.chain import ArmError, Tool
+from simbench.robots.model_arm import ModelArm
+from simbench.robots.model_scene import ArmOptions, DerivedArm, derive
+from simbench.schema import Position, SimbenchModel, Units
+from simbench.validation import describe, kind_of, read_yaml
+
+_Positive = Annotated[float, Field(gt=0, le=1e6)]
+
+
+class ToolSite(SimbenchModel):
+    """The tool at a site of the model."""
+
+    site: str
+
+
+class ToolBody(SimbenchModel):
+    """The tool at a point of a body, `offset` in its frame (the file's length unit)."""
+
+    body: str
+    offset: Position = [0.0, 0.0, 0.0]
+
+
+class ServoGains(SimbenchModel):
+    """How stiff the added position servos are: bandwidth w (rad/s) and damping ratio zeta (Kp = I w^2,
+    Kd = 2 zeta I w, I the joint's effective inertia at the start)."""
+
+    bandwidth: Annotated[float, Field(gt=0, le=1e4)] = 50.0
+    damping_ratio: Annotated[float, Field(gt=0, le=10)] = 1.0
+
+
+class RobotMapping(SimbenchModel):
+    """The fields of a robot mapping (the module's docstring)."""
+
+    model: str
+    tool: ToolSite | ToolBody | None = None
+    speed_limits: list[_Positive]
+    joints: list[str] | None = None
+    force_limits: _Positive | list[_Positive] | None = None
+    servo: ServoGains = ServoGains()
+    gravity_compensation: bool = True
+    units: Units | None = None
+
+
+def is_mapping(value: Any) -> bool:
+    """Whether a scenario's `robot:` names an arm by its model (a mapping or a robot file), not a registered
+    robot."""
+    return isinstance(value, dict) or (isinstance(value, str) and value.endswith((".yaml", ".yml")))
+
+
+def load_robot(value: dict | str, source: str, units: Units) -> ModelArm:
+    """The arm a scenario's `robot:` describes (`source`: the scenario file); ScenarioError naming the file and the
+    field at fault."""
+    raw, source, field = _mapping(value, source)
+    units = Units.model_validate(raw["units"]) if isinstance(raw.get("units"), dict) else units
+    try:
+        mapping = RobotMapping.model_validate(raw, context={"units": units})
+    except ValidationError as err:
+        raise ScenarioError(source, *describe(err, RobotMapping, raw, prefix=field)) from None
+    where = ".".join(field)
+    try:
+        path, choices = model_path(mapping.model, source, where), options(mapping)
+        return _arm(path, choices, _speed_limits(mapping.speed_limits, derived(path, choices), units))
+    except ArmError as err:
+        raise ScenarioError(source, ".".join((*field, err.field)), str(err)) from None
+
+
+def _mapping(value: dict | str, source: str) -> tuple[dict, str, tuple[str, ...]]:
+    """The robot mapping, the file it is in, and the field path of its fields there."""
+    if isinstance(value, dict):
+        return value, source, ("robot",)
+    path = Path(value) if Path(value).is_absolute() else Path(source).parent / value
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise ScenarioError(str(path), None, f"expected a robot mapping (model, tool, speed_limits), got "
+                                             f"{kind_of(raw)}")
+    return raw, str(path), ()
+
+
+def model_path(model: str, source: str, where: str) -> str:
+    """The model file's absolute path; ScenarioError where it is not an MJCF file."""
+    path = Path(model) if Path(model).is_absolute() else Path(source).parent / model
+    field = f"{where}.model" if where else "model"
+    if path.suffix.lower() == ".urdf":
+        raise ScenarioError(source, field, "URDF is not read yet: give the arm's MJCF (.xml)")
+    if path.suffix.lower() != ".xml":
+        raise ScenarioError(source, field, f"expected an MJCF file (.xml), got {model!r}")
+    if not path.is_file():
+        raise ScenarioError(source, field, f"no such file: {path}")
+    return str(path.resolve())
+
+
+def options(mapping: RobotMapping) -> ArmOptions:
+    """The mapping's choices about its model, SI."""
+    tool = mapping.tool
+    limits = mapping.force_limits
+    return ArmOptions(
+        tool=None if tool is None else (Tool(body="", site=tool.site) if isinstance(tool, ToolSite)
+                                        else Tool(body=tool.body, offset=tuple(tool.offset))),
+        joints=None if mapping.joints is None else tuple(mapping.joints),
+        force_limits=None if limits is None else (tuple(limits) if isinstance(limits, tuple) else (limits,)),
+        bandwidth=mapping.servo.bandwidth, damping_ratio=mapping.servo.damping_ratio,
+        gravity_compensation=mapping.gravity_compensation)
+
+
+def _speed_limits(values: tuple[float, ...], arm: DerivedArm, units: Units) -> tuple[float, ...]:
+    """The speed limits in SI, one per joint of the chain."""
+    kinds = arm.chain.kinds
+    if len(values) != len(kinds):
+        raise ArmError("speed_limits", f"expected {len(kinds)} values, one per joint ({', '.join(arm.chain.joints)}), "
+                                       f"got {len(values)}")
+    return tuple(v * units.factor(kind) for v, kind in zip(values, kinds))
+
+
+@cache
+def derived(path: str, arm_options: ArmOptions) -> DerivedArm:
+    """The arm in the model at `path`, derived once per process for the same choices (a sweep's runs share it)."""
+    if arm_options.force_limits is not None and len(arm_options.force_limits) == 1:
+        joints = derive(path, replace(arm_options, force_limits=None)).chain.joints
+        arm_options = replace(arm_options, force_limits=arm_options.force_limits * len(joints))
+    return derive(path, arm_options)
+
+
+@cache
+def _arm(path: str, arm_options: ArmOptions, qd_max: tuple[float, ...]) -> ModelArm:
+    """One Robot per arm and speed limits, so that runs of the same arm share their compiled scene and plant."""
+    return ModelArm(derived(path, arm_options), np.array(qd_max))
