@@ -84,7 +84,9 @@ class SingularSet:
     """One singular set evaluated along a run.
 
     `distance` is normalised: the largest over the set's conditions of |gap| / tolerance, so that a sample with
-    distance <= 1 lies near the set. `gaps` holds each condition's gap in SI units (rad or m).
+    distance <= 1 lies near the set. `gaps` holds each condition's gap in SI units (rad or m). `detail`, where the
+    robot can say more of a sample than its gaps (which direction is lost there), gives the entries of sample i
+    (of this window) that the set's event adds at its closest sample; it is called for those samples alone.
     """
 
     name: str
@@ -92,6 +94,7 @@ class SingularSet:
     condition: str
     distance: Array
     gaps: dict[str, Array]
+    detail: Callable[[int], dict[str, Any]] | None = None
 
 
 class Summary(NamedTuple):

@@ -51,7 +51,8 @@ class Analysis:
 
 
 def _closest(a: tuple, b: tuple) -> tuple:
-    """Of two pieces of a span near a singular set, (distance, sample, gaps) at the closest sample: the first."""
+    """Of two pieces of a span near a singular set, (distance, sample, gaps, detail) at the closest sample: the
+    first."""
     return b if b[0] < a[0] else a
 
 
@@ -174,7 +175,8 @@ class Analyser:
         for spans_of, sset in zip(self.singular, sets):
             def closest(a: int, b: int, sset=sset) -> tuple:
                 i = a + int(np.argmin(sset.distance[a:b + 1]))
-                return float(sset.distance[i]), lo + i, {k: float(v[i]) for k, v in sset.gaps.items()}
+                more = sset.detail(i) if sset.detail is not None else {}
+                return float(sset.distance[i]), lo + i, {k: float(v[i]) for k, v in sset.gaps.items()}, more
             spans_of.add(sset.distance <= 1.0, lo, closest)
 
     def _limits(self, rec: Recording, lo: int) -> None:
@@ -203,9 +205,9 @@ class Analyser:
         series = {name: np.concatenate(parts) if len(parts) > 1 else parts[0] for name, parts in self.kept.items()}
         singular = []
         for spans_of, (name, family, condition) in zip(self.singular, self.sets):
-            for first, last, (distance, i, gaps) in spans_of.finish():
+            for first, last, (distance, i, gaps, more) in spans_of.finish():
                 detail = {"family": family, "condition": condition, "t_closest": float(t[i]), "distance": distance,
-                          "gaps_at_closest": gaps}
+                          "gaps_at_closest": gaps, **more}
                 singular.append(event(t, (first, last), name, detail))
         if self.summariser is not None:
             extra, events = self.summariser.finish()

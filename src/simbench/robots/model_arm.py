@@ -12,7 +12,8 @@ with L the arm's reach (robots.chain.Chain.reach): dividing the position rows by
 at the end of the reach count as a radian does. The singular set `rank_loss` is where Ju loses rank: its gap is
 Ju's least singular value, which near a singularity grows as the joint angle away from it (rad; a joint of an arm
 folded or stretched at the end of its reach, a wrist's axes aligned), so it is near when below the analysis'
-`near_angle`.
+`near_angle`. Its event names, at its closest sample, the twist lost there and the joint motion that moves
+nothing (robots.rank_loss).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 from simbench.api import Array, JointTrajectory, Recording, Robot, SingularSet, Summariser, Summary, Tolerance
 from simbench.plant import register_scene
 from simbench.robots.model_scene import TOOL_SENSOR, TOOL_SITE, DerivedArm
+from simbench.robots.rank_loss import rank_loss_detail, unit_jacobian
 
 
 class ModelArm(Robot):
@@ -72,6 +74,15 @@ class ModelArm(Robot):
         """The tool point (N, 3) in metres at joint values q (N, dof), as MuJoCo places the tool's site."""
         return np.array([data.site(self.tool_site).xpos.copy() for _, data in self._posed(q)])
 
+    @property
+    def reach(self) -> float:
+        """The characteristic length L (m) of the unit-consistent Jacobian: the chain's reach."""
+        return self.arm.chain.reach
+
+    def tool_rotation(self, q: Array) -> Array:
+        """The tool site's orientation (N, 3, 3) in the world at joint values q (N, dof): MuJoCo's site_xmat."""
+        return np.array([data.site(self.tool_site).xmat.reshape(3, 3).copy() for _, data in self._posed(q)])
+
     def jacobian(self, q: Array) -> Array:
         """J = [Jp; Jr] (N, 6, dof) at joint values q (N, dof): mj_jacSite's, at the tool site."""
         out = []
@@ -85,9 +96,7 @@ class ModelArm(Robot):
     def _singular_values(self, q: Array) -> tuple[Array, Array]:
         """The singular values (N, min(6, dof)) of J and of the unit-consistent Ju, largest first."""
         jac = self.jacobian(q)
-        unit = jac.copy()
-        unit[:, :3] /= self.arm.chain.reach
-        return np.linalg.svd(jac, compute_uv=False), np.linalg.svd(unit, compute_uv=False)
+        return np.linalg.svd(jac, compute_uv=False), np.linalg.svd(unit_jacobian(jac, self.reach), compute_uv=False)
 
     def measures(self, rec: Recording) -> dict[str, Array]:
         """sigma_min (SI), manipulability and inverse_condition along the run (the module's docstring)."""
@@ -99,11 +108,13 @@ class ModelArm(Robot):
         return self.singular_sets_from(rec, tol, self.measures(rec))
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
-        """rank_loss: Ju's least singular value, near below tol.angle."""
+        """rank_loss: Ju's least singular value, near below tol.angle; its event says at its closest sample which
+        twist is lost and which joint motion moves nothing there (robots.rank_loss)."""
         gap = measures["sigma_min_unit"]
         return [SingularSet("rank_loss", "Jacobian rank loss",
-                            f"least singular value of [Jp / L; Jr] = 0 (L = {self.arm.chain.reach:.4g} m, the reach)",
-                            gap / tol.angle, {"sigma_min_unit": gap})]
+                            f"least singular value of [Jp / L; Jr] = 0 (L = {self.reach:.4g} m, the reach)",
+                            gap / tol.angle, {"sigma_min_unit": gap},
+                            detail=lambda i: rank_loss_detail(self.jacobian(rec.q[i])[0], self.reach))]
 
     def summary(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
         return self.summariser(traj).whole(traj, rec, series)
