@@ -339,7 +339,7 @@ def _require_reach(task: Task, path: Composite, t: np.ndarray, s: np.ndarray) ->
                        f"[{point[0]:.4f}, {point[1]:.4f}, {point[2]:.4f}] m: its wrist centre cannot be reached")
 
 
-def _waypoints(path: Composite, s: np.ndarray, q_ref: np.ndarray) -> tuple[dict, ...]:
+def segment_waypoints(path: Composite, s: np.ndarray, q_ref: np.ndarray) -> tuple[dict, ...]:
     """Each segment's ends: s, the tool point, and the joints at the control sample at or after it."""
     bounds = path.bounds
     wp_q = q_ref[np.minimum(np.searchsorted(s, bounds), len(s) - 1)]
@@ -351,6 +351,15 @@ def _branch_changes(chosen: Candidate, t: np.ndarray, s: np.ndarray) -> list[dic
     """Where the wrist changes branch through q5 = 0, and to which."""
     flips = np.flatnonzero(np.diff(chosen.flags[:, 2])) + 1
     return [{"t": float(t[k]), "s": float(s[k]), "to": "noflip" if chosen.flags[k, 2] > 0 else "flip"} for k in flips]
+
+
+def join_gap(segments: list) -> tuple[str, str] | None:
+    """(field, what is wrong) of the first path segment that does not start where the one before ends, or None."""
+    for i in range(1, len(segments)):
+        gap = np.linalg.norm(segments[i].point(np.array([0.0]))[0] - segments[i - 1].point(np.array([1.0]))[0])
+        if gap > _JOIN_TOL:
+            return f"task.path[{i}]", f"starts {gap * 1e3:.3f} mm from where task.path[{i - 1}] ends"
+    return None
 
 
 class DecoupledPath(Planner):
@@ -382,16 +391,15 @@ class DecoupledPath(Planner):
             "tool_speed_max": float(speed.max()),
         }
         return JointTrajectory(t=t, s=s, q_ref=chosen.q, qd_ref=chosen.qd, tool_ref=tool_ref,
-                               waypoints=_waypoints(path, s, chosen.q), info=info)
+                               waypoints=segment_waypoints(path, s, chosen.q), info=info)
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
         """Segments must join end to start, and every segment's ends must be within the wrist's reach."""
         task = scenario.task
         segments = [seg.build() for seg in task.path]
-        for i in range(1, len(segments)):
-            gap = np.linalg.norm(segments[i].point(np.array([0.0]))[0] - segments[i - 1].point(np.array([1.0]))[0])
-            if gap > _JOIN_TOL:
-                return f"task.path[{i}]", f"starts {gap * 1e3:.3f} mm from where task.path[{i - 1}] ends"
+        broken = join_gap(segments)
+        if broken is not None:
+            return broken
         bounds = Composite(tuple(segments)).bounds
         for i, seg in enumerate(segments):
             ends = np.array([0.0, 1.0])

@@ -1,0 +1,227 @@
+"""A tool path of lines and arcs for any serial arm whose kinematics simbench can evaluate (an arm derived from its
+model: robots.model_arm), by damped least-squares resolved rates with closed-loop correction.
+
+The task: the joint values `start`, the path (decoupled_path's segments; the first line's start may be left out:
+the tool's point at `start`) on the scenario's time law, and the orientation: `hold` (the tool's orientation at
+`start`), or a goal orientation reached by slerp along the path. At each control sample k, in the
+unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v / L; w], L the reach):
+
+    qd_k = Ju# (x_d + K e_k) + (I - Ju+ Ju) K_N (q_start - q_k)        q_{k+1} = q_k + dt qd_k
+
+  - x_d the path's twist (its tangent times ds/dt; the slerp's axis times its angle times ds/dt), e_k the tool's
+    error at q_k: the point's, and the orientation's 1/2 (n x n_d + s x s_d + a x a_d) (Siciliano et al.,
+    Robotics: Modelling, Planning and Control, 2009, eq. 3.85), the position part divided by L;
+  - closed-loop inverse kinematics with gain K = CLIK_SHARE / dt (ibid., sec. 3.7, eq. 3.70 with the damped
+    inverse): each sample removes CLIK_SHARE of the error left by the one before, so Euler's integration error
+    does not accumulate, and the gain stays under the 1 / dt at which explicit Euler would overshoot;
+  - Ju# = Ju^T (Ju Ju^T + lambda^2 I)^-1, the damped least-squares inverse (ibid., eq. 3.59; Nakamura and
+    Hanafusa, J. Dyn. Sys. Meas. Control 108, 1986, eq. 15), its damping grown as the least singular value
+    sigma_min of Ju falls below EPSILON: lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2), else 0
+    (the variable damping reviewed by Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2),
+    1994, sec. III): exact where the arm is well away from a singularity, bounded joint rates near one, where the
+    tool lags the path along the lost direction instead;
+  - a redundant arm (more than 6 joints) is pulled back to its start posture at rate K_N = NULL_GAIN in the null
+    space of Ju (ibid., eq. 3.54; Ju+ the pseudo-inverse);
+  - where a joint's rate would pass its speed limit, all the rates are scaled down together (ours): the tool keeps
+    its direction and falls behind the time law, which the closed loop then makes up where it can.
+
+The plan is what the integration gives; its joint ranges are checked as every plan's are (the analysis' plan
+limits). Where the plan's own tool leaves the path (the polyline of its points) by more than the scenario's path
+tolerance, or ends farther than its goal tolerance from the path's end (a path out of reach, a singularity
+damped, a tool slowed by the speed limits), the plan reports it (`off_path`, `goal_missed`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from simbench.analysis.path_distance import path_deviation
+from simbench.api import Planner, Violation
+from simbench.paths import Composite, Line
+from simbench.planners.decoupled_path import LineSpec, Segment, join_gap, segment_waypoints
+from simbench.robots.rank_loss import unit_jacobian
+from simbench.rotations import axis_rotation, matrix_to_quat
+from simbench.schema import JointVector, Orientation, Position, SimbenchModel
+from simbench.trajectory import JointTrajectory, control_grid
+
+EPSILON = 0.05  # sigma_min of Ju (about 3 deg from a rank loss) below which the damping grows
+LAMBDA_MAX = 0.05  # the damping at sigma_min = 0: joint rates at most 1 / (2 LAMBDA_MAX) = 10 per unit twist
+CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
+NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
+START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
+_UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
+_NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
+
+
+class OpenLine(LineSpec):
+    """A line; on the path's first segment `start` may be left out: the tool's point at the task's start."""
+
+    start: Position | None = None
+
+    def build_from(self, start: np.ndarray) -> Line:
+        """The path segment, from `start` where the line gives none."""
+        return Line(np.asarray(start if self.start is None else self.start, float), np.array(self.end))
+
+    def _not_a_point(self) -> OpenLine:  # a line without a start is checked against the tool's point (check)
+        return self if self.start is None else super()._not_a_point()
+
+
+class PathSegment(Segment):
+    """One piece of the path: `line: {...}` (its start optional on the first) or `arc: {...}`."""
+
+    line: OpenLine | None = None
+
+    def build_from(self, start: np.ndarray):
+        """The path segment, a line without a start beginning at `start`."""
+        return self.line.build_from(start) if self.line is not None else self.arc.build()
+
+
+class Task(SimbenchModel):
+    """`task:` of cartesian_path: the joints at the start, the tool's path, its orientation along it."""
+
+    start: JointVector
+    path: list[PathSegment] = Field(min_length=1)
+    orientation: Literal["hold"] | Orientation = Field(
+        "hold", description="'hold': the tool's orientation at start, all along; or the orientation it turns to "
+                            "by slerp along the path")
+
+
+def _segments(task: Task, robot) -> list:
+    """The path's segments, the first line from the tool's point at `start` where it names no start."""
+    tool = robot.fk(np.array([task.start]))[0]
+    return [seg.build_from(tool) for seg in task.path]
+
+
+def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """Ju# twist (the module's damped inverse), sigma_min, lambda^2 and the null space's projector I - Ju+ Ju."""
+    u, sv, vt = np.linalg.svd(ju, full_matrices=False)
+    sigma = float(sv[-1])
+    lam2 = LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0
+    rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
+    return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
+
+
+def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """1/2 (n x n_d + s x s_d + a x a_d) (3,) (Siciliano et al. 2009, eq. 3.85): sin(angle) times the axis of the
+    rotation from r to r_goal, world frame."""
+    return 0.5 * np.cross(r.T, r_goal.T).sum(axis=0)
+
+
+def _turn(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """The rotation vector (3,), world frame, of the rotation from r0 to r1 (the slerp's axis times its angle)."""
+    w, *xyz = matrix_to_quat((r1 @ r0.T)[None])[0]
+    sin = np.linalg.norm(xyz)
+    return np.zeros(3) if sin < 1e-12 else 2 * np.arctan2(sin, w) * np.asarray(xyz) / sin
+
+
+class CartesianPath(Planner):
+    """Lines and arcs of the tool for any serial arm: damped least-squares resolved rates, closed loop."""
+
+    name = "cartesian_path"
+    description = ("lines and arcs of the tool for any serial arm (a derived one): damped least-squares resolved "
+                   "rates on the tool's twist, closed loop")
+    task = Task
+
+    def refuses(self, robot) -> str | None:
+        """An arm whose tool orientation, 6-row Jacobian and reach simbench cannot read (the analytic robots)."""
+        lacking = [name for name in _NEEDS if not (robot.has_fk if name == "fk" else hasattr(robot, name))]
+        if lacking:
+            return (f"'{self.name}' needs the robot's {', '.join(lacking)} (an arm derived from its model has them), "
+                    f"which '{robot.name}' has not")
+        return None
+
+    def check(self, scenario, robot) -> tuple[str, str] | None:
+        """Only the first line may leave out its start, a given start must be the tool's point at `start`, and the
+        segments must join."""
+        task = scenario.task
+        for i, seg in enumerate(task.path[1:], 1):
+            if seg.line is not None and seg.line.start is None:
+                return f"task.path[{i}].line.start", "missing: only the first segment may leave out its start"
+        segments = _segments(task, robot)
+        first = task.path[0].line
+        tool = robot.fk(np.array([task.start]))[0]
+        if first is not None and first.start is not None and np.linalg.norm(tool - first.start) > START_TOL:
+            gap = np.linalg.norm(tool - first.start) * 1e3
+            return ("task.path[0].line.start", f"lies {gap:.3f} mm from the tool's point at task.start: leave it "
+                                               "out to start where the tool is")
+        if first is not None and segments[0].length < 1e-9:
+            return "task.path[0].line.end", "is the tool's point at task.start: a zero-length line"
+        return join_gap(segments)
+
+    def plan(self, scenario, robot, dt: float) -> JointTrajectory:
+        """Integrate the damped, closed-loop resolved rates on the control grid (the module's docstring)."""
+        task = scenario.task
+        law = scenario.timing.law_fn()
+        t = control_grid(law.duration, scenario.timing.hold, dt)
+        s, ds = law(t, order=1)
+        path = Composite(tuple(_segments(task, robot)))
+        q0 = np.array(task.start)
+        r0 = robot.tool_rotation(q0[None])[0]
+        turn = _turn(r0, r0 if task.orientation == "hold" else task.orientation.matrix())
+        angle = np.linalg.norm(turn)
+        axis = turn / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
+        points, rotations = path.point(s), axis_rotation(np.tile(axis, (len(s), 1)), s * angle) @ r0
+        twists = np.hstack([path.tangent(s) / robot.reach, turn[None] * np.ones((len(s), 1))]) * ds[:, None]
+        q, qd, sigma, lam2, scale = self._integrate(robot, q0, points, rotations, twists, dt)
+        tool = robot.fk(q)
+        off = path_deviation(points, tool)
+        turned = np.array([np.linalg.norm(orientation_error(a, b)) for a, b in zip(rotations, robot.tool_rotation(q))])
+        info = {"method": "damped least-squares resolved rates on the unit-consistent tool twist, closed loop "
+                          "(Siciliano et al. 2009, eqs. 3.59, 3.70; variable damping: Chiaverini et al. 1994)",
+                "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
+                              "null_gain": NULL_GAIN if robot.dof > 6 else None, "reach": robot.reach},
+                "segments": [("line" if seg.line else "arc") for seg in task.path], "path_length": path.length,
+                "sigma_min_least": float(sigma.min()), "damped_from": _first(t, lam2 > 0),
+                "speed_scaled_from": _first(t, scale < 1), "plan_path_deviation_max": float(off.max()),
+                "plan_goal_error": float(np.linalg.norm(tool[-1] - points[-1])),
+                "plan_orientation_error_max": float(np.arcsin(np.clip(turned.max(), 0.0, 1.0)))}
+        violations = self._off_path(t, off, sigma, scenario.analysis.path_tolerance)
+        if info["plan_goal_error"] > scenario.analysis.goal_tolerance:
+            violations += (Violation("goal_missed", f"the plan's own tool ends {info['plan_goal_error'] * 1e3:.2f} mm "
+                                     f"from the path's end (tolerance {scenario.analysis.goal_tolerance * 1e3:g} mm)",
+                                     float(t[-1]), 0, {"error": info["plan_goal_error"]}),)
+        return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
+                               waypoints=segment_waypoints(path, s, q), info=info, violations=violations)
+
+    @staticmethod
+    def _integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
+                   dt: float) -> tuple[np.ndarray, ...]:
+        """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of the module's integration from q0."""
+        n, gain = len(points), CLIK_SHARE / dt
+        q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.empty(n)
+        scale = np.ones(n)
+        now = q0.copy()
+        for k in range(n):
+            here = now[None]
+            error = np.concatenate([(points[k] - robot.fk(here)[0]) / robot.reach,
+                                    orientation_error(rotations[k], robot.tool_rotation(here)[0])])
+            rates, sigma[k], lam2[k], null = damped_rates(unit_jacobian(robot.jacobian(here)[0], robot.reach),
+                                                          twists[k] + gain * error)
+            if robot.dof > 6:
+                rates += null @ (NULL_GAIN * (q0 - now))
+            scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
+            q[k], qd[k] = now, rates * scale[k]
+            now = now + dt * qd[k]
+        return q, qd, sigma, lam2, scale
+
+    @staticmethod
+    def _off_path(t: np.ndarray, off: np.ndarray, sigma: np.ndarray, tolerance: float) -> tuple[Violation, ...]:
+        """The plan's own tool beyond the path tolerance: from when, how far, and the arm's sigma_min there."""
+        if off.max() <= tolerance:
+            return ()
+        k, worst = int(np.argmax(off > tolerance)), int(np.argmax(off))
+        return (Violation("off_path", f"the plan's own tool leaves the path by up to {off[worst] * 1e3:.2f} mm "
+                          f"(tolerance {tolerance * 1e3:g} mm) from t = {t[k]:.3f} s: damped near a rank loss "
+                          f"(least singular value {sigma[worst]:.3g} there) or out of reach", float(t[k]), 0,
+                          {"worst": float(off[worst]), "sigma_min": float(sigma[worst])}),)
+
+
+def _first(t: np.ndarray, mask: np.ndarray) -> float | None:
+    """The first time where mask holds, or None."""
+    return float(t[np.argmax(mask)]) if mask.any() else None
+
+
+PLANNER = CartesianPath()

@@ -1,0 +1,114 @@
+"""cartesian_path on dm-control's Kinova Jaco, read from its install untouched (issue 35): a line through the CLI ends
+`ok` with the tool on it, a line out past the reach gives a rank_loss event whose lost twist is the line's
+direction, and the plan's tool follows random lines as MuJoCo's own kinematics place it."""
+
+import json
+import os
+
+import dm_control
+import mujoco
+import numpy as np
+import pytest
+
+from simbench.cli import main
+from simbench.planners.cartesian_path import PLANNER
+from simbench.registry import robots
+from simbench.scenario import load_scenario
+
+JACO = os.path.join(os.path.dirname(dm_control.__file__), "third_party", "kinova", "jaco_arm.xml")
+START = [24.4, 133.3, 286.9, -28.9, 70.8, 177.6]  # deg
+TOOL0 = np.array([478.22158345, -163.10697508, 307.57903728])  # mm: the wristsite at START (MuJoCo's)
+OUTWARD = np.array([0.94354045, -0.32513748, 0.06338016])  # from joint_2's anchor to the tool at START
+
+
+def _scenario(folder, end, start=START, duration=4.0, name="line"):
+    """A cartesian_path scenario on the Jaco, in degrees and millimetres: one line from the tool to `end`."""
+    path = folder / f"{name}.yaml"
+    path.write_text(f"""robot:
+  model: {JACO}
+  tool: {{site: wristsite}}
+  speed_limits: [36, 36, 36, 48, 48, 48]
+planner: cartesian_path
+units: {{angle: deg, length: mm}}
+task:
+  start: {[float(v) for v in start]}
+  path:
+    - line: {{end: {[float(v) for v in end]}}}
+timing: {{duration: {duration}, hold: 0.3}}
+render: {{width: 96, height: 64, fps: 5}}
+""")
+    return path
+
+
+def _segment_distance(points, a, b):
+    """Distance of each point (N, 3) from the segment a-b."""
+    u = b - a
+    s = np.clip((points - a) @ u / (u @ u), 0.0, 1.0)
+    return np.linalg.norm(points - (a + s[:, None] * u), axis=1)
+
+
+def test_a_350_mm_line_ends_ok_with_the_tool_on_it(tmp_path, capsys):
+    end = TOOL0 + [0.0, 350.0, 0.0]
+    assert main(["run", str(_scenario(tmp_path, end)), "--out", str(tmp_path / "out")]) == 0
+    assert "status: ok" in capsys.readouterr().out
+    tool = np.load(tmp_path / "out" / "timeseries.npz")["tool"]
+    deviation = _segment_distance(tool, TOOL0 / 1e3, end / 1e3)
+    assert deviation.max() < 0.5e-3  # measured: 0.116 mm
+    assert np.linalg.norm(tool[-1] - end / 1e3) < 1e-3
+
+
+def test_a_line_past_the_reach_loses_the_twist_along_it(tmp_path, capsys):
+    end = TOOL0 + 400.0 * OUTWARD  # from 506 mm of joint_2 to 906: past the stretched arm
+    main(["run", str(_scenario(tmp_path, end, name="outward")), "--out", str(tmp_path / "out")])
+    assert "goal_missed" in capsys.readouterr().out
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    (event,) = [e for e in report["singularity_events"] if e["kind"] == "rank_loss"]
+    detail = event["detail"]
+    lost = np.array(detail["lost_twist"])
+    assert np.linalg.norm(lost) == pytest.approx(1.0) and np.linalg.norm(detail["null_motion"]) == pytest.approx(1.0)
+    angle = np.degrees(np.arccos(abs(lost[:3] @ OUTWARD) / np.linalg.norm(lost[:3])))
+    assert angle < 10.0  # measured: 0.6 deg
+    assert detail["named"] == "elbow" and detail["sigma_min"] < np.deg2rad(2.0)
+    assert detail["t_closest"] >= event["t_start"]
+    assert report["plan"]["damped_from"] is not None
+
+
+def test_the_plan_follows_random_lines_by_mujocos_own_kinematics(tmp_path):
+    model = mujoco.MjModel.from_xml_path(JACO)
+    data = mujoco.MjData(model)
+    robot = load_scenario(_scenario(tmp_path, TOOL0 + [0, 50, 0])).robot_def
+    rng = np.random.default_rng(7)
+    checked = 0
+    while checked < 12:
+        q0 = np.rad2deg(rng.uniform(np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi)))
+        start = robot.fk(np.deg2rad(q0)[None])[0] * 1e3
+        direction = rng.normal(size=3)
+        end = start + 100.0 * direction / np.linalg.norm(direction)
+        scenario = load_scenario(_scenario(tmp_path, end, start=q0.round(6), duration=2.0, name=f"r{checked}"))
+        plan = PLANNER.plan(scenario, scenario.robot_def, 0.002)
+        if plan.info["damped_from"] is not None or plan.info["speed_scaled_from"] is not None:
+            continue  # not within the well-conditioned reach: no promise of exactness there
+        tool, turned = [], []
+        for row in plan.q_ref[::10]:
+            data.qpos[:] = row
+            mujoco.mj_kinematics(model, data)
+            tool.append(data.site("wristsite").xpos.copy())
+            turned.append(data.site("wristsite").xmat.reshape(3, 3))
+        first = turned[0]
+        assert _segment_distance(np.array(tool), start / 1e3, end / 1e3).max() < 1e-5
+        assert max(np.linalg.norm(r - first) for r in turned) < 1e-4
+        assert np.linalg.norm(tool[-1] - end / 1e3) < 1e-5
+        checked += 1
+
+
+def test_an_arm_without_a_tool_orientation_is_refused():
+    why = PLANNER.refuses(robots()["planar3r"])
+    assert "tool_rotation" in why and "reach" in why
+
+
+def test_a_later_line_without_a_start_is_bad_input(tmp_path, capsys):
+    path = _scenario(tmp_path, TOOL0 + [0, 50, 0])
+    path.write_text(path.read_text().replace("timing:", "    - line: {end: [478, -100, 300]}\ntiming:"))
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and str(path) in err and "task.path[1].line.start" in err
