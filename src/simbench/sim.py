@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from simbench import heap, pages
+from simbench import pages
 from simbench.api import Commands, Controller
 from simbench.controllers import Servo
 from simbench.errors import ControlError, PhysicsError, RunError
@@ -283,8 +283,6 @@ class _Stream:
             self.run.rows.drop(hi)
             self.lo = hi
             self._let_plan_go()
-            if len(self.run.rows.q) >= heap.TRIM_SAMPLES:
-                heap.trim()  # the window's analysis' temporaries, freed into the heap
 
     def _let_plan_go(self) -> None:
         """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the run (whose controller
