@@ -1,18 +1,21 @@
 """What a run holds once it has simulated, and the analysis done a chunk of samples at a time to keep a long run's
 temporaries small: the same numbers as computed whole (benchmarks/bench_soak.py measures the peak memory)."""
 
+import tracemalloc
+
 import numpy as np
 import yaml
 from conftest import scenario_file
+from test_sim import planned, shipped
 
 import simbench
-from simbench import sim
+from simbench import analysis, sim, windowed
 from simbench.errors import RunError
 from simbench.planners.round_robin import paths
 from simbench.planners.round_robin.paths import Orientations
 from simbench.plant import Plant
 from simbench.robots import rsmg as S
-from simbench.robots import rsmg_outputs
+from simbench.robots import Tolerance, rsmg_outputs
 from simbench.rotations import quat_to_matrix, rotation_angle
 from simbench.scenario import parse_scenario
 
@@ -131,3 +134,30 @@ def test_the_rotor_and_closure_errors_are_each_samples_own_however_the_samples_a
         got_error, got_closure = rsmg_outputs._rotor_errors(traj, rec, engaged, np.zeros((S.ARMS, 3)),
                                                                np.zeros(S.ARMS, bool))
         assert np.array_equal(got_error, error) and np.array_equal(got_closure, closure)
+
+
+def _streamed_peak(duration: float, every: int) -> tuple[int, int]:
+    """tracemalloc's peak of simulating the spherical arm's case1 for `duration` s at stride `every`, analysed as it
+    is simulated (its plan made before), and its samples."""
+    scenario = shipped("spherical_arm", "case1", duration=duration)
+    plant, traj = planned(scenario)
+    a = scenario.analysis
+    analyser = analysis.Analyser(scenario.robot_def, traj, Tolerance(a.near_angle, a.near_length),
+                                 Tolerance(a.limit_angle, a.limit_length))
+    tracemalloc.start()
+    try:
+        sim.simulate(plant, traj, record_every=every, revise_in_place=True, analyser=analyser)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    return peak, traj.t.size
+
+
+def test_a_long_strided_run_holds_every_steps_readings_a_window_at_a_time():
+    """A run analysed as it is simulated holds every step's sensors, joint positions and constraints in buffers of a
+    window's size (simbench.buffers): its peak memory grows with the samples by what it keeps of them (the kept
+    rows, the analysis' series at them), less than a sensor row a sample, where whole-run arrays would take more."""
+    (short, n_short), (long, n_long) = (_streamed_peak(duration, 20) for duration in (40.0, 160.0))
+    assert n_long - n_short > 3 * windowed.WINDOW
+    sensor_row = 8 * Plant.load(shipped("spherical_arm", "case1").robot_def).model.nsensordata
+    assert (long - short) / (n_long - n_short) < sensor_row, (short, long, sensor_row)

@@ -144,8 +144,9 @@ def _windows_of_a_block(monkeypatch, dt: float) -> int:
 @pytest.mark.parametrize("robot, name, k", [("rsmg", "three_turns", 10), ("agile_eye", "through_singularity", 9),
                                             ("spherical_arm", "case2", 7), ("puma600", "wrist_singularity", 4)])
 def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch, peak_speed, robot, name, k):
-    """A strided run is analysed while it is simulated, a window at a time, and each window's every-step arrays
-    are handed back after it (pages.release: every sample once, in order): its evaluation is the stride-1 run's
+    """A strided run is analysed while it is simulated, a window at a time, and each window's every-step rows
+    are let go after it (Rows.drop: every sample once, in order), and the plan's rows it has passed handed back
+    (pages.release): its evaluation is the stride-1 run's
     (simulated whole and analysed after, in the same windows) at the kept rows, bit for bit, with the same
     figures, events (re-grips, reference jumps and their cost, spans cut by windows) and verdict; an outside
     metric's figures (conftest.PEAK_SPEED: the joints' speeds, recorded at the kept rows) are the stride-1
@@ -153,19 +154,18 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
     whole = simbench.evaluate(_strided(robot, name, 1))
     window = _windows_of_a_block(monkeypatch, whole.trajectory.dt)
     whole = simbench.evaluate(_strided(robot, name, 1))
-    released, windows = [], []
-    release, add = pages.release, analysis.Analyser.add
-    monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((sys._getframe(1).f_code.co_name, a.shape,
-                                                                            lo, hi)), release(a, lo, hi)))
+    dropped, released, windows = [], [], []
+    drop, release, add = stepping.Rows.drop, pages.release, analysis.Analyser.add
+    monkeypatch.setattr(stepping.Rows, "drop", lambda self, samples: (dropped.append(samples), drop(self, samples)))
+    monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((a.shape, hi)), release(a, lo, hi)))
     monkeypatch.setattr(analysis.Analyser, "add", lambda self, rec: (windows.append(
         (self.samples, rec.kept, rec.ctrl.copy(), rec.qpos.copy())), add(self, rec)))
     thin = simbench.evaluate(_strided(robot, name, k))
     n = whole.recording.t.size
     assert n > window and thin.analysis.samples == n  # two windows at least
-    q_windows = [(lo, hi) for who, shape, lo, hi in released if who == "feed" and shape == whole.recording.q.shape]
-    assert q_windows == [(lo, min(lo + window, n)) for lo in range(0, n, window)]
+    assert dropped == [min(lo + window, n) for lo in range(0, n, window)]
     # the plan's rows go from the first on, up to the block before the last window's (the path search's stretch)
-    plan = [hi for who, shape, lo, hi in released if who == "_let_plan_go" and shape == whole.trajectory.q_ref.shape]
+    plan = [hi for shape, hi in released if shape == whole.trajectory.q_ref.shape]
     assert plan == sorted(plan) and plan[-1] >= n - 1 - (n - 1) % window - 3 * window
     for lo, kept, ctrl, qpos in windows:  # each window's commands and states at its kept rows, as Recording.rows
         assert np.array_equal(ctrl, whole.recording.ctrl[lo + kept])
@@ -223,9 +223,9 @@ def test_the_outputs_of_a_run_simulated_strided_and_analysed_after_are_at_its_ke
 
 
 def test_a_closed_loop_run_whose_last_window_is_its_last_sample_keeps_its_last_command():
-    """A closed loop at stride 20 whose last window holds only the run's last sample (48,001 samples, settle 0),
-    its commands ending on a page edge: the last sample's command (the step before's, repeated) is kept, as the
-    stride-1 run has it, though that step's window was handed back (it read zeros)."""
+    """A closed loop at stride 20 whose last window holds only the run's last sample (48,001 samples, settle 0):
+    the last sample's command (the step before's, repeated) is kept, as the stride-1 run has it, though the rows
+    of that step's window were let go (Rows.drop)."""
     raw = yaml.safe_load(scenario_file("spherical_arm", "case1").read_text())
     raw["timing"] = {**raw["timing"], "duration": 47.5, "hold": 0.5}
     raw["control"] = {"controller": "computed_torque"}
@@ -235,7 +235,7 @@ def test_a_closed_loop_run_whose_last_window_is_its_last_sample_keeps_its_last_c
         runs[k] = simbench.evaluate(parse_scenario(raw, "case1", default_name="case1"))
     n = runs[1].recording.t.size
     window = windowed.window_size(runs[1].trajectory.dt, n)
-    assert (n - 1) % window == 0 and (n - 1) * runs[1].recording.ctrl.shape[1] % 512 == 0  # a page edge
+    assert (n - 1) % window == 0
     assert runs[1].recording.ctrl[-1].any()
     _same_at_the_kept_rows(runs[20], runs[1], 20)
 

@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from simbench import budget, destination, heap
+from simbench import budget, destination
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError, ScenarioError
@@ -119,7 +119,6 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
                            controller.actuation)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
-        heap.give_back(len(traj.t))
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
     # A run with a recording stride is analysed as it is simulated, where the robot's summary comes a window at a
@@ -133,7 +132,6 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
         traj = commanded(traj, rec) if analyser is None else replace(traj, feedback=None)  # the feedback is spent
         control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
         del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them
-        heap.give_back(len(traj.t))
     if analyser is not None:
         watch.move(analyser.seconds, "simulate", "analyse")
     with watch.stage("analyse"):

@@ -9,7 +9,9 @@ into segments and are applied between them; a plan with feedback (the RSMG's arm
 then revise the references still to come.
 
 With a recording stride, a run may be analysed as it is simulated (simulate's analyser): each window of samples
-is handed to the analysis once its readings are in, and then let go but for its kept rows (simbench.pages).
+is handed to the analysis once its readings are in, and then let go but for its kept rows, every step's readings
+being held a window and a chunk of steps at a time (simbench.buffers), and the plan's rows the run has passed
+handed back where its planner put them on pages of their own (simbench.pages).
 
 The physics is checked as it runs (simbench.faults): the run stops at the first step at fault with a
 PhysicsError that carries the recording up to the last sound state (ControlError for a controller's bad
@@ -27,7 +29,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from simbench import heap, pages
+from simbench import pages
 from simbench.api import Commands, Controller
 from simbench.controllers import Servo
 from simbench.errors import ControlError, PhysicsError, RunError
@@ -58,12 +60,12 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
 
     With an `analyser` (simbench.analysis.Analyser, whose robot's summary comes a window at a time), the run is
     analysed as it is simulated, a window of samples at a time, and each window's samples are let go once its
-    kept rows are copied out (simbench.pages): a long run with a recording stride then holds about a window of
-    every step's readings, not all of them. Its Recording, and a PhysicsError's, hold the kept rows only
+    kept rows are copied out: a long run with a recording stride then holds a window and a chunk of every step's
+    readings (simbench.buffers), not all of them. Its Recording, and a PhysicsError's, hold the kept rows only
     (Recording.thinned's); the plan's feedback, if any, must revise in place, so that the analysis reads the
     references as commanded. The plan is then the run's to use up: where its arrays are on pages of their own
-    (pages.releasable) the rows the run has passed are handed back too, and read as zeros after it; the plan at
-    the kept rows is the analyser's (Analyser.plan)."""
+    (pages.releasable) the rows the run has passed are handed back, and read as zeros after it; the plan at the
+    kept rows is the analyser's (Analyser.plan)."""
     if analyser is not None and not (record_every > 1 and analyser.streams):
         raise ValueError("a run is analysed as it is simulated with a recording stride (record_every > 1) and a "
                          "robot whose summary comes a window at a time (Robot.streams)")
@@ -138,15 +140,13 @@ class _Run:
         slices = state_slices(self.model)
         q_columns = slices["mjSTATE_QPOS"].start + plant.qpos_adr
         self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state,
-                               controls=self.ctrl is None, releasable=analyser is not None,
+                               controls=self.ctrl is None, window=None if analyser is None else analyser.window,
                                qd_columns=slices["mjSTATE_QVEL"].start + plant.dof_adr)
         self.stepper: OpenLoop | ClosedLoop
         if self.ctrl is not None:
             self.stepper = OpenLoop(self.model, self.ctrl)
         else:
             self.stepper = ClosedLoop(plant, controller)
-        # eq_active[r]: the constraints in force from row r's time on (after the switches at that step).
-        self.eq_active = (pages.releasable if analyser is not None else np.empty)((traj.t.size, self.model.neq), bool)
         self.warnings: list[dict] = []
         self.references = Revisions(traj, in_place)
         self.stream = None if analyser is None else _Stream(self, analyser)
@@ -174,13 +174,12 @@ class _Run:
                   leave=False) as bar:
             try:
                 for stop in bounds:
-                    self.eq_active[max(done - n_settle, 0):stop - n_settle] = self.data.eq_active
                     self.warnings += self.stepper.run(self.model, self.data, self.rows, done, stop, bar, after)
                     self._switch(stop - n_settle)
                     done = stop
             except Fault as fault:
                 raise self._failure(fault) from None
-            self.eq_active[-1] = self.data.eq_active
+            self.rows.eq_active[-1] = self.data.eq_active
             mujoco.mj_forward(self.model, self.data)
         self.rows.sensors[-1] = self.data.sensordata
         if self.stream is not None:
@@ -220,28 +219,35 @@ class _Run:
         partial = self._record(self.rows.sensors[self.rows.n_settle:self.rows.n_settle + rows])
         return error(when, fault.cause, commanded(self.traj, partial), partial)
 
-    def _record(self, readings: np.ndarray, commands: bool = True) -> Recording:
+    def _record(self, readings: np.ndarray) -> Recording:
         """The Recording of the first len(readings) samples. Row 0 is the state at the end of settling (the
         start state itself when there is no settling); row r > 0 is the state after step r - 1. MuJoCo computes
-        sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state.
-        Without `commands`, its ctrl is empty and its times are the plan's own (the views an analysis reads while
-        the run goes on: a closed loop's commands would be copied)."""
+        sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state."""
         rows = len(readings)
         kept = self.rows.kept[self.rows.kept < rows]
-        ctrl = self._commands(slice(0, rows) if self.every == 1 else kept) if commands else np.zeros((0, self.model.nu))
-        t = self.traj.t[:rows]
-        return self._recording(t.copy() if commands else t, readings, self.rows.q[:rows], self.eq_active[:rows], ctrl,
-                               len(kept), kept=None if self.every == 1 else kept, **self.references.recorded())
+        ctrl = self._commands(slice(0, rows) if self.every == 1 else kept)
+        return self._recording(self.traj.t[:rows].copy(), readings, self.rows.q[:rows], self.rows.eq_active[:rows],
+                               ctrl, slice(0, len(kept)), kept=None if self.every == 1 else kept,
+                               qd_peak=self.rows.qd_peak.copy(), **self.references.recorded())
+
+    def _window(self, lo: int, hi: int) -> Recording:
+        """The Recording of samples lo..hi-1 as Recording.rows gives it (views of the rows held, the kept rows'
+        states and commands, `kept` counted from lo): what a run analysed as it is simulated hands its analyser."""
+        rows = self.rows
+        stored = slice(*np.searchsorted(rows.kept, [lo, hi]))
+        kept = rows.kept[stored]
+        return self._recording(self.traj.t[lo:hi], rows.sensors[rows.n_settle + lo:rows.n_settle + hi],
+                               rows.q[lo:hi], rows.eq_active[lo:hi], self._commands(kept), stored, kept=kept - lo)
 
     def _recording(self, t: np.ndarray, readings: np.ndarray, q: np.ndarray, eq_active: np.ndarray,
-                   ctrl: np.ndarray, n_kept: int, **more) -> Recording:
-        """A Recording of readings, joint positions and constraints in force at the times t, the first n_kept
-        kept rows' full states (qpos, qd) and commands ctrl; `more`: Recording's other fields."""
-        states = self.rows.states[:n_kept]
+                   ctrl: np.ndarray, stored: slice, **more) -> Recording:
+        """A Recording of readings, joint positions and constraints in force at the times t, the full states
+        (qpos, qd) of the kept rows `stored` (a slice of Rows.states) and their commands ctrl; `more`: Recording's
+        other fields."""
+        states = self.rows.states[stored]
         sl = state_slices(self.model)
         return recording(self.plant, self.model, t, readings, q, states[:, sl["mjSTATE_QPOS"]],
-                         states[:, sl["mjSTATE_QVEL"]], eq_active, ctrl, self.warnings,
-                         qd_peak=self.rows.qd_peak.copy(), **more)
+                         states[:, sl["mjSTATE_QVEL"]], eq_active, ctrl, self.warnings, **more)
 
     def _commands(self, k: slice | np.ndarray) -> np.ndarray:
         """The commands of samples k (a slice from sample 0, or sample numbers): an open-loop controller's own; a
@@ -255,9 +261,9 @@ class _Run:
 
 
 class _Stream:
-    """A run's samples handed to an Analyser a window of samples at a time as they are simulated, then let go:
-    the kept rows of every step's arrays (sensors, joint positions, the constraints in force, a closed loop's
-    commands) copied out, then their pages handed back (simbench.pages)."""
+    """A run's samples handed to an Analyser a window of samples at a time as they are simulated: each window's
+    kept rows copied out (the rows of every step's sensors, joint positions, constraints in force and a closed
+    loop's commands), then its rows let go (Rows.drop)."""
 
     def __init__(self, run: _Run, analyser: Analyser):
         self.run, self.analyser, self.window = run, analyser, analyser.window
@@ -265,30 +271,18 @@ class _Stream:
         kept = len(rows.kept)
         self.lo, self.copied = 0, 0  # the first sample not analysed; the kept rows copied out
         self.sensors, self.q = np.empty((kept, rows.sensors.shape[1])), np.empty((kept, rows.q.shape[1]))
-        self.eq_active = np.empty((kept, run.eq_active.shape[1]), bool)
-        self.controls = np.empty((kept, run.model.nu))  # the commands at the kept rows (the plan's rows go too)
-        self.every = run._record(rows.sensors[rows.n_settle:], commands=False)  # views of every sample
+        self.eq_active = np.empty((kept, rows.eq_active.shape[1]), bool)
+        self.controls = np.empty((kept, run.model.nu))  # the commands at the kept rows
 
     def feed(self, done: int, last: bool = False) -> None:
         """Analyse the whole windows among the first `done` samples (with `last`, the rest too), then let them go."""
         while self.lo + self.window <= done or (last and self.lo < done):
             hi = min(self.lo + self.window, done)
-            rows = self.run.rows
-            k0, k1 = np.searchsorted(rows.kept, [self.lo, hi])  # the window's kept rows: their states' rows
-            # qd read now: `every`'s is a copy (its joints' columns picked out) of the states before the run
-            qd = rows.states[k0:k1][:, rows.qd_columns]
-            self.analyser.add(replace(self.every.rows(self.lo, hi), ctrl=self.run._commands(rows.kept[k0:k1]), qd=qd))
+            self.analyser.add(self.run._window(self.lo, hi))
             self._copy(hi)
-            settle = rows.n_settle
-            first = 0 if self.lo == 0 else settle + self.lo  # the settling steps' readings go with the first window
-            # a closed loop's last command stays: the run's last sample, maybe the next window's only, repeats it
-            for array, a, b in ((rows.sensors, first, settle + hi), (rows.controls, first, settle + hi - 1),
-                                (rows.q, self.lo, hi), (self.run.eq_active, self.lo, hi)):
-                pages.release(array, a, b)
+            self.run.rows.drop(hi)
             self.lo = hi
             self._let_plan_go()
-            if len(rows.q) >= heap.TRIM_SAMPLES:
-                heap.trim()  # the window's analysis' temporaries, freed into the heap
 
     def _let_plan_go(self) -> None:
         """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the run (whose controller
@@ -315,7 +309,7 @@ class _Stream:
         k = rows.kept[self.copied:stop]
         self.sensors[self.copied:stop] = rows.sensors[settle + k]
         self.q[self.copied:stop] = rows.q[k]
-        self.eq_active[self.copied:stop] = self.run.eq_active[k]
+        self.eq_active[self.copied:stop] = rows.eq_active[k]
         self.controls[self.copied:stop] = self.run._commands(k)
         self.copied = stop
 
@@ -323,9 +317,8 @@ class _Stream:
         """The kept rows of the first `done` samples (all simulated), as Recording.thinned gives them."""
         self._copy(done)
         run, m = self.run, self.copied
-        kept = run.rows.kept[:m]
-        return run._recording(run.traj.t[kept], self.sensors[:m], self.q[:m], self.eq_active[:m], self.controls[:m],
-                              m)
+        return run._recording(run.traj.t[run.rows.kept[:m]], self.sensors[:m], self.q[:m], self.eq_active[:m],
+                              self.controls[:m], slice(0, m), qd_peak=run.rows.qd_peak.copy())
 
 
 def _columns(index: np.ndarray) -> slice | np.ndarray:

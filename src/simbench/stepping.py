@@ -24,8 +24,9 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from simbench import interrupts, pages
+from simbench import interrupts
 from simbench.api import Commands, Controller, State
+from simbench.buffers import WindowBuffer
 from simbench.errors import RunError, described
 from simbench.faults import (FATAL, MAX_SPEED, Fault, clear_warnings, fatal_cause, step_fault, unsound,
                              warnings_raised)
@@ -40,15 +41,18 @@ class Rows:
     """A run's steps as recorded: the sensors MuJoCo computed during each step (n + 1, nsensordata; the last row
     is the final state's) and the command that drove it (n, nu; none where an open-loop controller's own array
     holds them), n_settle of them settling before the plan's first sample; and for each recorded row (row r is
-    the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, and its
-    full physics state where the row is one of `kept`.
+    the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, the
+    constraints in force from it on (during step n_settle + r), and its full physics state where the row is one
+    of `kept`.
     The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a long run with a
-    recording stride never holds every step's state. `qd_peak`: each joint's largest speed |qd| (at `qd_columns` of
-    the state) over every recorded row so far, kept or not."""
+    recording stride never holds every step's state; a run analysed as it is simulated holds every step's
+    sensors, commands, q and constraints a window at a time too (simbench.buffers: `drop`). `qd_peak`: each
+    joint's largest speed |qd| (at `qd_columns` of the state) over every recorded row so far, kept or not."""
 
-    sensors: np.ndarray
-    controls: np.ndarray  # (n, nu), or (0, nu) where the commands are not kept here
-    q: np.ndarray  # (rows, dof): every recorded row's joint positions
+    sensors: np.ndarray | WindowBuffer
+    controls: np.ndarray | WindowBuffer  # (n, nu), or (0, nu) where the commands are not kept here
+    q: np.ndarray | WindowBuffer  # (rows, dof): every recorded row's joint positions
+    eq_active: np.ndarray | WindowBuffer  # (rows, neq): the constraints in force from each row on
     states: np.ndarray  # (len(kept), nstate): the full state of the kept rows
     kept: np.ndarray  # the recorded rows whose full state is kept, ascending
     q_columns: np.ndarray  # where the joint positions sit in a full state vector
@@ -61,33 +65,45 @@ class Rows:
     @classmethod
     def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int, every: int = 1,
               q_columns: np.ndarray | None = None, start: np.ndarray | None = None, controls: bool = True,
-              releasable: bool = False, qd_columns: np.ndarray | None = None) -> "Rows":
+              window: int | None = None, qd_columns: np.ndarray | None = None) -> "Rows":
         """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
         (kept_rows), the joint positions at `q_columns` of the state and their speeds at `qd_columns` (none by
         default); `start`: row 0's state when there is no settling. `controls`: whether the rows keep every
         step's command (not where an open-loop controller's array has them all: a second (n, nu) copy, 37 MB on
         the ten-minute soak).
-        `releasable`: every step's sensors, commands and joint positions on pages that can be handed back once
-        read (simbench.pages: a run analysed as it is simulated)."""
+        `window`: every step's sensors, commands, joint positions and constraints held for a window of this many
+        samples and a chunk of steps only (WindowBuffer: a run analysed as it is simulated, which `drop`s the
+        rows of each window analysed); None: for every step."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
         q_columns = np.zeros(0, int) if q_columns is None else q_columns
         qd_columns = np.zeros(0, int) if qd_columns is None else qd_columns
         kept = kept_rows(n_track + 1, every)
-        empty = pages.releasable if releasable else np.empty
-        rows = cls(sensors=empty((n + 1, model.nsensordata)), controls=empty((n if controls else 0, model.nu)),
-                   q=empty((n_track + 1, len(q_columns))), states=np.empty((len(kept), nstate)), kept=kept,
+        scratch = min(CHUNK, max(n, 1))
+
+        def empty(length: int, width: int, dtype=float) -> np.ndarray | WindowBuffer:
+            if window is None:
+                return np.empty((length, width), dtype)
+            # the settling steps and the samples not yet analysed (fewer than a window), then a chunk of steps
+            return WindowBuffer(length, n_settle + window + scratch + 1, (width,), dtype)
+
+        rows = cls(sensors=empty(n + 1, model.nsensordata), controls=empty(n if controls else 0, model.nu),
+                   q=empty(n_track + 1, len(q_columns)), eq_active=empty(n_track + 1, model.neq, bool),
+                   states=np.empty((len(kept), nstate)), kept=kept,
                    q_columns=q_columns, qd_columns=qd_columns, qd_peak=np.zeros(len(qd_columns)),
-                   scratch=np.empty((min(CHUNK, max(n, 1)), nstate)), n_settle=n_settle,
+                   scratch=np.empty((scratch, nstate)), n_settle=n_settle,
                    t0=n_settle * model.opt.timestep)
         if start is not None:
             rows.q[0], rows.states[0], rows.qd_peak[:] = start[q_columns], start, np.abs(start[qd_columns])
         return rows
 
-    def keep(self, first: int, stop: int) -> None:
-        """Record steps first..stop-1, whose states are scratch[:stop - first]: every row's q and its speeds'
-        peak, the kept rows' state."""
+    def keep(self, first: int, stop: int, eq_active: np.ndarray) -> None:
+        """Record steps first..stop-1, whose states are scratch[:stop - first], taken with the constraints
+        `eq_active` in force: every row's q and its speeds' peak, the kept rows' state, and the constraints in
+        force from each row on (those of the steps, and of the next step for the row they end at: a switch
+        there, applied between the steppers' calls, rewrites that row's as it steps on)."""
         skip = max(self.n_settle - 1 - first, 0)  # settling steps: no row
         lo, hi = first + skip - self.n_settle + 1, stop - self.n_settle + 1  # their rows, lo..hi-1
+        self.eq_active[max(first - self.n_settle, 0):hi] = eq_active
         if lo >= hi:
             return
         chunk = self.scratch[skip:stop - first]
@@ -99,6 +115,14 @@ class Rows:
         slot = np.minimum(np.searchsorted(self.kept, np.arange(lo, hi)), len(self.kept) - 1)
         hit = self.kept[slot] == np.arange(lo, hi)
         self.states[slot[hit]] = chunk[hit]
+
+    def drop(self, samples: int) -> None:
+        """Let every step's rows of the first `samples` samples go (rows made with a `window`), the settling
+        steps' with them, but for the last command: a closed loop's last sample, which no step follows, repeats
+        it (sim._Run._commands)."""
+        for rows, upto in ((self.sensors, self.n_settle + samples), (self.controls, self.n_settle + samples - 1),
+                           (self.q, samples), (self.eq_active, samples)):
+            rows.drop(upto)
 
 
 def kept_rows(n: int, every: int) -> np.ndarray:
@@ -160,15 +184,15 @@ class OpenLoop:
             try:
                 rollout.rollout(model, data, self.state[None], controls[None], control_spec=ctrl_spec,
                                 initial_warmstart=warmstart[None], state=rows.scratch[None, :end - k],
-                                sensordata=rows.sensors[None, k:end])
+                                sensordata=rows.sensors[k:end][None])
                 stopped = False
             except mujoco.FatalError:  # MuJoCo gave up (out of arena memory): found again when replayed
                 stopped = True
             if stopped or self._went_wrong(model, data, rows.scratch[:end - k]):
                 step, cause = _locate(model, data, self.state, warmstart, controls)
-                rows.keep(k, k + step)  # the steps before the one at fault
+                rows.keep(k, k + step, data.eq_active)  # the steps before the one at fault
                 raise Fault(k + step, cause)
-            rows.keep(k, end)
+            rows.keep(k, end, data.eq_active)
             found += warning_rows(data, rows.t0)
             if progress is not None:
                 progress.update(end - k)
@@ -221,11 +245,11 @@ class ClosedLoop:
             for base in range(first, stop, size):  # a scratch's worth of steps at a time
                 end = min(base + size, stop)
                 found += self._steps(model, data, rows, base, end, progress)
-                rows.keep(base, end)
+                rows.keep(base, end, data.eq_active)
                 if after is not None:
                     after(end)
         except Fault as fault:
-            rows.keep(base, fault.step)  # the steps before the one at fault
+            rows.keep(base, fault.step, data.eq_active)  # the steps before the one at fault
             raise
         return found
 

@@ -42,13 +42,12 @@ class RoundRobin(Planner):
         # The search's caches (general contacts': up to 80 MB) go before the per-sample arrays come: the arms' paths
         # read their IK again, a few MB, the same numbers.
         sched.contacts.forget()
-        heap.give_back(len(t))
         s = law(t, order=0)[0]
         q_ref = joint_paths(t, sched)
         switches = grip_switches(sched.holds, sched.grid, sched.contacts)
         holds, grid, count = sched.holds, sched.grid, sched.contacts.count
         del sched  # the contacts and the rotor's axes on the schedule grid go before the references that remain come
-        heap.give_back(len(t))
+        heap.give_back(len(t))  # with the search's caches: freed, they stay in the C heap (simbench.heap)
         engaged = engaged_arms(t, holds, grid)
         feedback = RegripFeedback(task.motion, s, q_ref, holds, grid, dt, round(task.swing_time / dt)) \
             if task.regrip_feedback else None
