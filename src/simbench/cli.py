@@ -52,9 +52,9 @@ def _parser() -> argparse.ArgumentParser:
     validate.add_argument("scenarios", type=Path, nargs="+")
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
     sub.add_parser("list", help="list robots, planners, controllers, policies, metrics and shipped scenarios")
-    inspect = sub.add_parser("inspect", help="print the arm simbench derives from an MJCF model, a robot file or a "
-                                             "scenario's robot mapping")
-    inspect.add_argument("model", type=Path, help="an MJCF (.xml), a robot file or a scenario (.yaml)")
+    inspect = sub.add_parser("inspect", help="print the arm simbench derives from an MJCF or URDF model, a robot "
+                                             "file or a scenario's robot mapping")
+    inspect.add_argument("model", type=Path, help="an MJCF (.xml), a URDF, a robot file or a scenario (.yaml)")
     reproduce = sub.add_parser("reproduce", help="regenerate a paper's published results beside simbench's")
     reproduce.add_argument("paper", choices=["000", "001", "002", "003", "all"])
     reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",

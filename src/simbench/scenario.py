@@ -4,7 +4,7 @@ A scenario is a YAML mapping:
 
     name: case1                      # optional: the file's stem; names the output folder
     description: ...
-    robot: spherical_arm             # a registered robot, or an arm from its MJCF (robots.robot_mapping)
+    robot: spherical_arm             # a registered robot, or an arm from its MJCF or URDF (robots.robot_mapping)
     planner: safe_straight_path
     units: {angle: deg, length: mm}  # how this file writes angles and lengths (default rad, m)
     task:                            # the planner's own fields

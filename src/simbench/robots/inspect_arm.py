@@ -15,10 +15,10 @@ from simbench.validation import read_yaml
 
 
 def inspect(path: Path) -> str:
-    """The derived arm of an MJCF file (its default tool, no speed limits), of a robot file, or of a scenario's
-    robot mapping; ScenarioError for anything else."""
+    """The derived arm of an MJCF or URDF file (its default tool, no speed limits), of a robot file, or of a
+    scenario's robot mapping; ScenarioError for anything else."""
     source = str(path)
-    if path.suffix.lower() == ".xml":
+    if path.suffix.lower() in (".xml", ".urdf"):
         try:
             model = robot_mapping.model_path(str(path.resolve()), source, "")
             return describe(robot_mapping.derived(model, ArmOptions()), None)
@@ -27,8 +27,8 @@ def inspect(path: Path) -> str:
     raw = read_yaml(path)
     value = raw.get("robot", raw) if isinstance(raw, dict) and "model" not in raw else raw
     if not robot_mapping.is_mapping(value) and not (isinstance(value, dict) and "model" in value):
-        raise ScenarioError(source, "robot", "expected a robot mapping (model, tool, speed_limits) or an MJCF file: "
-                                             "a registered robot is described by `simbench list`")
+        raise ScenarioError(source, "robot", "expected a robot mapping (model, tool, speed_limits), an MJCF or a URDF "
+                                             "file: a registered robot is described by `simbench list`")
     units = Units.model_validate(raw.get("units", {})) if isinstance(raw.get("units"), dict) else Units()
     robot = robot_mapping.load_robot(value if value is not raw else str(path.resolve()), source, units)
     return describe(robot.arm, robot.qd_max)
@@ -36,7 +36,7 @@ def inspect(path: Path) -> str:
 
 def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
     """The arm in lines: its joints with kind and range, how each is driven, the tool, the camera, the reach, what
-    the scene adds, and whether qpos0 lies inside the ranges."""
+    the scene adds, what was dropped from the file, and whether qpos0 lies inside the ranges."""
     chain = arm.chain
     lines = [f"{arm.name}: {len(chain.joints)} joints from {arm.path}", "joints (SI: rad or m):"]
     for i, (name, kind, lo, hi) in enumerate(zip(chain.joints, chain.kinds, chain.lower, chain.upper)):
@@ -53,6 +53,7 @@ def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
     lines.append(f"reach L: {chain.reach:.4g} m (the unit-consistent Jacobian's characteristic length)")
     lines.append(f"scene adds: {', '.join(arm.added) or 'nothing'}; gravity compensation "
                  f"{'on' if arm.options.gravity_compensation else 'off'}")
+    lines += [f"dropped: {note}" for note in arm.dropped]
     lines.append("qpos0: inside the ranges" if not arm.outside else
                  f"qpos0: outside the range of {', '.join(arm.outside)} (a scenario's start must lie inside)")
     return "\n".join(lines)

@@ -124,7 +124,8 @@ class ModelArm(Robot):
 
 
 class _Derived(Summariser):
-    """The report's entry `derived_arm`: the model the arm was read from and what was done to its actuators."""
+    """The report's entry `derived_arm`: the model the arm was read from, what was done to its actuators and what
+    was dropped from it."""
 
     def __init__(self, arm: DerivedArm):
         self.arm = arm
@@ -136,4 +137,4 @@ class _Derived(Summariser):
         arm = self.arm
         return {"derived_arm": {"model": Path(arm.path).name, "tool": arm.chain.tool.describe(),
                                 "reach": arm.chain.reach, "actuator_notes": arm.notes(),
-                                "added": list(arm.added)}}, []
+                                "added": list(arm.added), "dropped": list(arm.dropped)}}, []

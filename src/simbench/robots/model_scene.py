@@ -6,20 +6,22 @@ for the joint's effective inertia at the start (the diagonal of the joint-space 
 at qpos0 with each joint clipped into its range): Kp = I w^2, Kd = 2 zeta I w, w the `bandwidth` (rad/s, default
 50) and zeta the `damping_ratio` (default 1). A velocity servo, a motor or a general actuator on a chain joint is
 replaced by such a servo, never driven as if it were one; the force bound it had is carried over (a motor's
-control range times its gear). The scene also gets a site on the tool where it needs one, a `framepos` sensor on
-it, gravity compensation on every body the chain moves (unless turned off), and where the model lacks them a floor,
-a light and a camera framing the arm's reach.
+control range times its gear), as is the joint's own (its actuatorfrcrange, a URDF's `effort`). The scene also
+gets a site on the tool where it needs one, a `framepos` sensor on it, gravity compensation on every body the chain
+moves (unless turned off), and where the model lacks them a floor, a light and a camera framing the arm's reach.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from simbench.computed_torque import pd_gains
 from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
+from simbench.robots.model_file import read_spec
 
 TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset
 TOOL_SENSOR = "simbench/tool_pos"
@@ -30,7 +32,8 @@ _FOVY = 45.0  # deg, the added camera's (MuJoCo's default)
 @dataclass(frozen=True)
 class ArmOptions:
     """A robot mapping's choices about its model (SI): the tool, the joints (None: the chain's), per-joint force
-    limits (None: the model's), the added servos' bandwidth (rad/s) and damping ratio, gravity compensation."""
+    limits (None: the model's), the added servos' bandwidth (rad/s) and damping ratio, gravity compensation, and a
+    URDF's package folders (name, absolute path; robots.model_file)."""
 
     tool: Tool | None = None
     joints: tuple[str, ...] | None = None
@@ -38,6 +41,7 @@ class ArmOptions:
     bandwidth: float = 50.0
     damping_ratio: float = 1.0
     gravity_compensation: bool = True
+    packages: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -69,7 +73,8 @@ class Drive:
 
 @dataclass(frozen=True)
 class DerivedArm:
-    """What simbench made of a model file: its chain, how each joint is driven, what the scene adds."""
+    """What simbench made of a model file: its chain, how each joint is driven, what the scene adds, and what was
+    dropped from the file (`dropped`: robots.model_file's notes)."""
 
     path: str
     name: str
@@ -79,6 +84,7 @@ class DerivedArm:
     added: tuple[str, ...]
     outside: tuple[str, ...]
     options: ArmOptions
+    dropped: tuple[str, ...] = ()
 
     def notes(self) -> list[str]:
         """One line for each actuator the scene does not run as the model has it."""
@@ -90,9 +96,11 @@ class DerivedArm:
 
 
 def derive(path: str, options: ArmOptions) -> DerivedArm:
-    """The arm in the MJCF at `path` (absolute), as `options` ask; ArmError naming the field at fault."""
+    """The arm in the MJCF or URDF at `path` (absolute), as `options` ask; ArmError naming the field at fault."""
+    spec, dropped = read_spec(path, options.packages)
+    name = spec.modelname or Path(path).stem
     try:
-        model = mujoco.MjModel.from_xml_path(path)
+        model = spec.compile()
     except ValueError as err:
         raise ArmError("model", f"MuJoCo cannot load it: {str(err).strip().splitlines()[0]}") from None
     chain = chain_of(model, options.tool, options.joints)
@@ -103,9 +111,8 @@ def derive(path: str, options: ArmOptions) -> DerivedArm:
                                         ("light", model.nlight == 0), ("camera", model.ncam == 0)) if missing]
     camera = (f"'{CAMERA}' (added, framing the reach)" if model.ncam == 0
               else f"'{model.camera(0).name}' (the model's, of {model.ncam})")
-    name = mujoco.MjSpec.from_file(path).modelname or path.rsplit("/", 1)[-1].removesuffix(".xml")
     return DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=tuple(added),
-                      outside=tuple(qpos0_outside(model, chain)), options=options)
+                      outside=tuple(qpos0_outside(model, chain)), options=options, dropped=dropped)
 
 
 def _force_limits(options: ArmOptions, chain: Chain) -> tuple[float | None, ...]:
@@ -139,13 +146,20 @@ def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOption
     if "position" in kinds:
         keep = found[kinds.index("position")]
         removed = tuple(i for i in found if i != keep)
-        bound = limit if limit is not None else _bound(model, keep)
+        bound = limit if limit is not None else min(_bound(model, keep), _joint_bound(model, joint))
         return Drive(joint, "replaced" if removed else "kept", _names(model, removed), keep, removed,
                      float(model.actuator_gainprm[keep, 0]), float(-model.actuator_biasprm[keep, 2]), bound)
     kp, kv = pd_gains(np.array([inertia]), options.bandwidth, options.damping_ratio)
-    bound = limit if limit is not None else min((_bound(model, i) for i in found), default=np.inf)
+    bound = limit if limit is not None else min([_bound(model, i) for i in found] + [_joint_bound(model, joint)])
     return Drive(joint, "replaced" if found else "added", _names(model, tuple(found)), None, tuple(found),
                  float(kp[0]), float(kv[0]), bound)
+
+
+def _joint_bound(model: mujoco.MjModel, joint: str) -> float:
+    """The force the joint's actuators may give together (its actuatorfrcrange, a URDF's `effort`); inf where
+    unbounded."""
+    j = model.joint(joint).id
+    return float(np.abs(model.jnt_actfrcrange[j]).min()) if model.jnt_actfrclimited[j] else float(np.inf)
 
 
 _WORDS = {"position": "position servo", "velocity": "velocity servo", "motor": "motor", "general": "general actuator"}
@@ -168,7 +182,7 @@ def _bound(model: mujoco.MjModel, i: int) -> float:
 
 def _scene(arm: DerivedArm) -> mujoco.MjSpec:
     """The scene of DerivedArm.spec."""
-    spec = mujoco.MjSpec.from_file(arm.path)
+    spec = read_spec(arm.path, arm.options.packages)[0]
     model = spec.compile()
     actuators = list(spec.actuators)
     for i in sorted({i for drive in arm.drives for i in drive.removed}, reverse=True):

@@ -1,17 +1,19 @@
 """A scenario's `robot:` given as a mapping, or as the path of a YAML robot file holding one: an arm derived from
-its MJCF model (robots.model_scene), with no code of its own.
+its MJCF or URDF model (robots.model_scene, robots.model_file), with no code of its own.
 
     robot:
-      model: arms/jaco_arm.xml                 # an MJCF, relative to the scenario's folder (or absolute)
+      model: arms/jaco_arm.xml                 # an MJCF or a URDF, relative to the scenario's folder (or absolute)
       tool: {site: wristsite}                  # or {body: b_6, offset: [0, 0, 160]} (the scenario's length unit)
       speed_limits: [36, 36, 36, 48, 48, 48]   # the scenario's angle (or length) unit per second, one per joint
+                                               # (optional for a URDF whose joints state their `velocity`)
+      packages: {ur_description: ../ur}        # optional: the folders of a URDF's package:// meshes
       joints: [joint_1, ...]                   # optional: the chain's joints to drive, in this order
       force_limits: [30, 30, 30, 10, 10, 10]   # optional: N m or N (SI), one per joint or one for all
       servo: {bandwidth: 50, damping_ratio: 1} # optional: the added position servos' (rad/s)
       gravity_compensation: true               # optional: gravcomp on the bodies the chain moves
 
 A robot file's relative paths are relative to its own folder, and it may state its own `units:` (default: the
-scenario's). Reading the model runs no code: MJCF only.
+scenario's). Reading the model runs no code.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pydantic import Field, ValidationError
 from simbench.errors import ScenarioError
 from simbench.robots.chain import ArmError, Tool
 from simbench.robots.model_arm import ModelArm
+from simbench.robots.model_file import is_urdf, urdf_limits
 from simbench.robots.model_scene import ArmOptions, DerivedArm, derive
 from simbench.schema import Position, SimbenchModel, Units
 from simbench.validation import describe, kind_of, read_yaml
@@ -60,11 +63,12 @@ class RobotMapping(SimbenchModel):
 
     model: str
     tool: ToolSite | ToolBody | None = None
-    speed_limits: list[_Positive]
+    speed_limits: list[_Positive] | None = None
     joints: list[str] | None = None
     force_limits: _Positive | list[_Positive] | None = None
     servo: ServoGains = ServoGains()
     gravity_compensation: bool = True
+    packages: dict[str, str] = {}
     units: Units | None = None
 
 
@@ -85,8 +89,8 @@ def load_robot(value: dict | str, source: str, units: Units) -> ModelArm:
         raise ScenarioError(source, *describe(err, RobotMapping, raw, prefix=field)) from None
     where = ".".join(field)
     try:
-        path, choices = model_path(mapping.model, source, where), options(mapping)
-        return _arm(path, choices, _speed_limits(mapping.speed_limits, derived(path, choices), units))
+        path, choices = model_path(mapping.model, source, where), options(mapping, source)
+        return _arm(path, choices, _speed_limits(mapping.speed_limits, path, derived(path, choices), units))
     except ArmError as err:
         raise ScenarioError(source, ".".join((*field, err.field)), str(err)) from None
 
@@ -104,20 +108,18 @@ def _mapping(value: dict | str, source: str) -> tuple[dict, str, tuple[str, ...]
 
 
 def model_path(model: str, source: str, where: str) -> str:
-    """The model file's absolute path; ScenarioError where it is not an MJCF file."""
+    """The model file's absolute path; ScenarioError where it is not an MJCF or URDF file."""
     path = Path(model) if Path(model).is_absolute() else Path(source).parent / model
     field = f"{where}.model" if where else "model"
-    if path.suffix.lower() == ".urdf":
-        raise ScenarioError(source, field, "URDF is not read yet: give the arm's MJCF (.xml)")
-    if path.suffix.lower() != ".xml":
-        raise ScenarioError(source, field, f"expected an MJCF file (.xml), got {model!r}")
+    if path.suffix.lower() not in (".xml", ".urdf"):
+        raise ScenarioError(source, field, f"expected an MJCF (.xml) or URDF (.urdf) file, got {model!r}")
     if not path.is_file():
         raise ScenarioError(source, field, f"no such file: {path}")
     return str(path.resolve())
 
 
-def options(mapping: RobotMapping) -> ArmOptions:
-    """The mapping's choices about its model, SI."""
+def options(mapping: RobotMapping, source: str) -> ArmOptions:
+    """The mapping's choices about its model, SI (`source`: the file the mapping is in)."""
     tool = mapping.tool
     limits = mapping.force_limits
     return ArmOptions(
@@ -126,12 +128,22 @@ def options(mapping: RobotMapping) -> ArmOptions:
         joints=None if mapping.joints is None else tuple(mapping.joints),
         force_limits=None if limits is None else (tuple(limits) if isinstance(limits, tuple) else (limits,)),
         bandwidth=mapping.servo.bandwidth, damping_ratio=mapping.servo.damping_ratio,
-        gravity_compensation=mapping.gravity_compensation)
+        gravity_compensation=mapping.gravity_compensation,
+        packages=tuple((name, str((Path(source).parent / folder).resolve()))
+                       for name, folder in sorted(mapping.packages.items())))
 
 
-def _speed_limits(values: tuple[float, ...], arm: DerivedArm, units: Units) -> tuple[float, ...]:
-    """The speed limits in SI, one per joint of the chain."""
+def _speed_limits(values: list[float] | None, path: str, arm: DerivedArm, units: Units) -> tuple[float, ...]:
+    """The speed limits in SI, one per joint of the chain: the mapping's, else the URDF's joints' `velocity`."""
     kinds = arm.chain.kinds
+    if values is None:
+        stated = urdf_limits(path) if is_urdf(path) else {}
+        speeds = [stated.get(joint, (None, None))[0] for joint in arm.chain.joints]
+        if None in speeds:
+            missing = ", ".join(j for j, v in zip(arm.chain.joints, speeds) if v is None)
+            raise ArmError("speed_limits", f"expected one per joint ({', '.join(arm.chain.joints)}): the model "
+                                           f"states none for {missing}")
+        return tuple(float(v) for v in speeds if v is not None)
     if len(values) != len(kinds):
         raise ArmError("speed_limits", f"expected {len(kinds)} values, one per joint ({', '.join(arm.chain.joints)}), "
                                        f"got {len(values)}")
