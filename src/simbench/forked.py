@@ -15,7 +15,7 @@ from contextlib import contextmanager, suppress
 from typing import Any, NoReturn
 
 from simbench.errors import RunError, described
-from simbench.interrupts import held_back
+from simbench.interrupts import deferred, held_back
 
 
 @contextmanager
@@ -26,11 +26,7 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         yield lambda: fn(*args)
         return
     readable, writable = os.pipe()
-    with held_back():  # until the child has its own handlers: the parent's would run the parent's code in it
-        pid = os.fork()
-        if pid == 0:
-            _child(readable, writable, fn, args)
-    os.close(writable)
+    pid = 0
     reaped = False
 
     def result() -> Any:
@@ -48,13 +44,23 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         raise value
 
     try:
+        # Ctrl-C and SIGTERM held back until the child has its own handlers (the parent's would run the parent's
+        # code in it), and in the parent not handled inside the fork's at-fork hooks (interrupts.deferred); one
+        # that came meanwhile is handled as the block ends, with the child to stop below.
+        with deferred(), held_back():
+            pid = os.fork()
+            if pid == 0:
+                _child(readable, writable, fn, args)
+            os.close(writable)
         yield result
     finally:
-        if not reaped:  # (a Ctrl-C may have come between its end and waitpid's return: then it is gone already)
+        if pid and not reaped:  # (a Ctrl-C may have come between its end and waitpid's return: then it is gone)
             with suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGTERM)
             with suppress(ChildProcessError):
                 os.waitpid(pid, 0)
+        if not pid:
+            os.close(writable)
         os.close(readable)
 
 

@@ -84,6 +84,29 @@ def is_press(err: BaseException) -> bool:
 
 
 @contextmanager
+def deferred() -> Iterator[None]:
+    """Ctrl-C and SIGTERM recorded, not handled, for the block; then each is handled as it would have been. For a
+    block that must not be cut by an exception: os.fork runs Python's at-fork hooks (logging's takes and gives back
+    its lock), and a handler pending from just before, run inside one, would leave the lock taken for good and
+    every later fork of the process (ffmpeg's) waiting on it. A no-op where Python handles no signals."""
+    if not _handles_signals():
+        yield
+        return
+    came: list[int] = []
+    previous = {signum: signal.signal(signum, lambda signum, frame: came.append(signum)) for signum in _SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum in came:
+            if callable(previous[signum]):
+                previous[signum](signum, None)
+            elif previous[signum] == signal.SIG_DFL:
+                signal.raise_signal(signum)
+
+
+@contextmanager
 def held_back() -> Iterator[None]:
     """Hold SIGINT (Ctrl-C) and SIGTERM back until the block is done; they are delivered then. A no-op where
     Python handles no signals."""

@@ -31,6 +31,7 @@ import numpy as np
 
 from simbench.api import Decoration
 from simbench.errors import RunError
+from simbench.interrupts import held_back
 from simbench.plant import compiled_scene
 from simbench.sim import Recording
 
@@ -186,7 +187,8 @@ def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str)
     if not pretty:
         model.vis.quality.shadowsize = 0  # no shadow map to allocate: a third of the renderer's start-up
     try:
-        renderer = mujoco.Renderer(model, height=height, width=width, max_geom=4000)
+        with held_back():  # cut halfway, a Renderer has no GL context and its __del__ prints a traceback
+            renderer = mujoco.Renderer(model, height=height, width=width, max_geom=4000)
     except Exception as err:  # the GL backend reports its own failure types
         raise RunError(f"cannot open an offscreen renderer ({type(err).__name__}: {err}); set MUJOCO_GL=egl "
                        "before simbench is imported and install EGL (Debian: libegl1 libgl1-mesa-dri), or pass "
