@@ -1,6 +1,6 @@
 """Run the benchmarks and write their results into BENCHMARKS.md: python -m benchmarks.run [bench_x ...]
 
-With no names it runs every module of MODULES (5.5 to 8 minutes on 2 cores); with names, those alone. Each
+With no names it runs every module of MODULES (9 to 11.5 minutes on 2 cores); with names, those alone. Each
 module's results go into BENCHMARKS.md between two marker lines of its own (HTML comments, unseen on a rendered
 page), stamped with the machine, the date, the time it took and the load average; everything outside the markers
 (the notes written by hand: earlier runs, what was tried and dropped, before-and-after tables of an issue) is kept
@@ -21,7 +21,7 @@ from benchmarks.common import machine, today
 
 MODULES = ("bench_tracking", "bench_render", "bench_sweep", "bench_planners", "bench_puma_auto",
            "bench_agile_eye_crossing", "bench_agile_eye_planning", "bench_analysis", "bench_control", "bench_run",
-           "bench_plots", "bench_soak", "bench_rsmg_contacts", "bench_startup")
+           "bench_plots", "bench_soak", "bench_rsmg_contacts", "bench_startup", "bench_random_lines")
 TARGET = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
 HEADER = ("# Benchmarks\n\nWritten by `python -m benchmarks.run` (from the repository root, in the test environment):\n"
           "each section's figures between its markers, with the machine, the date, the time and the load average\n"
