@@ -1,6 +1,7 @@
 """cartesian_path on dm-control's Kinova Jaco, read from its install untouched (issue 35): a line through the CLI ends
 `ok` with the tool on it, a line out past the reach gives a rank_loss event whose lost twist is the line's
-direction, and the plan's tool follows random lines as MuJoCo's own kinematics place it."""
+direction, and the plan's tool follows random lines as MuJoCo's own kinematics place it. mink_baseline runs on the
+same derived arm, its path written directly in its task."""
 
 import json
 import os
@@ -21,14 +22,15 @@ TOOL0 = np.array([478.22158345, -163.10697508, 307.57903728])  # mm: the wristsi
 OUTWARD = np.array([0.94354045, -0.32513748, 0.06338016])  # from joint_2's anchor to the tool at START
 
 
-def _scenario(folder, end, start=START, duration=4.0, name="line"):
-    """A cartesian_path scenario on the Jaco, in degrees and millimetres: one line from the tool to `end`."""
+def _scenario(folder, end, start=START, duration=4.0, name="line", planner="cartesian_path", tool="{site: wristsite}"):
+    """A scenario on the Jaco, in degrees and millimetres: one line from the tool to `end`, the path written in the
+    task (cartesian_path's, and mink_baseline's direct form)."""
     path = folder / f"{name}.yaml"
     path.write_text(f"""robot:
   model: {JACO}
-  tool: {{site: wristsite}}
+  tool: {tool}
   speed_limits: [36, 36, 36, 48, 48, 48]
-planner: cartesian_path
+planner: {planner}
 units: {{angle: deg, length: mm}}
 task:
   start: {[float(v) for v in start]}
@@ -108,6 +110,38 @@ def test_an_arm_without_a_tool_orientation_is_refused():
 
 def test_a_later_line_without_a_start_is_bad_input(tmp_path, capsys):
     path = _scenario(tmp_path, TOOL0 + [0, 50, 0])
+    path.write_text(path.read_text().replace("timing:", "    - line: {end: [478, -100, 300]}\ntiming:"))
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and str(path) in err and "task.path[1].line.start" in err
+
+
+def test_mink_baseline_follows_a_200_mm_line_written_in_its_task_and_compare_runs_it(tmp_path, capsys):
+    end = TOOL0 + [0.0, 200.0, 0.0]
+    path = _scenario(tmp_path, end, planner="mink_baseline")
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    assert "status: ok" in capsys.readouterr().out
+    tool = np.load(tmp_path / "out" / "timeseries.npz")["tool"]
+    assert _segment_distance(tool, TOOL0 / 1e3, end / 1e3).max() < 0.5e-3  # measured: 0.130 mm
+    methods = "cartesian_path,mink_baseline"
+    assert main(["compare", str(path), "--planners", methods, "--out", str(tmp_path / "cmp")]) == 0
+    rows = json.loads((tmp_path / "cmp" / "comparison.json").read_text())["rows"]
+    assert [row["status"] for row in rows] == ["ok", "ok"]
+
+
+def test_mink_baseline_moves_a_tool_given_by_body_and_offset_along_the_line(tmp_path):
+    tool = "{body: b_6, offset: [0, 0, -100]}"
+    robot = load_scenario(_scenario(tmp_path, TOOL0, tool=tool, name="probe")).robot_def
+    start = robot.fk(np.deg2rad([START]))[0] * 1e3
+    end = start + [0.0, 100.0, 0.0]
+    scenario = load_scenario(_scenario(tmp_path, end, planner="mink_baseline", tool=tool, duration=2.0))
+    plan = scenario.planner_def.plan(scenario, scenario.robot_def, 0.002)
+    assert _segment_distance(robot.fk(plan.q_ref), start / 1e3, end / 1e3).max() < 0.5e-3
+    assert np.linalg.norm(robot.fk(plan.q_ref[-1:])[0] - end / 1e3) < 1e-3
+
+
+def test_a_bad_segment_of_mink_baseline_s_own_path_is_named_inside_task(tmp_path, capsys):
+    path = _scenario(tmp_path, TOOL0 + [0, 50, 0], planner="mink_baseline")
     path.write_text(path.read_text().replace("timing:", "    - line: {end: [478, -100, 300]}\ntiming:"))
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err.strip()

@@ -156,8 +156,10 @@ def _task_for(planner: str, raw: dict, base: Scenario) -> Any:
         return task
     if planner == MINK:
         return {"follow": base.planner, "task": task}
-    if base.planner == MINK and isinstance(task, dict) and task.get("follow") == planner:
-        return task.get("task")
+    if base.planner == MINK and isinstance(task, dict):
+        follow, followed_task = registry.planners()[MINK].followed_raw(task)
+        if follow == planner:
+            return followed_task
     return task
 
 

@@ -12,6 +12,9 @@ It follows the Cartesian reference of another planner's plan, so that the two ca
       posture_cost: 1.0e-3            # PostureTask towards the first configuration: settles the redundancy
       solver: daqp                    # the QP solver (qpsolvers' name)
 
+or, without `follow`, a path of its own: cartesian_path's task written directly beside the QP's fields
+(`task: {start: [...], path: [...], orientation: hold, damping: 1.0e-3}`), cartesian_path's plan the reference.
+
 The followed planner plans first. Its tool points (`tool_ref`) and, at its joint references, the orientation of the
 MuJoCo tool site (mj_kinematics on a scratch MjData of the robot's scene) make the reference pose X_k at every
 control step. From the followed plan's first configuration q_0, each step k solves mink's QP (mink.solve_ik)
@@ -36,7 +39,7 @@ from typing import Annotated, Any
 
 import mujoco
 import numpy as np
-from pydantic import Field, ValidationError, ValidationInfo, field_validator
+from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from simbench import registry
@@ -48,6 +51,7 @@ from simbench.trajectory import JointTrajectory
 from simbench.validation import describe
 
 NAME = "mink_baseline"
+DIRECT = "cartesian_path"  # the planner that plans a path written directly in the task
 _SPEED_SHARE = 1.0 - 1e-9  # a joint at least this share of its speed limit counts as held at it
 
 
@@ -61,6 +65,29 @@ class Task(SimbenchModel):
     orientation_cost: Weight | None = Field(None, description="default: 1 for 6 or more joints, 0 for fewer")
     posture_cost: Weight = 1e-3
     solver: str = Field("daqp", description="daqp (installed with mink) or another QP solver qpsolvers finds")
+    _direct: bool = PrivateAttr(False)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _path_of_its_own(cls, value: Any, handler, info: ValidationInfo) -> Task:
+        """The direct form (no `follow`, no `task`): its path fields are DIRECT's task, their errors located at
+        this task's own fields."""
+        if not isinstance(value, dict) or "follow" in value or "task" in value:
+            return handler(value)
+        own, path = _split(value)
+        schema = registry.planners()[DIRECT].task
+        try:
+            inner = schema.model_validate(path, context=info.context)
+        except ValidationError as err:
+            raise _nested(err, schema, path) from None
+        task = handler({**own, "follow": DIRECT, "task": inner})
+        task._direct = True
+        return task
+
+    @property
+    def direct(self) -> bool:
+        """Whether the path is written in this task itself (the direct form), not in a followed planner's task."""
+        return self._direct
 
     @field_validator("follow")
     @classmethod
@@ -94,6 +121,8 @@ class Task(SimbenchModel):
         follow = info.data.get("follow")
         if follow is None:  # `follow` itself failed: its error is the one reported
             return value
+        if isinstance(value, SimbenchModel):  # the direct form's, already checked
+            return value
         if not isinstance(value, dict):
             raise ValueError(f"expected a mapping: the task of '{follow}', as its own scenarios write it")
         schema = registry.planners()[follow].task
@@ -108,6 +137,12 @@ class Task(SimbenchModel):
         if orientation is None:
             orientation = 1.0 if robot.dof >= 6 else 0.0
         return self.position_cost, orientation
+
+
+def _split(task: dict) -> tuple[dict, dict]:
+    """A direct-form task's fields: (the QP's own, the path's)."""
+    own = set(Task.model_fields) - {"follow", "task"}
+    return ({key: v for key, v in task.items() if key in own}, {key: v for key, v in task.items() if key not in own})
 
 
 def _nested(err: ValidationError, schema: type, value: dict) -> ValidationError:
@@ -219,6 +254,12 @@ class MinkBaseline(Planner[Task]):
     task = Task
     needs = ("fk",)
 
+    def followed_raw(self, task: dict) -> tuple[Any, Any]:
+        """The followed planner and its task, as written, of a `task:` mapping of either form."""
+        if "follow" in task or "task" in task:
+            return task.get("follow"), task.get("task")
+        return DIRECT, _split(task)[1]
+
     def refuses(self, robot: Robot) -> str | None:
         """A robot without forward kinematics, or one whose scene has more than its actuated joints (a closed
         chain's passive joints, a free part) or equality constraints: mink would move what the joints cannot."""
@@ -291,13 +332,16 @@ class MinkBaseline(Planner[Task]):
                                series={"plan_tool_error": tool_error, "plan_orientation_error": orientation_error})
 
     def check(self, scenario, robot: Robot) -> tuple[str, str] | None:
-        """The followed planner's own check of its task, its field named inside `task.task`."""
+        """The followed planner's own check of its task, its field named inside `task.task` (in the direct form,
+        inside `task`)."""
         inner = followed(scenario)
         problem = inner.planner_def.check(inner, robot)
         if problem is None:
             return None
         field, message = problem
-        return (f"task.task{field[len('task'):]}" if field.startswith("task") else field), message
+        if scenario.task.direct or not field.startswith("task"):
+            return field, message
+        return f"task.task{field[len('task'):]}", message
 
 
 PLANNER = MinkBaseline()
