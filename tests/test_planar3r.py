@@ -1,9 +1,13 @@
 """examples/planar3r, the outside package that adds a robot and a planner through simbench.api, checked against
 independent truths: MuJoCo's own tool site, finite differences, the determinant, the physics stepping clean, and
-the line the planner promises. Needs `pip install -e examples/planar3r`."""
+the line the planner promises; and the same arm derived from its MJCF alone. Needs `pip install -e
+examples/planar3r`."""
 
 import importlib.metadata
+import subprocess
+import sys
 from functools import cache
+from pathlib import Path
 from types import SimpleNamespace
 
 import mujoco
@@ -213,3 +217,15 @@ def test_packaged_scenarios_load(name):
     assert (scenario.robot, scenario.planner) == ("planar3r", "dls_line")
     traj = PLANNER.plan(scenario, ROBOT, _DT)
     assert [v["kind"] for v in traj.violations] == (["off_path"] if name == "near_stretch" else [])
+
+
+def test_the_arm_named_by_its_mjcf_alone_runs_ok_with_the_coded_robot_s_joints_and_ranges(tmp_path):
+    scenario = Path(__file__).parents[1] / "examples" / "planar3r" / "scenarios_no_code" / "joint_move.yaml"
+    run = subprocess.run([sys.executable, "-P", "-m", "simbench", "run", str(scenario), "--out", str(tmp_path / "out"),
+                          "--no-video"], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "status: ok" in run.stdout, run.stderr
+    derived = load_scenario(scenario).robot_def
+    assert derived.joints == ROBOT.joints and derived.kinds == ROBOT.kinds
+    assert derived.lower == pytest.approx(ROBOT.lower, abs=1e-12)
+    assert derived.upper == pytest.approx(ROBOT.upper, abs=1e-12)
+    assert derived.qd_max == pytest.approx(ROBOT.qd_max) and derived.tool_site == ROBOT.tool_site
