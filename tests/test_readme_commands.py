@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 PREFIXES = ("python -m simbench ", "python -P -m simbench ", "simbench ")
 # A synopsis, not a command: placeholders in capitals, optional or alternative parts, an ellipsis.
-PLACEHOLDER = re.compile(r"\b[A-Z]{2,}\b|[\[\]{}|<>]|\.\.\.|\bA,B\b")
+PLACEHOLDER = re.compile(r"\b[A-Z][A-Z_]+\b|[\[\]{}|<>]|\.\.\.|\bA,B\b")
 # What a command writes by default, from the root, found in its words: where to look for it.
 WRITES = {"run": "renders/{name}/report.json", "sweep": "renders/sweeps/{name}/results.csv",
           "compare": "renders/compare/{name}/comparison.csv", "reproduce": "renders/reproduce/{name}/summary.md"}
