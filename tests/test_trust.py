@@ -145,3 +145,18 @@ def test_an_exit_raised_by_outside_code_simbench_calls_is_a_failed_run(monkeypat
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"run failed: outside code simbench called raised "
                                                f"{type(raised).__name__}")
+
+
+def test_comparison_csv_quotes_text_a_spreadsheet_would_run_and_leaves_numbers():
+    """comparison.csv as results.csv: a method's error text starting '=' is written after a single quote (OWASP's
+    advice on CSV injection), a negative figure stays a number; Python's csv module reads both back."""
+    import csv
+    import io
+
+    from simbench.compare import table_csv
+
+    rows = ({"method": "a", "status": "run_failed", "error": '=HYPERLINK("http://127.0.0.1:1","x")'},
+            {"method": "b", "status": "ok", "error": "", "tool_error_max_m": -0.5})
+    table = list(csv.DictReader(io.StringIO(table_csv(rows))))
+    assert table[0]["error"] == "'" + rows[0]["error"]
+    assert table[1]["tool_error_max_m"] == "-0.5" and float(table[1]["tool_error_max_m"]) == -0.5

@@ -24,9 +24,7 @@ Written into `out` at once (simbench.atomic; never over a folder simbench did no
 from __future__ import annotations
 
 import copy
-import csv
 import difflib
-import io
 import json
 import os
 from dataclasses import dataclass
@@ -36,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from simbench import api, budget, destination, registry
+from simbench import api, budget, csv_cells, destination, registry
 from simbench.atomic import staged_folder
 from simbench.plot_formats import check_format
 from simbench.page import table_page, write_page
@@ -243,20 +241,21 @@ def _cell(value: Any) -> str:
         return ""
     if isinstance(value, float):
         return repr(value)
+    if isinstance(value, str):
+        return csv_cells.safe(value)
     return str(value)
 
 
 def table_csv(rows: tuple[dict, ...]) -> str:
     """comparison.csv: a row per method; an event kind a method did not meet counts 0, a figure a failed method
-    has not is empty."""
+    has not is empty; text a spreadsheet would take for a formula (an error naming the user's file, say) after a
+    single quote, as results.csv's (simbench.csv_cells)."""
     columns = _columns(rows)
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(columns)
+    lines = [csv_cells.row(columns)]
     for r in rows:
         ran = "tool_error_max_m" in r
-        writer.writerow([_cell(r.get(c, 0 if ran and "_events_" in c else None)) for c in columns])
-    return buffer.getvalue()
+        lines.append(csv_cells.row(_cell(r.get(c, 0 if ran and "_events_" in c else None)) for c in columns))
+    return "".join(lines)
 
 
 def _display(column: str, robot) -> tuple[str, float, str]:
