@@ -32,6 +32,7 @@ import dm_control  # noqa: E402
 import numpy as np  # noqa: E402
 
 import simbench  # noqa: E402
+from benchmarks.common import segment_distance  # noqa: E402
 from simbench.errors import ScenarioError  # noqa: E402
 
 LINES = 100
@@ -96,13 +97,6 @@ def draw_lines(robot_def, n: int, seed: int = SEED) -> list[dict]:
         lines.append({"index": len(lines), "start_deg": np.rad2deg(q), "from_mm": start * 1e3, "end_mm": end * 1e3,
                       "length_mm": length * 1e3, "duration": max(MIN_DURATION, length / SPEED)})
     return lines
-
-
-def segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance of each point (N, 3) from the segment a-b."""
-    u = b - a
-    s = np.clip((points - a) @ u / (u @ u), 0.0, 1.0)
-    return np.linalg.norm(points - (a + s[:, None] * u), axis=1)
 
 
 def promises_broken(series, scenario: simbench.Scenario) -> tuple[list[str], dict]:

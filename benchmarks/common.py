@@ -14,6 +14,14 @@ import simbench
 from simbench.resources import scenarios_dir
 
 
+def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (N,) of points x (N, d) from the segment a-b: the brute-force truth of a path that is a line (the
+    tests' too)."""
+    ab = b - a
+    u = np.clip((x - a) @ ab / (ab @ ab), 0.0, 1.0)
+    return np.linalg.norm(x - (a + u[:, None] * ab), axis=1)
+
+
 def shipped(name: str) -> simbench.Scenario:
     """A shipped scenario by its path under scenarios/ without the suffix ('spherical_arm/demo')."""
     return simbench.load_scenario(scenarios_dir() / f"{name}.yaml")

@@ -12,6 +12,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import simbench  # noqa: E402
+from benchmarks.common import segment_distance  # noqa: E402,F401  # the truth of a path that is a line
 from simbench.resources import scenarios_dir  # noqa: E402
 
 
@@ -21,13 +22,6 @@ def scenario_file(robot: str, name: str):
 
 
 SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
-
-
-def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance (N,) of points x (N, d) from the segment a-b."""
-    ab = b - a
-    u = np.clip((x - a) @ ab / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(x - (a + u[:, None] * ab), axis=1)
 
 
 def interrupt(command: list[str], ready, cwd, timeout: float = 120,

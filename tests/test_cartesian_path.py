@@ -10,6 +10,7 @@ import dm_control
 import mujoco
 import numpy as np
 import pytest
+from conftest import segment_distance
 
 from simbench.cli import main
 from simbench.planners.cartesian_path import PLANNER
@@ -42,19 +43,12 @@ render: {{width: 96, height: 64, fps: 5}}
     return path
 
 
-def _segment_distance(points, a, b):
-    """Distance of each point (N, 3) from the segment a-b."""
-    u = b - a
-    s = np.clip((points - a) @ u / (u @ u), 0.0, 1.0)
-    return np.linalg.norm(points - (a + s[:, None] * u), axis=1)
-
-
 def test_a_350_mm_line_ends_ok_with_the_tool_on_it(tmp_path, capsys):
     end = TOOL0 + [0.0, 350.0, 0.0]
     assert main(["run", str(_scenario(tmp_path, end)), "--out", str(tmp_path / "out")]) == 0
     assert "status: ok" in capsys.readouterr().out
     tool = np.load(tmp_path / "out" / "timeseries.npz")["tool"]
-    deviation = _segment_distance(tool, TOOL0 / 1e3, end / 1e3)
+    deviation = segment_distance(tool, TOOL0 / 1e3, end / 1e3)
     assert deviation.max() < 0.5e-3  # measured: 0.116 mm
     assert np.linalg.norm(tool[-1] - end / 1e3) < 1e-3
 
@@ -97,7 +91,7 @@ def test_the_plan_follows_random_lines_by_mujocos_own_kinematics(tmp_path):
             tool.append(data.site("wristsite").xpos.copy())
             turned.append(data.site("wristsite").xmat.reshape(3, 3))
         first = turned[0]
-        assert _segment_distance(np.array(tool), start / 1e3, end / 1e3).max() < 1e-5
+        assert segment_distance(np.array(tool), start / 1e3, end / 1e3).max() < 1e-5
         assert max(np.linalg.norm(r - first) for r in turned) < 1e-4
         assert np.linalg.norm(tool[-1] - end / 1e3) < 1e-5
         checked += 1
@@ -122,7 +116,7 @@ def test_mink_baseline_follows_a_200_mm_line_written_in_its_task_and_compare_run
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     assert "status: ok" in capsys.readouterr().out
     tool = np.load(tmp_path / "out" / "timeseries.npz")["tool"]
-    assert _segment_distance(tool, TOOL0 / 1e3, end / 1e3).max() < 0.5e-3  # measured: 0.130 mm
+    assert segment_distance(tool, TOOL0 / 1e3, end / 1e3).max() < 0.5e-3  # measured: 0.130 mm
     methods = "cartesian_path,mink_baseline"
     assert main(["compare", str(path), "--planners", methods, "--out", str(tmp_path / "cmp")]) == 0
     rows = json.loads((tmp_path / "cmp" / "comparison.json").read_text())["rows"]
@@ -136,7 +130,7 @@ def test_mink_baseline_moves_a_tool_given_by_body_and_offset_along_the_line(tmp_
     end = start + [0.0, 100.0, 0.0]
     scenario = load_scenario(_scenario(tmp_path, end, planner="mink_baseline", tool=tool, duration=2.0))
     plan = scenario.planner_def.plan(scenario, scenario.robot_def, 0.002)
-    assert _segment_distance(robot.fk(plan.q_ref), start / 1e3, end / 1e3).max() < 0.5e-3
+    assert segment_distance(robot.fk(plan.q_ref), start / 1e3, end / 1e3).max() < 0.5e-3
     assert np.linalg.norm(robot.fk(plan.q_ref[-1:])[0] - end / 1e3) < 1e-3
 
 

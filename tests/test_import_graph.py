@@ -1,7 +1,7 @@
 """One direction of imports (project issue 34): no simbench module imports another that imports it back, counting
-imports inside functions and by name (`importlib.import_module`: every literal naming a module), not counting those under
-`typing.TYPE_CHECKING` (annotations only, never run); and simbench's own plugins load through entry points, as an
-outside package's do."""
+imports inside functions and by name (`importlib.import_module`: every literal naming a module), not counting
+those under `typing.TYPE_CHECKING` (annotations only, never run); and simbench's own plugins load through entry
+points, as an outside package's do."""
 
 import ast
 import importlib.metadata

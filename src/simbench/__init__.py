@@ -23,8 +23,8 @@ _LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "eval
          **{name: "simbench.registry" for name in ("register_robot", "register_planner", "register_controller",
                                                     "register_policy", "register_metric")}}
 
-__all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError", "__version__",
-           "evaluate", "load_scenario", "register_controller", "register_metric", "register_planner",
+__all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError",
+           "__version__", "evaluate", "load_scenario", "register_controller", "register_metric", "register_planner",
            "register_policy", "register_robot", "run"]
 
 

@@ -279,7 +279,8 @@ def _list() -> str:
     from simbench import registry
 
     lines = ["robots:"]
-    lines += [f"  {r.name:16s} {r.description} ({registry.origin('robot', r.name)})" for r in registry.robots().values()]
+    lines += [f"  {r.name:16s} {r.description} ({registry.origin('robot', r.name)})"
+              for r in registry.robots().values()]
     lines += _broken("robot")
     lines.append("planners:")
     for p in registry.planners().values():

@@ -80,9 +80,9 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
             plot_format: str = "png") -> ComparisonResult:
     """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own
     controller) and write the table and plots (in `plot_format`: png, svg or pdf) into `out` (which must be empty
-    or absent unless `force`, and then hold only what simbench wrote). ScenarioError (one line) for an unknown or unsuitable planner or controller,
-    a bad scenario file or destination, or a policy's module named without `allow_code` (simbench.policy), before
-    anything runs."""
+    or absent unless `force`, and then hold only what simbench wrote). ScenarioError (one line) for an unknown or
+    unsuitable planner or controller, a bad scenario file or destination, or a policy's module named without
+    `allow_code` (simbench.policy), before anything runs."""
     source = Path(scenario_path)
     check_format(plot_format, "simbench.compare")
     out = destination.followed(Path(out))

@@ -91,7 +91,7 @@ def foreign(folder: Path) -> list[Path]:
     for path in sorted(folder.rglob("*")):
         if path.is_dir() and not path.is_symlink():
             continue
-        if path.name == MARKER or _staging(path.name):
+        if path.name == MARKER or _staging_pid(path.name) is not None:
             continue
         owners = [path.parent, *(p for p in path.parent.parents if folder in p.parents or p == folder)]
         if not any(path.relative_to(owner).as_posix() in listed.setdefault(owner, _listed(owner))
@@ -100,10 +100,11 @@ def foreign(folder: Path) -> list[Path]:
     return out
 
 
-def _staging(name: str) -> bool:
-    """Whether `name` is a hidden name simbench writes under before moving the file into place (atomic)."""
+def _staging_pid(name: str) -> int | None:
+    """The writer's process id if `name` is a hidden name simbench writes under before moving a file or folder into
+    place, `.<name>.partial-PID` or `.<name>.old-PID` (atomic); else None."""
     tag, _, pid = name.rpartition("-")
-    return name.startswith(".") and tag.endswith((".partial", ".old")) and pid.isdigit()
+    return int(pid) if name.startswith(".") and tag.endswith((".partial", ".old")) and pid.isdigit() else None
 
 
 def followed(out: Path) -> Path:
@@ -248,8 +249,8 @@ def sweep_leftovers(path: Path) -> None:
     """Remove what dead writers left beside `path`: `.<name>.partial-PID` and `.<name>.old-PID` whose process is
     gone (a writer killed by SIGKILL, or the machine stopping, cannot clean up after itself)."""
     for leftover in path.parent.glob(f".{glob.escape(path.name)}.*-*"):
-        tag, _, pid = leftover.name.rpartition("-")
-        if tag.endswith((".partial", ".old")) and pid.isdigit() and not _alive(int(pid)):
+        pid = _staging_pid(leftover.name)
+        if pid is not None and not _alive(pid):
             if leftover.is_dir() and not leftover.is_symlink():
                 shutil.rmtree(leftover, ignore_errors=True)
             else:

@@ -120,7 +120,8 @@ def refuse_code(scenario: Scenario, allow_code: bool) -> None:
         return
     raise ScenarioError(scenario.source or scenario.name or "scenario", "control.policy",
                         f"{settings.policy} names Python code to import and run; allow it with --allow-code "
-                        "(Python: allow_code=True), or register the policy and name it (simbench.registry.register_policy)")
+                        "(Python: allow_code=True), or register the policy and name it "
+                        "(simbench.registry.register_policy)")
 
 
 def make(target: str, scenario: Scenario) -> Callable[[dict], Any]:

@@ -54,6 +54,11 @@ class _Registry:
         self.objects[name] = obj
         self.origins[name] = origin
 
+    def register(self, obj: Any, origin: str) -> None:
+        """Add `obj` from Python, after the entry points (so that a name they hold is not taken from them)."""
+        self.all()
+        self.add(obj, origin)
+
     def load_shipped(self) -> None:
         """simbench's own entry points of this group, registered with origin 'simbench'."""
         if self.shipped:
@@ -118,32 +123,27 @@ def load_shipped() -> None:
 
 def register_robot(robot: Robot, origin: str = "registered from Python") -> None:
     """Make `robot` known to scenarios by its name."""
-    _ROBOTS.all()
-    _ROBOTS.add(robot, origin)
+    _ROBOTS.register(robot, origin)
 
 
 def register_planner(planner: Planner, origin: str = "registered from Python") -> None:
     """Make `planner` known to scenarios by its name."""
-    _PLANNERS.all()
-    _PLANNERS.add(planner, origin)
+    _PLANNERS.register(planner, origin)
 
 
 def register_controller(controller: type[Controller], origin: str = "registered from Python") -> None:
     """Make the Controller subclass `controller` known to scenarios by its name (a run makes its own instance)."""
-    _CONTROLLERS.all()
-    _CONTROLLERS.add(controller, origin)
+    _CONTROLLERS.register(controller, origin)
 
 
 def register_policy(policy: PolicyFactory, origin: str = "registered from Python") -> None:
     """Make `policy` known to scenarios by its name (control.policy)."""
-    _POLICIES.all()
-    _POLICIES.add(policy, origin)
+    _POLICIES.register(policy, origin)
 
 
 def register_metric(metric: type[Metric], origin: str = "registered from Python") -> None:
     """Make the Metric subclass `metric` measure every run from now on (each run makes its own: Metric.for_run)."""
-    _METRICS.all()
-    _METRICS.add(metric, origin)
+    _METRICS.register(metric, origin)
 
 
 def robots() -> dict[str, Robot]:

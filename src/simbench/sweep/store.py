@@ -8,9 +8,9 @@
 Running the same sweep into the same folder again skips every run that has a row (rows are trusted: after
 changing simbench itself, start over); `force` starts over. A folder that holds anything else is replaced only
 with `force`, and only if simbench wrote all of it; a folder that holds the sweep file, its base or the working
-folder never (simbench.destination); files of the user's put inside it are never removed: a sweep that would replace
-them (its plots, a run it repeats) is refused, naming one. One sweep at a time may write into a folder: a lock file beside it
-(`.<name>.lock`) keeps a second one out.
+folder never (simbench.destination); files of the user's put inside it are never removed: a sweep that would
+replace them (its plots, a run it repeats) is refused, naming one. One sweep at a time may write into a folder: a
+lock file beside it (`.<name>.lock`) keeps a second one out.
 """
 
 from __future__ import annotations

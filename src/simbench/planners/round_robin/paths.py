@@ -1,5 +1,6 @@
 """The plan on the control grid from the schedule: every arm's theta and gamma (holds and quintic swings), the
-electromagnets' switches, which arms grip, and the rotor's references and orientations, found BLOCK samples at a time."""
+electromagnets' switches, which arms grip, and the rotor's references and orientations, found BLOCK samples at a
+time."""
 
 from __future__ import annotations
 
