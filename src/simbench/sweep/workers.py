@@ -3,8 +3,9 @@ this process may use, than the memory budget gives each its share for (simbench.
 available, against the largest run's estimate and a worker's own memory), or than the runs to do. Asking for more
 is said in one line on stderr; no process beyond these is started.
 
-A worker's own memory, beyond its run's: its proportional set size after a spherical arm case 1 run, measured
-61 MB (2026-12, forked from a process with simbench's modules loaded, which it shares): taken as WORKER_BYTES.
+A worker's own memory, beyond its run's, is taken as WORKER_BYTES: a little over its proportional set size after a
+spherical arm case 1 run, forked from a process with simbench's modules loaded, which it shares (BENCHMARKS.md,
+the sweep's notes).
 """
 
 from __future__ import annotations
