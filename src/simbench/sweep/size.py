@@ -5,10 +5,9 @@ kernel ends it.
 
 Memory: each run holds a copy of the base document with its swept values set (the YAML values of each, a
 mapping's keys counted), while the sweep's fingerprint and manifest (simbench.sweep.store) are written as text
-from them. Measured with tracemalloc (2026-12, Python 3.11, spherical_arm/case1's 37 values, 100 to 6,400 runs,
-swept lists of up to 10,000 floats): 76 to 104 bytes a value of a run at the peak of loading a sweep and starting
-its folder, 87 where a long list dominates; taken as NODE_BYTES. The limit is the memory budget's (simbench.budget:
-half of the memory available).
+from them: NODE_BYTES a value of a run, at the peak of loading a sweep and starting its folder (measured with
+tracemalloc: BENCHMARKS.md, the sweep's notes). The limit is the memory budget's (simbench.budget: half of the
+memory available).
 """
 
 from __future__ import annotations
