@@ -1,23 +1,14 @@
 """Paper 002's joint time histories for lines, circle arcs and composite paths of a decoupled arm (PUMA 600).
 
-The tool follows a path of lines and arcs (eqs. 23-37) on a time law, with its orientation held (or turned
-by slerp to a second orientation along the path). Because the wrist is spherical, the wrist centre follows the
-path offset by the tool: p_w = p - R TOOL. Its joints come from the paper's method:
+The tool follows lines and arcs (eqs. 23-37), its orientation held or slerped; the wrist centre is p - R TOOL.
+  - q3 from the wrist centre's distance (eq. 9 as corrected in NOTES.md), with v = tan(q3/2) the quadratic
+    v^2 (C - A - K) + 2 B v + (A + C - K) = 0 (eqs. 12-14), its two roots the elbow's two sides;
+  - q1 and q2 in closed form from eq. 1; q4, q5, q6 from the spherical wrist.
 
-  - q3 from the wrist centre's distance alone: |P|^2 = a2^2 + a3^2 + d4^2 + d3^2 + 2 a2 a3 cos q3 - 2 a2 d4 sin q3
-    (eq. 9 as corrected in NOTES.md), solved with v = tan(q3/2) as the quadratic
-    v^2 (C - A - K) + 2 B v + (A + C - K) = 0 (eqs. 12-14), whose two roots are the elbow's two sides;
-  - q1 and q2 in closed form from eq. 1: (Px, Py) = Rz(q1) (r, d3) and (r, -Pz) = [[g, -h], [h, g]] (c2, s2),
-    g = a3 c3 - d4 s3 + a2, h = a3 s3 + d4 c3;
-  - q4, q5, q6 from the spherical wrist (Rx(90 deg) R_36 = Rz(q4) Ry(-q5) Rz(q6)).
-
-The configuration (arm, elbow, wrist: puma600's docstring defines each by the sign it picks) is named by the task
-or, with `configuration: auto` (the default), chosen among the 8 (ours, project issue 17): the one whose whole
-path keeps inside every joint range and under every speed limit with the most margin; if none does, the plan is
-refused, naming the joint, where and by how much. The arm and elbow are kept along the path; the wrist follows
-its branch continuously through q5 = 0 (ours, issue 19: a fixed wrist flag turns q4 and q6 by 180 deg in one
-sample there), each crossing recorded. Every joint is made continuous and the span of its path put by whole
-turns in the middle of its range. All samples are solved at once (vectorised).
+The configuration (puma600's docstring) is the task's or, with `configuration: auto`, the one of the 8 that keeps
+the whole path inside the joint ranges and speed limits with the most margin (ours); none: refused, saying where.
+The wrist follows its branch continuously through q5 = 0 (ours: a fixed wrist flag turns q4 and q6 by 180 deg in
+one sample there). Every joint is made continuous and centred in its range by whole turns.
 """
 
 from __future__ import annotations
@@ -64,8 +55,7 @@ class LineSpec(SimbenchModel):
 
 
 class ArcSpec(SimbenchModel):
-    """A circle arc (eqs. 28-37): centre, radius, plane normal, angles measured about the normal from `ref`
-    (default: the world x axis projected onto the plane, or y where x is normal to it)."""
+    """A circle arc (eqs. 28-37): angles about the normal from `ref` (default: world x on the plane, or y)."""
 
     center: Position
     radius: PositiveLength
@@ -153,12 +143,8 @@ class Task(SimbenchModel):
 
 
 def q3_from_distance(k: np.ndarray, h_sign: np.ndarray) -> np.ndarray:
-    """q3 from the squared wrist distance K (eqs. 12-19): the root of eq. 14 whose h has the sign h_sign.
-
-    Eq. 14 has real roots only where |K - C| <= sqrt(A^2 + B^2) (NOTES.md: eq. 15 as printed is wrong); NaN
-    elsewhere. The roots are taken as q / a and c / q with q = -(B + sign(B) sqrt(disc)), free of cancellation,
-    so a root at q3 = 180 deg (a = 0) comes out as v = inf.
-    """
+    """q3 from the squared wrist distance K (eqs. 12-19): the root of eq. 14 whose h has the sign h_sign; NaN where
+    it has none (NOTES.md: eq. 15 as printed is wrong). Roots as q / a and c / q, free of cancellation."""
     a = COEF_C - COEF_A - k
     c = COEF_A + COEF_C - k
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # far points overflow: out of reach
@@ -182,8 +168,7 @@ def arm_angles(p: np.ndarray, arm: float, elbow: float) -> np.ndarray:
 
 
 def solve(points: np.ndarray, rotations: np.ndarray, flags: np.ndarray) -> np.ndarray:
-    """Joints (N, 6) for tool points (N, 3) and orientations (N, 3, 3) in configuration flags (3,) or one per
-    sample (N, 3), not unwrapped."""
+    """Joints (N, 6), not unwrapped, for tool points (N, 3) and orientations (N, 3, 3) in flags (3,) or (N, 3)."""
     flags = np.broadcast_to(flags, (len(points), 3))
     wrist = points - rotations @ TOOL
     q123 = arm_angles(wrist, flags[:, 0], flags[:, 1])
@@ -206,14 +191,13 @@ def _bridge(values: np.ndarray, bad: np.ndarray) -> np.ndarray:
 
 
 def _singular_wrist(q: np.ndarray) -> np.ndarray:
-    """Samples (N,) where the wrist is exactly singular: q5 = 0, where wrist_angles sets q4 = 0 as it is undefined."""
+    """Samples (N,) where the wrist is exactly singular (q5 = 0: wrist_angles sets the undefined q4 to 0)."""
     return np.abs(np.sin(q[:, 4])) < 1e-12
 
 
 def _pin_wrist(q: np.ndarray) -> np.ndarray:
-    """q (N, 6) with q4 at exactly singular samples carried over from the sample before, q6 moved to keep q4 + q6
-    (all that is defined there): the wrist passes through q5 = 0 without a jump, and the branch after it is
-    judged against the branch before."""
+    """q (N, 6) with q4 at exactly singular samples carried over from the sample before, q6 keeping q4 + q6: the
+    wrist passes q5 = 0 without a jump."""
     bad = _singular_wrist(q)
     if not bad.any():
         return q
@@ -225,11 +209,8 @@ def _pin_wrist(q: np.ndarray) -> np.ndarray:
 
 
 def wrist_branch(q: np.ndarray) -> np.ndarray:
-    """The wrist sign (N,) relative to q's own (+1 keep, -1 take the other wrist solution) that keeps the wrist
-    continuous: sample by sample, the one of (q4, q5, q6) and (q4 + pi, -q5, q6 + pi) nearer the sample before.
-
-    Whether the other solution is nearer does not depend on which the sample before took (the swap is an
-    isometry of the wrapped angles), so the branch is the parity of the samples where it is: no loop."""
+    """The wrist sign (N,) relative to q's (+1 keep, -1 the other solution (q4 + pi, -q5, q6 + pi)) that keeps the
+    wrist continuous. The swap is an isometry of wrapped angles, so the branch is a parity: no loop."""
     w = _pin_wrist(q)[:, 3:6]
     other = w + np.stack([np.full(len(w), np.pi), -2 * w[:, 1], np.full(len(w), np.pi)], axis=1)
     stay = np.sum(_wrapped(w[1:] - w[:-1]) ** 2, axis=1)
@@ -239,8 +220,7 @@ def wrist_branch(q: np.ndarray) -> np.ndarray:
 
 
 def continuous(q: np.ndarray) -> np.ndarray:
-    """Every joint unwrapped along the samples, then moved by whole turns so that the middle of its path's span
-    lies as near the middle of its range as it can (the most room on both sides)."""
+    """Every joint unwrapped, then moved by whole turns to centre its path's span in its range."""
     q = np.unwrap(q, axis=0)
     centre = 0.5 * (q.min(axis=0) + q.max(axis=0))
     return q + 2 * np.pi * np.round((0.5 * (LOWER + UPPER) - centre) / (2 * np.pi))
@@ -248,9 +228,8 @@ def continuous(q: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Candidate:
-    """One configuration's joint path on the control grid and its margins: `room` (6,) the least distance of each
-    joint inside its range along the path (rad, negative beyond it), `speed` (6,) the largest commanded speed
-    over the speed limit. `flags` (N, 3) per sample: the wrist's changes where it passes q5 = 0."""
+    """One configuration's joint path on the control grid (`flags` (N, 3) a sample) and its margins: `room` (6,)
+    each joint's least distance inside its range (rad), `speed` (6,) its largest speed over its limit."""
 
     configuration: Configuration
     flags: np.ndarray
@@ -294,9 +273,8 @@ class Candidate:
 
 
 def candidate(task: Task, path: Composite, s: np.ndarray, ds: np.ndarray, configuration: Configuration) -> Candidate:
-    """The joint path of one configuration: solved, its wrist branch kept continuous, made continuous and
-    centred; the joint speeds from dq/ds at each sample's own branch (planners.rate; eqs. 38-40 differentiate
-    the same solution)."""
+    """One configuration's joint path, continuous and centred; speeds from dq/ds on each sample's own branch
+    (eqs. 38-40 differentiate the same solution)."""
     points, rotations = path.point(s), task.rotations(s)
     start = configuration.flags()
     flags = np.tile(start, (len(s), 1))
@@ -310,8 +288,8 @@ def candidate(task: Task, path: Composite, s: np.ndarray, ds: np.ndarray, config
 
 
 def choose(task: Task, path: Composite, t: np.ndarray, s: np.ndarray, ds: np.ndarray) -> tuple[Candidate, dict]:
-    """The task's configuration, or with 'auto' the candidate with the most margin (RunError if none keeps
-    within the limits); and what the report says of the choice."""
+    """The task's configuration, or with 'auto' the one with the most margin (RunError if none is within limits);
+    and the report's words on the choice."""
     if task.configuration != "auto":
         chosen = candidate(task, path, s, ds, task.configuration)
         return chosen, {"chosen": chosen.configuration.label(), "by": "the task"}
@@ -329,8 +307,7 @@ def choose(task: Task, path: Composite, t: np.ndarray, s: np.ndarray, ds: np.nda
 
 
 def _require_reach(task: Task, path: Composite, t: np.ndarray, s: np.ndarray) -> None:
-    """RunError at the first sample whose wrist centre is out of reach. The reach is the wrist centre's
-    distances alone: the same in every configuration."""
+    """RunError at the first sample whose wrist centre is out of reach (in every configuration alike)."""
     bad = np.isnan(solve(path.point(s), task.rotations(s), CONFIGURATIONS[0].flags())).any(axis=1)
     if bad.any():
         k = int(np.argmax(bad))
@@ -363,8 +340,6 @@ def join_gap(segments: list) -> tuple[str, str] | None:
 
 
 class DecoupledPath(Planner):
-    """Paper 002: lines, circle arcs and composite tool paths by the wrist-distance method."""
-
     name = "decoupled_path"
     description = "paper 002: lines, circle arcs and composite tool paths by the wrist-distance method"
     task = Task
@@ -403,8 +378,6 @@ class DecoupledPath(Planner):
         bounds = Composite(tuple(segments)).bounds
         for i, seg in enumerate(segments):
             ends = np.array([0.0, 1.0])
-            # each end with the orientation the torch has there (s of the whole path), in any configuration: the
-            # reach is the wrist centre's distances alone
             q = solve(seg.point(ends), task.rotations(bounds[i:i + 2]), CONFIGURATIONS[0].flags())
             for j, name in enumerate(("start", "end")):
                 if np.isnan(q[j]).any():

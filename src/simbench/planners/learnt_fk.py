@@ -1,26 +1,16 @@
 """Learnt forward kinematics of the Agile Eye (paper 003, section 4): one network per working mode.
 
-The paper trains, for each of the 8 working modes, a network with one hidden layer of 7 tanh units on about 3000
-poses (75 % for training), mapping the base angles to ZYX Euler angles. simbench keeps one network per mode,
-learnt from inverse-kinematics samples the same way, with these changes, each for a reason:
+The paper maps base angles to ZYX Euler angles with one hidden layer of 7 tanh units a mode. simbench departs:
+  - inputs sin(theta_i), cos(theta_i), which do not wrap at +-pi;
+  - outputs R's first two columns, made a rotation by Gram-Schmidt (Euler angles wrap and lose a degree of freedom);
+  - two hidden layers of 64 tanh units (L-BFGS) on 20000 poses: line of sight within 75 deg of home, torsion
+    within +-45 deg, away from the singular curves, where the FK is ill-conditioned (so the planner checks every
+    window with the exact FK);
+  - mode 0's network is trained and the other seven derived exactly: pi added to leg i's angle negates its sin
+    and cos, so mode m's network is mode 0's with its flipped legs' first-layer rows negated.
 
-  - inputs sin(theta_i), cos(theta_i): the angles wrap at +-pi, their sines and cosines do not;
-  - outputs the first two columns of R, made a rotation by Gram-Schmidt: Euler angles wrap and lose a degree of
-    freedom at pitch +-90 deg, so a network fitting them has discontinuities to learn;
-  - two hidden layers of 64 tanh units, fitted by L-BFGS (scikit-learn's MLPRegressor), on 20000 poses over a
-    workspace a little wider than the prototype's (a 140 deg cone, +-30 deg torsion): the line of sight within
-    75 deg of home and a torsion within +-45 deg about it, all in one assembly mode (det A < 0) and at least
-    6 deg from every singular curve. Nearer the singular curves the forward kinematics is ill-conditioned and a
-    network's error grows (about 5 deg median within 10 deg of them, in a trial on a wider workspace), which
-    is why the planner checks every window with the exact FK;
-  - one network is trained, on mode 0, and the other seven are derived from it exactly: adding pi to leg i's
-    angle negates sin(theta_i) and cos(theta_i) and leaves the orientation as it was, so mode m's network is
-    mode 0's with the first-layer rows of its flipped legs negated. Each is checked on its own held-out poses.
-
-The trained weights ship in `data/agile_eye_fk.npz` with their held-out error against the exact FK (degrees);
-inference is plain NumPy, and nothing trains at import. `python -m simbench train-fk` retrains them (it needs
-scikit-learn: `pip install -e '.[train]'`). The planner's gradients take the estimate's derivative by reverse mode
-(LearntFK.forward, rates_vjp: one backward pass through Gram-Schmidt and the layers).
+The weights ship in `data/agile_eye_fk.npz` with their held-out error; `python -m simbench train-fk` retrains them
+(needs scikit-learn). Gradients are by reverse mode (LearntFK.forward, rates_vjp).
 """
 
 from __future__ import annotations
@@ -88,12 +78,9 @@ def to_rotation(out: np.ndarray) -> np.ndarray:
 
 
 def _rotation_vjp(out: np.ndarray, torque: np.ndarray, rot: np.ndarray | None = None) -> np.ndarray:
-    """The cotangent (N, 6) of network outputs for which g . d_out = torque . omega, omega (base frame) the
-    angular velocity of to_rotation(out) along d_out: Gram-Schmidt differentiated. With c1 = a / |a|,
-    b' = b - p c1 (p = c1 . b), c2 = b' / |b'|, c3 = c1 x c2 and dc_k = omega x c_k, omega's body components
-    are (dc2 . c3, -dc1 . c3, dc1 . c2), dc2 . c3 = (db . c3 - p dc1 . c3) / |b'| and dc1 = (1 - c1 c1^T) da / |a|;
-    with t = R^T torque: g_b = t_1 c3 / |b'|, g_a = (t_3 c2 - (t_2 + t_1 p / |b'|) c3) / |a| (perpendicular to
-    c1, so the projection drops). `rot`: to_rotation(out) if at hand."""
+    """The cotangent g (N, 6) of network outputs with g . d_out = torque . omega, omega (base frame) the angular
+    velocity of to_rotation(out): Gram-Schmidt differentiated. With p = c1 . b, b' = b - p c1 and t = R^T torque:
+    g_b = t_1 c3 / |b'|, g_a = (t_3 c2 - (t_2 + t_1 p / |b'|) c3) / |a|. `rot`: to_rotation(out) if at hand."""
     rot = to_rotation(out) if rot is None else rot
     a, b = out[:, :3], out[:, 3:]
     norm_a = np.linalg.norm(a, axis=1, keepdims=True)
@@ -132,8 +119,7 @@ class Network:
         return out
 
     def vjp(self, layers: list[np.ndarray], g_out: np.ndarray) -> np.ndarray:
-        """The gradient in the inputs (N, in) of g_out . output (N, out), each row at its own input (reverse
-        mode through the layers of self.layers)."""
+        """The gradient in the inputs (N, in) of g_out . output (N, out), by reverse mode through `layers`."""
         g = g_out @ self.weights[-1].T
         for w, h in zip(reversed(self.weights[:-1]), reversed(layers[1:-1])):
             g = (g * (1.0 - h * h)) @ w.T
@@ -158,10 +144,8 @@ class LearntFK:
 
     def rates_vjp(self, theta: np.ndarray, mode: int, torque: np.ndarray, layers: list[np.ndarray] | None = None,
                   rot: np.ndarray | None = None) -> np.ndarray:
-        """sum_c torque[n, c] rates[n, c, j] (N, 3), rates[n, :, j] the angular velocity (base frame) of the
-        estimate per unit rate of theta_j: the gradient in the base angles of anything whose derivative in the
-        platform's rotation is `torque` (N, 3), by reverse mode (`layers` and the estimate `rot` from forward, if
-        at hand)."""
+        """The gradient (N, 3) in the base angles of anything whose derivative in the platform's rotation (base
+        frame) is `torque` (N, 3), by reverse mode (`layers` and `rot` from forward, if at hand)."""
         theta = np.atleast_2d(theta)
         net = self.networks[mode]
         layers = net.layers(features(theta)) if layers is None else layers
@@ -200,8 +184,8 @@ def for_mode(base: Network, mode: int) -> Network:
 
 def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 0, out: Path = WEIGHTS,
           log=print) -> dict:
-    """Fit mode 0's network on 75 % of the samples, derive the other modes', check each on held-out poses of its
-    own mode, write them to `out`; return the held-out errors in degrees (geodesic angle to the exact R)."""
+    """Fit mode 0's network on 75 % of the samples, derive the others, check each on held-out poses of its mode,
+    write them to `out`; the held-out errors (deg)."""
     split = int(0.75 * samples)
     mode_0 = training_set(0, samples, seed)
     base = _fit(*mode_0, split, hidden, seed)

@@ -1,30 +1,15 @@
-"""Where the RSMG's arms grip the rotor (paper 001, section 4): the candidate contact points of the round robin.
+"""Where the RSMG's arms grip the rotor (paper 001, section 4): the round robin's candidate contact points.
 
-The rotor is a steel ball, and an electromagnet (EM) can grip it anywhere it reaches. The paper's surviving text
-names three candidate points per arm (a, b, c, Fig. 10) but not where they sit; simbench put them 120 deg apart on
-a great circle (rsmg.POINTS). `FixedContacts` is that scheme: an arm that lets go takes the next of its three in
-round-robin order. `GeneralContacts` (`contacts: general`) offers every arm a dense set of points over the whole
-rotor (a Fibonacci sphere, _DENSE points about 10 deg apart) and, at each re-grip, ranks those it can reach by how
-long they keep the arm's gamma inside eq. 45's band and how firmly (|det A|, eqs. 36-39, 46) the arms holding the
-rotor hold it with the new point over the coming motion.
+`FixedContacts` is the paper's scheme: three points a arm (a, b, c, Fig. 10; simbench puts them 120 deg apart,
+rsmg.POINTS), taken in round-robin order. `GeneralContacts` (`contacts: general`) offers every point of a dense
+Fibonacci sphere, ranked at each re-grip by how long it keeps gamma inside eq. 45's band and how firmly (|det A|,
+eqs. 36-39, 46) the holding arms then hold the rotor; it also keeps joint speeds under SPEED_SHARE of their limit.
+Its arrays are `Lazy` (planners.rsmg_lazy), computed as the search reads them, so planning grows with the motion's
+length, not its square.
 
-Both answer the schedule's questions (planners.round_robin.search.Scheduler) the same way: for each arm and point,
-on the schedule's grid, the first step from each step at which the point leaves the band (`next_bad`), the arm's row
-of A (`rows`), its base angle and gamma (`path`), the points to try next, best first (`next_points`), and the floor
-on the holding arms' |det A| (`floor`). The fixed three come as whole arrays; general contacts' arrays are `Lazy`
-(planners.rsmg_lazy), computed block by block as the search reads them, so that planning grows with the motion's
-length, not with its square (ten minutes of tumbling: 227 re-grips planned in 14 s).
-
-The band in gamma is a band in the angle d between the EM axis v_i and the arm's axis u_i (eqs. 10-11 and the
-spherical triangle u_i, w_i, v_i): cos d = cos ALPHA cos BETA + sin ALPHA sin BETA cos gamma, whatever theta. In the
-rotor's frame the arm's axis is a_i(t) = R(t)^T u_i, a path over the rotor's surface, and a point p is usable while
-the angle between p and a_i(t) stays in the band: a spherical annulus about a_i(t). So one matrix product ranks
-every point of the dense set at once (`dwell`); the exact IK (eqs. 12-23) then checks the few points tried.
-
-General contacts also keep the plan inside the joints' speed limits (rsmg.QD_MAX): a point held is usable only while
-following it needs no joint faster than SPEED_SHARE of its limit, and a swing whose quintic would outrun a joint
-is not taken; and they hold a fast rotor more firmly (`GeneralContacts.floor`). The fixed scheme is the paper's
-and is left as it was: its plan's speeds are checked by the run.
+The band in gamma is a band in the angle d between the EM axis and the arm's axis (eqs. 10-11): cos d =
+cos ALPHA cos BETA + sin ALPHA sin BETA cos gamma. In the rotor's frame the arm's axis is a_i(t) = R(t)^T u_i, so a
+point is usable while its angle to a_i(t) stays in the band: one matrix product ranks the whole dense set (`dwell`).
 """
 
 from __future__ import annotations
@@ -44,8 +29,6 @@ SPEED_SHARE = 0.9  # a hold or a swing asks a joint for at most this share of it
 _HORIZON = 8  # swings (with their approach): the dwell beyond which a point is as good as any longer one
 _FIRM_WEIGHT = 2.0  # the firmness's weight in a point's score against its dwell (both about 0-1)
 _QUINTIC_SAMPLES = 41  # where a swing's quintic's speed is checked
-# The floor on |det A| general contacts keep: the task's det_a_min up to FIRM_SPEED of the rotor, then in proportion
-# to its speed, up to FIRM_CAP (see GeneralContacts.floor).
 FIRM_SPEED = np.deg2rad(150.0)  # rad/s
 FIRM_CAP = 0.5
 _FIRM_STRIDE = 4  # schedule steps between the samples a point's firmness is ranked on
@@ -63,10 +46,8 @@ def fibonacci_sphere(n: int) -> np.ndarray:
 
 
 def cos_d(gamma: np.ndarray) -> np.ndarray:
-    """cos of the angle between the EM axis and the arm's axis at gamma: cos ALPHA cos BETA + sin ALPHA sin BETA cos
-    gamma (the spherical triangle u_i, w_i, v_i, sides ALPHA and BETA about the angle gamma at w_i)."""
+    """cos of the angle between the EM axis and the arm's axis at gamma (spherical triangle u_i, w_i, v_i)."""
     return np.cos(rsmg.ALPHA) * np.cos(rsmg.BETA) + np.sin(rsmg.ALPHA) * np.sin(rsmg.BETA) * np.cos(gamma)
-
 
 
 def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
@@ -78,8 +59,7 @@ def angular_speed(rot: np.ndarray, step: float) -> np.ndarray:
 
 
 class FixedContacts:
-    """The paper's scheme: each arm's three points (a, b, c), the next in round-robin order tried first. Built from
-    every arm's gamma (4, 3, N) and rows of A (4, 3, N, 3) on every point along the grid (and theta, for a plan)."""
+    """The paper's scheme, from every arm's gamma (4, 3, N) and rows of A (4, 3, N, 3) on each point (and theta)."""
 
     def __init__(self, gamma: np.ndarray, rows: np.ndarray, band: tuple[float, float],
                  theta: np.ndarray | None = None):
@@ -109,18 +89,18 @@ class FixedContacts:
         return "abc"[k]
 
     def forget(self) -> None:
-        """Nothing is cached: the paper's three points a arm are every step's arrays."""
+        """Nothing is cached."""
 
     def initial_points(self, arm: int) -> list[int]:
         """The points the arm may grip at t = 0: those inside the band then."""
         return [k for k in range(self.count) if self._next_bad[arm, k, 0] > 0]
 
     def next_points(self, arm: int, held: dict[int, int], grip: int) -> list[int]:
-        """The next point in round-robin order, then the one after (the paper's order of trial)."""
+        """The next point in round-robin order, then the one after."""
         return [(held[arm] + 1) % self.count, (held[arm] + 2) % self.count]
 
     def swing_fits(self, arm: int, k_from: int, k_to: int, release: np.ndarray) -> np.ndarray:
-        """Any: the paper's scheme has no limit on a swing (its plan's speeds are the run's to check)."""
+        """Any: the paper's scheme does not limit a swing (the run checks its speeds)."""
         return np.ones(release.shape, bool)
 
     def floor(self, det_a_min: float) -> float:
@@ -136,8 +116,7 @@ class Swing(NamedTuple):
 
 
 class GeneralContacts:
-    """Any point of the rotor an arm reaches: a dense set (_DENSE points), ranked at each re-grip (module docstring).
-    `rot` (N, 3, 3): the commanded orientations on the grid, `step` s apart; `band`: gamma's (lo, hi)."""
+    """Any point of a dense set the arm reaches. `rot` (N, 3, 3): commanded orientations `step` s apart."""
 
     def __init__(self, rot: np.ndarray, step: float, band: tuple[float, float], swing: Swing,
                  speed_share: float = SPEED_SHARE):
@@ -159,9 +138,8 @@ class GeneralContacts:
         return self._cache.fetch(key, make)
 
     def forget(self) -> None:
-        """Drop every cached array (up to CACHE_FLOATS numbers) once the schedule and the arms' paths are found.
-        Their Lazy arrays' blocks refer back to this object, so without this the cache would live on as cyclic
-        garbage until the interpreter's collector came by, after the plan's per-sample arrays had stacked on it."""
+        """Drop every cached array once the plan is found: the Lazy blocks refer back to this object, so the cache
+        would otherwise live on as cyclic garbage."""
         self._cache.clear()
 
     def lazy(self, make) -> Lazy:
@@ -169,21 +147,19 @@ class GeneralContacts:
         return Lazy(self.n, make, self._cache)
 
     def _ik(self, arm: int, k: int, steps) -> np.ndarray:
-        """theta and gamma (steps, 2) of the arm holding point k at grid steps `steps` (a slice or indices), eqs.
-        12-23."""
+        """theta and gamma (steps, 2) of the arm holding point k at grid steps `steps` (eqs. 12-23)."""
         return np.stack(rsmg.ik(arm, self.rot[steps] @ self.dense[k]), axis=1)
 
     def angles(self, arm: int, k: int) -> Lazy:
-        """theta and gamma (N, 2) of the arm holding point k along the grid (eqs. 12-23), computed as read."""
+        """theta and gamma (N, 2) of the arm holding point k along the grid, computed as read."""
         def make(first: int, stop: int) -> np.ndarray:
             return self._ik(arm, k, slice(first, stop))
         return self._cached(("angles", arm, k), lambda: self.lazy(make))
 
     def _around(self, arm: int, k: int, first: int, stop: int) -> np.ndarray:
-        """angles(arm, k) at steps first - 1 to stop + 1 (those inside the grid): the blocks of first to stop, and
-        the step either side solved on its own, not with its block (which the search, reading the blocks of
-        next_bad, would otherwise solve for one step: a third of the IK). The two steps are solved together even
-        where one is not wanted: NumPy's product of a single row by a vector rounds unlike a row of a longer one."""
+        """angles(arm, k) at steps first - 1 to stop + 1 within the grid; the two edge steps are solved together,
+        not with their blocks (saving a third of the IK), even where one is unwanted: NumPy rounds a single row's
+        product unlike a longer one's."""
         edges = self._ik(arm, k, [max(first - 1, 0), min(stop, self.n - 1)])
         return np.concatenate([edges[:1]] * (first > 0) + [self.angles(arm, k)[first:stop]] +
                               [edges[1:]] * (stop < self.n))
@@ -201,8 +177,8 @@ class GeneralContacts:
         return self._cached(("rows", arm, k), lambda: self.lazy(make))
 
     def next_bad(self, arm: int, k: int) -> LazyExit:
-        """For each step, the first at or after it where holding point k puts gamma outside the band (eq. 45 less
-        the margin) or asks theta or gamma for more than SPEED_SHARE of its speed limit."""
+        """For each step, the first at or after it where holding point k puts gamma outside the band (eq. 45) or
+        a joint over SPEED_SHARE of its speed limit."""
         def make(first: int, stop: int) -> np.ndarray:
             lo = max(first - 1, 0)  # a step either side for the rates at the ends
             both = self._around(arm, k, first, stop)
@@ -219,13 +195,9 @@ class GeneralContacts:
         return self.dense[k]
 
     def floor(self, det_a_min: float) -> np.ndarray:
-        """The floor on the holding arms' type A measure at each step (N,): det_a_min while the rotor turns at up to
-        FIRM_SPEED, then rising in proportion to its speed, up to FIRM_CAP (never under det_a_min). The rotor's
-        error is the servos' lag, which grows with its speed, carried to the rotor through A^-1 (eq. 33:
-        omega = -A^-1 B theta_dot): a faster rotor must be held more firmly to stay as near its command. In trials
-        with a floor of 0.15, five of 50 random motions (at 73-175 deg/s, three arms holding near the floor) ran
-        1.0-1.9 deg off their command; with 0.3 alone, at 350 deg/s four arms holding at 0.4 ran 1.7 deg off; with
-        this floor every one scheduled at up to 930 deg/s stayed within 0.93 deg (benchmarks/bench_rsmg_contacts)."""
+        """The floor on the holding arms' |det A| at each step (N,): det_a_min up to FIRM_SPEED, then in proportion
+        to the rotor's speed, up to FIRM_CAP. The servos' lag grows with speed and reaches the rotor through A^-1
+        (eq. 33), so a faster rotor must be held more firmly."""
         speed = angular_speed(self.rot, self.step)
         return np.maximum(det_a_min, np.minimum(FIRM_CAP, det_a_min * speed / FIRM_SPEED))
 
@@ -233,30 +205,26 @@ class GeneralContacts:
         return f"p{k}"
 
     def _blocks(self, name: str, arm: int, lo: int, hi: int, size: int, make, points=slice(None)) -> np.ndarray:
-        """Items lo to hi (exclusive) along the second axis of a per-arm array over the dense set, from cached blocks
-        of `size` items: make(arm, first, stop) computes one; of the dense set's `points` only (taken from each
-        block before they are joined)."""
+        """Items lo to hi along axis 1 of a per-arm array over the dense set's `points`, from cached blocks of `size`
+        items that make(arm, first, stop) computes."""
         parts = [self._cached((name, arm, b), lambda b=b: make(arm, b * size, (b + 1) * size))[points]
                  for b in range(lo // size, (hi - 1) // size + 1)]
         whole = np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
         return whole[:, lo - (lo // size) * size:hi - (lo // size) * size]
 
     def _inside(self, arm: int, first: int, stop: int) -> np.ndarray:
-        """Whether each point of the dense set is inside the arm's band at steps first to stop (K, steps): the cos
-        of its angle to the arm's axis a_i(t) within the band's (module docstring)."""
+        """Whether each dense point is inside the arm's band at steps first to stop (K, steps)."""
         c = self.dense @ self.axes[arm, first:min(stop, self.n)].T
         return (c > self.cos_band[0]) & (c < self.cos_band[1])
 
     def _dense_rows(self, arm: int, first: int, stop: int) -> np.ndarray:
-        """Every point of the dense set's row of A for the arm (K, samples, 3) at the firmness samples (every
-        _FIRM_STRIDE-th step) first to stop (sample indices)."""
+        """Every dense point's row of A for the arm (K, samples, 3) at firmness samples first to stop."""
         steps = np.arange(first, stop) * _FIRM_STRIDE
         steps = steps[steps < self.n]
         return row_of_a(arm, np.einsum("nij,kj->kni", self.rot[steps], self.dense))
 
     def dwell(self, arm: int, start: int) -> np.ndarray:
-        """For every point of the dense set, the first step from `start` (up to start + the horizon) where it is
-        outside the arm's band, by the angle to the arm's axis a_i(t) (module docstring), (K,)."""
+        """For every dense point (K,), the first step from `start` (up to the horizon) where it leaves the band."""
         def make():
             stop = min(start + self.horizon, self.n)
             return start + first_out(self._blocks("dense_inside", arm, start, stop, _BLOCK_STEPS, self._inside))
@@ -269,11 +237,8 @@ class GeneralContacts:
         return _spread(self.dense, inside, exits[inside].astype(float))
 
     def next_points(self, arm: int, held: dict[int, int], grip: int) -> list[int]:
-        """The points for `arm` to grip at step `grip`, best first: each inside the band from its approach on for
-        at least a swing after the grip, scored by how long it stays inside (up to the horizon: the dwell, 0-1)
-        and how firmly the arms would then hold the rotor (the firmness: the least |det A| of the new point with
-        each two of the other three, the arms that hold while the third swings, eq. 46, over the window it holds,
-        as a share of the largest a determinant of three rows of length sin BETA can be)."""
+        """The points for `arm` to grip at step `grip`, best first: inside the band from the approach to a swing
+        after the grip, scored by dwell (0-1, up to the horizon) and firmness (eq. 46, `_firmness`)."""
         start = max(grip - self.swing.approach, 0)
         until = self.dwell(arm, start)
         usable = np.flatnonzero((until > grip + self.swing.steps) | (until >= self.n))
@@ -285,9 +250,8 @@ class GeneralContacts:
         return _spread(self.dense, usable, dwell + _FIRM_WEIGHT * np.minimum(firm, 1.0))
 
     def _firmness(self, arm: int, held: dict[int, int], usable: np.ndarray, grip: int, stop: np.ndarray) -> np.ndarray:
-        """For each usable point (stop: each one's step of leaving, past the grip), the least |det A| of it with
-        each two of the other arms' rows, from the grip until it leaves, as a share of sin(BETA)^3 (rows w x v have
-        length sin BETA); on every _FIRM_STRIDE-th step."""
+        """For each usable point, the least |det A| of it with each two of the other arms' rows from the grip until
+        it leaves (`stop`), as a share of sin(BETA)^3, the largest it can be."""
         first, last = grip // _FIRM_STRIDE, (int(stop.max()) - 1) // _FIRM_STRIDE + 1
         row = self._blocks("dense_rows", arm, first, last, _BLOCK_SAMPLES, self._dense_rows, usable)  # (P, J, 3)
         steps = np.arange(first, last) * _FIRM_STRIDE
@@ -301,9 +265,8 @@ class GeneralContacts:
         return least / np.sin(rsmg.BETA) ** 3
 
     def swing_fits(self, arm: int, k_from: int, k_to: int, release: np.ndarray) -> np.ndarray:
-        """Whether the swing from point k_from, let go at each step of `release`, to point k_to (a quintic in theta
-        and gamma matching value, rate and acceleration at both ends, as planned) keeps both joints under
-        SPEED_SHARE of their limit."""
+        """Whether the swing's quintic from point k_from, let go at each step of `release`, to point k_to keeps both
+        joints under SPEED_SHARE of their limit."""
         release = np.asarray(release)
         end = release + self.swing.steps - self.swing.approach
         ok = (release >= 1) & (end + 1 < self.n)
@@ -329,10 +292,8 @@ class GeneralContacts:
 
 
 def row_of_a(arm: int, v: np.ndarray) -> np.ndarray:
-    """The arm's row of A, w_i x v_i (eq. 34), for EM axes v (..., 3) in the base frame, in closed form: the w_i at
-    ALPHA from u_i and BETA from v_i (eqs. 10-11), w = a u + b v + c (u x v) with a + b (u.v) = cos ALPHA,
-    a (u.v) + b = cos BETA, |w| = 1, and c > 0 (the root with gamma in (0, 180) deg, the one rsmg.ik keeps); NaN
-    out of reach. The same as rsmg.jacobian_rows of rsmg.ik's solution, without solving for theta and gamma."""
+    """The arm's row of A, w_i x v_i (eq. 34), for EM axes v (..., 3), in closed form: w = a u + b v + c (u x v) at
+    ALPHA from u and BETA from v (eqs. 10-11), c > 0 as rsmg.ik keeps; NaN out of reach. No IK needed."""
     u = rsmg.U[arm]
     cuv = v @ u
     den = 1.0 - cuv**2
@@ -347,8 +308,7 @@ def row_of_a(arm: int, v: np.ndarray) -> np.ndarray:
 
 
 def _rates(y: np.ndarray, step: float, angle: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Rate and acceleration (M,) at the middle of samples y (3, M) a step apart (central differences; an angle
-    unwrapped)."""
+    """Rate and acceleration (M,) at the middle of samples y (3, M) a step apart (central differences)."""
     before, here, after = y
     if angle:
         before = here - np.angle(np.exp(1j * (here - before)))
@@ -357,8 +317,7 @@ def _rates(y: np.ndarray, step: float, angle: bool) -> tuple[np.ndarray, np.ndar
 
 
 def _quintic_peak(start: np.ndarray, end: np.ndarray, h: float) -> np.ndarray:
-    """The largest |rate| (M,) of quintics over [0, h] meeting (value, rate, acceleration) start (M, 3) at 0 and
-    end (M, 3) at h."""
+    """The largest |rate| (M,) of quintics over [0, h] from (value, rate, acceleration) start (M, 3) to end."""
     a = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 2, 0, 0, 0],
                   [1, h, h**2, h**3, h**4, h**5], [0, 1, 2 * h, 3 * h**2, 4 * h**3, 5 * h**4],
                   [0, 0, 2, 6 * h, 12 * h**2, 20 * h**3]], float)
@@ -369,8 +328,7 @@ def _quintic_peak(start: np.ndarray, end: np.ndarray, h: float) -> np.ndarray:
 
 
 def _spread(points: np.ndarray, candidates: np.ndarray, score: np.ndarray) -> list[int]:
-    """Up to _SHORTLIST of the candidates (indices into points, `score` one a candidate), best score first, each at
-    least _APART from those before it."""
+    """Up to _SHORTLIST candidates (indices into points), best score first, each _APART from those before."""
     picked: list[int] = []
     for i in np.argsort(-score, kind="stable"):
         k = int(candidates[i])
@@ -382,10 +340,8 @@ def _spread(points: np.ndarray, candidates: np.ndarray, score: np.ndarray) -> li
 
 
 def random_motions(n: int, seed: int, contacts: str = "general") -> list[dict]:
-    """n `round_robin` scenario documents (SI units) nobody tuned for, what the tests and the benchmark draw: every
-    other one (at random) turns about a uniform random axis, 1 to 5 turns either way; the rest tumble, 1 to 3 spin
-    turns about a uniform random rotor axis while it precesses 0.5 to 2 turns about another, either way; each over
-    a uniform 6 to 30 s on the shipped scenarios' trapezoidal law, with the task's defaults otherwise."""
+    """n untuned random `round_robin` scenario documents (SI) for tests and benchmarks: half turn about a random
+    axis, half tumble (spin and precession), over 6 to 30 s."""
     rng = np.random.default_rng(seed)
 
     def axis() -> list[float]:

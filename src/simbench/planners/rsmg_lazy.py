@@ -1,6 +1,5 @@
-"""Arrays along the RSMG schedule's grid that general contacts compute block by block as the search reads them
-(`Lazy`, and `LazyExit`, the first step from each where a Lazy of booleans is false), the cache their blocks are
-kept in, and first_false, the same exits of a whole array (planners.rsmg_contacts' docstring says why)."""
+"""Arrays along the RSMG schedule's grid computed block by block as the search reads them (`Lazy`, `LazyExit`),
+their bounded cache, and first_false, the exits of a whole array."""
 
 from __future__ import annotations
 
@@ -13,23 +12,20 @@ _LAZY_BLOCK = 1024  # schedule steps in a block of a Lazy array
 
 
 def first_false(ok: np.ndarray) -> np.ndarray:
-    """For each step along the last axis (and one past the end), the first step at or after it where `ok` is false
-    (the length if never)."""
+    """For each step along the last axis (and one past the end), the first at or after it where `ok` is false."""
     n = ok.shape[-1]
     first = np.minimum.accumulate(np.where(ok, n, np.arange(n))[..., ::-1], axis=-1)[..., ::-1]
     return np.concatenate([first, np.full(ok.shape[:-1] + (1,), n)], axis=-1)
 
 
 def first_out(ok: np.ndarray) -> np.ndarray:
-    """first_false(ok)[..., 0] alone: the first step along the last axis where `ok` is false (the length if never),
-    without first_false's pass over every later step."""
+    """first_false(ok)[..., 0] alone, without the pass over every later step."""
     n = ok.shape[-1]
     return np.where(ok.all(axis=-1), n, ok.argmin(axis=-1)) if n else np.zeros(ok.shape[:-1], np.int64)
 
 
 class BoundedCache(OrderedDict):
-    """A cache dropping its oldest entries once they hold more than `floats` numbers (read through `fetch`: those
-    least recently read)."""
+    """A cache dropping its least recently read entries once they hold more than `floats` numbers."""
 
     def __init__(self, floats: float):
         super().__init__()
@@ -50,8 +46,7 @@ class BoundedCache(OrderedDict):
         self.held = 0
 
     def fetch(self, key, make):
-        """The value under key, or make()'s kept there; either way now the newest entry, the last to go (the search
-        moves on in time, and what it read last it reads again: the held points' blocks)."""
+        """The value under key, or make()'s kept there; either way now the newest entry, the last to go."""
         if key in self:
             self.move_to_end(key)
             return self[key]
@@ -64,10 +59,8 @@ def _floats(value) -> int:
 
 
 class Lazy:
-    """An array along the grid (n steps, any trailing shape) computed block by block when first read, the blocks
-    kept in a shared BoundedCache: what keeps general contacts' planning linear in the motion's length (a point held
-    a few seconds costs a few blocks, not the whole grid). make(first, stop) computes steps first to stop. Reads as
-    an array does: lazy[step], lazy[steps], lazy[first:stop]."""
+    """An array along the grid (n steps, any trailing shape), its blocks computed by make(first, stop) when first
+    read and kept in a shared BoundedCache. Reads as an array: lazy[step], lazy[steps], lazy[first:stop]."""
 
     _tags = iter(range(1 << 62))
 
@@ -100,15 +93,14 @@ class Lazy:
 
 
 def _distinct(blocks: np.ndarray) -> np.ndarray:
-    """The distinct blocks a read touches, in order: np.unique's, without its sort where they are one (most reads)."""
+    """The distinct blocks a read touches, in order (no sort where they are one: most reads)."""
     if blocks.size and blocks.min() == blocks.max():
         return blocks.reshape(-1)[:1]
     return np.unique(blocks)
 
 
 class LazyExit:
-    """first_false of a Lazy of booleans, block by block: for each step (and one past the end, n), the first at or
-    after it where `ok` is false (n if never); read as first_false's array is (exit[step], exit[steps])."""
+    """first_false of a Lazy of booleans, block by block; read as first_false's array is."""
 
     def __init__(self, ok: Lazy):
         self.ok, self.n, self.size = ok, ok.n, ok.size
@@ -119,8 +111,7 @@ class LazyExit:
         return self.ok.cache.fetch((self.ok.tag, b, "exit"), lambda: first_false(self.ok.block(b)))
 
     def _from(self, b: int, limit: int) -> int:
-        """The first false at or after block b's first step, or `limit` if there is none before it (the blocks
-        from `limit` on are then not computed)."""
+        """The first false at or after block b's first step, or `limit` if none before it (computing no further)."""
         pending = []
         while b * self.size < min(limit, self.n) and b not in self._from_start:
             local = self._local(b)
@@ -140,9 +131,8 @@ class LazyExit:
         return self.upto(index, self.n)
 
     def upto(self, index, limit: int):
-        """min(self[index], limit), computing no block from `limit` on beyond those holding the steps: all that a
-        test of the exit against a bound under `limit` needs (round_robin's choices look a few swings ahead, not
-        to where a point leaves the band)."""
+        """min(self[index], limit), computing no block past `limit` beyond those holding the steps (the search
+        looks a few swings ahead, not to where a point leaves the band)."""
         steps = np.asarray(index)
         if steps.ndim == 0:
             return self._one(int(steps), limit)
@@ -159,7 +149,7 @@ class LazyExit:
         return np.minimum(out, limit).reshape(steps.shape)
 
     def _one(self, step: int, limit: int) -> int:
-        """upto of a single step, without the arrays (the search's deadlines and its starts read one at a time)."""
+        """upto of a single step, without the arrays."""
         if step >= self.n:
             return min(self.n, limit)
         b, at = divmod(step, self.size)

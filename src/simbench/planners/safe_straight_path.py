@@ -1,15 +1,10 @@
 """Paper 000's safe straight paths for the 4-DOF spherical arm (eqs. 21-34, flowchart Fig. 10).
 
-The tool moves on the line between the tool points of q_init and q_goal (eqs. 21-22) while q2 moves linearly
-(eq. 24). At each point q1, q3, q4 follow from the point and q2 (eqs. 23, 25, 26); where q4 would be negative
-it is held at 0 and q2 moves instead (eq. 27). Every point off the lift axis has two solutions, (q1, q3) and
-(q1 + pi, pi - q3) (eq. 28, Fig. 7). The branch rule that reproduces every row of Table 2 (NOTES.md section 1):
-keep q1 continuous, unless that branch breaks the q3 limits somewhere on the path; then take the forward
-branch (q3 <= 90 deg) from the first point after the start on.
-
-If the path leaves the workspace (Fig. 10's test) a new initial q3 is made by the tangent construction of
-Fig. 8 (eqs. 30-34), trying the S solution first and then B. The method is solved at every control sample
-along the timed path, not only at its nd points, so the reference stays on the line between them.
+The tool follows the line between the tool points of q_init and q_goal (eqs. 21-22), q2 linear (eq. 24); q1, q3,
+q4 follow (eqs. 23, 25, 26), and where q4 would be negative q2 moves instead (eq. 27). Of the two branches (eq. 28)
+the rule that reproduces Table 2: keep q1 continuous unless that breaks the q3 limits on the path; then take the
+forward branch (q3 <= 90 deg) after the start. A path leaving the workspace gets a new initial q3 (Fig. 8,
+eqs. 30-34). The method is solved at every control sample, not only at its nd points.
 """
 
 from __future__ import annotations
@@ -43,8 +38,8 @@ class Task(SimbenchModel):
 
 @dataclass(frozen=True)
 class Line:
-    """One run of the method: the configurations, their tool points and the branch choices; and the geometry on
-    the check grid of each nd asked (_check_geometry), solved once per line."""
+    """One run of the method: the configurations, their tool points, the branch choices, and its check-grid
+    geometry (_check_geometry) cached."""
 
     q_init: np.ndarray
     q_goal: np.ndarray
@@ -60,8 +55,7 @@ class Line:
         return np.ascontiguousarray(self.coordinates(s).T), self.lift(s)
 
     def coordinates(self, s: np.ndarray) -> np.ndarray:
-        """x, y, z of the line points X(s) (eqs. 21-22) as rows (3, N): a coordinate at a time, as an (N, 1) by (3,)
-        broadcast costs ten times as much."""
+        """x, y, z of the line points X(s) as rows (3, N) (faster than an (N, 1) by (3,) broadcast)."""
         return self.x_init[:, None] + (self.x_goal - self.x_init)[:, None] * s
 
     def lift(self, s: np.ndarray) -> np.ndarray:
@@ -77,8 +71,7 @@ class Line:
 
 
 def _azimuth_of_travel(x: np.ndarray, y: np.ndarray, d: np.ndarray, line: Line) -> np.ndarray:
-    """atan2(y, x) of each point (eq. 23), d its distance from the lift axis; on the axis itself, the direction the
-    line heads in."""
+    """atan2(y, x) of each point (eq. 23); on the lift axis itself (d = 0), the direction the line heads in."""
     azimuth = np.arctan2(y, x)
     heading = line.x_goal[:2] - line.x_init[:2]
     azimuth[d < 1e-15] = np.arctan2(heading[1], heading[0])
@@ -86,8 +79,8 @@ def _azimuth_of_travel(x: np.ndarray, y: np.ndarray, d: np.ndarray, line: Line) 
 
 
 def _geometry(line: Line, s: np.ndarray) -> dict[str, np.ndarray]:
-    """What the method gives at path parameters s on either branch (eqs. 23-27): the point's z, q2, q4, the forward
-    branch's azimuth and elevation, where eq. 27 holds q4 at 0 (`repaired`) and the unrepaired pivot height."""
+    """The method's branch-free values at s (eqs. 23-27): z, q2, q4, the forward azimuth and elevation, where eq. 27
+    holds q4 at 0 (`repaired`) and the unrepaired pivot height."""
     x, y, z = line.coordinates(s)
     d = np.hypot(x, y)
     h_lin = z - line.lift(s) - D1
@@ -120,8 +113,7 @@ def _pinned(line: Line, s: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def _unwrap_q1(q: np.ndarray, q1_init: float) -> np.ndarray:
-    """q with q1 made continuous along the samples (in place), starting from the initial configuration's own
-    value."""
+    """q with q1 made continuous along the samples from q1_init (in place)."""
     q[:, 0] = np.unwrap(np.concatenate([[q1_init], q[:, 0]]))[1:]
     return q
 
@@ -163,16 +155,14 @@ def build(q_init: np.ndarray, q_goal: np.ndarray) -> Line:
 
 @lru_cache(maxsize=8)
 def _check_grid(nd: int = 11) -> np.ndarray:
-    """The path samples on which the branch rule and the workspace test are decided: _CHECK_SAMPLES evenly
-    spaced, and the method's nd points. Kept (read-only) as every plan asks for the same."""
+    """The samples the branch rule and workspace test are decided on (read-only, cached): even ones and nd's."""
     grid = np.union1d(np.linspace(0.0, 1.0, _CHECK_SAMPLES), np.linspace(0.0, 1.0, nd))
     grid.flags.writeable = False
     return grid
 
 
 def _check_geometry(line: Line, nd: int = 11) -> dict[str, np.ndarray]:
-    """_geometry on the check grid of nd, solved once per line (read-only): the branch rule (build) and the
-    workspace test (exit_reasons) both need it, and it does not depend on the branches they choose."""
+    """_geometry on the check grid of nd, solved once per line (read-only) for build and exit_reasons."""
     if nd not in line._checked:
         geometry = _geometry(line, _check_grid(nd))
         for value in geometry.values():
@@ -188,8 +178,7 @@ def _checked_configurations(line: Line, nd: int = 11) -> np.ndarray:
 
 
 def _limit_tests(q: np.ndarray) -> list[tuple[np.ndarray, str]]:
-    """(where it breaks, which) for each joint limit of q2, q3 and q4 but q3's lower one (the flowchart's own
-    test, q3 < -75 deg)."""
+    """(where it breaks, which) for each limit of q2, q3, q4 but q3's lower one (the flowchart tests it)."""
     tests = []
     for j, name in ((1, "q2"), (2, "q3"), (3, "q4")):
         if j != 2:
@@ -199,8 +188,7 @@ def _limit_tests(q: np.ndarray) -> list[tuple[np.ndarray, str]]:
 
 
 def _eq27_jumps(geometry: dict[str, np.ndarray]) -> np.ndarray:
-    """Where eq. 27 makes q2 and q3 step (N,): the unrepaired sample of each boundary of the q4 = 0 region that
-    lies below the pivot (h < 0)."""
+    """Where eq. 27 makes q2 and q3 step (N,): the q4 = 0 region's boundaries below the pivot (h < 0)."""
     rep = geometry["repaired"]
     edge = np.flatnonzero(rep[1:] != rep[:-1])
     outside = np.where(rep[edge], edge + 1, edge)  # the unrepaired sample of each boundary pair
@@ -212,10 +200,8 @@ def _eq27_jumps(geometry: dict[str, np.ndarray]) -> np.ndarray:
 def exit_reasons(line: Line, nd: int = 11) -> list[dict]:
     """Where and why the path leaves the workspace (Fig. 10's test), first s of each; empty if it does not.
 
-    The flowchart's tests: {q3_init > 90 deg and dq3 > 0 and z < d1} and {q3 < -75 deg}. Its third,
-    {x^2 + y^2 - (z - d1)^2 < d4^2}, is garbled (as printed it holds at the start of case 1, which the paper
-    says lies inside); in its place the method's own failures are tested: any joint limit broken, and the jump
-    eq. 27 makes when the tool leaves the q4 = 0 region below the pivot (case 4's printed start).
+    The flowchart's third test is garbled (it fails case 1's start, which the paper says is inside); in its place:
+    any joint limit broken, and eq. 27's jump below the pivot (case 4's printed start).
     """
     s, geometry = _check_grid(nd), _check_geometry(line, nd)
     q = _checked_configurations(line, nd)
@@ -229,11 +215,7 @@ def exit_reasons(line: Line, nd: int = 11) -> list[dict]:
 
 
 def tangent_q3(line: Line) -> dict[str, float]:
-    """The two new initial q3 offsets of Fig. 8 (flowchart, eqs. 30-33): S (small) and B (big), NaN if none.
-
-    d is the distance between the two tool points; di, dg the reaches d4 + q4 at start and goal; dci, dcg the
-    tangent lengths from them to the circle of radius d4.
-    """
+    """The two new initial q3 offsets of Fig. 8 (eqs. 30-33): S (small) and B (big), NaN if none."""
     d = np.linalg.norm(line.x_goal - line.x_init)
     di, dg = D4 + line.q_init[3], D4 + line.q_goal[3]
     dci, dcg = np.sqrt(di**2 - D4**2), np.sqrt(dg**2 - D4**2)
@@ -297,8 +279,7 @@ def _info(line: Line, reasons: list[dict], repair_info: dict | None) -> dict:
 
 
 def _moved_start(given: Line, line: Line, reasons: list[dict], chosen: str) -> str:
-    """What the repair did to the task: the plan no longer starts where the scenario said (the method's own
-    choice, Fig. 8, so the run can still keep every promise; the summary says it)."""
+    """The warning that the repaired plan no longer starts where the scenario said (Fig. 8's own choice)."""
     return (f"the straight path from the task's start leaves the workspace ({reasons[0]['condition']} at s = "
             f"{reasons[0]['s']:.4f}); the plan starts instead from Fig. 8's new initial q3 = "
             f"{np.rad2deg(line.q_init[2]):.4f} deg ({chosen}; the task's {np.rad2deg(given.q_init[2]):.4f} deg), "
@@ -306,8 +287,6 @@ def _moved_start(given: Line, line: Line, reasons: list[dict], chosen: str) -> s
 
 
 class SafeStraightPath(Planner):
-    """Paper 000: straight tool path between two configurations, with workspace repair."""
-
     name = "safe_straight_path"
     description = "paper 000: straight tool path between two configurations, with workspace repair"
     task = Task

@@ -1,20 +1,13 @@
-"""Global search for an orientation path in SO(3), for when bending a joint path around a constraint fails
-(project issue 19): RRT-Connect in OMPL's SO3StateSpace, shortcut, then every corner rounded so that the path,
-timed by a polynomial law, is smooth to the third derivative.
+"""Global search for an orientation path in SO(3), for when bending a joint path around a constraint fails:
+RRT-Connect in OMPL's SO3StateSpace, shortcut, then every corner rounded so that the timed path is smooth to the
+third derivative.
 
-The constraints come in as one function, `slack(rot)`: for orientations (N, 3, 3), by how much each keeps the
-worst of its margins (>= 0: all kept). OMPL checks a motion at states `step` apart (rotation angle); a
-clearance that is 1-Lipschitz in the rotation angle (the angle to an obstacle's centre, the angle between a
-platform axis and its base axis) cannot dip by more than step / 2 between two checked states, so the caller
-pads those margins by step / 2 in `slack` and the whole motion keeps them.
+`slack(rot)` gives, for orientations (N, 3, 3), the worst margin of each (>= 0: all kept). OMPL checks states
+`step` apart, so a 1-Lipschitz clearance can dip by step / 2 between them: the caller pads its margins by that.
 
-The corners: waypoints R_0 .. R_n joined by geodesics R_k Exp(u e_k), 0 <= u <= a_k (e_k a unit axis in
-R_k's frame, a_k the segment's angle), parametrised by their summed angle sigma. Near an inner waypoint R_k,
-with x = sigma - sigma_k, the incoming geodesic is R_k Exp(x e_{k-1}) and the outgoing one R_k Exp(x e_k); over
-|x| <= d_k the path is R_k Exp(x ((1 - h) e_{k-1} + h e_k)), h = S((x + d_k) / (2 d_k)) with S the 4-5-6-7
-polynomial of paper 003 (eq. 8). S's value and first three derivatives are 0 at 0 and 1 at 1, so the blend
-meets both geodesics with equal derivatives up to the third, and passes through R_k itself. Each corner takes
-the widest blend (half the shorter neighbouring segment, halved until it fits) that keeps `slack`.
+Corners: near inner waypoint R_k, over |x| <= d_k of the summed geodesic angle, the path is
+R_k Exp(x ((1 - h) e_{k-1} + h e_k)), h = S((x + d_k) / (2 d_k)) with S the 4-5-6-7 polynomial (paper 003, eq. 8):
+it meets both geodesics with equal derivatives up to the third and passes through R_k.
 """
 
 from __future__ import annotations
@@ -41,9 +34,8 @@ _S = TimeLaw("4567", 1.0)  # S(tau) = 35 tau^4 - 84 tau^5 + 70 tau^6 - 20 tau^7 
 
 @dataclass(frozen=True)
 class OrientationPath:
-    """Geodesics between waypoints (n + 1, 3, 3) with rounded corners. `axes` (n, 3): each segment's unit axis
-    e_k in the frame of its first waypoint; `angles` (n,): its geodesic angle a_k; `blends` (n - 1,): each inner
-    corner's half-width d_k (rad of the summed geodesic angle sigma)."""
+    """Geodesics between waypoints (n + 1, 3, 3) with rounded corners: each segment's unit axis e_k (n, 3) in its
+    first waypoint's frame, its angle a_k (n,), each inner corner's half-width d_k (n - 1,) in rad of sigma."""
 
     waypoints: np.ndarray
     axes: np.ndarray
@@ -99,8 +91,7 @@ class _Checker(ob.StateValidityChecker):
 
 @contextmanager
 def _silent():
-    """OMPL logs each search, and an error when its seed is set again in the same process (which is what makes
-    the search repeatable): hold its messages back."""
+    """Hold back OMPL's messages (it logs each search, and an error when its seed is set again)."""
     level = ou.getLogLevel()
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     try:
@@ -128,8 +119,7 @@ def _state(space: ob.SO3StateSpace, rot: np.ndarray):
 
 
 def _shortened(si: ob.SpaceInformation, path) -> np.ndarray:
-    """The quaternions (n + 1, 4) of OMPL's path after its rope shortcut and _SHORTCUTS rounds of vertex
-    reduction (both keep the validity test)."""
+    """The quaternions (n + 1, 4) of OMPL's path after its rope shortcut and vertex reduction."""
     simplifier = og.PathSimplifier(si)
     simplifier.ropeShortcutPath(path)
     for _ in range(_SHORTCUTS):
@@ -139,9 +129,8 @@ def _shortened(si: ob.SpaceInformation, path) -> np.ndarray:
 
 def search(slack: Slack, start: np.ndarray, goal: np.ndarray, time_budget: float,
            step: float) -> tuple[np.ndarray | None, str]:
-    """Waypoints (n + 1, 3, 3) from start to goal (3, 3) whose geodesics keep slack >= 0 at states `step` apart
-    (rotation angle), and OMPL's status; None if RRT-Connect finds none within time_budget seconds. The path is
-    shortened by OMPL's rope shortcut and vertex reduction (same check), not yet smoothed."""
+    """Shortened waypoints (n + 1, 3, 3) from start to goal whose geodesics keep slack >= 0 at states `step` apart,
+    and OMPL's status; None if RRT-Connect finds none within time_budget seconds."""
     with _silent():
         ou.RNG.setSeed(_SEED)
         space, si = _space_information(slack, step)
@@ -157,9 +146,8 @@ def search(slack: Slack, start: np.ndarray, goal: np.ndarray, time_budget: float
 
 
 def smooth(waypoints: np.ndarray, slack: Slack, step: float) -> OrientationPath:
-    """The waypoints' path with each corner rounded by the widest blend whose samples, `step` / 4 apart in sigma,
-    keep slack >= 0. A corner where even the narrowest blend fails keeps a blend of zero width (a kink, which
-    the caller's exact check of the timed path then reports)."""
+    """The waypoints' path with each corner rounded by the widest blend that keeps slack >= 0; a corner where none
+    fits stays a kink, which the caller's check of the timed path reports."""
     path = OrientationPath.through(waypoints)
     knots = np.concatenate([[0.0], np.cumsum(path.angles)])
     blends = path.blends.copy()

@@ -1,6 +1,5 @@
-"""A joint path judged by the exact FK of its samples: its clearances, where it passes the type 2 singular
-surface, how far it ends from the goal; and, for a path that breaks its margins, the refusal or the warnings and
-violations it is handed over with."""
+"""A joint path judged by the exact FK of its samples (clearances, type 2 crossings, goal error), and the refusal
+or the warnings a path that breaks its margins gets."""
 
 from __future__ import annotations
 
@@ -28,9 +27,8 @@ def summary(task: Task, theta: np.ndarray, rot: np.ndarray, kci: np.ndarray | No
 
 @dataclass(frozen=True)
 class Checked:
-    """A joint path on the control grid with what the exact FK says of it: the platform followed from the start
-    orientation, the summary, where it meets or crosses the type 2 singular surface, how far it ends from the
-    goal, and whether it keeps every margin in one assembly mode and ends at the goal."""
+    """A joint path on the control grid with what the exact FK says of it, and whether it keeps every margin in
+    one assembly mode and ends at the goal (`ok`)."""
 
     name: str
     theta: np.ndarray
@@ -44,10 +42,8 @@ class Checked:
 
 def _crossings(t: np.ndarray, theta: np.ndarray, rot: np.ndarray, undetermined: np.ndarray,
                det_a: np.ndarray | None = None) -> np.ndarray:
-    """Times where a path passes the type 2 singular surface: det A changes sign between two samples, or the
-    platform comes onto a singular curve (some v_i = +-u_i within _ON_CURVE; there the FK followed may go on in
-    either assembly mode, det A's sign then telling nothing) or where its orientation is undetermined. `det_a`:
-    det A along the path, if at hand."""
+    """Times where a path passes the type 2 singular surface: det A changes sign, or the platform comes onto a
+    singular curve (where either assembly mode may follow) or is undetermined. `det_a`: det A, if at hand."""
     det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0]) if det_a is None else det_a
     on = (agile_eye.axis_gaps(rot).min(axis=1) < _ON_CURVE) | undetermined
     arrives = np.flatnonzero(on & ~np.concatenate([[False], on[:-1]]))
@@ -71,8 +67,7 @@ _MARGIN_FIELDS = {"type2": "task.singularity_clearance", "kci": "task.kci_min"}
 
 
 def shortfalls(task: Task, clearance: dict[str, float]) -> list[str]:
-    """Each margin not kept: the clearance reached, the margin, and the field that sets it. The KCI is a
-    number (1 / cond(A^-1 B)), the clearances angles (in degrees here)."""
+    """Each margin not kept, in words: the clearance reached, the margin, and the field that sets it."""
     need = margins(task)
     out = []
     for name, c in clearance.items():
@@ -104,8 +99,7 @@ def refusal(task: Task, best: Checked, search: dict | None) -> str:
 
 
 def _violations(task: Task, chosen: Checked, t_end: float | None = None) -> list[dict]:
-    """What a path that is not ok breaks, as verdict violations: each margin not kept, a singular crossing where
-    it passes the type 2 surface, the goal missed where its platform ends away from the goal (at `t_end`)."""
+    """What a path that is not ok breaks, as verdict violations: margins, a singular crossing, the goal missed."""
     out = [{"kind": "clearance_margin", "message": f"{line} not kept"}
            for line in shortfalls(task, chosen.exact["clearance"])]
     if chosen.crossings.size:

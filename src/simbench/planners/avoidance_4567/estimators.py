@@ -9,9 +9,8 @@ from simbench.robots import agile_eye
 
 
 def platform(theta: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The exact FK followed along a joint path from the start orientation (N, 3, 3), and where it is
-    undetermined (N,): base angles at which the platform can turn with the base locked (the FK's roots
-    degenerate, on the type 2 singular surface). There the orientation before is held."""
+    """The exact FK followed from the start orientation (N, 3, 3), and where it is undetermined (N,): on the type 2
+    singular surface, where the orientation before is held."""
     rot = agile_eye.fk_track(theta, start)
     undetermined = ~np.isfinite(rot).all(axis=(1, 2))
     for k in np.flatnonzero(undetermined):
@@ -39,9 +38,8 @@ class Estimator:
         return self(theta, anchor), None
 
     def pull(self, theta: np.ndarray, rot: np.ndarray, layers: list | None, torque: np.ndarray) -> np.ndarray:
-        """The gradient in the base angles (N, 3) of quantities whose derivatives in the platform's rotation are
-        `torque` (N, 3), each at its own sample: torque^T (d omega / d theta) of the estimate, the network's own
-        derivative (reverse mode) or the exact FK's (A^-1 B, zero where A is singular)."""
+        """torque^T (d omega / d theta) (N, 3) of the estimate, each at its own sample: the network's by reverse
+        mode, or the exact FK's (A^-1 B, zero where A is singular)."""
         if self.network is not None:
             return self.network.rates_vjp(theta, self.mode, torque, layers, rot)
         rates = np.nan_to_num(agile_eye.platform_rates(theta, rot), nan=0.0, posinf=0.0, neginf=0.0)

@@ -57,8 +57,7 @@ class Plan:
 
 
 def plain_plan(task: Task, law: TimeLaw) -> Plan:
-    """The 4-5-6-7 joint path (eqs. 8-10) from the IK of the start to that of the goal in the working mode, each
-    joint the shorter way round."""
+    """The 4-5-6-7 joint path (eqs. 8-10) between the IK of start and goal, each joint the shorter way round."""
     theta_init = agile_eye.ik(task.start.matrix(), task.working_mode)[0]
     theta_goal = agile_eye.ik(task.goal.matrix(), task.working_mode)[0]
     theta_final = theta_init + np.angle(np.exp(1j * (theta_goal - theta_init)))  # the shorter way round

@@ -22,11 +22,9 @@ from simbench.trajectory import JointTrajectory, control_grid
 
 
 def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[Checked, Checked, list[dict], dict | None]:
-    """The path to hand over: the plain one if it keeps the margins, else the one bent by windows, else the
-    global search's; each judged by the exact FK on the control grid. Windows get half of the time budget, the
-    search the rest (at least half). Returns the chosen path (not ok if none is), the plain path, the windows
-    and what the search did (None if it did not run). RunError if none keeps the margins and the task does not
-    accept that."""
+    """The path to hand over (plain, else bent by windows, else the global search's, each judged by the exact FK),
+    the plain path, the windows and the search's info (None if it did not run). Windows get half the time
+    budget, the search the rest. RunError if none keeps the margins, unless the task accepts that."""
     clock = time.perf_counter()
     budget = task.avoidance.time_budget
     bent, steps = optimise(task, law, deadline=clock + budget / 2)
@@ -46,8 +44,8 @@ def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[Checked, Checked, 
 
 def _info(task: Task, chosen: Checked, plain: Checked, steps: list[dict], search: dict | None,
           planning_time: float) -> dict:
-    """The plan's info: the path chosen, its windows and search, and what the exact FK says of it and of the
-    plain path; with the network, the clearances it estimates along the chosen path too."""
+    """The plan's info: the path chosen, its windows and search, the exact FK's judgement of it and of the plain
+    path, and with the network its estimated clearances."""
     theta = chosen.theta
     info = {
         "method": "paper 003: 4-5-6-7 joint path with smooth avoidance windows found by SLSQP; where they fail, "
@@ -74,23 +72,19 @@ def _info(task: Task, chosen: Checked, plain: Checked, steps: list[dict], search
 
 
 def start_assembly(theta: np.ndarray, start: np.ndarray) -> dict[str, list[float]]:
-    """JointTrajectory.initial: every joint of the closed chain, the passive ones included, at base angles theta
-    (3,) and the start orientation (3, 3). The robot's own assembly takes the FK solution nearest home, for
-    most start orientations another assembly mode than the plan's, which the physics would then keep."""
+    """JointTrajectory.initial: every joint of the closed chain at base angles theta (3,) and the start orientation
+    (the robot's own assembly would often pick another assembly mode)."""
     return {joint: [value] for joint, value in agile_eye.assemble(theta, start).items()}
 
 
 class Avoidance4567(Planner):
-    """Paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)."""
-
     name = "avoidance_4567"
     description = "paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)"
     task = Task
     robots = ("agile_eye",)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        """Plan, bend and time the path, searching SO(3) where bending fails; the exact FK gives the platform
-        orientations the report checks. RunError if no path keeps the margins (unless the task accepts that)."""
+        """Plan, bend and time the path, searching SO(3) where bending fails (RunError: _choose)."""
         task = scenario.task
         law = scenario.timing.law_fn()
         clock = time.perf_counter()
@@ -109,8 +103,7 @@ class Avoidance4567(Planner):
                                initial=start_assembly(theta[0], task.start.matrix()))
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        """T* must fit in T, and the start and goal must not lie on a singular curve (their IK is undefined
-        there)."""
+        """T* must fit in T, and the start and goal must not lie on a singular curve (no IK there)."""
         task = scenario.task
         if task.avoidance.window > scenario.timing.duration:
             return ("task.avoidance.window", f"T* = {task.avoidance.window:g} s is longer than the motion "

@@ -16,8 +16,7 @@ _SEARCH_STEP = np.deg2rad(0.5)  # rotation angle between the states the global s
 
 
 def slack(task: Task, rot: np.ndarray, pad: float = 0.0) -> np.ndarray:
-    """The worst clearance less its margin (N,) at orientations (N, 3, 3), the angular margins raised by `pad`:
-    >= 0 where every margin is kept. The joints are the IK in the task's working mode."""
+    """The worst clearance less its margin (N,) at orientations (N, 3, 3), angular margins raised by `pad`."""
     theta = agile_eye.ik(rot, task.working_mode)
     need = margins(task)
     return np.min([c - need[name] - (0.0 if name == "kci" else pad)
@@ -25,9 +24,8 @@ def slack(task: Task, rot: np.ndarray, pad: float = 0.0) -> np.ndarray:
 
 
 def global_search(task: Task, law: TimeLaw, t: np.ndarray, deadline: float) -> tuple[Checked | None, dict]:
-    """The global search's path timed on the control grid and checked, or None; and what the search did.
-    The orientation path R(sigma) is timed as sigma = length S(t / T), S the 4-5-6-7 law (eq. 8), so the
-    platform is at rest with no acceleration or jerk at both ends; the joints are its IK in the working mode."""
+    """The global search's path, timed as sigma = length S(t / T) (S the 4-5-6-7 law, eq. 8) and checked, or None;
+    and what the search did."""
     from simbench.planners import so3_search  # OMPL, imported when a search is planned
 
     start, goal = task.start.matrix(), task.goal.matrix()

@@ -1,5 +1,4 @@
-"""Paper 003's `task:`: the start and goal orientations, the obstacles and margins, how the path is bent; and the
-clearances and margins every stage of the planner judges a path by."""
+"""Paper 003's `task:`, and the clearances and margins every stage of the planner judges a path by."""
 
 from __future__ import annotations
 
@@ -62,7 +61,7 @@ def centers(task: Task) -> list[np.ndarray]:
 
 @lru_cache(maxsize=256)
 def _matrix(convention: str, value: tuple[float, ...]) -> np.ndarray:
-    """Orientation.matrix of an orientation given by its fields, kept: scipy takes about 0.1 ms for one."""
+    """Orientation.matrix of an orientation given by its fields, cached (scipy is slow for one)."""
     out = Orientation.model_construct(convention=convention, value=list(value)).matrix()  # already validated
     out.flags.writeable = False
     return out
@@ -70,9 +69,8 @@ def _matrix(convention: str, value: tuple[float, ...]) -> np.ndarray:
 
 def clearances(task: Task, theta: np.ndarray, rot: np.ndarray,
                kci: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Clearance (rad) of each obstacle and of the singular curves along orientations (N, 3, 3), positive
-    outside, negative inside; and the KCI (agile_eye.kci_closed_form, or `kci` if given) where the task sets a
-    floor on it."""
+    """Clearance (rad, negative inside) of each obstacle and of the singular curves along orientations (N, 3, 3);
+    and the KCI (or `kci` if given) where the task sets a floor on it."""
     out = {}
     if task.kci_min > 0:
         out["kci"] = agile_eye.kci_closed_form(theta, rot) if kci is None else kci

@@ -1,5 +1,4 @@
-"""Steps 3-4 of the method: a window per violation, its bump's direction and amplitude found by SLSQP with
-analytic gradients (see simbench.planners.avoidance_4567's docstring)."""
+"""Steps 3-4 of the method: a window per violation, its bump found by SLSQP with analytic gradients."""
 
 from __future__ import annotations
 
@@ -37,8 +36,8 @@ def _score(plan: Plan, t: np.ndarray, estimate: Estimator, anchor: np.ndarray,
 
 def _seeds(plan: Plan, t_worst: float, name: str, task: Task, estimate: Estimator,
            anchor: np.ndarray) -> list[np.ndarray]:
-    """Starting directions for SLSQP: the gradient of the violated clearance in the joint angles at its worst
-    instant (where the window peaks; `anchor` is the orientation there), and the two joint axes nearest it."""
+    """Starting directions for SLSQP: the violated clearance's gradient in the joints at its worst instant
+    (orientation `anchor`), and the two joint axes nearest it."""
     theta = plan.theta(np.array([t_worst]))[0]
     probes = theta + np.vstack([np.zeros(3), _STEP * np.eye(3)])
     clear = clearances(task, probes, np.stack([estimate(p[None], anchor)[0] for p in probes]))[name]
@@ -50,8 +49,7 @@ def _seeds(plan: Plan, t_worst: float, name: str, task: Task, estimate: Estimato
 
 @dataclass(frozen=True)
 class _Violation:
-    """The constraint whose clearance falls furthest below its margin along a plan, the time of its worst sample
-    and the platform orientation there (exact FK)."""
+    """The constraint furthest below its margin, the time of its worst sample and the orientation there."""
 
     name: str
     t_worst: float
@@ -60,9 +58,8 @@ class _Violation:
 
 @dataclass
 class _Evaluation:
-    """A candidate window's path on the window's samples: joint angles, estimated orientations (and the network's
-    layers), clearances (N,) by name, the KCI with its terms, mean KCI and each clearance's worst minus its
-    margin; the gradients once asked."""
+    """A candidate window's path on its samples: joints, estimate (and network layers), clearances, KCI terms, mean
+    KCI, each clearance's worst less its margin; the gradients once asked."""
 
     theta: np.ndarray
     rot: np.ndarray
@@ -75,9 +72,8 @@ class _Evaluation:
 
 
 def _angle_partial(center: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """Derivative (N, 3) of the geodesic angle between `center` (3, 3) and orientations rot (N, 3, 3) in the
-    platform's rotation: cos = (tr(C^T R) - 1) / 2 and dR = [omega]x R give d cos = omega . m / 2, m the axial
-    vector of R C^T less its transpose."""
+    """Derivative (N, 3) in the platform's rotation of the geodesic angle between `center` and rot (N, 3, 3):
+    d cos = omega . m / 2, m the axial vector of R C^T less its transpose."""
     m = rot @ center.T
     cos = (np.einsum("ij,nij->n", center, rot) - 1) / 2
     axial = np.stack([m[:, 1, 2] - m[:, 2, 1], m[:, 2, 0] - m[:, 0, 2], m[:, 0, 1] - m[:, 1, 0]], axis=-1)
@@ -85,12 +81,9 @@ def _angle_partial(center: np.ndarray, rot: np.ndarray) -> np.ndarray:
 
 
 class WindowFit:
-    """SLSQP's problem for a new window at t0 (x = alpha, beta, gamma, L): the plan with it, judged on the
-    window's own samples, since a window changes the path only within itself (`anchor`: the orientation at t0,
-    where the exact FK starts following the mode). The plan without the window is evaluated once on those
-    samples; each x's path, estimate and clearances are cached, as the objective and every constraint ask for the
-    same x, and so are their gradients (analytic: the chain x -> theta -> estimated orientation -> clearance or
-    KCI, _gradients), asked for at the points already evaluated."""
+    """SLSQP's problem for a new window at t0 (x = alpha, beta, gamma, L), judged on the window's own samples (a
+    window changes nothing outside it; `anchor`: the orientation at t0). Each x's evaluation and gradients are
+    cached, as the objective and every constraint ask for the same x."""
 
     def __init__(self, plan: Plan, t0: float, task: Task, estimate: Estimator, anchor: np.ndarray):
         self.plan, self.t0, self.task, self.estimate, self.anchor = plan, t0, task, estimate, anchor
@@ -130,10 +123,9 @@ class WindowFit:
         return -self.share * self.score(x)[0] + self.task.avoidance.deviation_weight * x[3] ** 2
 
     def _gradients(self, x: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Gradients in x (4,) of the objective and of each constraint's worst clearance (at its worst sample).
-        Each quantity's partial derivatives in theta (platform held) and in the platform's rotation are pulled
-        back to theta through the estimate's own derivative (Estimator.pull), then to x: theta = base +
-        L b(tau) n, n = d / |d| (d = x[:3]), so d theta / d d = L b (I - n n^T) / |d| and d theta / dL = b n."""
+        """Gradients in x (4,) of the objective and of each constraint at its worst sample: partials in theta and
+        the platform's rotation pulled back through the estimate (Estimator.pull), then through
+        theta = base + L b n, n = d / |d|: d theta / d d = L b (I - n n^T) / |d|, d theta / dL = b n."""
         e = self.evaluate(x)
         if e.gradients is None:
             norm = max(np.linalg.norm(x[:3]), 1e-12)
@@ -171,8 +163,7 @@ class WindowFit:
         return self._gradients(x)[0]
 
     def constraints(self) -> list[dict]:
-        """(alpha, beta, gamma) a unit vector, and every clearance _SAFETY above its margin, with their
-        gradients (finite differences by SLSQP where ANALYTIC_GRADIENTS is off)."""
+        """(alpha, beta, gamma) a unit vector, and every clearance _SAFETY above its margin."""
         unit = {"type": "eq", "fun": lambda x: x[:3] @ x[:3] - 1.0}
         keep = [{"type": "ineq", "fun": lambda x, n=name: self.score(x)[1][n] - _SAFETY} for name in self.need]
         if ANALYTIC_GRADIENTS:
@@ -184,11 +175,9 @@ class WindowFit:
 
 def _optimise_window(plan: Plan, t0: float, worst: _Violation, task: Task, estimate: Estimator,
                      anchor: np.ndarray, deadline: float) -> tuple[Window, bool]:
-    """(alpha, beta, gamma, L) of a new window at t0 by SLSQP (WindowFit): maximise the path's mean KCI - w L^2,
-    every clearance kept. Each seed direction (_seeds, at the violation's worst instant) is tried (no further one
-    once the clock passes `deadline`); the best feasible result wins (else the one that misses least). Returns
-    the window and whether it is feasible."""
-    from scipy.optimize import minimize  # imported when planned, not when registered (47 MB, 0.4 s)
+    """A new window at t0 by SLSQP from each seed (none new past `deadline`): the best feasible one (else the one
+    that misses least), and whether it is feasible."""
+    from scipy.optimize import minimize  # imported when planned, not when registered
 
     fit = WindowFit(plan, t0, task, estimate, anchor)
     constraints = fit.constraints()
@@ -223,9 +212,8 @@ def _worst_violation(task: Task, plan: Plan, t: np.ndarray, exact: Estimator) ->
 
 def _bend(task: Task, plan: Plan, t: np.ndarray, worst: _Violation, estimate: Estimator, exact: Estimator,
           deadline: float) -> tuple[Plan, dict]:
-    """The plan with one more window of T* centred on the worst sample (kept inside [0, T]), and what it did.
-    It is optimised with `estimate` where the window's stretch lies in the network's training workspace, else
-    with the exact FK, and again with the exact FK if the network's window fails the exact check."""
+    """The plan with one more window centred on the worst sample, and what it did: optimised with `estimate`
+    inside the network's training workspace, else (or if it fails the exact check) with the exact FK."""
     length = task.avoidance.window
     t0 = float(np.clip(worst.t_worst - length / 2, 0.0, plan.law.duration - length))
     anchor = exact(plan.theta(np.append(t[t < t0], t0)), task.start.matrix())[-1]  # the orientation at t0
@@ -244,14 +232,8 @@ def _bend(task: Task, plan: Plan, t: np.ndarray, worst: _Violation, estimate: Es
 
 
 def optimise(task: Task, law: TimeLaw, deadline: float = np.inf) -> tuple[Plan, list[dict]]:
-    """The plain path, then one window per violation until none is left, max_windows is reached or the clock
-    (time.perf_counter) passes `deadline`.
-
-    Violations are found with the exact FK. Each window is optimised with the chosen estimator: the network
-    where the window's stretch of path lies in its training workspace (elsewhere its estimates mean nothing),
-    then checked with the exact FK and optimised again with it where the check fails. Returns the plan and what
-    each window did, estimator included.
-    """
+    """The plain path, then one window per violation (found by the exact FK) until none is left, max_windows is
+    reached or time.perf_counter passes `deadline`; the plan and what each window did."""
     plan = plain_plan(task, law)
     if not task.avoidance.enabled:
         return plan, []

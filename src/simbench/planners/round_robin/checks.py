@@ -18,9 +18,8 @@ _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as m
 
 
 def refusal(task: Task, law: TimeLaw, hold: float, stuck: Stuck) -> str:
-    """Why general contacts cannot follow the motion, in physical terms and numbers: where the search got furthest
-    (with the rotor's speed there), which limit binds (`_cause`), and the shortest of a few longer durations over
-    which the same motion is scheduled."""
+    """Why general contacts cannot follow the motion: where the search got furthest, which limit binds (`_cause`),
+    and the shortest longer duration over which it is scheduled."""
     speed = angular_speed(grid_orientations(task, law, hold)[1], STEP)  # rad/s on the schedule grid
     step = min(stuck.step, speed.size - 1)
     head = (f"round robin (general contacts): no schedule follows this motion, which turns the rotor at up to "
@@ -44,9 +43,8 @@ def refusal(task: Task, law: TimeLaw, hold: float, stuck: Stuck) -> str:
 
 
 def _cause(task: Task, law: TimeLaw, hold: float) -> str:
-    """Which physical limit keeps general contacts from following the motion: the joints' speed (the motion is
-    scheduled with it lifted: the speed then asked for), the time a re-grip takes (scheduled with swings and
-    approaches twice as fast), or neither: the band and |det A| themselves."""
+    """Which limit binds, found by lifting each: the joints' speed, the re-grips' time (swings twice as fast), or
+    neither (the band and |det A| themselves)."""
     try:
         sched = schedule_grips(task, law, hold, speed_share=np.inf)
     except RunError:
@@ -70,5 +68,3 @@ def _cause(task: Task, law: TimeLaw, hold: float) -> str:
     return (f"re-gripping binds: the points the arms can hold leave the gamma band (eq. 45) before the arms, one at "
             f"a time and {swing:.2f} s a re-grip (swing_time + approach_time), have re-gripped in turn; at "
             f"{swing / 2:.2f} s a re-grip (and joints without a speed limit) it is scheduled")
-
-

@@ -17,10 +17,8 @@ _QUINTIC = TimeLaw("quintic", 1.0)
 
 
 class RegripFeedback:
-    """At a grip during the run, the gripping arm's references from then until its release and over the swing
-    after it, up to its next grip, re-solved for the point it really gripped (see the package's docstring). A change
-    ends by the arm's next grip, whose own change takes over there: so no change touches the rows a later one
-    reads, and the references revised in place (simbench.run) are those revised in copies."""
+    """At a grip during the run, the arm's references up to its next grip re-solved for the point it really gripped.
+    A change ends by the arm's next grip, so none touches the rows a later one reads."""
 
     def __init__(self, motion: Motion, s: np.ndarray, q_ref: np.ndarray, holds: list[Hold], grid: np.ndarray,
                  dt: float, n_swing: int):
@@ -63,4 +61,3 @@ class RegripFeedback:
 def _smoothstep(u: np.ndarray) -> np.ndarray:
     """0 before u = 0, 1 after u = 1, the quintic time law between (zero rate and acceleration at both ends)."""
     return _QUINTIC(u, order=0)[0]
-

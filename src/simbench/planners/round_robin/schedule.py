@@ -1,5 +1,5 @@
-"""The grips scheduled on the schedule grid: the contact points along the rotor's motion, and `schedule`, the
-search on the paper's candidates; `Stuck` where no schedule keeps the band and |det A|."""
+"""The grips scheduled on the schedule grid along the rotor's motion; `Stuck` where no schedule keeps the band and
+|det A|."""
 
 from __future__ import annotations
 
@@ -41,32 +41,17 @@ def rising(task: Task) -> str:
 
 
 def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_approach: int = 0) -> list[Hold]:
-    """Which point each arm holds when, on the schedule grid (section 4.1-4.3), with the paper's candidates (their
-    gammas (4, 3, N) and rows of A (4, 3, N, 3) given); RunError where no round-robin choice keeps three arms
-    gripping inside the band with A far from rank loss. General contacts go through the same search (`search_holds`),
-    their points ranked instead of taken in turn.
-
-    Time advances until an arm must let go (its deadline, see the package's docstring). Its choices, in order of
-    preference: the next candidate in round-robin order, then the one after (the paper's order of trial), each
-    let go as late as it can be and still be inside the band when the arm gets there and for long enough after
-    (first: for the other three arms to take a swing each; then: for one swing), then a little earlier. If a
-    choice leads to an arm with no choice later, the search backs up and takes the next one (depth first, at
-    most SEARCH tries).
-    A swing takes n_swing steps, the last n_approach of them following the next point, inside the band too.
-    Over the whole schedule, at every step, the gripping arms' rows of A (`rows`, (4, 3, N, 3): every arm on every
-    point) keep the type A measure (rsmg.type_a_measure: |det A| of the three holding while one swings, the
-    largest 3 x 3 minor while all four grip; eqs. 36-39) >= task.det_a_min (eq. 46's rank-loss test with our
-    floor), and every gripping arm's gamma inside eq. 45's band less task.gamma_margin. Four gripping arms whose
-    measure falls under the floor cannot be rescued by a swing (each three of them is as weak), so before that
-    step one of them must have moved to another point: that is a deadline like a gamma's exit, and any arm may
-    take it.
+    """Which point each arm holds when (section 4.1-4.3), with the paper's candidates' gammas (4, 3, N) and rows of
+    A (4, 3, N, 3); RunError where no round-robin choice keeps three arms gripping inside eq. 45's band with the type
+    A measure (eqs. 36-39) >= task.det_a_min (eq. 46). A depth-first search (search.Scheduler): at each deadline
+    the next candidates in the paper's order of trial, let go as late as each allows. A swing takes n_swing steps,
+    the last n_approach following the next point.
     """
     return search_holds(FixedContacts(gamma, rows, band(task)), task, n_swing, n_approach)
 
 
 class Stuck(RunError):
-    """No schedule: the message says where the search got furthest and why; `step` and `arm` say where (arm -1:
-    the four gripping arms' A, not one arm's band)."""
+    """No schedule: where the search got furthest and why (arm -1: the four gripping arms' A, not a band)."""
 
     def __init__(self, message: str, step: int, arm: int):
         super().__init__(message)
@@ -87,8 +72,7 @@ def search_holds(contacts: FixedContacts | GeneralContacts, task: Task, n_swing:
 
 
 class ScheduleGrid(NamedTuple):
-    """The schedule on its grid (times `grid`, STEP apart): the contact points (every arm's theta and gamma on
-    each), the holds, and the steps of a swing's approach."""
+    """The schedule on its grid (STEP apart): the contact points, the holds, the steps of a swing's approach."""
 
     grid: np.ndarray
     contacts: FixedContacts | GeneralContacts
@@ -97,8 +81,7 @@ class ScheduleGrid(NamedTuple):
 
 
 def candidate_rows(theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-    """Every arm's row of A (eqs. 34-35) on every candidate along the grid, (4, 3, N, 3): what `schedule` keeps
-    far from rank loss."""
+    """Every arm's row of A (eqs. 34-35) on every candidate along the grid, (4, 3, N, 3)."""
     return np.stack([np.stack([rsmg.jacobian_rows(i, theta[i, k], gamma[i, k])[0] for k in range(rsmg.CANDIDATES)])
                      for i in range(rsmg.ARMS)])
 
@@ -110,9 +93,8 @@ def grid_orientations(task: Task, law: TimeLaw, hold: float) -> tuple[np.ndarray
 
 
 def schedule_grips(task: Task, law: TimeLaw, hold: float, speed_share: float = SPEED_SHARE) -> ScheduleGrid:
-    """The schedule grid, the contact points with every arm's IK on them along the rotor's motion there, and the
-    grips scheduled on it; Stuck where no schedule keeps the band and |det A| (which general contacts explain:
-    checks.refusal). `speed_share`: of the joints' speed limit that general contacts keep to."""
+    """The schedule grid, the contact points and the grips scheduled on them; Stuck where none keeps the band
+    and |det A| (checks.refusal explains why). `speed_share`: of the joints' speed limits, for general contacts."""
     grid, rot = grid_orientations(task, law, hold)
     n_approach = int(round(task.approach_time / STEP))
     n_swing = max(1, int(round(task.swing_time / STEP))) + n_approach
@@ -122,5 +104,3 @@ def schedule_grips(task: Task, law: TimeLaw, hold: float, speed_share: float = S
     else:
         contacts = GeneralContacts(rot, STEP, band(task), Swing(n_swing, n_approach), speed_share)
     return ScheduleGrid(grid, contacts, search_holds(contacts, task, n_swing, n_approach), n_approach)
-
-

@@ -17,8 +17,7 @@ from simbench.vectors import triple
 
 STEP = 0.005  # s: the schedule's time step
 FIT = 4  # schedule steps on each side of a swing from which its end states are fitted; a hold is longer
-# Most choices the schedule's search tries. General contacts rarely back up: 300 tries beyond one a possible re-grip
-# (a swing's time apart), so that a long motion's hundreds of re-grips fit.
+# Most choices the search tries; general contacts get one more a possible re-grip (schedule.search_holds).
 SEARCH = {"fixed": 2000, "general": 300}
 _EARLIER = 2  # earlier releases a swing apart that the search may try after the latest one, per next point
 _STARTS = 24  # sets of initial grips general contacts try at most (the longest lasting)
@@ -36,8 +35,8 @@ class Hold:
 
 @dataclass
 class _Choice:
-    """A moment where an arm must let go of the point it holds (current: each arm's (point, held since step)): the
-    (arm, release step, next point) options not yet tried, in order of preference, and the one taken."""
+    """A moment where an arm must let go: the (arm, release step, next point) options not yet tried, best first,
+    and the one taken."""
 
     current: dict[int, tuple[int, int]]
     options: list[tuple[int, int, int]]
@@ -58,8 +57,7 @@ def _held(current: _Current) -> dict[int, int]:
 
 
 def _latest_and_earlier(works: np.ndarray, n_swing: int) -> list:
-    """Of the release steps that work (latest first), the latest and up to _EARLIER earlier ones, each at least a
-    swing before the one picked before it."""
+    """Of the release steps that work (latest first), the latest and up to _EARLIER earlier ones a swing apart."""
     picked = [works[0]] if works.size else []
     for r in works[1:]:
         if len(picked) > _EARLIER:
@@ -70,9 +68,8 @@ def _latest_and_earlier(works: np.ndarray, n_swing: int) -> list:
 
 
 class _Due(NamedTuple):
-    """A step where an arm must let go: what the arms hold then, the first step the four arms' type A measure is
-    under det_a_min, the arms' (exit step, arm) from the band, soonest first, and whether A's rank loss (any arm
-    may let go) rather than a gamma's exit (the soonest arm must) sets the deadline."""
+    """A step where an arm must let go: the points held, the first step A is under det_a_min (`weak`), the arms'
+    (exit step, arm) from the band, soonest first, and whether A's rank loss (any arm may let go) sets it."""
 
     step: int
     points: dict[int, int]
@@ -87,10 +84,8 @@ class _Due(NamedTuple):
 
 @dataclass
 class Scheduler:
-    """The search of `schedule` on its grid: `contacts` (rsmg_contacts' FixedContacts or GeneralContacts) gives
-    every arm's row of A on every point and, for each step, the first at or after it where the arm's gamma on the
-    point leaves the band, and the points to try next; a swing of n_swing steps whose last n_approach follow the
-    next point. Caches the type A measures it meets."""
+    """The search of `schedule` on its grid, over `contacts` (rsmg_contacts); a swing of n_swing steps whose last
+    n_approach follow the next point. Caches the type A measures it meets."""
 
     contacts: FixedContacts | GeneralContacts
     det_a_min: float | np.ndarray  # the floor on the type A measure: one, or one a step
@@ -106,12 +101,12 @@ class Scheduler:
         return self.contacts.n
 
     def next_bad(self, arm: int, k: int) -> np.ndarray:
-        """For each step (and one past the end), the first at or after it where `arm` on point k is outside the band."""
+        """For each step, the first at or after it where `arm` on point k is outside the band."""
         return self.contacts.next_bad(arm, k)
 
     def measure(self, points: dict[int, int], free: int | None = None) -> np.ndarray:
-        """The type A measure (N,) of the arms on `points`, all gripping but `free`: rsmg.type_a_measure's, the
-        largest |3 x 3 minor| of their rows of A (eqs. 36-39); NaN where an arm is out of reach (never firm)."""
+        """The type A measure (N,) of the arms on `points` but `free`: the largest |3 x 3 minor| of their rows of A
+        (eqs. 36-39); NaN where an arm is out of reach."""
         gripping = [(a, p) for a, p in sorted(points.items()) if a != free]
         minors = [self.minor(three) for three in combinations(gripping, 3)]
         if isinstance(self.contacts, FixedContacts):
@@ -119,8 +114,7 @@ class Scheduler:
         return self.contacts.lazy(lambda first, stop: np.max([m[first:stop] for m in minors], axis=0))
 
     def minor(self, three: tuple[tuple[int, int], ...]) -> np.ndarray | Lazy:
-        """|det| of three arms' rows of A on their points (N,) (eqs. 36-39): an array, or Lazy with general
-        contacts."""
+        """|det| of three arms' rows of A on their points (N,) (eqs. 36-39), Lazy with general contacts."""
         if three in self.minors:
             return self.minors[three]
         rows = [self.contacts.rows(i, p) for i, p in three]
@@ -130,8 +124,7 @@ class Scheduler:
             lambda first, stop: np.abs(triple(*(r[first:stop] for r in rows)))))
 
     def next_weak(self, points: dict[int, int]) -> np.ndarray:
-        """For each step (and one past the end), the first step at or after it where the four arms gripping
-        `points` have a measure under det_a_min."""
+        """For each step, the first at or after it where the four arms on `points` are under det_a_min."""
         key = tuple(points[i] for i in range(rsmg.ARMS))
         if key in self.weak_steps:
             return self.weak_steps[key]
@@ -143,8 +136,8 @@ class Scheduler:
         return self.weak_steps.keep(key, LazyExit(firm))
 
     def holding_firmly(self, current: _Current, arm: int, earliest: int, latest: int) -> np.ndarray:
-        """Whether the other arms, on their current points, keep |det A| >= det_a_min throughout a swing of
-        `arm` released at each step from earliest to latest."""
+        """Whether the other arms keep |det A| >= det_a_min through a swing of `arm` released at each step from
+        earliest to latest."""
         stop = min(latest + self.n_swing + 1, self.n)
         floor = np.broadcast_to(self.det_a_min, (self.n,))[earliest:stop]
         firm = self.measure(_held(current), free=arm)[earliest:stop] >= floor
@@ -154,9 +147,8 @@ class Scheduler:
         return weak[end] - weak[release] == 0
 
     def choices(self, current: _Current, arm: int, earliest: int, latest: int) -> list[tuple[int, int]]:
-        """(release step, next point) in order of preference: for each hold wanted after the grip and each next
-        point, the latest release that works, then up to _EARLIER earlier ones a swing apart. After the grip the
-        four arms must stay firm as long as the arm stays inside the band."""
+        """(release step, next point), best first: for each hold wanted after the grip and each next point, the
+        latest release that works, then up to _EARLIER earlier ones."""
         n, n_swing, point = self.n, self.n_swing, current[arm][0]
         release = np.arange(latest, earliest - 1, -1)
         release = release[release + n_swing < n]
@@ -178,18 +170,16 @@ class Scheduler:
 
     def ahead(self, current: _Current, arm: int, k: int, grip: np.ndarray,
               limit: int) -> tuple[np.ndarray, np.ndarray]:
-        """For `arm` gripping point k at each step of `grip` while the others hold on: whether k is inside the band
-        from the swing's approach on, and the first step from the grip where k leaves the band or the four arms'
-        A falls under det_a_min, or `limit` if none is before it (the exits are only compared with steps under
-        `limit`: looking no further spares the blocks of general contacts beyond)."""
+        """For `arm` gripping point k at each step of `grip`: whether k is inside the band from the approach on, and
+        the first step from the grip where k leaves it or A falls under det_a_min (at most `limit`: no further
+        blocks are computed)."""
         weak = exit_upto(self.next_weak(_held(current) | {arm: k}), grip, limit)
         bad = self.next_bad(arm, k)
         ready = exit_upto(bad, grip - self.n_approach, limit) > grip
         return ready, np.minimum(exit_upto(bad, grip, limit), weak)
 
     def next_choice(self, current: _Current, step: int) -> _Choice | list[Hold] | tuple[int, str, int]:
-        """From `step`, given what each arm holds since when: the next choice to make, the last holds if no arm
-        need let go again, or (step, why, arm) if the schedule is stuck (arm -1 where A's rank sets the deadline)."""
+        """From `step`: the next choice, the last holds if no arm need let go again, or (step, why, arm) if stuck."""
         due = self.due(current, step)
         if isinstance(due, list):
             return due
@@ -198,8 +188,7 @@ class Scheduler:
                                                           -1 if due.rank_loss else due.exits[0][1])
 
     def due(self, current: _Current, step: int) -> _Due | list[Hold]:
-        """The first step from `step` where an arm must let go (see the package's docstring: the band's exits a
-        swing apart, and a swing before the four arms' A runs out), or the last holds if none must."""
+        """The first step from `step` where an arm must let go (the package's docstring), or the last holds."""
         n, n_swing = self.n, self.n_swing
         # one arm swings at a time; the others were checked to hold until it grips
         step = max(step, *(since for _, since in current.values()))
@@ -263,8 +252,7 @@ class Scheduler:
         return [Hold(a, *c.current[a], r) for c in taken for a, r in [c.taken]] + found, stuck, tries
 
     def search_from(self, starts: list[dict[int, int]]) -> tuple[list[Hold] | None, list, int]:
-        """`search` from each set of initial grips in turn, until one gives a schedule or the budget's tries are
-        spent in all: (holds or None, where it got stuck, tries spent)."""
+        """`search` from each set of initial grips in turn until one succeeds or the budget is spent."""
         stuck, tries = [], 0
         for start in starts:
             holds, more, spent = self.search({a: (p, 0) for a, p in start.items()}, self.budget - tries)
@@ -274,8 +262,7 @@ class Scheduler:
         return None, stuck, tries
 
     def lasting(self, start: dict[int, int]) -> int:
-        """Steps until the first arm leaves the band or the four arms' A falls under det_a_min (general contacts:
-        looking no further than their horizon, beyond which any start is as good)."""
+        """Steps until an arm leaves the band or A falls under det_a_min (general contacts: up to their horizon)."""
         if isinstance(self.contacts, FixedContacts):
             return min(int(self.next_weak(start)[0]), *(int(self.next_bad(a, p)[0]) for a, p in start.items()))
         stop = min(self.contacts.horizon, self.n)
@@ -284,8 +271,7 @@ class Scheduler:
         return min(weak, *(exit_upto(self.next_bad(a, p), 0, stop) for a, p in start.items()))
 
     def starts(self, limits: str) -> list[dict[int, int]]:
-        """The initial grips to try, each holding firmly at t = 0: each arm on its point inside the band longest
-        (the paper's start), then other sets of points, those whose A stays firm longest first."""
+        """The initial grips to try, firm at t = 0: each arm's longest-lasting point first, then the others."""
         inside = [self.contacts.initial_points(a) for a in range(rsmg.ARMS)]
         for arm, ks in enumerate(inside):
             if not ks:

@@ -12,10 +12,8 @@ from simbench.robots import rsmg
 from simbench.rotations import axis_rotation
 from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 
-# The floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01) unless the task sets det_a_min: with the
-# paper's three points 0.15; with general contacts 0.3, which they keep on every motion of the benchmark, and which
-# rises with the rotor's speed (GeneralContacts.floor) to keep a fast rotor within 1 deg of its command (at 0.15,
-# random motions at 73-175 deg/s, three arms holding near the floor, ran up to 1.9 deg off).
+# The default floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01); general contacts raise it with the
+# rotor's speed (GeneralContacts.floor).
 _DET_A_MIN = {"fixed": 0.15, "general": 0.3}
 
 
