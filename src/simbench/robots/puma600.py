@@ -8,16 +8,11 @@ d3 = 0.149, d4 = 0.432 m, with
     a_{i-1}:  0    0    a2    a3     0     0
     d_i:      0    0    d3    d4     0     0
 
-The world frame is frame 0 (on the shoulder, where axes 1 and 2 meet). Joint angles are the paper's (Craig's);
-Corke's standard-DH PUMA 560 angles are q_corke = q - [180, 180, 0, 0, 0, 0] deg. The wrist centre is the
-origin of frames 4-6; the tool (a welding torch) is TOOL in frame 6.
+The world frame is frame 0 (where axes 1 and 2 meet); Corke's PUMA 560 angles are q - [180, 180, 0, 0, 0, 0] deg.
+The wrist centre is the origin of frames 4-6; the tool (a welding torch) is TOOL in frame 6.
 
-Configurations (Paul and Zhang's three binary choices), from q:
-  arm   righty if the wrist centre lies behind the shoulder's turret direction, r = c1 Px + s1 Py < 0
-        (Corke's zero pose is a righty), lefty if r > 0;
-  elbow up if the elbow lies above the line from shoulder to wrist centre: sign(H) sign(r) > 0, with
-        H = a3 s3 + d4 c3 (zero where the arm is stretched or folded);
-  wrist noflip if q5 >= 0, flip if q5 < 0.
+Configurations (Paul and Zhang's three binary choices): arm righty if r = c1 Px + s1 Py < 0, lefty if r > 0;
+elbow up if sign(H) sign(r) > 0, H = a3 s3 + d4 c3; wrist noflip if q5 >= 0, flip if q5 < 0.
 """
 
 from __future__ import annotations
@@ -125,12 +120,7 @@ def configuration(q: np.ndarray) -> np.ndarray:
 
 def arm_angles(p: np.ndarray, arm: np.ndarray, elbow: np.ndarray) -> np.ndarray:
     """(q1, q2, q3) (N, 3) putting the wrist centre at p (N, 3) in the given configuration; NaN if unreachable.
-
-    Craig's closed form (Introduction to Robotics, section 4.7), independent of paper 002's method:
-    q1 = atan2(py, px) - atan2(d3, r) with r = +-sqrt(px^2 + py^2 - d3^2);
-    q3 = atan2(a3, d4) - atan2(K, +-sqrt(a3^2 + d4^2 - K^2)), K = (|p|^2 - a2^2 - a3^2 - d3^2 - d4^2) / (2 a2);
-    q2 = q23 - q3 from Craig's atan2 for q23.
-    """
+    Craig's closed form (Introduction to Robotics, section 4.7), independent of paper 002's method."""
     p = np.atleast_2d(p)
     n = len(p)
     arm, elbow = np.broadcast_to(arm, (n,)), np.broadcast_to(elbow, (n,))
@@ -160,10 +150,8 @@ def arm_rotation(q1: np.ndarray, q23: np.ndarray) -> np.ndarray:
 
 
 def wrist_angles(q123: np.ndarray, r06: np.ndarray, wrist: np.ndarray) -> np.ndarray:
-    """(q4, q5, q6) (N, 3) giving the orientation R_06 (N, 3, 3) after the arm's (q1, q2, q3).
-
-    Rx(90 deg) R_36 = Rz(q4) Ry(-q5) Rz(q6): ZYZ angles. At q5 = 0 only q4 + q6 is defined; q4 is then 0.
-    """
+    """(q4, q5, q6) (N, 3) giving R_06 (N, 3, 3) after the arm's (q1, q2, q3): Rx(90 deg) R_36 = Rz(q4) Ry(-q5)
+    Rz(q6). At q5 = 0 only q4 + q6 is defined; q4 is then 0."""
     r03 = arm_rotation(q123[:, 0], q123[:, 1] + q123[:, 2])
     r36 = np.einsum("nji,njk->nik", r03, r06)
     m = np.stack([r36[:, 0], -r36[:, 2], r36[:, 1]], axis=1)  # Rx(90 deg) R_36
@@ -190,8 +178,8 @@ def ik(position: np.ndarray, rotation: np.ndarray, config: np.ndarray) -> np.nda
 
 
 def _elbow_and_shoulder(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The elbow's H = a3 s3 + d4 c3 (0: arm stretched or folded) and the shoulder's r = c2 (a2 + a3 c3 - d4 s3)
-    - s2 H (the wrist centre's c1 Px + s1 Py, eq. 1; 0: shoulder singular), (N,) each."""
+    """The elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (c1 Px + s1 Py, eq. 1),
+    (N,) each; 0 where the elbow or shoulder is singular."""
     q = np.atleast_2d(q)
     return _elbow_and_shoulder_of(*(f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin)))
 
@@ -203,9 +191,7 @@ def _elbow_and_shoulder_of(c2: np.ndarray, s2: np.ndarray, c3: np.ndarray, s3: n
 
 
 def shoulder_gap(q: np.ndarray) -> np.ndarray:
-    """|r| (m): the wrist centre's distance from the plane where the shoulder is singular (r = c1 Px + s1 Py = 0).
-    With eq. 1's Px and Py (wrist_center) the d3 terms cancel and r = c2 (a2 + a3 c3 - d4 s3) - s2 (a3 s3 + d4 c3),
-    free of q1."""
+    """|r| (m): the wrist centre's distance from the shoulder-singular plane (r = c1 Px + s1 Py = 0)."""
     return np.abs(_elbow_and_shoulder(q)[1])
 
 
@@ -225,13 +211,9 @@ _LENGTH = A2 + D4  # scales the Jacobian's linear rows so that its condition num
 
 
 def _frame3_columns(q: np.ndarray) -> list[tuple]:
-    """The columns of the tool Jacobian in frame 3's coordinates, linear rows divided by a2 + d4: R_03^T on both
-    row blocks, so the same singular values as `jacobian`'s, in closed form (no chain of 3 x 3 products a
-    sample). Each column is six entries, arrays over the samples or the constants 0.0 and 1.0.
-
-    In frame 3 the axes are z1 = (-s23, -c23, 0), z2 = z3 = (0, 0, 1), z4 = (0, 1, 0), z5 = (s4, 0, c4) and
-    z6 = (-c4 s5, c5, s4 s5); the wrist centre is (a3, d4, 0), the tool t = wrist centre + TOOL_z z6, the shoulder
-    (origins 1 and 2) (-a2 c3, a2 s3, -d3); column i is (z_i x (t - o_i) / (a2 + d4), z_i)."""
+    """The columns of the tool Jacobian in frame 3's coordinates, linear rows divided by a2 + d4, in closed form
+    (the same singular values as `jacobian`'s): column i is (z_i x (t - o_i) / (a2 + d4), z_i), six entries each,
+    arrays or the constants 0.0 and 1.0."""
     q = np.atleast_2d(q)
     return _frame3_columns_of(q, *(f(q[:, i]) for i in (2, 3, 4) for f in (np.cos, np.sin)))
 
@@ -263,9 +245,8 @@ def _matrices(columns: list[tuple]) -> np.ndarray:
 
 
 def manipulability(q: np.ndarray) -> np.ndarray:
-    """|det J| of the tool Jacobian with its linear rows divided by a2 + d4: a2 |H r s5| / (a2 + d4)^3, with the
-    elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (moving the reference point
-    to the wrist centre leaves det J alone and makes J block triangular: arm block times wrist block)."""
+    """|det J| of the tool Jacobian with its linear rows divided by a2 + d4: a2 |H r s5| / (a2 + d4)^3 (J is block
+    triangular about the wrist centre)."""
     q = np.atleast_2d(q)
     return _manipulability(*_elbow_and_shoulder(q), np.sin(q[:, 4]))
 
@@ -275,8 +256,7 @@ def _manipulability(h: np.ndarray, r: np.ndarray, s5: np.ndarray) -> np.ndarray:
 
 
 def condition(q: np.ndarray) -> np.ndarray:
-    """Condition number of the tool Jacobian with its linear rows divided by a2 + d4: the ratio of its extreme
-    singular values (NumPy's SVD, over the stack of samples at once)."""
+    """Condition number of the tool Jacobian with its linear rows divided by a2 + d4."""
     q = np.atleast_2d(q)
     return _condition(_frame3_columns(q))
 
@@ -288,10 +268,8 @@ def _condition(columns: list[tuple]) -> np.ndarray:
 
 
 def measures(q: np.ndarray) -> dict[str, np.ndarray]:
-    """Manipulability and condition number of the tool Jacobian (linear rows divided by a2 + d4), and the
-    three singularity gaps. Each cosine and sine of a joint angle is taken once (at some 40 us apiece, NumPy's
-    sin and cos cost as much as the rest of a measure), and is the same number as the measure's own function
-    takes."""
+    """Manipulability, condition number and the three singularity gaps, each joint's cos and sin taken once (they
+    cost as much as the rest), the same numbers the measures' own functions take."""
     q = np.atleast_2d(q)
     c2, s2, c3, s3, c4, s4, c5, s5 = (f(q[:, i]) for i in (1, 2, 3, 4) for f in (np.cos, np.sin))
     h, r = _elbow_and_shoulder_of(c2, s2, c3, s3)
@@ -322,8 +300,6 @@ def _sets(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, tol: Toler
 
 
 class Puma600(SerialArm):
-    """simbench.api.Robot of the PUMA 600 with its welding torch (paper 002)."""
-
     def __init__(self):
         super().__init__(
             name="puma600",

@@ -4,27 +4,16 @@ Arm i (all axes through O): an actuated base joint theta_i about u_i, an upper l
 joint gamma_i about w_i, a lower link of arc BETA to the electromagnet (EM), whose axis v_i points at O, on a
 free hinge about v_i. Constraints (eqs. 10-11): w_i . u_i = cos ALPHA, v_i . w_i = cos BETA.
 
-  Frames: each arm has a frame F_i with z = u_i and x = X_REF[i]; at theta_i = 0, w_i lies in the F_i x-z plane,
-  w_i = cos(ALPHA) u_i + sin(ALPHA) (cos theta_i x_i + sin theta_i y_i) (eq. 12). gamma_i is the angle at w_i
-  between the planes (w_i, u_i) and (w_i, v_i): 0 with the lower link folded back towards u_i, 180 deg with it
-  stretched out, both coplanar (type B, eq. 42).
-  IK (eqs. 12-23): g = v^T [x y u]_Fi, g1 cos theta + g2 sin theta = (cos BETA - g3 cos ALPHA) / sin ALPHA = g4,
-  theta = asin(g4 / rho) - delta or pi - asin(g4 / rho) - delta, delta = atan2(g1, g2), rho = |(g1, g2)|.
-  (Eq. 21 prints asin(g4): the division by rho, implied by eqs. 19-20, is lost.) The two roots are mirror images;
-  the one with gamma in (0, 180 deg) is kept.
-  DK (eqs. 24-32): v_i from theta_i and gamma_i, then R = L K^T (K K^T)^-1 with K the gripped contact points in
-  the rotor frame and L the same in the base frame.
-  Singularities (eqs. 33-42): A omega + B theta_dot = 0, A rows (w_i x v_i)^T, B = diag((w_i x u_i) . v_i).
-  Type A: rank A < 3 over the gripping arms, tested by the 3 x 3 minors (det A1, det A2 of eqs. 37-39); type B:
-  det B = 0, some gamma_i at 0 or 180 deg.
+  w_i = cos(ALPHA) u_i + sin(ALPHA) (cos theta_i x_i + sin theta_i y_i) (eq. 12), x_i = X_REF[i]; gamma_i is the
+  angle at w_i between the planes (w_i, u_i) and (w_i, v_i): 0 folded back towards u_i, 180 deg stretched out.
+  IK (eqs. 12-23): theta = asin(g4 / rho) - delta or its mirror; eq. 21 prints asin(g4), the division by rho
+  (implied by eqs. 19-20) lost. The root with gamma in (0, 180 deg) is kept.
+  DK (eqs. 24-32): R = L K^T (K K^T)^-1, K the gripped points in the rotor frame, L in the base frame.
+  Singularities (eqs. 33-42): A omega + B theta_dot = 0, A rows (w_i x v_i)^T, B = diag((w_i x u_i) . v_i); type A:
+  rank A < 3 over the gripping arms (eqs. 37-39); type B: some gamma_i at 0 or 180 deg.
 
-Design (the surviving text does not give it; models/rsmg/README.md justifies each choice): four arms on the axes
-of a regular tetrahedron, one from below; ALPHA = BETA = 70 deg; three candidate contact points per arm, 120 deg
-apart on the rotor's great circle normal to that arm's axis at the home pose.
-
-The design's constants and contact points are simbench.robots.rsmg_geometry's (named here too); what a run's
-outputs show of the RSMG (report entries, switch events, the EMs' colours, the gamma plot) is in
-simbench.robots.rsmg_outputs.
+The design (rsmg_geometry; models/rsmg/README.md justifies it) is not in the surviving text; what a run's outputs
+show of the RSMG is rsmg_outputs'.
 """
 
 from __future__ import annotations
@@ -45,8 +34,8 @@ if TYPE_CHECKING:
 
 
 def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
-    """w_i (N, 3) for base angles theta (N,) of arm `arm` (eq. 12). Component by component: a product of (N, 1)
-    by (3,) costs NumPy a loop of three a row, which the IK's inner loops pay for."""
+    """w_i (N, 3) for base angles theta (N,) of arm `arm` (eq. 12), component by component (faster than (N, 1) by
+    (3,) in the IK's inner loops)."""
     theta = np.asarray(theta, float)
     c, s = np.cos(theta), np.sin(theta)
     return np.stack([np.cos(ALPHA) * U[arm, j] + np.sin(ALPHA) * (c * X_REF[arm, j] + s * Y_REF[arm, j])
@@ -54,15 +43,13 @@ def upper_axis(arm: int, theta: np.ndarray) -> np.ndarray:
 
 
 def folded(arm: int, w: np.ndarray) -> np.ndarray:
-    """The EM axis with gamma = 0: w turned by BETA back towards u_i, in their plane (component by component, as
-    upper_axis)."""
+    """The EM axis with gamma = 0: w turned by BETA back towards u_i, in their plane."""
     toward_u = [(U[arm, j] - np.cos(ALPHA) * w[..., j]) / np.sin(ALPHA) for j in range(3)]
     return np.stack([np.cos(BETA) * w[..., j] + np.sin(BETA) * toward_u[j] for j in range(3)], axis=-1)
 
 
 def _rotate(axis: np.ndarray, angle: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """Rodrigues: vector (N, 3) turned about unit axis (N, 3) by angle (N,) (component by component, as
-    upper_axis)."""
+    """Rodrigues: vector (N, 3) turned about unit axis (N, 3) by angle (N,)."""
     c, s = np.cos(angle), np.sin(angle)
     dot = np.einsum("...i,...i->...", axis, vector)
     normal = cross(axis, vector)
@@ -104,8 +91,8 @@ def ik(arm: int, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def dk(arms: list[int], theta: np.ndarray, gamma: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Rotor orientation (3, 3) from the gripping arms' base angles and gammas and the contact points they hold
-    (k, 3, rotor frame): R = L K^T (K K^T)^-1 (eq. 32), K and L with the points as columns."""
+    """Rotor orientation (3, 3) from the gripping arms' angles and their contact points (k, 3, rotor frame): R =
+    L K^T (K K^T)^-1 (eq. 32)."""
     v = np.stack([em_axis(i, t, g) for i, t, g in zip(arms, theta, gamma)])
     k, l_ = points.T, v.T
     return l_ @ k.T @ np.linalg.inv(k @ k.T)
@@ -119,17 +106,13 @@ def jacobian_rows(arm: int, theta: np.ndarray, gamma: np.ndarray) -> tuple[np.nd
 
 
 def a_row(arm: int, theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-    """Row of A alone, w_i x v_i (N, 3) (eq. 34): jacobian_rows' first, without B's entry, which ranking contact
-    points (planners.rsmg_contacts) does not use."""
+    """Row of A alone, w_i x v_i (N, 3) (eq. 34), without B's entry."""
     return cross(upper_axis(arm, theta), em_axis(arm, theta, gamma))
 
 
 def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     """The largest |3 x 3 minor| of A over the gripping arms (N,): zero exactly where rank A < 3 (eqs. 36-39).
-
-    rows (N, 4, 3): A's rows for every arm; engaged (N, 4) bool. With four arms gripping this is
-    max(|det A1|, |det A2|, ...), the paper's test; with three, the one determinant.
-    """
+    rows (N, 4, 3): every arm's row of A; engaged (N, 4) bool."""
     best = np.zeros(len(rows))
     for drop in range(ARMS):
         i, j, k = (arm for arm in range(ARMS) if arm != drop)
@@ -140,12 +123,9 @@ def type_a_measure(rows: np.ndarray, engaged: np.ndarray) -> np.ndarray:
 
 
 def _rows(q: np.ndarray) -> np.ndarray:
-    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once, from joints q (N, 8): jacobian_rows' (eqs. 12,
-    24-27, 34) expanded.
-    With v_i = Rodrigues(w_i, gamma_i) of the folded axis cos(BETA) w_i + sin(BETA) (u_i - cos(ALPHA) w_i) /
-    sin(ALPHA), and w_i . u_i = cos(ALPHA), a_i = sin(BETA) [(c st + s cos(ALPHA) ct) x_i + (s cos(ALPHA) st - c ct)
-    y_i - s sin(ALPHA) u_i], with c, s = cos, sin gamma_i and ct, st = cos, sin theta_i (within 1e-15 of
-    jacobian_rows')."""
+    """A's rows a_i = w_i x v_i (N, 4, 3) for every arm at once from joints q (N, 8), jacobian_rows' expanded:
+    a_i = sin(BETA) [(c st + s cos(ALPHA) ct) x_i + (s cos(ALPHA) st - c ct) y_i - s sin(ALPHA) u_i],
+    c, s = cos, sin gamma_i and ct, st = cos, sin theta_i."""
     theta, gamma = q[:, :ARMS], q[:, ARMS:]
     ct, st, c, s = np.cos(theta), np.sin(theta), np.cos(gamma), np.sin(gamma)
     s_cos = np.cos(ALPHA) * s
@@ -166,8 +146,7 @@ def measures(rec) -> dict[str, np.ndarray]:
 
 
 def _type_a(q: np.ndarray, engaged: np.ndarray) -> np.ndarray:
-    """type_a_measure of the recorded joints (N,), CHUNK samples at a time: each sample's own numbers, without
-    temporaries of a dozen times A for all of a long run's samples at once (250 MB on the ten-minute soak)."""
+    """type_a_measure of the recorded joints (N,), CHUNK samples at a time to bound the temporaries."""
     out = np.empty(len(q))
     for a in range(0, len(q), CHUNK):
         out[a:a + CHUNK] = type_a_measure(_rows(q[a:a + CHUNK]), engaged[a:a + CHUNK])
@@ -181,7 +160,7 @@ def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
 
 
 def sets_of_measures(found: dict[str, np.ndarray]) -> list[SingularSet]:
-    """`singular_sets` from what `measures` found: its type A measure and type B gap are the sets' distances."""
+    """`singular_sets` from what `measures` found."""
     type_a, type_b = found["type_a"], found["type_b_gap"]
     return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01", type_a / DET_A_MIN,
                         {"det": type_a}),
@@ -190,8 +169,7 @@ def sets_of_measures(found: dict[str, np.ndarray]) -> list[SingularSet]:
 
 
 class RSMG(Robot):
-    """simbench.api.Robot of the RSMG (paper 001), whose rotor pose depends on the gripped points: no fk of the
-    joints alone. Its report entries, video colours and plot are rsmg_outputs'."""
+    """The RSMG (paper 001): its rotor pose depends on the gripped points, so no fk of the joints alone."""
 
     def __init__(self):
         super().__init__(

@@ -1,7 +1,5 @@
-"""The RSMG's design (paper 001; simbench.robots.rsmg explains it): its constants, arm axes and candidate contact
-points, and which arms grip in a recording. A leaf that the kinematics (rsmg) and the outputs (rsmg_outputs)
-both read.
-"""
+"""The RSMG's design (paper 001; simbench.robots.rsmg explains it): constants, arm axes, candidate contact points,
+and which arms grip; a leaf both rsmg and rsmg_outputs read."""
 
 from __future__ import annotations
 

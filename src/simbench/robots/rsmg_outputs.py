@@ -1,9 +1,5 @@
-"""What the RSMG (simbench.robots.rsmg) adds to a run's outputs: report entries, the re-grips as switch events,
-its electromagnets coloured by state in the video, and a plot of every arm's gamma (paper 001's Fig. 11).
-
-The robot's hooks (RSMG.summary, .paint, .plots) call these. The plotting (simbench.plots) is imported only when
-the plot is drawn: the analysis and the video need none of it (nor matplotlib).
-"""
+"""What the RSMG adds to a run's outputs: report entries, re-grips as switch events, its electromagnets coloured
+by state in the video, and every arm's gamma plotted (paper 001's Fig. 11; matplotlib imported only then)."""
 
 from __future__ import annotations
 
@@ -24,16 +20,13 @@ _FREE_RGBA = [0.55, 0.55, 0.58, 1.0]  # an EM that is free: grey
 
 
 def summary(traj, rec, series: dict) -> Summary:
-    """Rotor tracking, gripping counts and gammas, and the switch events with how far each grip snapped: the
-    Summariser's of the whole run as one window."""
+    """Rotor tracking, gripping counts and gammas, and the switch events: the Summariser's over one window."""
     return Summariser(traj).whole(traj, rec, series)
 
 
 class Summariser(api.Summariser):
-    """`summary` a window of samples at a time (in order, from the first): each arm's tip on the rotor at its
-    last grip (the closure error's anchor) and whether it gripped at the last sample are carried from window to
-    window, and the last two samples' tips and rotor orientation, for a grip at a window's edge (its snap reads the
-    samples either side of it)."""
+    """`summary` a window of samples at a time, in order: each arm's grip anchor and state, and the last two
+    samples (for a grip at a window's edge), carried from window to window."""
 
     def __init__(self, traj):
         self.lo = 0
@@ -59,7 +52,7 @@ class Summariser(api.Summariser):
             self.gamma = [min(self.gamma[0], float(held.min())), max(self.gamma[1], float(held.max()))]
         self._snaps(rec, lo, hi)
         self.lo = hi
-        # gamma and rotor_quat as views of the recording, which the run keeps anyway (copies: 37 MB on the soak)
+        # gamma and rotor_quat as views of the recording, which the run keeps anyway, not copies
         return {"gamma": gamma, "engaged": engaged, "rotor_quat": rec.sensors["rotor_quat"],
                 "rotor_error": error, "closure_error": closure}
 
@@ -84,13 +77,9 @@ class Summariser(api.Summariser):
 
 def _rotor_errors(traj, rec, engaged: np.ndarray, anchor: np.ndarray, before: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """The rotor's error (its angle from the planned orientation) and the closure error (how far each gripping
-    EM's tip has moved on the rotor since it gripped: the weld's violation, the loop through the arm and the rotor
-    failing to close; the largest over the arms, in m), (N,) each. CHUNK samples at a time, each sample's own
-    numbers: the rotor's matrices for all of a long run's samples at once, planned and recorded, and each arm's tip
-    in the rotor's frame would be 130 MB of temporaries on the ten-minute soak. `anchor`: each arm's tip in the
-    rotor's frame at its last grip before these samples, updated in place; `before`: which arms gripped at the
-    sample before them."""
+    """The rotor's error (angle from the planned orientation) and the closure error (the largest distance, m, a
+    gripping EM's tip has moved on the rotor since it gripped), (N,) each, CHUNK samples at a time. `anchor`: each
+    arm's tip in the rotor's frame at its last grip, updated in place; `before`: which arms gripped just before."""
     quat, planned = rec.sensors["rotor_quat"], traj.series["rotor_quat_ref"]
     error, closure = np.empty(rec.t.size), np.zeros(rec.t.size)
     grips = engaged & ~np.concatenate([before[None], engaged[:-1]])  # the rows where each arm grips
@@ -110,8 +99,7 @@ def _rotor_errors(traj, rec, engaged: np.ndarray, anchor: np.ndarray, before: np
 
 
 def _regrips(traj) -> list[tuple]:
-    """One (release, grip, the grip's sample) a re-grip (an arm's release, then its grip); the initial grips are
-    none. The sample is the first at the grip's time, kept off the run's ends."""
+    """One (release, grip, the grip's sample) a re-grip (not the initial grips), the sample kept off the ends."""
     found, releases = [], {}
     for sw in traj.switches:
         arm = sw.detail["arm"]
@@ -124,11 +112,8 @@ def _regrips(traj) -> list[tuple]:
 
 
 def _regrip_event(release, grip, tip: np.ndarray, quat: np.ndarray) -> dict:
-    """The re-grip from switch `release` to switch `grip` of one arm: the arm, the points; the grip's snap (the
-    EM tip's jump in the step after the weld goes on, beyond what its motion before carried it: the second
-    difference of its position, `tip` at the samples before, at and after the grip); and the grip's offset (how far
-    the EM tip is from the planned contact point when it grips, which the weld then keeps; `quat`: the recorded
-    rotor's orientation there)."""
+    """A re-grip's event: the arm, the points, its snap (the second difference of `tip` at the samples before, at
+    and after the grip) and its offset (the tip from the planned contact point; `quat`: the rotor then)."""
     arm = grip.detail["arm"]
     jump = float(np.linalg.norm(tip[2] - 2 * tip[1] + tip[0]))
     held = grip.detail.get("point")  # the point gripped (rotor frame), or the paper's candidate by its letter
@@ -163,8 +148,7 @@ def plots(traj, rec, result) -> dict[str, Figure]:
 
 
 def _plot_gamma(ax, rec, arm: int, engaged: np.ndarray, switch_events: list[dict]) -> None:
-    """Arm `arm`'s gamma (deg) on `ax`: green while it grips, grey while it swings, its re-grips in red and the
-    band of eq. 45 dotted."""
+    """Arm `arm`'s gamma (deg): green while it grips, grey while it swings, re-grips red, eq. 45's band dotted."""
     g = np.rad2deg(rec.q[:, ARMS + arm])
     ax.plot(rec.t, np.where(engaged, g, np.nan), color="tab:green", lw=1.2, label="gripping")
     ax.plot(rec.t, np.where(engaged, np.nan, g), color="tab:gray", lw=1.0, label="swinging")

@@ -1,7 +1,5 @@
-"""What the shipped serial arms (spherical_arm, puma600) share as simbench.api.Robot: kinematics that are
-functions of the joint values alone, a tool site `tool` with the position sensor `tool_pos` on it, and the scene
-models/<name>/scene.xml. A closed chain (agile_eye, rsmg) needs more of a Recording than its joint values and
-subclasses Robot itself."""
+"""What the shipped serial arms share as simbench.api.Robot: kinematics of the joint values alone, a tool site
+`tool` with its sensor `tool_pos`, and the scene models/<name>/scene.xml."""
 
 from __future__ import annotations
 
@@ -18,10 +16,9 @@ SetsOfMeasures = Callable[[dict[str, np.ndarray], Tolerance], list[SingularSet]]
 
 
 class SerialArm(Robot):
-    """A shipped serial arm: `fk`, `measures` and `singular_sets` are its kinematics module's functions of the
-    joint values q (N, dof); the last two are given the recording's `rec.q`. `sets_of_measures`, if given, makes
-    the same sets from `measures`' result (Robot.singular_sets_from). Each arm subclasses it with a constructor of
-    no arguments, as every shipped robot class has (tests make a fresh one that way)."""
+    """A shipped serial arm from its kinematics module's functions of q (N, dof); `sets_of_measures`, if given,
+    makes the sets from `measures`' result. Each arm subclasses it with a constructor of no arguments (tests make
+    a fresh one that way)."""
 
     def __init__(self, *, name: str, description: str, paper: str, joints: Sequence[str], kinds: Sequence[str],
                  lower: np.ndarray, upper: np.ndarray, qd_max: np.ndarray, fk: Fk, measures: Measures,

@@ -27,8 +27,7 @@ JOINTS = ("q1", "q2", "q3", "q4")
 KINDS = (REVOLUTE, PRISMATIC, REVOLUTE, PRISMATIC)
 LOWER = np.array([-np.inf, 0.0, _Q3_MIN, 0.0])
 UPPER = np.array([np.inf, _Q2_MAX, _Q3_MAX, _Q4_MAX])
-# Speeds a small servo-driven arm of this size reaches: about 1 turn/s at the revolute joints and 0.5 m/s at
-# the prismatic ones (the paper gives none). Used only to flag references no drive could follow.
+# Speeds a small servo-driven arm reaches (the paper gives none): to flag references no drive could follow.
 QD_MAX = np.array([2 * np.pi, 0.5, 2 * np.pi, 0.5])
 
 
@@ -57,13 +56,8 @@ def jacobian(q: np.ndarray) -> np.ndarray:
 
 
 def manipulability(q: np.ndarray) -> np.ndarray:
-    """Yoshikawa's measure sqrt(det(J J^T)) of the 3x4 position Jacobian; zero where cos q3 = 0.
-
-    In closed form: by Cauchy-Binet det(J J^T) is the sum of the squares of J's 3 x 3 minors, which (in the frame
-    of the radial, tangential and vertical directions, L = q4 + d4) are -L^2 s3 c3, L c3^2, L^2 c3 and 0, so that
-    the measure is |c3| L sqrt(L^2 (1 + s3^2) + c3^2): no square root of a near-zero determinant (whose rounding
-    error it would magnify to about 1e-9), and within 1e-15 of the product of J's singular values.
-    """
+    """Yoshikawa's measure sqrt(det(J J^T)) of the 3x4 position Jacobian; zero where cos q3 = 0. In closed form by
+    Cauchy-Binet, |c3| L sqrt(L^2 (1 + s3^2) + c3^2), L = q4 + d4: no square root of a near-zero determinant."""
     q = np.atleast_2d(q)
     reach = q[:, 3] + D4
     c3, s3 = np.cos(q[:, 2]), np.sin(q[:, 2])
@@ -100,12 +94,8 @@ _S3 = (
 
 
 def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
-    """Paper 000's singular sets along q (N, 4), eqs. 15-18 and the results that follow them.
-
-    S(1) (interior Jacobian singularities with no joint at a limit) is empty by the paper's reckoning, yet the
-    position Jacobian loses rank wherever cos q3 = 0 (the tool on the lift axis), so that set is reported as
-    the rank deficiency it is. S(2) = {p1, p2}: q3 = 90 deg with q4 at either limit. S(3) = {p3..p14}.
-    """
+    """Paper 000's singular sets along q (N, 4), eqs. 15-18: S(2) = {p1, p2}, S(3) = {p3..p14}; and where the
+    Jacobian loses rank (cos q3 = 0), which the paper's S(1) misses."""
     q = np.atleast_2d(q)
     args = (KINDS, JOINTS, tol, {})  # the sets share their gaps (joint_set)
     half_pi = np.pi / 2
@@ -120,8 +110,6 @@ def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
 
 
 class SphericalArm(SerialArm):
-    """simbench.api.Robot of the 4-DOF spherical arm of paper 000."""
-
     def __init__(self):
         super().__init__(
             name="spherical_arm",
