@@ -1,14 +1,9 @@
-"""Each paper's published results regenerated beside the printed ones, every difference classified (project
-issue 15): `reproduce(paper, out)` writes out/<paper>/ for 000, 001, 002, 003 or all four.
+"""Each paper's published results regenerated beside the printed ones: `reproduce(paper, out)` writes out/<paper>/.
 
-A difference is a typo in the paper (a value misprinted, which the paper's own other values show), an error in
-the paper (shown by a number: a method or equation that does not do what the paper says), or ours (simbench
-departs from the paper, or cannot tell why a value differs). Each paper's module (paper000 ... paper003) writes
-its tables (CSV and Markdown) and figures (PNG) and returns its part of the Summary.
-
-Outputs go where a run's go (simbench.pipeline.run): a folder out/<paper> that holds anything is replaced only
-with `force` and only if simbench wrote everything in it; one writer at a time (destination.locked); each
-folder is assembled under a hidden name and moved into place whole (atomic.staged_folder).
+A difference is a typo in the paper (its own other values show it), an error in the paper (a number shows the
+method or equation does not do what the paper says), or ours (simbench departs, or cannot tell why). Each module
+paper000 ... paper003 writes its tables and figures and returns its part of the Summary. Folders are guarded and
+written as a run's are (destination.locked, atomic.staged_folder).
 """
 
 from __future__ import annotations
@@ -48,7 +43,7 @@ class Summary:
         return {k: sum(p.count(k) for p in self.papers) for k in CLASSES}
 
     def lines(self) -> list[str]:
-        """A one-screen summary: per paper the printed values reproduced, the differences by class, its headline."""
+        """A one-screen summary: per paper the values reproduced, the differences by class, its headline."""
         out = [f"simbench reproduce: {len(self.papers)} paper(s) into {self.out} in {self.seconds:.1f} s"]
         for p in self.papers:
             counts = ", ".join(f"{k} {p.count(k)}" for k in CLASSES)
@@ -75,12 +70,9 @@ def _inputs() -> list[Path]:
 
 
 def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], None] | None = None) -> Summary:
-    """Reproduce paper `paper` ('000', '001', '002', '003' or 'all') into out/<paper>/ for each; the Summary.
-
-    A folder out/<paper> that holds anything is refused (ScenarioError, naming it) unless `force`, and then
-    replaced only if simbench wrote every file in it; every folder is checked before anything is computed.
-    `log`, if given, is called with a line as each paper starts and ends.
-    """
+    """Reproduce paper `paper` ('000' ... '003' or 'all') into out/<paper>/ for each; the Summary. A folder that
+    holds anything is refused (ScenarioError) unless `force`, and then replaced only if simbench wrote it all;
+    every folder is checked first. `log`, if given, gets a line as each paper starts and ends."""
     names = _papers(paper)
     out = destination.followed(Path(out))
     folders = {name: destination.followed(out / name) for name in names}

@@ -1,11 +1,11 @@
 """What the four reproductions share: the classes of a difference, a paper's part of the summary, tables written
-as CSV and Markdown, figures of one size, and the paper's own summary page."""
+as CSV and Markdown, figures of one size, and the paper's differences and summary page."""
 
 from __future__ import annotations
 
 import csv
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from matplotlib.figure import Figure
@@ -24,8 +24,7 @@ PIXELS = (int(FIGSIZE[0] * DPI), int(FIGSIZE[1] * DPI))
 
 @dataclass(frozen=True)
 class Difference:
-    """One difference between the paper and simbench: its class, where, the printed value, simbench's, and the
-    numbers that show it."""
+    """One difference between the paper and simbench: class, where, printed value, simbench's, the numbers."""
 
     kind: str  # one of CLASSES
     where: str
@@ -40,8 +39,8 @@ class Difference:
 
 @dataclass(frozen=True)
 class PaperSummary:
-    """One paper's reproduction: how many of its printed values (or claims) were compared and how many came out
-    as printed, every difference with its class, a few headline lines, and the files written."""
+    """One paper's reproduction: printed values (or claims) compared and reproduced, its differences, a few
+    headline lines, the files written."""
 
     paper: str
     title: str
@@ -91,12 +90,12 @@ def write_table(folder: Path, name: str, header: Sequence[str], rows: Sequence[S
     return [f"{name}.csv", f"{name}.md"]
 
 
-def differences_rows(differences: Sequence[Difference]) -> list[list[str]]:
-    """The differences as table rows."""
+def _differences_rows(differences: Sequence[Difference]) -> list[list[str]]:
     return [[d.kind, d.where, d.printed, d.simbench, d.shown] for d in differences]
 
 
 DIFFERENCES_HEADER = ("class", "where", "printed", "simbench", "shown by")
+CHECKS_HEADER = ("where", "the paper", "status", "simbench")
 
 
 def figure(nrows: int = 1, ncols: int = 1, **kwargs):
@@ -118,7 +117,7 @@ def write_summary_page(folder: Path, part: PaperSummary, notes: Sequence[str] = 
     text = [f"# Paper {part.paper}: {part.title}", "",
             f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}.", ""]
     text += [f"- {line}" for line in part.headline]
-    text += ["", "## Differences", "", markdown_table(DIFFERENCES_HEADER, differences_rows(part.differences))]
+    text += ["", "## Differences", "", markdown_table(DIFFERENCES_HEADER, _differences_rows(part.differences))]
     if notes:
         text += ["## Notes", ""] + [f"- {n}" for n in notes] + [""]
     text += ["## Files", ""] + [f"- `{name}`" for name in sorted(part.files)] + [""]
@@ -130,3 +129,13 @@ def write_summary_page(folder: Path, part: PaperSummary, notes: Sequence[str] = 
         [(name, Path(name)) for name in sorted(part.files) if name.endswith(".csv")],
         [name for name in sorted(part.files) if name.endswith(".png")], digits=None))
     return "summary.md"
+
+
+def finish(folder: Path, part: PaperSummary, files: Sequence[str], title: str,
+           notes: Sequence[str] = ()) -> PaperSummary:
+    """Write differences.csv and .md (under `title`) and the summary page; `part` with every file it wrote."""
+    files = [*files, *write_table(folder, "differences", DIFFERENCES_HEADER, _differences_rows(part.differences),
+                                  title)]
+    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
+    write_summary_page(folder, part, notes)
+    return part

@@ -1,23 +1,20 @@
 """Paper 001's round robin on the RSMG: gamma against time with the re-grips (its Fig. 11) and unlimited motion.
 
-Only sections 3.2-6 of the paper survive; they print the switching band 10 < gamma < 170 deg (eq. 45), the
-type A threshold |det A1|, |det A2| < 0.01 (eq. 46), the round-robin order a -> b -> c -> a, and claim
-unlimited continuous spherical motion with every singularity avoided, gamma jumping from about 170 to about
-10 deg at a switch (Fig. 11). simbench runs scenarios/rsmg/three_turns.yaml (simbench.evaluate: plan, physics,
-analysis) and sets what it finds beside each, and lists what the paper leaves out and what simbench chose.
+The surviving sections 3.2-6 print the band 10 < gamma < 170 deg (eq. 45), the type A threshold 0.01 (eq. 46),
+the order a -> b -> c -> a, and claim unlimited motion with every singularity avoided. simbench sets
+scenarios/rsmg/three_turns.yaml in physics beside each, and lists what the paper leaves out and what it chose.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from simbench.pipeline import evaluate
-from simbench.reproduce._common import (DIFFERENCES_HEADER, OURS, Difference, PaperSummary, differences_rows,
-                                        figure, fmt, save, write_summary_page, write_table)
+from simbench.reproduce._common import (CHECKS_HEADER, OURS, Difference, PaperSummary, figure, finish, fmt, save,
+                                        write_table)
 from simbench.resources import scenarios_dir
 from simbench.robots import rsmg
 from simbench.rotations import quat_to_matrix
@@ -29,8 +26,7 @@ _ORDER = "abc"
 
 
 def turns_about(quat: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """The rotation accumulated about `axis` (turns, N) along a series of orientations (N, 4, w x y z): the sum of
-    each step's rotation vector along the axis."""
+    """The rotation accumulated about `axis` (turns, N) along orientations (N, 4, w x y z)."""
     rot = quat_to_matrix(quat)
     step = Rotation.from_matrix(rot[1:] @ np.transpose(rot[:-1], (0, 2, 1))).as_rotvec()
     return np.concatenate([[0.0], np.cumsum(step @ axis)]) / (2 * np.pi)
@@ -175,7 +171,7 @@ def reproduce(folder: Path) -> PaperSummary:
                                 "next has no room", checks[3][3]))
     reproduced = sum(c[2] == "reproduced" for c in checks)
 
-    files = write_table(folder, "checks", ("where", "the paper", "status", "simbench"), checks,
+    files = write_table(folder, "checks", CHECKS_HEADER, checks,
                         f"Paper 001 against scenarios/rsmg/{SCENARIO}.yaml in physics")
     files += write_table(folder, "switches", ("arm", "points", "release (s)", "grip (s)", "gamma at release (deg)",
                                               "gamma at grip (deg)", "grip offset (mm)", "round-robin order"),
@@ -192,8 +188,6 @@ def reproduce(folder: Path) -> PaperSummary:
                          f"The unlimited motion: scenarios/rsmg/{SCENARIO}.yaml in physics")
     files += write_table(folder, "choices", ("what", "the paper", "simbench", "why"), _choices(scenario),
                          "What the paper leaves out (or does otherwise) and what simbench chose")
-    files += write_table(folder, "differences", DIFFERENCES_HEADER, differences_rows(diffs),
-                         "Paper 001: every difference, classified")
     files.append(_figure_gamma(folder, t, gamma, engaged, switches, margin))
     files.append(_figure_motion(folder, t, achieved, commanded, error, switches))
     headline = (f"{achieved[-1]:.4f} of {commanded[-1]:.0f} turns, {len(switches)} re-grips, rotor within "
@@ -206,10 +200,8 @@ def reproduce(folder: Path) -> PaperSummary:
                         facts={"turns_achieved": float(achieved[-1]), "turns_commanded": float(commanded[-1]),
                                "rotor_error_max_deg": float(error.max()), "regrips": len(switches),
                                "gripping_gamma_deg": (float(held.min()), float(held.max()))})
-    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
-    write_summary_page(folder, part, notes=[
+    return finish(folder, part, files, "Paper 001: every difference, classified", notes=[
         "The paper's band and threshold (eqs. 45-46) as it prints them; simbench's margins inside them are its "
         "own (choices.md). The paper's Fig. 11 shows arm 1; gamma.png shows every arm.",
         f"low = {low:.0f}, high = {high:.0f} deg; dashed lines {low + margin:.0f} and {high - margin:.0f} deg: "
         "where simbench's schedule lets go."])
-    return part

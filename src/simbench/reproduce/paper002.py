@@ -1,24 +1,19 @@
 """Paper 002's joint time histories of a line and a circle for the PUMA 600, and its equations checked by number.
 
-The paper prints no table, only its method: the wrist centre's distance gives q3 (eqs. 9-19), q1 and q2 follow,
-and a line (eqs. 23-27) or a circle (eqs. 28-37) is followed in joint coordinates. simbench's planner
-(planners/decoupled_path.py) runs it on scenarios/puma600/line.yaml and circle.yaml; the time histories are the
-paper's result. Each equation is checked on its own, against an independent truth: the arm's forward
-kinematics by Craig's modified DH chain (robots/puma600.link_frames), the quadratic's own algebra, the cubic's
-end conditions, the rotation matrix's orthogonality. Where an equation is wrong as printed (NOTES.md section 2)
-a number shows it.
+The paper prints its method, no table: q3 from the wrist centre's distance (eqs. 9-19), q1 and q2 after, lines
+(eqs. 23-27) and circles (eqs. 28-37). simbench's planner runs it on scenarios/puma600/line.yaml and circle.yaml.
+Each equation is checked against an independent truth (Craig's modified DH chain, the quadratic's algebra, the
+cubic's end conditions, orthogonality); where one is wrong as printed (NOTES.md section 2) a number shows it.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from simbench.pipeline import check_plan
-from simbench.reproduce._common import (DIFFERENCES_HEADER, ERROR, TYPO, Difference, PaperSummary,
-                                        differences_rows, figure, fmt, save, write_summary_page, write_table)
+from simbench.reproduce._common import ERROR, TYPO, Difference, PaperSummary, figure, finish, fmt, save, write_table
 from simbench.resources import scenarios_dir
 from simbench.robots import puma600
 from simbench.robots.puma600 import A2, A3, D3, D4, JOINTS, QD_MAX
@@ -262,19 +257,16 @@ def reproduce(folder: Path) -> PaperSummary:
                          notes=["line.yaml: a 0.54 m straight seam at 0.25 m/s, torch vertical; circle.yaml: a full "
                                 "circle of radius 120 mm in a plane tilted 30 deg, torch normal to it (trapezoidal "
                                 "law). The histories themselves: line_joints.csv, circle_joints.csv (every 10 ms)."])
-    files += write_table(folder, "differences", DIFFERENCES_HEADER, differences_rows(diffs),
-                         "Paper 002: every difference, classified")
     files.append(_equations_figure(folder))
     worst = max(float(np.linalg.norm(puma600.fk(t.q_ref) - t.tool_ref, axis=1).max()) for _, t, _ in plans.values())
     headline = (f"line and circle: joint time histories of all six joints (figures line_joints.png, "
                 f"circle_joints.png), the tool on the path to {worst:.1e} m",
                 f"equations: {reproduced} reproduced, {sum(d.kind == TYPO for d in diffs)} typos (eq. 1's Py, eq. "
                 f"32), {sum(d.kind == ERROR for d in diffs)} errors (eqs. 9, 15, 16, 20-21, 24-25, 31-36)")
-    part = PaperSummary("002", TITLE, len(rows), reproduced, tuple(diffs), headline)
-    part = replace(part, files=tuple(files) + ("summary.md", "index.html"), facts={"tool_on_path_max": worst})
-    write_summary_page(folder, part, notes=[
+    part = PaperSummary("002", TITLE, len(rows), reproduced, tuple(diffs), headline,
+                        facts={"tool_on_path_max": worst})
+    return finish(folder, part, files, "Paper 002: every difference, classified", notes=[
         "The paper's symbols for eq. 9 read with eq. 1's numbers: its a3 = 0.432 m (Craig's a2), a4 = 0.02 m "
         "(Craig's a3), b4 = 0.432 m (Craig's d4); d3 = 0.149 m is missing from it.",
         "simbench solves q3 from the corrected eq. 9 (NOTES.md section 2), keeps the elbow's side the "
         "configuration names, and times lines and circles by the scenario's law (not the printed cubic)."])
-    return part

@@ -1,18 +1,13 @@
 """Paper 003's trajectory optimisation of the Agile Eye: the KCI along the plain and the optimised path, the
 clearances, and the learnt forward kinematics against the exact one, beside a network of the paper's size.
 
-The paper's own example cannot be rerun: its printed joint values are garbled (their signs unclear) and its
-obstacles and singular points are not given. simbench runs its own example, scenarios/agile_eye/avoidance.yaml
-(the paper's T = 4 s and T* = 1 s), through simbench.evaluate (plan, physics, analysis); the plain 4-5-6-7 path
-is the planner's own with the avoidance switched off. Its learnt FK (planners/learnt_fk.py: two tanh layers of
-64, sin/cos inputs, rotation-column outputs) is measured on fresh workspace samples, and a network of the
-paper's size and form (one hidden layer of 7 tanh units, base angles in, ZYX Euler angles out, about 3000 poses,
-75 % of them for training) is fitted here the same way, to set beside it.
+The paper's example cannot be rerun (its joint values are garbled, its obstacles not given): simbench runs its own,
+scenarios/agile_eye/avoidance.yaml (the paper's T = 4 s, T* = 1 s), in physics. Its learnt FK is measured on fresh
+poses beside a network of the paper's form (7 tanh units, Euler angles out, about 3000 poses) fitted here.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,19 +15,14 @@ from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
 from simbench.pipeline import evaluate
-from simbench.planners import avoidance_4567
-from simbench.reproduce._common import (DIFFERENCES_HEADER, OURS, Difference, PaperSummary, differences_rows,
-                                        figure, fmt, save, write_summary_page, write_table)
+from simbench.planners import avoidance_4567, learnt_fk
+from simbench.reproduce._common import (CHECKS_HEADER, OURS, Difference, PaperSummary, figure, finish, fmt, save,
+                                        write_table)
 from simbench.resources import scenarios_dir
 from simbench.robots import agile_eye
 from simbench.rotations import quat_to_matrix, rotation_angle
 from simbench.scenario import load_scenario
 from simbench.timing import TimeLaw
-
-try:
-    from simbench.planners import learnt_fk
-except ImportError:  # before it moved beside its planner
-    from simbench import learnt_fk  # type: ignore[no-redef]
 
 TITLE = "trajectory optimisation of the Agile Eye with a learnt forward kinematics"
 SCENARIO = "avoidance"
@@ -53,9 +43,8 @@ def plain_plan(task, law: TimeLaw) -> avoidance_4567.Plan:
 
 
 def fit_paper_network(seed: int = _SEED) -> dict:
-    """A network of the paper's form fitted on mode 0: 3000 poses of the learnt FK's workspace, 75 % for training,
-    base angles in, ZYX Euler angles out, one hidden layer of 7 tanh units, a linear output (L-BFGS on the mean
-    squared error). Its training error (rad^2) and held-out error (deg, geodesic)."""
+    """A network of the paper's form fitted on mode 0 (3000 poses, 75 % for training, base angles in, ZYX Euler
+    angles out, 7 tanh units, L-BFGS): its training error (rad^2) and held-out error (deg, geodesic)."""
     rot = learnt_fk.sample_workspace(_POSES, np.random.default_rng([seed, 0]))
     x, y = agile_eye.ik(rot, 0), Rotation.from_matrix(rot).as_euler("ZYX")
     split = int(_TRAIN_SHARE * _POSES)
@@ -97,7 +86,7 @@ def shipped_network_errors(samples: int = 750, seed: int = _SEED) -> np.ndarray:
 
 def printed_example_kci() -> tuple[float, np.ndarray]:
     """The mean KCI of the plain 4-5-6-7 path between the printed joint values, read in simbench's frame (the FK
-    solution nearest home at the start, followed), and the ZYX Euler angles (deg) of its two ends."""
+    nearest home, followed), and its ends' ZYX Euler angles (deg)."""
     t = np.linspace(0.0, 4.0, 401)
     s = TimeLaw("4567", 4.0)(t)[0]
     start, final = np.array(PRINTED_THETA_INIT), np.array(PRINTED_THETA_FINAL)
@@ -279,10 +268,8 @@ def reproduce(folder: Path) -> PaperSummary:
                         f"error {paper_net['training_mse']:.1e} rad^2 against the printed "
                         f"{PRINTED_TRAINING_ERROR:.2e}; Euler angles wrap and lose a degree of freedom at pitch "
                         "+-90 deg, sin/cos and R columns do not")]
-    files += write_table(folder, "checks", ("where", "the paper", "status", "simbench"), checks,
+    files += write_table(folder, "checks", CHECKS_HEADER, checks,
                          "Paper 003's claims against scenarios/agile_eye/avoidance.yaml")
-    files += write_table(folder, "differences", DIFFERENCES_HEADER, differences_rows(diffs),
-                         "Paper 003: every difference, classified")
     files += [_kci_figure(folder, paths), _clearance_figure(folder, paths), _network_figure(folder, shipped, paper_net)]
     reproduced = sum(c[2] == "reproduced" for c in checks)
     headline = (f"mean KCI {kci['plain'].mean():.3f} plain -> {kci['optimised'].mean():.3f} optimised "
@@ -297,10 +284,8 @@ def reproduce(folder: Path) -> PaperSummary:
                                "kci_simulated": float(kci["simulated"].mean()),
                                "learnt_fk_median_deg": float(np.median(shipped)),
                                "paper_size_median_deg": float(np.median(e))})
-    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
-    write_summary_page(folder, part, notes=[
+    return finish(folder, part, files, "Paper 003: every difference, classified", notes=[
         "Printed values compared: the six average KCIs (one difference: another example), the network's form and "
         "training error (one difference), and the claims in checks.md.",
         "The plain path is the planner's own with the avoidance off (avoidance_4567.optimise); its KCI and "
         "clearances by the exact FK followed from the start orientation."])
-    return part
