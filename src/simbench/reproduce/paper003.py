@@ -223,7 +223,6 @@ def reproduce(folder: Path) -> PaperSummary:
                                 f"{paper_net['held_out']} for the paper-size one (fitted by L-BFGS, "
                                 f"{paper_net['iterations']} iterations); errors are geodesic angles to the exact "
                                 "FK's orientation"])
-    # what the paper claims, checked
     bump_ends = max(abs(float(avoidance_4567.bump(np.array([x]), k)[0])) for x in (1e-12, 1 - 1e-12)
                     for k in range(4))
     obstacles = [n for n in names if n != "type2"]

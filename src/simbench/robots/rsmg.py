@@ -176,17 +176,9 @@ class RSMG(Robot):
             name="rsmg",
             description="RSMG: a rotor turned by four electromagnet arms that re-grip it (switched welds)",
             paper="001: Novel 3-DOF Reconfigurable Spherical Motion Generator with Unlimited Workspace",
-            joints=JOINTS,
-            kinds=KINDS,
-            lower=LOWER,
-            upper=UPPER,
-            qd_max=QD_MAX,
-            tool_site="marker",
-            tool_sensor="marker_pos",
-            orientation_error="rotor_error",
-            breaking=("typeA", "typeB"),
-            sensors=("rotor_quat", "em1_tip", "em2_tip", "em3_tip", "em4_tip"),
-            scene=scene("rsmg"),
+            joints=JOINTS, kinds=KINDS, lower=LOWER, upper=UPPER, qd_max=QD_MAX,
+            tool_site="marker", tool_sensor="marker_pos", orientation_error="rotor_error", breaking=("typeA", "typeB"),
+            sensors=("rotor_quat", "em1_tip", "em2_tip", "em3_tip", "em4_tip"), scene=scene("rsmg"),
         )
 
     def measures(self, rec) -> dict[str, np.ndarray]:

@@ -7,9 +7,9 @@ import numpy as np
 
 from simbench.errors import RunError
 from simbench.planners.round_robin.paths import joint_paths
-from simbench.planners.round_robin.schedule import Stuck, grid_orientations, rising, schedule_grips
+from simbench.planners.round_robin.schedule import Stuck, grid_orientations, schedule_grips, unkept_limits
 from simbench.planners.round_robin.search import STEP
-from simbench.planners.round_robin.task import Task, band
+from simbench.planners.round_robin.task import Task
 from simbench.planners.rsmg_contacts import SPEED_SHARE, angular_speed
 from simbench.robots import rsmg
 from simbench.timing import TimeLaw
@@ -61,10 +61,8 @@ def _cause(task: Task, law: TimeLaw, hold: float) -> str:
     try:
         schedule_grips(quick, law, hold, speed_share=np.inf)
     except RunError:
-        lo, hi = (np.rad2deg(b) for b in band(task))
-        return (f"neither the joints' speed nor the re-grips' time binds alone: no set of points keeps |det A| >= "
-                f"det_a_min = {task.det_a_min:g} (eq. 46{rising(task)}) and every gripping gamma in ({lo:.0f}, "
-                f"{hi:.0f}) deg (eq. 45 less the margin) with one arm re-gripping at a time")
+        return (f"neither the joints' speed nor the re-grips' time binds alone: "
+                f"{unkept_limits(task, 'no set of points')} with one arm re-gripping at a time")
     return (f"re-gripping binds: the points the arms can hold leave the gamma band (eq. 45) before the arms, one at "
             f"a time and {swing:.2f} s a re-grip (swing_time + approach_time), have re-gripped in turn; at "
             f"{swing / 2:.2f} s a re-grip (and joints without a speed limit) it is scheduled")

@@ -25,10 +25,10 @@ def gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return theta, gamma
 
 
-def unkept_limits(task: Task) -> str:
-    """What a refused schedule could not keep, for its RunError."""
+def unkept_limits(task: Task, who: str = "no schedule") -> str:
+    """What a refused schedule (or `who`) could not keep, for its RunError."""
     lo, hi = band(task)
-    return (f"no schedule keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46{rising(task)}) and every gripping "
+    return (f"{who} keeps |det A| >= det_a_min = {task.det_a_min:g} (eq. 46{rising(task)}) and every gripping "
             f"gamma in ({np.rad2deg(lo):.0f}, {np.rad2deg(hi):.0f}) deg (eq. 45 less the margin)")
 
 
