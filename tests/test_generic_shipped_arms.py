@@ -24,6 +24,7 @@ from simbench.cli import main
 from simbench.resources import models_dir
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
+from simbench.robots.rank_loss import rank_loss_detail
 from simbench.scenario import load_scenario
 from conftest import scenario_file
 
@@ -91,3 +92,35 @@ def test_the_generic_spherical_arm_finds_the_lift_axis(tmp_path):
     assert _contains(rank, axis)
     assert _samples(generic, rank["t_start"], axis["t_start"]) <= 6 >= _samples(generic, rank["t_end"], axis["t_end"])
 
+
+
+def test_rank_loss_names_the_pumas_wrist_shoulder_and_elbow_where_the_analytic_sets_are(tmp_path):
+    """The generic PUMA (its MJCF, no code) at random configurations on each of its analytic singular sets (puma600:
+    q5 = 0; a3 s3 + d4 c3 = 0, stretched; r = 0 solved for q2), away from the other two (|q5| of 40 deg at least,
+    where the wrist undoing a turn of joint 1 does not need most of the null motion): rank_loss's
+    sigma_min is 0 there and its `named` is the set's."""
+    path = tmp_path / "puma.yaml"
+    path.write_text(yaml.safe_dump({"robot": {"model": str(models_dir() / "puma600" / "puma600.xml"),
+                                              "tool": {"site": "tool"}, "speed_limits": [250.0] * 6},
+                                    "planner": "joint_move", "units": {"angle": "deg"},
+                                    "task": {"start": [180, -135, -180, 0, 45, 0], "goal": [180, -135, -180, 0, 45, 1]},
+                                    "timing": {"duration": 1.0}}))
+    robot = load_scenario(path).robot_def
+    rng = np.random.default_rng(11)
+    named = {"wrist": 0, "shoulder": 0, "elbow": 0}
+    while min(named.values()) < 10:
+        q = rng.uniform(P.LOWER, P.UPPER)
+        q[4] = np.deg2rad(rng.choice([-1, 1]) * rng.uniform(40, 100))
+        wrist, elbow, shoulder = q.copy(), q.copy(), q.copy()
+        wrist[4] = 0.0
+        elbow[2] = P.STRETCH
+        c3, s3 = np.cos(q[2]), np.sin(q[2])
+        shoulder[1] = np.arctan2(P.A2 + P.A3 * c3 - P.D4 * s3, P.A3 * s3 + P.D4 * c3)  # r = c2 G - s2 H = 0
+        for name, at in (("wrist", wrist), ("elbow", elbow), ("shoulder", shoulder)):
+            gaps = {"wrist": P.wrist_gap(at)[0], "elbow": P.elbow_gap(at)[0], "shoulder": P.shoulder_gap(at)[0]}
+            assert gaps[name] < 1e-12
+            if min(v for k, v in gaps.items() if k != name) < 0.2:
+                continue  # near another set too
+            detail = rank_loss_detail(robot.jacobian(at[None])[0], robot.reach)
+            assert detail["sigma_min"] < 1e-9 and detail.get("named") == name, (name, np.rad2deg(at), detail)
+            named[name] += 1

@@ -165,8 +165,8 @@ class CartesianPath(Planner):
         return None
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        """Only the first line may leave out its start, a given start must be the tool's point at `start`, and the
-        segments must join."""
+        """Only the first line may leave out its start, a given start (a line's, an arc's first point) must be the
+        tool's point at `start`, and the segments must join."""
         task = scenario.task
         for i, seg in enumerate(task.path[1:], 1):
             if seg.line is not None and seg.line.start is None:
@@ -180,6 +180,10 @@ class CartesianPath(Planner):
                                                "out to start where the tool is")
         if first is not None and segments[0].length < 1e-9:
             return "task.path[0].line.end", "is the tool's point at task.start: a zero-length line"
+        gap = np.linalg.norm(tool - segments[0].point(np.zeros(1))[0])
+        if first is None and gap > START_TOL:
+            return "task.path[0].arc", (f"starts {gap * 1e3:.3f} mm from the tool's point at task.start: the path "
+                                        "must start there")
         return join_gap(segments)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
