@@ -5,12 +5,12 @@ Each scenario runs twice through the CLI: with the shipped robot, and with `robo
 tool}, speed_limits: <the robot's>}`. The planners accept the generic arm (it bears the model's name), the scenes
 hold the same arm and servos, so the two runs record the same motion, and the singular events are compared:
 
-  - the instant closest to the singularity (`t_closest`): the generic arm's is the minimum of the least singular
-    value of its unit-consistent Jacobian (rank_loss). On the spherical arm's case 1 it is the analytic set's
-    (cos q3 = 0) to the sample. On the PUMA's wrist line the analytic wrist event's instant is the minimum of |q5|,
-    and the least singular value reaches its minimum 3 samples (3 ms) later: it is not a function of q5 alone (q4
-    and q6 spin near the singularity). Against the analytic Jacobian's own least singular value (puma600's
-    closed-form frame-3 Jacobian) the instant is the same sample, and its singular values are the generic arm's;
+  - the instant closest to the singularity (`t_closest`): the generic arm's is where the Jacobian columns its
+    rank loss binds (those its null motion moves) are nearest dependence (robots.rank_loss.closest_sample). On
+    the spherical arm's case 1 it is the analytic set's (cos q3 = 0) to the sample; on the PUMA's wrist line the
+    analytic wrist event's, the minimum of |q5|, to the sample. The whole Jacobian's least singular value (the
+    generic one equal to the analytic closed-form frame-3 Jacobian's) reaches its minimum 3 samples (3 ms) later
+    there: it is not a function of q5 alone (q4 and q6 spin near the singularity);
   - the spans: the generic gap (a singular value) is not the analytic one (an angle), so under the same near_angle
     the generic span contains the analytic one rather than equalling it.
 """
@@ -78,9 +78,9 @@ def test_the_generic_puma_finds_the_wrist_singularity(tmp_path):
     jac = load_scenario(tmp_path / "generic" / "scenario.yaml").robot_def.jacobian(q)
     jac[:, :3] /= P.A2 + P.D4  # the analytic Jacobian's characteristic length
     np.testing.assert_allclose(np.linalg.svd(jac, compute_uv=False), analytic, atol=1e-12)
-    assert _samples(generic, rank["detail"]["t_closest"], t[np.argmin(analytic[:, -1])]) == 0
-    assert _samples(generic, rank["detail"]["t_closest"], wrist["detail"]["t_closest"]) == 3  # |q5|'s minimum
+    assert _samples(generic, rank["detail"]["t_closest"], wrist["detail"]["t_closest"]) <= 1  # measured: 0
     assert wrist["detail"]["t_closest"] == t[np.argmin(np.abs(q[:, 4]))]
+    assert _samples(generic, t[np.argmin(analytic[:, -1])], wrist["detail"]["t_closest"]) == 3  # the whole J's
     assert _contains(rank, wrist)
 
 
