@@ -82,7 +82,7 @@ def test_the_plan_follows_random_lines_by_mujocos_own_kinematics(tmp_path):
         end = start + 100.0 * direction / np.linalg.norm(direction)
         scenario = load_scenario(_scenario(tmp_path, end, start=q0.round(6), duration=2.0, name=f"r{checked}"))
         plan = PLANNER.plan(scenario, scenario.robot_def, 0.002)
-        if plan.info["damped_from"] is not None or plan.info["speed_scaled_from"] is not None:
+        if any(plan.info[key] is not None for key in ("damped_from", "speed_scaled_from", "range_held_from")):
             continue  # not within the well-conditioned reach: no promise of exactness there
         tool, turned = [], []
         for row in plan.q_ref[::10]:
@@ -140,3 +140,77 @@ def test_a_bad_segment_of_mink_baseline_s_own_path_is_named_inside_task(tmp_path
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and str(path) in err and "task.path[1].line.start" in err
+
+
+def _limited(model):
+    """MuJoCo's ranges of the model's hinge joints (rad): -inf..inf where a joint is not limited."""
+    lo = np.where(model.jnt_limited, model.jnt_range[:, 0], -np.inf)
+    hi = np.where(model.jnt_limited, model.jnt_range[:, 1], np.inf)
+    return lo, hi
+
+
+def test_the_plan_keeps_every_joint_inside_mujocos_ranges_on_random_lines(tmp_path):
+    """Starts near the limits of joint_2 and joint_3 and random lines: the plan's joints never leave MuJoCo's
+    jnt_range, and a plan whose tool leaves the line where it holds a joint at a limit reports that joint."""
+    model = mujoco.MjModel.from_xml_path(JACO)
+    lo, hi = _limited(model)
+    robot = load_scenario(_scenario(tmp_path, TOOL0 + [0, 50, 0])).robot_def
+    assert robot.joints == tuple(model.joint(j).name for j in range(model.njnt))
+    rng = np.random.default_rng(3)
+    held, gaps = 0, []
+    for i in range(8):
+        q0 = np.rad2deg(rng.uniform(-np.pi, np.pi, 6))
+        for j in (1, 2):  # within 10 deg of one of the limits
+            side = rng.integers(2)
+            q0[j] = np.rad2deg((lo[j] + rng.uniform(0.0, 0.17)) if side == 0 else (hi[j] - rng.uniform(0.0, 0.17)))
+        start = robot.fk(np.deg2rad(q0)[None])[0] * 1e3
+        direction = rng.normal(size=3)
+        end = start + 150.0 * direction / np.linalg.norm(direction)
+        scenario = load_scenario(_scenario(tmp_path, end, start=q0.round(6), duration=2.0, name=f"r{i}"))
+        plan = PLANNER.plan(scenario, scenario.robot_def, 0.002)
+        assert (plan.q_ref >= lo).all() and (plan.q_ref <= hi).all()
+        kinds = {v.kind for v in plan.violations}
+        for v in plan.violations:
+            if v.kind == "joint_limit":  # the joint it names comes to that limit (the speed limits may slow it)
+                j = robot.joints.index(v["joint"])
+                gaps.append(np.abs(plan.q_ref[:, j] - (lo[j] if v["bound"] == "lower" else hi[j])).min())
+                assert kinds & {"off_path", "goal_missed"}
+        held += plan.info["range_held_from"] is not None
+    assert held >= 2  # measured: 5 of the 8
+    assert gaps and max(gaps) < np.deg2rad(1.0)  # measured: 0 (exactly on it) but one, 0.52 deg
+
+
+def test_a_line_that_needs_a_joint_past_its_range_says_so(tmp_path, capsys):
+    """A line along which joint_2 falls to its lower limit: out of reach within the range (a bounded least-squares
+    inverse kinematics by MuJoCo's own kinematics cannot end on it; unbounded, it can, with joint_2 below), and the
+    run reports joint_2 held at its limit and the tool off the line, its plan inside the range."""
+    least_squares = pytest.importorskip("scipy.optimize").least_squares
+    model = mujoco.MjModel.from_xml_path(JACO)
+    data = mujoco.MjData(model)
+    lo, hi = _limited(model)
+    start = np.array([24.4, 60.0, 286.9, -28.9, 70.8, 177.6])  # joint_2 13 deg above its lower limit, 47 deg
+    data.qpos[:] = np.deg2rad(start)
+    mujoco.mj_forward(model, data)
+    jacp = np.zeros((3, model.nv))
+    mujoco.mj_jacSite(model, data, jacp, None, model.site("wristsite").id)
+    p0, r0 = data.site("wristsite").xpos.copy(), data.site("wristsite").xmat.reshape(3, 3).copy()
+    end = p0 - 0.15 * jacp[:, 1] / np.linalg.norm(jacp[:, 1])  # where joint_2 falls alone would take the tool
+
+    def residual(q):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        return np.concatenate([data.site("wristsite").xpos - end, 0.1 * (data.site("wristsite").xmat - r0.ravel())])
+
+    free = least_squares(residual, np.deg2rad(start), xtol=1e-14, ftol=1e-14)
+    bounded = least_squares(residual, np.deg2rad(start), bounds=(lo, hi), xtol=1e-14, ftol=1e-14)
+    assert np.linalg.norm(residual(free.x)) < 1e-6 and free.x[1] < lo[1]
+    assert np.linalg.norm(residual(bounded.x)[:3]) > 1e-3  # measured: 26.5 mm short; unbounded, joint_2 at 41.5 deg
+    path = _scenario(tmp_path, end * 1e3, start=start, duration=2.0, name="to_limit")
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--no-video"]) == 3  # limits
+    assert "status: limits" in capsys.readouterr().out
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    (held,) = [v for v in report["violations"] if v["kind"] == "joint_limit"]
+    assert held["joint"] == "joint_2" and held["bound"] == "lower" and held["source"] == "planner"
+    assert {"off_path", "goal_missed"} <= {v["kind"] for v in report["violations"]}
+    q_ref = np.load(tmp_path / "out" / "timeseries.npz")["q_ref"]
+    assert (q_ref >= lo).all() and (q_ref <= hi).all() and q_ref[:, 1].min() == lo[1]

@@ -156,3 +156,29 @@ def test_a_mapping_without_speed_limits_is_bad_input(tmp_path, capsys):
     assert main(["validate", str(scenario)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and str(scenario) in err and "robot.speed_limits" in err
+
+
+@pytest.mark.parametrize("robot_file", [False, True], ids=["mapping", "robot_file"])
+def test_a_sweep_resolves_the_models_relative_path_as_run_does(tmp_path, monkeypatch, robot_file):
+    """A base scenario naming its model (or its robot file) relative to its own folder runs alike from a sweep
+    file in another folder, the sweep started from a third."""
+    scenarios, sweeps, elsewhere = (tmp_path / name for name in ("scenarios", "sweeps/of_jaco", "elsewhere"))
+    for folder in (scenarios / "arms", sweeps, elsewhere):
+        folder.mkdir(parents=True)
+    if robot_file:  # the robot file's model relative to the robot file's folder
+        (scenarios / "arms" / "jaco.yaml").write_text(f"model: {os.path.relpath(JACO, scenarios / 'arms')}\n"
+                                                       f"tool: {{site: wristsite}}\n{SPEEDS.strip()}\n")
+        base = _scenario(scenarios)
+        base.write_text(base.read_text().replace(f"robot:\n  model: {JACO}\n  tool: {{site: wristsite}}\n",
+                                                 "robot: arms/jaco.yaml\n"))
+    else:
+        base = _scenario(scenarios, model=os.path.relpath(JACO, scenarios), robot_extra=SPEEDS)
+    assert f" {JACO}" not in base.read_text()
+    (sweeps / "jaco.yaml").write_text("base: ../../scenarios/jaco_move.yaml\noutputs: report\n"
+                                      "grid: {timing.duration: [2.0]}\n")
+    monkeypatch.chdir(elsewhere)
+    assert main(["sweep", "../sweeps/of_jaco/jaco.yaml", "--out", "out", "--quiet"]) == 0
+    summary = json.loads((elsewhere / "out" / "summary.json").read_text())
+    assert summary["status"]["ok"] == summary["runs"] == 1, summary
+    report = json.loads(next((elsewhere / "out").rglob("report.json")).read_text())
+    assert report["status"] == "ok" and report["derived_arm"]["model"] == "jaco_arm.xml"

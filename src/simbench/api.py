@@ -87,6 +87,8 @@ class SingularSet:
     distance <= 1 lies near the set. `gaps` holds each condition's gap in SI units (rad or m). `detail`, where the
     robot can say more of a sample than its gaps (which direction is lost there), gives the entries of sample i
     (of this window) that the set's event adds at its closest sample; it is called for those samples alone.
+    `closest`, where the robot times the closest sample by more than the least distance, gives it for the near
+    samples a..b (of this window, inclusive).
     """
 
     name: str
@@ -95,6 +97,7 @@ class SingularSet:
     distance: Array
     gaps: dict[str, Array]
     detail: Callable[[int], dict[str, Any]] | None = None
+    closest: Callable[[int, int], int] | None = None
 
 
 class Summary(NamedTuple):

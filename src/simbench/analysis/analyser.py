@@ -174,7 +174,7 @@ class Analyser:
             self.least[sset.name] = min(self.least.get(sset.name, np.inf), float(sset.distance.min(initial=np.inf)))
         for spans_of, sset in zip(self.singular, sets):
             def closest(a: int, b: int, sset=sset) -> tuple:
-                i = a + int(np.argmin(sset.distance[a:b + 1]))
+                i = sset.closest(a, b) if sset.closest is not None else a + int(np.argmin(sset.distance[a:b + 1]))
                 more = sset.detail(i) if sset.detail is not None else {}
                 return float(sset.distance[i]), lo + i, {k: float(v[i]) for k, v in sset.gaps.items()}, more
             spans_of.add(sset.distance <= 1.0, lo, closest)

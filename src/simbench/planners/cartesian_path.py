@@ -22,13 +22,18 @@ unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v /
     tool lags the path along the lost direction instead;
   - a redundant arm (more than 6 joints) is pulled back to its start posture at rate K_N = NULL_GAIN in the null
     space of Ju (ibid., eq. 3.54; Ju+ the pseudo-inverse);
+  - every joint kept inside its range: a joint the rates would take past a limit within the sample is held to
+    reach it exactly, its column taken out of Ju, and the other joints solved again for the twist it leaves
+    (until none passes): the saturation of Flacco, De Luca and Khatib (IEEE Trans. Robot. 31(3), 2015, Alg. 1,
+    without its task scaling). A joint at its limit moves again as soon as the rates turn it back inside;
   - where a joint's rate would pass its speed limit, all the rates are scaled down together (ours): the tool keeps
     its direction and falls behind the time law, which the closed loop then makes up where it can.
 
-The plan is what the integration gives; its joint ranges are checked as every plan's are (the analysis' plan
-limits). Where the plan's own tool leaves the path (the polyline of its points) by more than the scenario's path
-tolerance, or ends farther than its goal tolerance from the path's end (a path out of reach, a singularity
-damped, a tool slowed by the speed limits), the plan reports it (`off_path`, `goal_missed`).
+The plan is what the integration gives, inside the joint ranges. Where the plan's own tool leaves the path (the
+polyline of its points) by more than the scenario's path tolerance, or ends farther than its goal tolerance from
+the path's end (a path out of reach, a singularity damped, a tool slowed by the speed limits, a joint held at its
+limit), the plan reports it (`off_path`, `goal_missed`), and each joint held at a limit there as a `joint_limit`
+(the path needs it past its range).
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ import numpy as np
 from pydantic import Field
 
 from simbench.analysis.path_distance import path_deviation
-from simbench.api import Planner, Violation
+from simbench.api import REVOLUTE, Planner, Violation
 from simbench.paths import Composite, Line
 from simbench.planners.decoupled_path import LineSpec, Segment, join_gap, segment_waypoints
 from simbench.robots.rank_loss import unit_jacobian
@@ -104,6 +109,32 @@ def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, 
     return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
 
 
+def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
+                   dt: float) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """The rates of one sample with every joint kept inside its range (the module's docstring): the damped rates
+    of the joints not held (with a redundant arm's null-space return to q0), each joint they would take past a
+    limit within dt held to reach it exactly, the rest solved again for what the held ones leave of the twist.
+    Returns the rates, the whole arm's sigma_min and lambda^2, and which joints are held (dof,)."""
+    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
+    sigma = lam2 = 0.0
+    while not held.all():
+        free = ~held
+        rates, s, l2, null = damped_rates(ju[:, free], twist - ju[:, held] @ fixed[held])
+        if not held.any():
+            sigma, lam2 = s, l2
+        if len(now) > 6:
+            rates += null @ (NULL_GAIN * (q0 - now)[free])
+        out = fixed.copy()
+        out[free] = rates
+        after = now + dt * out
+        passing = free & ((after > robot.upper) | (after < robot.lower))
+        if not passing.any():
+            return out, sigma, lam2, held
+        fixed[passing] = (np.clip(after[passing], robot.lower[passing], robot.upper[passing]) - now[passing]) / dt
+        held |= passing
+    return fixed, sigma, lam2, held
+
+
 def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
     """1/2 (n x n_d + s x s_d + a x a_d) (3,) (Siciliano et al. 2009, eq. 3.85): sin(angle) times the axis of the
     rotation from r to r_goal, world frame."""
@@ -134,8 +165,8 @@ class CartesianPath(Planner):
         return None
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        """Only the first line may leave out its start, a given start must be the tool's point at `start`, and the
-        segments must join."""
+        """Only the first line may leave out its start, a given start (a line's, an arc's first point) must be the
+        tool's point at `start`, and the segments must join."""
         task = scenario.task
         for i, seg in enumerate(task.path[1:], 1):
             if seg.line is not None and seg.line.start is None:
@@ -149,6 +180,10 @@ class CartesianPath(Planner):
                                                "out to start where the tool is")
         if first is not None and segments[0].length < 1e-9:
             return "task.path[0].line.end", "is the tool's point at task.start: a zero-length line"
+        gap = np.linalg.norm(tool - segments[0].point(np.zeros(1))[0])
+        if first is None and gap > START_TOL:
+            return "task.path[0].arc", (f"starts {gap * 1e3:.3f} mm from the tool's point at task.start: the path "
+                                        "must start there")
         return join_gap(segments)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
@@ -165,7 +200,7 @@ class CartesianPath(Planner):
         axis = turn / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
         points, rotations = path.point(s), axis_rotation(np.tile(axis, (len(s), 1)), s * angle) @ r0
         twists = np.hstack([path.tangent(s) / robot.reach, turn[None] * np.ones((len(s), 1))]) * ds[:, None]
-        q, qd, sigma, lam2, scale = self._integrate(robot, q0, points, rotations, twists, dt)
+        q, qd, sigma, lam2, scale, held = self._integrate(robot, q0, points, rotations, twists, dt)
         tool = robot.fk(q)
         off = path_deviation(points, tool)
         turned = np.array([np.linalg.norm(orientation_error(a, b)) for a, b in zip(rotations, robot.tool_rotation(q))])
@@ -178,11 +213,15 @@ class CartesianPath(Planner):
                 "speed_scaled_from": _first(t, scale < 1), "plan_path_deviation_max": float(off.max()),
                 "plan_goal_error": float(np.linalg.norm(tool[-1] - points[-1])),
                 "plan_orientation_error_max": float(np.arcsin(np.clip(turned.max(), 0.0, 1.0)))}
-        violations = self._off_path(t, off, sigma, scenario.analysis.path_tolerance)
+        violations = self._off_path(t, off, sigma, scenario.analysis.path_tolerance, held)
         if info["plan_goal_error"] > scenario.analysis.goal_tolerance:
             violations += (Violation("goal_missed", f"the plan's own tool ends {info['plan_goal_error'] * 1e3:.2f} mm "
                                      f"from the path's end (tolerance {scenario.analysis.goal_tolerance * 1e3:g} mm)",
                                      float(t[-1]), 0, {"error": info["plan_goal_error"]}),)
+        info["range_held_from"] = _first(t, held.any(axis=1))
+        if violations:
+            violations += self._held(robot, t, q, held, off > scenario.analysis.path_tolerance,
+                                     any(v.kind == "goal_missed" for v in violations))
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
                                waypoints=segment_waypoints(path, s, q), info=info, violations=violations)
 
@@ -192,30 +231,50 @@ class CartesianPath(Planner):
         """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of the module's integration from q0."""
         n, gain = len(points), CLIK_SHARE / dt
         q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.empty(n)
-        scale = np.ones(n)
+        scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
         now = q0.copy()
         for k in range(n):
             here = now[None]
             error = np.concatenate([(points[k] - robot.fk(here)[0]) / robot.reach,
                                     orientation_error(rotations[k], robot.tool_rotation(here)[0])])
-            rates, sigma[k], lam2[k], null = damped_rates(unit_jacobian(robot.jacobian(here)[0], robot.reach),
-                                                          twists[k] + gain * error)
-            if robot.dof > 6:
-                rates += null @ (NULL_GAIN * (q0 - now))
+            ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)
+            rates, sigma[k], lam2[k], held[k] = _clamped_rates(ju, twists[k] + gain * error, now, q0, robot, dt)
             scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
             q[k], qd[k] = now, rates * scale[k]
-            now = now + dt * qd[k]
-        return q, qd, sigma, lam2, scale
+            now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
+        return q, qd, sigma, lam2, scale, held
 
     @staticmethod
-    def _off_path(t: np.ndarray, off: np.ndarray, sigma: np.ndarray, tolerance: float) -> tuple[Violation, ...]:
-        """The plan's own tool beyond the path tolerance: from when, how far, and the arm's sigma_min there."""
+    def _held(robot, t: np.ndarray, q: np.ndarray, held: np.ndarray, off: np.ndarray,
+              missed: bool) -> tuple[Violation, ...]:
+        """The joints held at a limit where the plan's tool is off the path (`off`, per sample) or, with the goal
+        `missed`, at the end: one `joint_limit` each, the path needing the joint past its range there."""
+        where = off.copy()
+        where[-1] |= missed
+        out = []
+        for j in np.flatnonzero((held & where[:, None]).any(axis=0)):
+            k = int(np.argmax(held[:, j] & where))
+            upper = abs(q[k, j] - robot.upper[j]) <= abs(q[k, j] - robot.lower[j])
+            bound, limit = ("upper", robot.upper[j]) if upper else ("lower", robot.lower[j])
+            shown = f"{np.rad2deg(limit):.2f} deg" if robot.kinds[j] == REVOLUTE else f"{limit * 1e3:.2f} mm"
+            out.append(Violation("joint_limit", f"the path needs {robot.joints[j]} past its {bound} limit {shown} "
+                                 f"from t = {t[k]:.3f} s: the plan keeps it inside, off the path",
+                                 float(t[k]), 0, {"joint": robot.joints[j], "bound": bound, "limit": float(limit),
+                                                  "source": "planner"}))
+        return tuple(out)
+
+    @staticmethod
+    def _off_path(t: np.ndarray, off: np.ndarray, sigma: np.ndarray, tolerance: float,
+                  held: np.ndarray) -> tuple[Violation, ...]:
+        """The plan's own tool beyond the path tolerance: from when, how far, and the arm's sigma_min there (or the
+        joints it holds at a limit there)."""
         if off.max() <= tolerance:
             return ()
         k, worst = int(np.argmax(off > tolerance)), int(np.argmax(off))
+        why = (f"a joint held at its limit (joint_limit), least singular value {sigma[worst]:.3g}" if held[worst].any()
+               else f"damped near a rank loss (least singular value {sigma[worst]:.3g} there) or out of reach")
         return (Violation("off_path", f"the plan's own tool leaves the path by up to {off[worst] * 1e3:.2f} mm "
-                          f"(tolerance {tolerance * 1e3:g} mm) from t = {t[k]:.3f} s: damped near a rank loss "
-                          f"(least singular value {sigma[worst]:.3g} there) or out of reach", float(t[k]), 0,
+                          f"(tolerance {tolerance * 1e3:g} mm) from t = {t[k]:.3f} s: {why}", float(t[k]), 0,
                           {"worst": float(off[worst]), "sigma_min": float(sigma[worst])}),)
 
 

@@ -12,8 +12,8 @@ with L the arm's reach (robots.chain.Chain.reach): dividing the position rows by
 at the end of the reach count as a radian does. The singular set `rank_loss` is where Ju loses rank: its gap is
 Ju's least singular value, which near a singularity grows as the joint angle away from it (rad; a joint of an arm
 folded or stretched at the end of its reach, a wrist's axes aligned), so it is near when below the analysis'
-`near_angle`. Its event names, at its closest sample, the twist lost there and the joint motion that moves
-nothing (robots.rank_loss).
+`near_angle`. Its event names, at its closest sample (where the columns the loss binds are nearest dependence),
+the twist lost there and the joint motion that moves nothing (robots.rank_loss).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import numpy as np
 from simbench.api import Array, JointTrajectory, Recording, Robot, SingularSet, Summariser, Summary, Tolerance
 from simbench.plant import register_scene
 from simbench.robots.model_scene import TOOL_SENSOR, TOOL_SITE, DerivedArm
-from simbench.robots.rank_loss import rank_loss_detail, unit_jacobian
+from simbench.robots.rank_loss import closest_sample, rank_loss_detail, unit_jacobian
 
 
 class ModelArm(Robot):
@@ -108,13 +108,16 @@ class ModelArm(Robot):
         return self.singular_sets_from(rec, tol, self.measures(rec))
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
-        """rank_loss: Ju's least singular value, near below tol.angle; its event says at its closest sample which
-        twist is lost and which joint motion moves nothing there (robots.rank_loss)."""
+        """rank_loss: Ju's least singular value, near below tol.angle; its event's closest sample is where the
+        columns the loss binds are nearest dependence, and says which twist is lost and which joint motion moves
+        nothing there (robots.rank_loss)."""
         gap = measures["sigma_min_unit"]
         return [SingularSet("rank_loss", "Jacobian rank loss",
                             f"least singular value of [Jp / L; Jr] = 0 (L = {self.reach:.4g} m, the reach)",
                             gap / tol.angle, {"sigma_min_unit": gap},
-                            detail=lambda i: rank_loss_detail(self.jacobian(rec.q[i])[0], self.reach))]
+                            detail=lambda i: rank_loss_detail(self.jacobian(rec.q[i])[0], self.reach),
+                            closest=lambda a, b: a + closest_sample(unit_jacobian(self.jacobian(rec.q[a:b + 1]),
+                                                                                  self.reach)))]
 
     def summary(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
         return self.summariser(traj).whole(traj, rec, series)

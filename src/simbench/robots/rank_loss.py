@@ -24,6 +24,13 @@ never by the joints' names:
               the tool along its reach.
 
 Anything else has no name: the vectors say it all.
+
+The event's closest instant (`closest_sample`): a rank loss is a linear dependence among some of Ju's columns,
+those the null motion moves (weight SUPPORT or more, at the span's least sigma_min). The instant is where those
+columns alone are nearest dependence, the least singular value of Ju restricted to them: free of how the other
+joints couple into the lost twist, which shifts the whole Ju's minimum when they move fast near the loss (the
+PUMA's wrist: its columns 4 and 6 depend on q5 alone, so their minimum is |q5|'s). Where the null motion moves
+every joint it is the whole Ju's minimum.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ import numpy as np
 from simbench.api import Array
 
 CONCENTRATED = 0.9  # share of a unit vector's weight (squared components) that counts as "in" a set of joints
+SUPPORT = 0.05  # weight of a joint in the null motion that makes its column one of those the rank loss binds
 
 
 def unit_jacobian(jac: Array, reach: float) -> Array:
@@ -57,6 +65,17 @@ def rank_loss_detail(jac: Array, reach: float) -> dict:
     if name is not None:
         out["named"] = name
     return out
+
+
+def closest_sample(ju: Array) -> int:
+    """The sample of a near span's unit-consistent Jacobians ju (n, 6, dof) closest to its rank loss (the module's
+    docstring): the least singular value of the columns that the null motion at the span's least sigma_min moves."""
+    least = int(np.argmin(np.linalg.svd(ju, compute_uv=False)[:, -1]))
+    _, sv, vt = np.linalg.svd(ju[least], full_matrices=False)
+    bound = np.flatnonzero(vt[len(sv) - 1] ** 2 >= SUPPORT)
+    if len(bound) == ju.shape[-1]:
+        return least
+    return int(np.argmin(np.linalg.svd(ju[:, :, bound], compute_uv=False)[:, -1]))
 
 
 def _named(twist: Array, null: Array) -> str | None:

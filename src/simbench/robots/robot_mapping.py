@@ -78,6 +78,23 @@ def is_mapping(value: Any) -> bool:
     return isinstance(value, dict) or (isinstance(value, str) and value.endswith((".yaml", ".yml")))
 
 
+def anchored(value: Any, folder: str | Path) -> Any:
+    """A scenario's `robot:` with its relative paths (a robot file's, a mapping's model and packages) made absolute
+    against `folder`, the scenario's own: what a copy of the scenario read from elsewhere (a sweep's runs) needs to
+    name the same files. Anything else is returned as it is, for the schema to judge."""
+    def absolute(text: Any) -> Any:
+        return str(Path(folder, text).resolve()) if isinstance(text, str) and not Path(text).is_absolute() else text
+
+    if isinstance(value, str):
+        return absolute(value) if is_mapping(value) else value
+    if not isinstance(value, dict):
+        return value
+    value = {**value, "model": absolute(value["model"])} if "model" in value else dict(value)
+    if isinstance(value.get("packages"), dict):
+        value["packages"] = {name: absolute(folder_) for name, folder_ in value["packages"].items()}
+    return value
+
+
 def load_robot(value: dict | str, source: str, units: Units) -> ModelArm:
     """The arm a scenario's `robot:` describes (`source`: the scenario file); ScenarioError naming the file and the
     field at fault."""

@@ -39,6 +39,7 @@ from pydantic import Field, ValidationError, model_validator
 
 from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
+from simbench.robots import robot_mapping
 from simbench.scenario import parse_scenario
 from simbench.schema import Name, SimbenchModel, file_name
 from simbench.sweep import size
@@ -215,7 +216,7 @@ def load_sweep(path: str | Path) -> Sweep:
     parse_scenario(document, str(base), default_name=base.stem)  # the base alone must be a valid scenario
     paths = _paths(spec, source)
     runs = size.check(spec, document, source).runs  # before anything is expanded: it may not fit in memory
-    variants = _expand(spec, document, paths, base.stem, runs, source)
+    variants = _expand(spec, document, paths, base, runs, source)
     _check_fields(variants[0], paths, source)
     return Sweep(spec.name or file_name(path.stem, source), source, spec, base, tuple(variants))
 
@@ -253,9 +254,12 @@ def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str, tuple[str | int
     return found
 
 
-def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, count: int,
+def _expand(spec: SweepSpec, document: dict, paths: dict, base: Path, count: int,
             source: str) -> list[Variant]:
-    """Every grid point crossed with every random sample (`count` runs), numbered in that order."""
+    """Every grid point crossed with every random sample (`count` runs), numbered in that order. A robot mapping's
+    relative paths (swept ones too) are made absolute against the base scenario's folder, as `simbench run` of the
+    base reads them, since a run's document is read from the sweep."""
+    base_name, folder = base.stem, base.parent
     grid_points = list(itertools.product(*spec.grid.values()))
     samples: list[dict[str, Any]] = [{}]
     if spec.random:
@@ -273,6 +277,8 @@ def _expand(spec: SweepSpec, document: dict, paths: dict, base_name: str, count:
                 assign(doc, path, value)
             except ValueError as err:
                 raise ScenarioError(source, f"{section}.{name}", str(err)) from None
+        if robot_mapping.is_mapping(doc.get("robot")):  # read from the sweep, its files named as from the base
+            doc["robot"] = robot_mapping.anchored(doc["robot"], folder)
         index = len(variants)
         run_id = f"r{index:0{width}d}"
         doc["name"] = f"{doc.get('name') or base_name}-{run_id}"
