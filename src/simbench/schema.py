@@ -1,8 +1,7 @@
 """Building blocks of the scenario schema: strict models and quantities converted to SI at load time.
 
-A scenario states its units once (`units: {angle: deg, length: mm}`); every angle, length and joint vector is
-converted while it is validated, so everything downstream is in radians and metres. Joint vectors are checked
-against the robot's joint count and limits, and an error quotes the value in the file's own units.
+A scenario states its units once (`units: {angle: deg, length: mm}`); values are converted while validated, so
+that everything downstream is SI, and an error quotes the value in the file's own units.
 """
 
 from __future__ import annotations
@@ -93,8 +92,8 @@ def _to_position(value: list[float], info: ValidationInfo) -> list[float]:
 
 
 def _finite_norm(value: list[float], what: str) -> float:
-    """The length of a vector that is normalised: its items within +-MAX_COMPONENT (so that the length is
-    finite) and the length at least MIN_NORM (so that the direction is not rounding noise)."""
+    """The length of a vector to normalise: items within +-MAX_COMPONENT (a finite length), the length at least
+    MIN_NORM (a direction, not rounding noise)."""
     if any(abs(v) > MAX_COMPONENT for v in value):
         raise ValueError(f"expected {what} with items within +-{MAX_COMPONENT:g} (it is normalised), got "
                          f"{max(value, key=abs):.6g}")

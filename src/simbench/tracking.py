@@ -1,7 +1,5 @@
-"""The shipped metric `tracking`: how closely the tool and the joints followed the plan, from the analysis'
-per-sample series (simbench.analysis). A Metric as an outside package's are, declared as an entry point of
-simbench's pyproject.toml; the one difference is where its figures go: report.json's `tracking` (the contract every
-report keeps), where an outside metric's go under metrics.<name>.
+"""The shipped metric `tracking`: how closely the tool and the joints followed the plan. Its figures go to
+report.json's `tracking`, not under metrics.<name>:
 
   joint_rms, joint_max             each joint's error against its reference (rad or m), by joint name
   tool_rms, tool_max               the tool's distance from the planned path near its reference (m)
@@ -25,8 +23,7 @@ if TYPE_CHECKING:
 
 
 class Tracking(Metric):
-    """The tracking figures, a window at a time: the series' sums of squares, largest values and last values
-    (windowed.Sums), and the planned path's length, its step into each window carried from the one before."""
+    """The tracking figures, a window at a time (windowed.Sums), and the planned path's length."""
 
     name = "tracking"
     description = "joint and tool errors against the plan: RMS, largest, final; the planned path's length"

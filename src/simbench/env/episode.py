@@ -30,10 +30,8 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 class Physics(dm_mujoco.Physics):
-    """dm_control's Physics of a simbench scene, stepped as simbench's closed loop steps and checked as simbench
-    checks a run; `readings` holds the sensors MuJoCo computed during the last step (at the state it started
-    from, as `simulate` records them), `counts` MuJoCo's warning counters, and `t0` the simulated time of the
-    plan's first sample."""
+    """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop; `readings`: the
+    sensors of the last step (at its start state), `counts`: MuJoCo's warning counters, `t0`: the plan's start."""
 
     readings: Array
     counts: Array
@@ -45,8 +43,8 @@ class Physics(dm_mujoco.Physics):
         self.readings = data.ptr.sensordata.copy()
 
     def step(self, nstep: int = 1) -> None:
-        """Finish the step mj_step1 prepared (mj_step2), keep its sensors, prepare the next (mj_step1); nstep
-        times. PhysicsError at the first step that fails (checked as simbench's closed loop checks a step)."""
+        """Finish the step mj_step1 prepared (mj_step2), keep its sensors, prepare the next; nstep times.
+        PhysicsError at the first step that fails."""
         model, data = self.model.ptr, self.data.ptr
         for _ in range(nstep):
             with quiet_mujoco():
