@@ -85,8 +85,7 @@ EXIT_LIMITS = 3
 
 
 def _say(text: str, file=None) -> None:
-    """Print `text` with control characters but line breaks escaped, so text read from files cannot drive the
-    terminal."""
+    """Print `text` with control characters but line breaks escaped: text read from files cannot drive the tty."""
     print("\n".join(printable(line) for line in str(text).split("\n")), file=file or sys.stdout)
 
 
@@ -211,8 +210,7 @@ def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
 
 
 def _validate(paths: list[Path], plan: bool) -> int:
-    """Check each scenario and, if `plan`, plan it (no physics); EXIT_LIMITS if a plan breaks an unexpected
-    promise."""
+    """Check each scenario and, if `plan`, plan it; EXIT_LIMITS if a plan breaks an unexpected promise."""
     from simbench import pipeline, scenario
 
     code = 0
@@ -357,15 +355,10 @@ def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) 
     """Print why the command failed; its exit code (130 where Ctrl-C came first and caused `err`)."""
     if ctrl_c.pressed:
         return _interrupted(args, ctrl_c)
-    if isinstance(err, ScenarioError):
-        _say(f"error: {err}", file=sys.stderr)
-        return 2
-    if isinstance(err, OutputError):
-        _say(f"error: {err}", file=sys.stderr)
-        return 1
-    if isinstance(err, RunError):
-        _say(f"run failed: {err}", file=sys.stderr)
-        return 1
+    for kind, prefix, code in ((ScenarioError, "error", 2), (OutputError, "error", 1), (RunError, "run failed", 1)):
+        if isinstance(err, kind):  # OutputError before RunError, whose subclass it is
+            _say(f"{prefix}: {err}", file=sys.stderr)
+            return code
     if isinstance(err, OSError) and err.filename is not None:
         return _refused(err)
     return _internal_error(err)  # not the file system's refusal either (a closed pipe, say)

@@ -36,8 +36,7 @@ _SOURCE = "compare"  # how a refusal of the arguments names where it comes from 
 
 @dataclass(frozen=True)
 class MethodRun:
-    """One method of a comparison and what came of it: `status` is the run's, or `failed` (physics) or `refused`
-    (the planner), with `error` saying why; `evaluation` is None unless it ran to the end."""
+    """One method and what came of it: `status` the run's, or `failed`/`refused` with `error` saying why."""
 
     label: str
     planner: str
@@ -175,10 +174,8 @@ def row(run: MethodRun) -> dict:
                path_deviation_max_m=tracking["tool_max"], path_deviation_rms_m=tracking["tool_rms"],
                plan_path_deviation_max_m=_plan_deviation(robot, traj))
     peak = ev.analysis.extremes["qd_ref_peak"]  # of every sample, also where the outputs keep every k-th
-    for j, name in enumerate(robot.joints):
-        out[f"qd_peak_{name}"] = float(peak[j])
-    for j, name in enumerate(robot.joints):
-        out[f"qd_share_{name}"] = float(peak[j] / robot.qd_max[j])
+    out.update({f"qd_peak_{name}": float(peak[j]) for j, name in enumerate(robot.joints)})
+    out.update({f"qd_share_{name}": float(peak[j] / robot.qd_max[j]) for j, name in enumerate(robot.joints)})
     out["qd_share_max"] = float((peak / robot.qd_max).max())
     simulated = rec.qd_peak if rec.qd_peak is not None else np.abs(rec.thinned().qd).max(axis=0, initial=0.0)
     out["qd_share_max_simulated"] = float((simulated / robot.qd_max).max())  # every state's, a stride's too
@@ -264,7 +261,7 @@ def table_markdown(base: Scenario, rows: tuple[dict, ...]) -> str:
              "| | " + " | ".join(f"`{r['method']}`" for r in rows) + " |",
              "|---|" + "---:|" * len(rows)]
     for column in _columns(rows):
-        if column in ("method",):
+        if column == "method":
             continue
         label, scale, fmt = _display(column, robot)
         cells = []

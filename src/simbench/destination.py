@@ -76,8 +76,7 @@ def _listed(folder: Path) -> set[str]:
 
 
 def foreign(folder: Path) -> list[Path]:
-    """The files in `folder`, at every depth, that no marker on the way down lists; markers and staging names
-    are simbench's."""
+    """The files in `folder`, at every depth, that no marker on the way down lists (staging names excepted)."""
     listed: dict[Path, set[str]] = {}
     out = []
     for path in sorted(folder.rglob("*")):

@@ -64,8 +64,7 @@ class RunError(Exception):
 
 
 class PhysicsError(RunError):
-    """The simulation failed mid-run: when, why, the trajectory and the recording up to then (None if it failed
-    while settling)."""
+    """The simulation failed mid-run: when, why, the plan, and the recording so far (None while settling)."""
 
     failed = "physics failed"
 

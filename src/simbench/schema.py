@@ -148,9 +148,8 @@ def _check_name(value: str) -> str:
 
 
 def file_name(stem: str, source: str) -> str:
-    """The name a file without a `name:` field gives its outputs' folder, its `stem`, held to the same rule as a
-    `name:` (a file called `..yaml` or `<b>.yaml` would name `renders/` itself, or carry markup into a page);
-    ScenarioError naming `source` and the field to add otherwise."""
+    """The `stem` of a file without a `name:` field, held to the rule of a `name:` (a file `..yaml` would name
+    `renders/` itself); ScenarioError naming `source` otherwise."""
     try:
         return _check_name(stem)
     except ValueError as err:
@@ -188,13 +187,8 @@ Name = Annotated[str, Field(max_length=100), AfterValidator(_check_name)]
 
 
 class Orientation(SimbenchModel):
-    """A rotation, written in one of three conventions.
-
-    zyx     [yaw, pitch, roll]: R = Rz(yaw) Ry(pitch) Rx(roll) (intrinsic Z-Y-X Euler angles), in the file's angle
-            unit;
-    quat    [w, x, y, z], any non-zero length (it is normalised);
-    rotvec  rotation vector, its length the angle in the file's angle unit.
-    """
+    """A rotation: `zyx` [yaw, pitch, roll] (R = Rz(yaw) Ry(pitch) Rx(roll), intrinsic), `quat` [w, x, y, z] of
+    any non-zero length, or `rotvec` (its length the angle); angles in the file's unit."""
 
     convention: Literal["zyx", "quat", "rotvec"]
     value: list[float]
@@ -218,7 +212,7 @@ class Orientation(SimbenchModel):
 
     def matrix(self) -> np.ndarray:
         """The 3x3 rotation matrix."""
-        from scipy.spatial.transform import Rotation  # scipy.spatial: 36 MB and 0.3 s, paid by the runs that ask
+        from scipy.spatial.transform import Rotation  # scipy.spatial is large: loaded by the runs that ask only
 
         if self.convention == "zyx":
             return Rotation.from_euler("ZYX", self.value).as_matrix()

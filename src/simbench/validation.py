@@ -242,8 +242,7 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
 
 
 def _first_error(errors: list[ErrorDetails], document: Any) -> ErrorDetails:
-    """An unknown field, else the first error that no other lies within (inside a union's mapping), else the
-    first."""
+    """An unknown field, else the first error that no other lies within, else the first."""
     locs = [_field_loc(e["loc"], document) for e in errors]
 
     def inside(i: int) -> bool:  # another error lies within this one's mapping or list

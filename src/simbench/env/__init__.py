@@ -111,8 +111,7 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
 
 def write_outputs(env: control.Environment, out: str | Path | None = None, video: bool = True,
                   force: bool = False, control_info: dict | None = None) -> Result:
-    """Write a finished episode's outputs into `out` (default renders/<name>/) as `simbench.run` writes a run's,
-    with the same refusals."""
+    """Write a finished episode's outputs into `out` (default renders/<name>/) as `simbench.run` does."""
     from simbench import destination
     from simbench.pipeline import write_outputs as write
 

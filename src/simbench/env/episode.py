@@ -202,9 +202,8 @@ class Track(control.Task):
         return observation(self.plant, state, self.q_ref, self.qd_ref, self.plan.tool_ref)
 
     def get_reward(self, physics: Physics) -> float:
-        """1 with the tool on its reference, 0.5 at analysis.path_tolerance from it, towards 0 beyond: dm_control's
-        rewards.tolerance(error, bounds=(0, 0), margin=path_tolerance, sigmoid="gaussian", value_at_margin=0.5),
-        written out: 0.5 ** ((error / path_tolerance) ** 2), a tenth of the library call's cost."""
+        """dm_control's gaussian rewards.tolerance of the tool's error (0.5 at analysis.path_tolerance), written
+        out as 0.5 ** ((error / path_tolerance) ** 2) for speed."""
         offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
         return _REWARD_AT_TOLERANCE ** (float(offset @ offset) / self._tolerance ** 2)
 
@@ -215,9 +214,8 @@ class Track(control.Task):
     # --- the episode as a run ---------------------------------------------------------------------------------
 
     def recording(self, physics: Physics) -> Recording:
-        """The episode so far as simulate records a closed-loop run: row k the state at sample k, the sensors of
-        the step from it (the last row's from mj_forward at the last state, the last command held), the command
-        that drove that step (the last row repeats the one before), the constraints in force from it on."""
+        """The episode so far as simulate records a closed-loop run (the last row's sensors from mj_forward at
+        the last state, its command the one before)."""
         model, plant, rows = physics.model.ptr, self.plant, self.k + 1
         end = copy.copy(physics.data.ptr)
         mujoco.mj_forward(model, end)

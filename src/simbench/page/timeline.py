@@ -25,8 +25,7 @@ _LANES = (
 
 
 def events(report: dict) -> list[dict]:
-    """Every event of the report as {lane, kind, t_start, t_end, detail}; instants have t_end None, untimed
-    violations t_start None."""
+    """Every event of the report as {lane, kind, t_start, t_end (None: an instant), detail}."""
     out: list[dict] = []
     for lane, key, _ in _LANES:
         entries = report.get(key) or []

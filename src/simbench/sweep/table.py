@@ -96,8 +96,7 @@ def summary(table: dict[str, list], metrics: list[str]) -> dict:
 
 
 def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
-    """Positions for a parameter on an x axis (with tick labels if categorical); None for vectors or too many
-    labels."""
+    """Positions (and labels if categorical) for a parameter on an x axis; None for vectors or too many labels."""
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         return np.asarray(values, float), None
     if any(isinstance(v, (list, dict)) for v in values):
