@@ -62,9 +62,8 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
 
 
 def _child(readable: int, writable: int, fn: Callable[..., Any], args: tuple) -> NoReturn:
-    """fn(*args) in the child: what it returned or raised, pickled into the pipe; then the child ends at once
-    (os._exit: none of the parent's clean-up, buffers or exit handlers run twice). It starts with Ctrl-C and
-    SIGTERM held back (forked), sets its own handlers, then takes them."""
+    """fn(*args) in the child, its result or error pickled into the pipe; then os._exit, so that none of the
+    parent's clean-up runs twice. Signals stay held back until the child's own handlers are set."""
     try:
         os.close(readable)
         signal.signal(signal.SIGINT, signal.SIG_IGN)

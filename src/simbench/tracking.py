@@ -1,12 +1,6 @@
-"""The shipped metric `tracking`: how closely the tool and the joints followed the plan. Its figures go to
-report.json's `tracking`, not under metrics.<name>:
-
-  joint_rms, joint_max             each joint's error against its reference (rad or m), by joint name
-  tool_rms, tool_max               the tool's distance from the planned path near its reference (m)
-  tool_lag_rms, tool_lag_max       the tool's lag along the path (m; the largest magnitude)
-  tool_error_rms, _max, _final     the tool's distance from its reference point at the same time (m)
-  path_length                      the planned path's length (m)
-  orientation_rms, _max, _final    (robots whose task is an orientation) the orientation error (rad)
+"""The shipped metric `tracking`: each joint's error, the tool's distance from the planned path, its lag along it
+and its error against the reference point (RMS, max, final), the path's length, and an orientation error where
+the task is one; SI units. Its figures go to report.json's `tracking`, not under metrics.<name>.
 """
 
 from __future__ import annotations

@@ -1,12 +1,6 @@
-"""A sweep's output folder, kept so that an interrupted sweep resumes where it stopped.
-
-    sweep.json            the sweep's fingerprint and its runs' parameters
-    rows/<id>.json        one per finished run, written atomically as each run ends
-    runs/<id>/            the run's own outputs (report.json, or everything with outputs: full)
-    results.csv, results.parquet, summary.json, plots/   written when every run has a row
-
-Running the same sweep into the same folder again skips every run that has a row (rows are trusted: after
-changing simbench itself, start over); `force` starts over. The folder is guarded as simbench.destination says.
+"""A sweep's output folder (sweep.json, rows/<id>.json as each run ends, runs/<id>/, then the table), kept so that
+the same sweep run again skips every run that has a row (rows are trusted: after changing simbench itself, start
+over with `force`).
 """
 
 from __future__ import annotations
