@@ -148,8 +148,7 @@ class Metric(ABC):
 
 
 class Decoration(NamedTuple):
-    """A shape the video draws in every frame: a cone from the world origin, `axis` (3,) unit, `half_angle` rad,
-    `length` m, `rgba` (4,)."""
+    """A cone from the world origin the video draws in every frame: `axis` (3,) unit, `half_angle` rad, `length` m."""
 
     kind: Literal["cone"]
     axis: tuple[float, float, float]
@@ -211,8 +210,7 @@ class Robot(ABC):
         """The singular sets along a run, distances normalised by `tol`, each sample's from it alone."""
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
-        """`singular_sets(rec, tol)` given `measures(rec)`, for a robot whose sets are made of its measures not to
-        compute them twice."""
+        """`singular_sets(rec, tol)` given `measures(rec)`, so as not to compute them twice."""
         return self.singular_sets(rec, tol)
 
     def assemble(self, q: Array) -> dict[str, float]:

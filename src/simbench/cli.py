@@ -105,8 +105,7 @@ def _summary(result) -> str:
               f"lag RMS {tr['tool_lag_rms'] * 1e3:.3f} mm",
               f"  events: {len(r['singularity_events'])} singularity, {len(r['limit_events'])} limit; "
               f"MuJoCo warnings: {len(r['warnings'])}"]
-    for w in r["plan"]["warnings"]:
-        lines.append(f"  plan warning: {w}")
+    lines += [f"  plan warning: {w}" for w in r["plan"]["warnings"]]
     lines += _status_lines(r["status"], r["violations"], r.get("expected"))
     return "\n".join(lines)
 
@@ -176,8 +175,7 @@ def _reproduce(args) -> None:
     """The reproduce command: each paper's tables and figures, and a one-screen summary."""
     from simbench.reproduce import reproduce
 
-    summary = reproduce(args.paper, args.out, force=args.force)
-    _say("\n".join(summary.lines()))
+    _say("\n".join(reproduce(args.paper, args.out, force=args.force).lines()))
 
 
 def _compare(args) -> None:

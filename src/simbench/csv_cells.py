@@ -22,7 +22,6 @@ def restored(cell: str) -> str:
 
 
 def row(cells: Iterable[str]) -> str:
-    """One line of CSV (RFC 4180, ending in a line feed), quoting a lone carriage return too (csv.writer does not,
-    and a reader then splits the row there)."""
+    """One line of CSV (RFC 4180), quoting a lone carriage return too (csv.writer does not: readers split there)."""
     return ",".join('"' + cell.replace('"', '""') + '"' if any(c in cell for c in ',"\r\n') else cell
                     for cell in cells) + "\n"

@@ -164,8 +164,7 @@ def _file_in_the_way(filename: str) -> str | None:
 
 
 def os_words(err: OSError) -> str:
-    """What the file system refused, in words (os.strerror's or `_WORDS`'), naming the file in the way for
-    ENOTDIR and the lengths for ENAMETOOLONG."""
+    """What the file system refused, in words, naming the file in the way or the lengths where that helps."""
     code, filename = err.errno, err.filename
     text = (err.strerror or str(err) or "").strip()
     if code is None and (m := _ERRNO_IN_TEXT.match(text)):  # an OSError made of another's text (imageio's)

@@ -28,8 +28,7 @@ class _Entries(Mapping):
 
 @dataclass(frozen=True)
 class Event(_Entries):
-    """Something a run met from `t_start` to `t_end` (s; equal for an instant): its kind and what was found there
-    (SI units)."""
+    """Something a run met from `t_start` to `t_end` (s; equal for an instant): its kind and detail (SI units)."""
 
     t_start: float
     t_end: float

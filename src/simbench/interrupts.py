@@ -98,8 +98,7 @@ def deferred() -> Iterator[None]:
 
 @contextmanager
 def held_back() -> Iterator[None]:
-    """Hold SIGINT (Ctrl-C) and SIGTERM back until the block is done; they are delivered then. A no-op where
-    Python handles no signals."""
+    """Hold SIGINT (Ctrl-C) and SIGTERM back until the block is done; they are delivered then."""
     if not _handles_signals():
         yield
         return

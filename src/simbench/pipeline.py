@@ -81,8 +81,7 @@ class _Stopwatch:
 
 
 def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False, allow_code: bool = False) -> Evaluation:
-    """Plan, simulate and analyse a scenario (or scenario file); ScenarioError first if it is beyond the budget
-    or names a policy's module without `allow_code`."""
+    """Plan, simulate and analyse a scenario (or scenario file), after the budget and `allow_code` checks."""
     scenario = as_scenario(scenario, "simbench.evaluate")
     _afford(scenario, progress)
     return _evaluate(scenario, progress, allow_code=allow_code)

@@ -147,8 +147,7 @@ def _set_gains(model: mujoco.MjModel, act: np.ndarray, kp: list[float] | None, k
 
 
 def _make_motors(model: mujoco.MjModel, act: np.ndarray) -> None:
-    """Position servos turned into motors (force = ctrl), their control range the force range so that the force
-    limits still hold."""
+    """Position servos turned into motors (force = ctrl) whose control range is their force range."""
     model.actuator_gaintype[act] = mujoco.mjtGain.mjGAIN_FIXED
     model.actuator_gainprm[act] = 0
     model.actuator_gainprm[act, 0] = 1
@@ -169,8 +168,7 @@ def _sensor_slices(model: mujoco.MjModel, names: tuple[str, ...]) -> dict[str, s
 
 
 def register_scene(key: str, build: Callable[[], mujoco.MjSpec]) -> None:
-    """Make `key` stand, wherever a scene's path is asked for, for the scene `build()` makes in code (the same
-    every time)."""
+    """Make `key` stand, wherever a scene's path is asked for, for the scene `build()` makes in code."""
     _built[key] = build
 
 

@@ -91,8 +91,7 @@ def _is_own(ep: importlib.metadata.EntryPoint) -> bool:
 
 
 def _own(group: str) -> list[importlib.metadata.EntryPoint]:
-    """simbench's own entry points of `group`; RegistryError if simbench is not installed (a source tree alone
-    has no package metadata)."""
+    """simbench's own entry points of `group`; RegistryError if simbench is not installed (no metadata)."""
     try:
         importlib.metadata.distribution(SHIPPED)
     except importlib.metadata.PackageNotFoundError:

@@ -106,8 +106,7 @@ def write_report(report: dict, path: Path) -> None:
 
 
 def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis | None, path: Path) -> None:
-    """Write timeseries.npz in one step: one row per (kept) control sample, SI units; a failed run's (no
-    analysis) up to the failure."""
+    """Write timeseries.npz in one step: one row per (kept) control sample, SI units."""
     rows = rec.t.size
     arrays = {
         "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),

@@ -44,8 +44,7 @@ def switch_steps(model: mujoco.MjModel, traj: JointTrajectory) -> np.ndarray:
 
 
 def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
-    """The plant's model (a copy where the plan switches: switching edits it) and data posed at the plan's
-    start, and each switch's step."""
+    """The model (a copy if the plan switches), data posed at the plan's start, and each switch's step."""
     model = copy.copy(plant.model) if traj.switches else plant.model
     data = mujoco.MjData(model)
     data.qpos[:] = plant.initial_qpos(traj.q_ref[0])

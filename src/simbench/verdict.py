@@ -165,8 +165,7 @@ def plan_verdict(robot: Robot, traj: JointTrajectory, limit_events: list[Event],
 
 
 def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expect=None) -> Verdict:
-    """The verdict on a simulated run (`analysis` an analysis.Analysis, `tolerances` the scenario's `analysis`
-    section): limits, breaking events and tracking against the tolerances."""
+    """The verdict on a simulated run: limits, breaking events and tracking against the scenario's tolerances."""
     found = (_limit_violations(robot, analysis.limit_events) + _planner_violations(traj)
              + _breaking_violations(robot, analysis.singularity_events)
              + _tolerance_violations(analysis, traj.t, robot, tolerances))

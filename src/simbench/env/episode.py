@@ -43,8 +43,7 @@ class Physics(dm_mujoco.Physics):
         self.readings = data.ptr.sensordata.copy()
 
     def step(self, nstep: int = 1) -> None:
-        """Finish the step mj_step1 prepared (mj_step2), keep its sensors, prepare the next; nstep times.
-        PhysicsError at the first step that fails."""
+        """mj_step2 then mj_step1, nstep times, keeping the sensors; PhysicsError at the first step that fails."""
         model, data = self.model.ptr, self.data.ptr
         for _ in range(nstep):
             with quiet_mujoco():

@@ -93,8 +93,7 @@ _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
 def cell(value: object, digits: int | None = 6) -> str:
-    """One <td>: numbers right-aligned, floats to `digits` significant digits (None: as given) with the value as
-    given in the tooltip."""
+    """One <td>: numbers right-aligned, floats to `digits` significant digits with the value as given as tooltip."""
     text = value.strip() if isinstance(value, str) else None
     if text is not None and _NUMBER.fullmatch(text):
         if digits is None or not any(c in text for c in ".eE"):

@@ -232,8 +232,7 @@ def _join_ray(address: str, workers: int) -> bool:
 
 
 def _ray_outcomes(pending: dict) -> Iterator[tuple[int, dict]]:
-    """The outcomes of the pending Ray tasks (task: run index) as they finish, each taken out of `pending`; a
-    task whose worker failed is a `crashed` outcome."""
+    """The outcomes of the pending Ray tasks (task: run index) as they finish; a failed worker's is `crashed`."""
     import ray
     import ray.exceptions
 

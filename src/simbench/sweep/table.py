@@ -109,8 +109,7 @@ def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
 
 def write_plots(table: dict[str, list], params: list[str], grid: list[str], metrics: list[str],
                 folder: Path, workers: int = 1) -> tuple[list[str], list[str]]:
-    """One figure per metric (a panel per parameter) and a heat map over the first two numeric grid parameters;
-    (files written, notes on what could not be plotted)."""
+    """A figure per metric and a heat map over two numeric grid parameters; (files, notes on what was not)."""
     figures, notes = [], []
     status = np.array(table["status"])
     axes = {p: _axis(table[p]) for p in params}

@@ -15,8 +15,7 @@ WORKER_BYTES = 64 * 10**6
 
 
 def count(sweep: Sweep, todo: list[Variant], asked: int | None, stream=None) -> int:
-    """Runs at once for `todo`; where fewer than `asked` (or, not asked, than the CPUs) for want of CPUs or
-    memory, a line on `stream` (stderr) saying why."""
+    """Runs at once for `todo`; a line on `stream` says why where fewer than asked (or than the CPUs)."""
     cpus = execute.cpu_count()
     reasons = []
     if asked and asked > cpus:
