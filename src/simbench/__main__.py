@@ -1,6 +1,5 @@
-"""python -m simbench: see simbench.cli. The current folder, which `-m` puts first on sys.path, is taken off it
-(as pip does), so that a stray file there (a yaml.py) is not imported in place of a dependency; `python -P -m
-simbench` and the `simbench` console script never put it there."""
+"""python -m simbench: see simbench.cli. The current folder is taken off sys.path (as pip does), so that a stray
+file there (a yaml.py) is not imported in place of a dependency."""
 
 import os
 import sys

@@ -1,26 +1,11 @@
-"""The public API: the types of what a user adds to simbench (a mechanism, a planner, a controller or a policy).
+"""The public API: the base classes of what a user adds to simbench (Robot, Planner, Controller, Metric,
+PolicyFactory), on which the shipped plugins are built too.
 
     scenario.yaml --> Scenario --Planner.plan--> JointTrajectory --Controller + physics--> Recording --> Analysis
 
-A **Robot** is an MJCF scene and the analytic kinematics simbench checks it with; a **Planner** turns a
-scenario's `task:` into joint references for the robots it supports; a **Controller** turns those references
-and the measured state into actuator commands every control step. Each is a small abstract base class: override
-the abstract methods, and the optional ones where the mechanism or method needs them. The four shipped robots,
-the shipped planners and the servo are built on these classes exactly as an outside package's are. A
-**PolicyFactory** names a factory of callables from observations to actions, for the `policy` controller.
-
-This module is a leaf of simbench's imports: every plugin imports it, and it imports no plugin and nothing that
-imports it back. The registries are `simbench.registry`; an outside package makes its objects known in one of
-two ways, as simbench's own are (its pyproject.toml declares them so):
-
-    simbench.register_robot(MyArm())                       # at run time, from Python
-
-    [project.entry-points."simbench.robots"]               # in its pyproject.toml: found on first use
-    myarm = "mypackage.robot:ROBOT"                        # (groups simbench.robots, .planners, .controllers,
-                                                           # .policies)
-
-`Scenario` is named here for annotations only (under typing.TYPE_CHECKING): the scenario schema is built from
-the registries, which import this module; at run time it is `simbench.Scenario` (simbench.scenario).
+A leaf of simbench's imports: it imports no plugin. Plugins are registered at run time (simbench.register_robot)
+or by entry points (groups simbench.robots, .planners, .controllers, .policies, .metrics). `Scenario` is named
+for annotations only: the scenario schema is built from the registries, which import this module.
 """
 
 from __future__ import annotations
@@ -81,15 +66,10 @@ class Tolerance:
 
 @dataclass(frozen=True)
 class SingularSet:
-    """One singular set evaluated along a run.
-
-    `distance` is normalised: the largest over the set's conditions of |gap| / tolerance, so that a sample with
-    distance <= 1 lies near the set. `gaps` holds each condition's gap in SI units (rad or m). `detail`, where the
-    robot can say more of a sample than its gaps (which direction is lost there), gives the entries of sample i
-    (of this window) that the set's event adds at its closest sample; it is called for those samples alone.
-    `closest`, where the robot times the closest sample by more than the least distance, gives it for the near
-    samples a..b (of this window, inclusive).
-    """
+    """One singular set evaluated along a run. `distance`: the largest over its conditions of |gap| / tolerance
+    (<= 1: near); `gaps`: each condition's gap, SI units; `detail(i)`: extra event entries of sample i (which
+    direction is lost there), called only at an event's closest sample; `closest(a, b)`: where the robot times the
+    closest sample by more than the least distance, that sample among the near samples a..b (inclusive)."""
 
     name: str
     family: str
@@ -101,8 +81,7 @@ class SingularSet:
 
 
 class Summary(NamedTuple):
-    """What a robot adds to a run's analysis: report entries, events, and per-sample series written to
-    timeseries.npz."""
+    """What a robot adds to a run's analysis: report entries, events, and per-sample series (timeseries.npz)."""
 
     entries: dict[str, Any]
     events: list[Event]
@@ -110,25 +89,21 @@ class Summary(NamedTuple):
 
 
 class Summariser(ABC):
-    """A mechanism's summary of a run (Robot.summary) found a window of samples at a time (Robot.summariser), so
-    that analysing a long run holds a window's samples, not the run's. The analysis calls `add` with each window
-    in turn, then `finish`; together they give what `summary` gives of the whole run. Robot.summariser is given
-    the whole plan before the run; later, read the plan `add` is given: in a run analysed as it is simulated, the
-    plan's rows of windows gone by may have been handed back (pages.releasable) and read as zeros."""
+    """Robot.summary found a window of samples at a time (`add` each window, then `finish`), so that analysing a
+    long run holds a window, not the run. Read the plan `add` is given: rows of windows gone by may have been
+    handed back (pages.releasable) and read as zeros."""
 
     @abstractmethod
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
-        """The next window: the plan and the recording at its samples (JointTrajectory.rows, Recording.rows: its t
-        does not start at 0, and a window may have one sample, whose plan has no dt: the control period is
-        rec.timestep) and the analysis's series there so far; this mechanism's per-sample series at those samples
-        (Summary.series)."""
+        """The next window's plan, recording (its t does not start at 0; it may have one sample: the control period
+        is rec.timestep) and analysis series; this mechanism's per-sample series there (Summary.series)."""
 
     @abstractmethod
     def finish(self) -> tuple[dict[str, Any], list[Event]]:
         """The whole run's report entries and events (Summary.entries, Summary.events)."""
 
     def whole(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
-        """The Summary of a whole run as one window: what Robot.summary gives, for a robot that has this."""
+        """The Summary of a whole run as one window."""
         extra = self.add(traj, rec, series)
         return Summary(*self.finish(), extra)
 
@@ -152,28 +127,22 @@ Figures = dict[str, float | list[float] | dict[str, float]]  # a metric's figure
 
 
 class Metric(ABC):
-    """A figure of merit of a run, found a window of samples at a time as the analysis is (simbench.analysis), so
-    that a long run streamed through it gives the figures of the whole run at once. A run makes its own with
-    `for_run`, then calls `add` with each window in turn and `finish` once. Registered as the Controller subclasses
-    are, as a class: `simbench.register_metric(MyMetric)`, or an entry point of group `simbench.metrics`. Its
-    figures are written to report.json under metrics.<name>, shown on the run's page and as columns
-    <name>.<figure> of a sweep's results.csv. simbench's tracking figures are the shipped metric `tracking`."""
+    """A figure of merit of a run, found a window of samples at a time: `for_run`, `add` each window, `finish`.
+    Registered as a class; its figures go to report.json under metrics.<name> and to a sweep's results.csv as
+    columns <name>.<figure>."""
 
     name: ClassVar[str]
     description: ClassVar[str]
 
     @classmethod
     def for_run(cls, robot: Robot, traj: JointTrajectory, scenario: Scenario | None) -> Metric | None:
-        """The metric of a run of plan `traj` by `robot` (`scenario` None where a script analyses a recording
-        without one), or None where it does not apply to this run. By default cls()."""
+        """The metric of a run of `traj` by `robot` (`scenario` may be None), or None where it does not apply."""
         return cls()
 
     @abstractmethod
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> None:
-        """The next window, as Summariser.add gets it: the plan and the recording at its samples (Recording.rows:
-        with a recording stride, qpos, qd and ctrl at its kept rows only), and the analysis' per-sample series there
-        (joint_error, path_deviation, path_lag, tool_error, the robot's measures and its summary's series). Keep
-        what the figures need, not the window's arrays."""
+        """The next window, as Summariser.add gets it (with a recording stride, qpos, qd and ctrl at kept rows
+        only). Keep what the figures need, not the window's arrays."""
 
     @abstractmethod
     def finish(self) -> Figures:
@@ -181,8 +150,7 @@ class Metric(ABC):
 
 
 class Decoration(NamedTuple):
-    """A shape a planner asks the video to draw in every frame: a cone of directions from the world origin
-    (an Agile Eye obstacle), `axis` (3,) unit, `half_angle` rad, `length` m, `rgba` (4,)."""
+    """A cone from the world origin the video draws in every frame: `axis` (3,) unit, `half_angle` rad, `length` m."""
 
     kind: Literal["cone"]
     axis: tuple[float, float, float]
@@ -192,16 +160,10 @@ class Decoration(NamedTuple):
 
 
 class Robot(ABC):
-    """A mechanism: its MJCF scene, its actuated joints, its tool and the analytic kinematics simbench checks the
-    physics against.
-
-    The scene's actuators are named after the joints they drive (a position servo per joint: the `servo`
-    controller sets its gains), and it has a site `tool_site` and a position sensor `tool_sensor` on it.
-    `joints` are in the planner's order; `lower`/`upper` their ranges and `qd_max` their speed limits (SI).
-    Override `fk` if the tool point follows from the joint values alone (planners that follow a Cartesian path
-    need it), `measures` and `singular_sets` always (an empty result is allowed, and says the mechanism has
-    none), and the closed-chain hooks where the mechanism has passive joints.
-    """
+    """A mechanism: its MJCF scene, actuated joints, tool and the analytic kinematics simbench checks the physics
+    against. The scene's position servos are named after their joints; it has a site `tool_site` with a position
+    sensor `tool_sensor`. `lower`, `upper` and `qd_max` are SI. Override `fk` where the tool point follows from the
+    joints alone, and the closed-chain hooks where the mechanism has passive joints."""
 
     def __init__(self, *, name: str, description: str, scene: str | Path, joints: Sequence[str],
                  kinds: Sequence[str], lower: Sequence[float], upper: Sequence[float], qd_max: Sequence[float],
@@ -243,18 +205,14 @@ class Robot(ABC):
 
     @abstractmethod
     def measures(self, rec: Recording) -> dict[str, Array]:
-        """Per-sample singularity measures of a run (name -> (N,)), written to the report and timeseries. Each
-        sample's from that sample alone: a long run is analysed a window of samples at a time (Recording.rows)."""
+        """Per-sample singularity measures (name -> (N,)), each from its sample alone (runs come in windows)."""
 
     @abstractmethod
     def singular_sets(self, rec: Recording, tol: Tolerance) -> list[SingularSet]:
-        """The mechanism's singular sets along a run, each with its distance normalised by `tol`; each sample's from
-        that sample alone, as `measures`."""
+        """The singular sets along a run, distances normalised by `tol`, each sample's from it alone."""
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
-        """`singular_sets(rec, tol)` where this robot's `measures(rec)` are already computed: the analysis computes
-        them first. The default ignores them; a robot whose sets are made of its measures (a gap, a determinant)
-        overrides it so as not to compute them twice. Its sets must be those `singular_sets` gives."""
+        """`singular_sets(rec, tol)` given `measures(rec)`, so as not to compute them twice."""
         return self.singular_sets(rec, tol)
 
     def assemble(self, q: Array) -> dict[str, float]:
@@ -262,34 +220,26 @@ class Robot(ABC):
         return {}
 
     def summary(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
-        """What this mechanism adds to a run's analysis (closure error, grips, ...); `series` holds the
-        analysis's per-sample series so far (the tool error, say)."""
+        """What this mechanism adds to a run's analysis; `series` holds the analysis's series so far."""
         return Summary({}, [], {})
 
     @property
     def streams(self) -> bool:
         """Whether this robot's summary comes a window at a time: `summary` not overridden, or `summariser`
-        overridden in the same class as `summary` or below it (a subclass that overrides `summary` alone does not
-        stream: its parent's Summariser would not give its summary). A run of it with a recording stride is then
-        analysed as it is simulated (simbench.sim) and holds a window of every step's readings (simbench.budget
-        estimates it so)."""
+        overridden in the same class or below (a parent's Summariser would not give a child's summary)."""
         summary, summariser = _defined(type(self), "summary"), _defined(type(self), "summariser")
         return summary is Robot or (summariser is not Robot and issubclass(summariser, summary))
 
     def summariser(self, traj: JointTrajectory) -> Summariser | None:
-        """`summary` found a window of samples at a time, for a run of the plan `traj` (whose references may still
-        be revised, by its feedback, for samples after each window): override it with `summary` where the mechanism
-        adds series or figures, so that a long run's analysis holds a window's samples; it must then return a
-        Summariser. The default: one that adds nothing where `summary` is not overridden either, else None: the
-        analysis then keeps every sample's series and calls `summary` once, on the whole run."""
+        """`summary` a window at a time for a run of `traj`: override it with `summary`. The default adds nothing
+        where `summary` is not overridden either, else None (the analysis then calls `summary` on the whole run)."""
         return _NoSummary() if type(self).summary is Robot.summary else None
 
     def paint(self, model: mujoco.MjModel, rec: Recording, row: int) -> None:
         """Change the model's colours for the video frame of recorded row `row` (a magnet on or off)."""
 
     def plots(self, traj: JointTrajectory, rec: Recording, analysis: Any) -> dict[str, Figure]:
-        """This mechanism's own plots, by file stem: matplotlib Figures (e.g. `simbench.plots.time_panels`'s, whose
-        Axes take any matplotlib call), which simbench saves into plots/ in the run's plot format."""
+        """This mechanism's own plots by file stem, as matplotlib Figures (simbench.plots.time_panels, say)."""
         return {}
 
 
@@ -297,11 +247,8 @@ TaskT = TypeVar("TaskT", bound=BaseModel)
 
 
 class Planner(ABC, Generic[TaskT]):
-    """A path-generation method: a task schema (the scenario's `task:` section, a pydantic model built from
-    simbench.schema's types so that units are converted at load time) and `plan`.
-
-    `robots` names the robots it is written for (None: any robot that offers what `needs` lists, e.g. "fk").
-    """
+    """A path-generation method: a task schema (the scenario's `task:`, built from simbench.schema's types so
+    that units convert at load time) and `plan`. `robots`: those it is written for (None: any with `needs`)."""
 
     name: ClassVar[str]
     description: ClassVar[str]
@@ -312,9 +259,8 @@ class Planner(ABC, Generic[TaskT]):
 
     @abstractmethod
     def plan(self, scenario: Scenario, robot: Robot, dt: float) -> JointTrajectory:
-        """Joint references on the control grid of period dt (simbench.trajectory.control_grid). A plan whose
-        `feedback` revises it during the run has its q_ref and qd_ref changed in place by the pipeline
-        (simbench.run, evaluate): return arrays of this plan's own, not ones a cache keeps for the next call."""
+        """Joint references on the control grid of period dt. A plan's `feedback` may change its q_ref and qd_ref
+        in place during the run: return arrays of its own, not cached ones."""
 
     def check(self, scenario: Scenario, robot: Robot) -> tuple[str, str] | None:
         """A task that is well-formed but means nothing (a zero-length path): (field, what is wrong), or None."""
@@ -335,11 +281,9 @@ class Planner(ABC, Generic[TaskT]):
 
 @dataclass(frozen=True)
 class State:
-    """What a controller measures at a control step k: time (s, 0 at the plan's start, negative while settling
-    at sample 0), the actuated joints' positions and speeds, the whole MuJoCo state, and the live MjData with
-    everything that depends on positions and speeds computed for this state (`mj_step1`: the mass matrix (mj_fullM),
-    the bias forces qfrc_bias, qfrc_passive, site poses, position sensors), for controllers that need more. The
-    data is the simulator's own: read it, do not change it."""
+    """What a controller measures at control step k: time (s, negative while settling), the actuated joints'
+    positions and speeds, the MuJoCo state, and the live MjData after `mj_step1` (mass matrix, bias forces,
+    site poses): read it, do not change it."""
 
     k: int
     t: float
@@ -351,17 +295,14 @@ class State:
 
 
 class ControlSettings(SimbenchModel):
-    """The scenario's `control:` section: which controller, and (in a controller's subclass of this model) its
-    own fields, built from simbench.schema's types so that units are converted at load time."""
+    """The scenario's `control:` section: which controller, and (in a subclass) its own fields."""
 
     controller: str = "servo"
 
 
 class Commands(ABC):
-    """An open-loop controller's commands for every step, shape (N, nu), found a few rows at a time as the run
-    asks for them rather than held all at once: what `Controller.open_loop` may return in place of an array (the
-    servo's, on the ten-minute RSMG soak, would hold 37 MB through the run). Indexed as an (N, nu) array is, by
-    rows (an int, a slice or row numbers) and then any columns; np.asarray gives them all."""
+    """An open-loop controller's commands (N, nu) found a few rows at a time as the run asks, rather than held
+    all at once (Controller.open_loop). Indexed as an (N, nu) array; np.asarray gives them all."""
 
     @property
     @abstractmethod
@@ -376,8 +317,7 @@ class Commands(ABC):
         return self.shape[0]
 
     def __getitem__(self, index: Any) -> Array:
-        """As NumPy indexes an (N, nu) array: rows (an int, a slice, row numbers of any shape or a mask), then
-        columns; the rows asked for are found, then indexed where they stand."""
+        """As NumPy indexes an (N, nu) array: rows (an int, a slice, row numbers or a mask), then columns."""
         rows, columns = (index[0], index[1:]) if isinstance(index, tuple) else (index, ())
         if isinstance(rows, slice):
             return self.rows(rows)[(slice(None), *columns)]
@@ -448,10 +388,8 @@ class Controller(ABC):
 
 @dataclass(frozen=True)
 class PolicyFactory:
-    """A policy a scenario names by `name` (`control: {controller: policy, policy: name}`): `make(scenario)`
-    returns the callable that gets each control step's observation (simbench.observation) and returns one action
-    per joint. Registered as the other plugins are, so that a scenario names code already installed rather than
-    a module to import (simbench.policy)."""
+    """A policy a scenario names (`control: {controller: policy, policy: name}`): `make(scenario)` returns the
+    callable from each step's observation (simbench.observation) to one action per joint."""
 
     name: str
     description: str

@@ -1,10 +1,6 @@
-"""Writes that never leave a half-written file or folder: a run or a sweep stopped at any instant, or refused by
-the file system (a full disk), leaves the previous complete output, or none.
-
-Everything is first written beside its destination under a hidden name, then moved into place with a rename,
-which POSIX makes atomic within one filesystem. What a killed writer left under such a name is removed by the
-next writer of the same path (destination.sweep_leftovers). An OSError met on the way (ENOSPC, EFBIG, EACCES)
-becomes errors.OutputError, naming the file as the user knows it (not its hidden name) and saying what was kept.
+"""Writes that never leave a half-written file or folder: everything is written beside its destination under a
+hidden name, then renamed into place (atomic within one filesystem). An OSError on the way becomes
+errors.OutputError, naming the file as the user knows it and saying what was kept.
 """
 
 from __future__ import annotations
@@ -33,8 +29,7 @@ def write_text(path: Path, text: str) -> None:
 
 @contextmanager
 def _writing(path: Path) -> Iterator[None]:
-    """Turn an OSError in the block into OutputError (errors.output_error) saying that `path` is as it was; one
-    from a write nested in this one says so of this one's `path`, which is what the user asked for."""
+    """An OSError in the block as OutputError saying that `path` (the outermost write's) is as it was."""
     shown = shown_path(path)
     kept = f"the previous {shown} is kept" if os.path.exists(path) else f"nothing was written to {shown}"
     try:
@@ -47,8 +42,7 @@ def _writing(path: Path) -> Iterator[None]:
 
 @contextmanager
 def staged_file(path: Path) -> Iterator[Path]:
-    """A hidden path beside `path` to write to; moved onto `path` if the block succeeds, removed if it fails
-    (an OSError as OutputError)."""
+    """A hidden path beside `path` to write to; moved onto `path` if the block succeeds, else removed."""
     with _writing(path):
         sweep_leftovers(path)
         tmp = _beside(path, "partial")
@@ -61,9 +55,8 @@ def staged_file(path: Path) -> Iterator[Path]:
 
 @contextmanager
 def staged_folder(out: Path) -> Iterator[Path]:
-    """A fresh hidden folder beside `out`, moved onto `out` (with its marker, destination.mark) if the block
-    succeeds, removed if it fails (an OSError as OutputError). The caller has checked that `out` may be replaced
-    (destination.check); it is checked again before it is (a file of the user's put in since: ScenarioError)."""
+    """A fresh hidden folder beside `out`, moved onto `out` with its marker if the block succeeds, else removed.
+    That `out` may be replaced is checked again before it is (a file of the user's may have come since)."""
     with _writing(out):
         out.parent.mkdir(parents=True, exist_ok=True)
         sweep_leftovers(out)
@@ -82,8 +75,7 @@ def staged_folder(out: Path) -> Iterator[Path]:
 
 
 def _move(tmp: Path, out: Path) -> None:
-    """Put the folder `tmp` in place of `out`, setting the previous `out` aside meanwhile and putting it back if
-    the move fails; `tmp` is removed if it was not moved."""
+    """Put the folder `tmp` in place of `out`, the previous `out` set aside and put back if the move fails."""
     old = _beside(out, "old")
     try:
         with held_back():  # Ctrl-C between the two renames would leave neither folder in place

@@ -1,13 +1,8 @@
 """Command line: `simbench run | sweep | validate | list | inspect | compare | reproduce | train-fk`.
 
-Exit codes: 0 done, every promise kept (or the failure the scenario expects); 3 done, but the run broke a
-promise (status `limits`: a joint limit, a speed limit, a motor at its force limit, the path or goal missed, a
-singular crossing), each printed on its own line; 2 bad input (one line naming the file, the field and what is
-expected); 1 the run itself failed (an unreachable path, diverged physics), with the reason, or simbench hit a
-bug (one line; SIMBENCH_DEBUG=1 for the traceback); 130 interrupted. What the file system refuses is said in
-its words, naming the path (simbench.errors): before the run (an unreadable scenario, an output folder that
-cannot be written) it is bad input; while writing the outputs (a full disk) the run failed, and nothing
-half-written is left.
+Exit codes: 0 done as the scenario expects; 3 done, but the run broke a promise (status `limits`); 2 bad input
+(a file system refusal before the run included); 1 the run failed (a full disk while writing included) or a bug
+(SIMBENCH_DEBUG=1 for the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -90,8 +85,7 @@ EXIT_LIMITS = 3
 
 
 def _say(text: str, file=None) -> None:
-    """Print `text` with every control character but its line breaks escaped (errors.printable): a description,
-    a file name or a message read from a file cannot recolour, move the cursor of or clear the user's terminal."""
+    """Print `text` with control characters but line breaks escaped: text read from files cannot drive the tty."""
     print("\n".join(printable(line) for line in str(text).split("\n")), file=file or sys.stdout)
 
 
@@ -111,8 +105,7 @@ def _summary(result) -> str:
               f"lag RMS {tr['tool_lag_rms'] * 1e3:.3f} mm",
               f"  events: {len(r['singularity_events'])} singularity, {len(r['limit_events'])} limit; "
               f"MuJoCo warnings: {len(r['warnings'])}"]
-    for w in r["plan"]["warnings"]:
-        lines.append(f"  plan warning: {w}")
+    lines += [f"  plan warning: {w}" for w in r["plan"]["warnings"]]
     lines += _status_lines(r["status"], r["violations"], r.get("expected"))
     return "\n".join(lines)
 
@@ -171,8 +164,7 @@ def _sweep(args) -> None:
 
 
 def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
-    """A sweep whose every run is bad input (a base whose runs the schema refuses, say) is bad input itself: exit
-    2, naming the first run's reason. Some runs refused among others that ran is what a sweep is for: exit 0."""
+    """A sweep whose every run is bad input is bad input itself (exit 2); some refused among others is fine."""
     if refused and len(refused) == len(sweep.variants):
         run_id, detail = refused[0]
         raise ScenarioError(sweep.source, None, f"every one of its {len(refused)} runs is bad input (the first, "
@@ -183,8 +175,7 @@ def _reproduce(args) -> None:
     """The reproduce command: each paper's tables and figures, and a one-screen summary."""
     from simbench.reproduce import reproduce
 
-    summary = reproduce(args.paper, args.out, force=args.force)
-    _say("\n".join(summary.lines()))
+    _say("\n".join(reproduce(args.paper, args.out, force=args.force).lines()))
 
 
 def _compare(args) -> None:
@@ -200,8 +191,7 @@ def _compare(args) -> None:
 
 
 def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
-    """What a sweep would run: each run's parameters, and which runs the scenario schema already refuses (also
-    as (run id, reason) pairs)."""
+    """The listing of a sweep's runs and parameters, and the (run id, reason) of those the schema refuses."""
     from simbench.scenario import parse_scenario
 
     lines = [f"{sweep.name}: {len(sweep.variants)} runs of {sweep.base}"]
@@ -218,9 +208,7 @@ def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
 
 
 def _validate(paths: list[Path], plan: bool) -> int:
-    """Check each scenario and, unless `plan` is false, plan it (no physics); the limits its plan breaks, as
-    `run` would report them. Exit 2 at the first bad file, EXIT_LIMITS if a plan breaks a promise its scenario
-    does not expect."""
+    """Check each scenario and, if `plan`, plan it; EXIT_LIMITS if a plan breaks an unexpected promise."""
     from simbench import pipeline, scenario
 
     code = 0
@@ -242,8 +230,7 @@ def _validate(paths: list[Path], plan: bool) -> int:
 
 
 def _note_code(sc) -> None:
-    """A note where the scenario's policy is a module path, which validate does not import and run refuses
-    without --allow-code."""
+    """A note where the scenario's policy names a module, which run refuses without --allow-code."""
     from simbench.policy import is_code
 
     target = getattr(sc.control, "policy", None)
@@ -253,8 +240,7 @@ def _note_code(sc) -> None:
 
 
 def _run(args) -> int:
-    """The run command: run the scenario, print its summary; a run whose physics failed says where its report
-    is."""
+    """The run command: run the scenario and print its summary."""
     from simbench import pipeline, scenario
 
     sc = scenario.load_scenario(args.scenario)
@@ -274,8 +260,7 @@ def _run(args) -> int:
 
 
 def _list() -> str:
-    """Robots, planners, controllers, policies and metrics with where each comes from, and under each kind the
-    entry points that failed to load and why; then the shipped scenarios and sweeps."""
+    """The registered plugins with their origins and broken entry points, then the shipped scenarios and sweeps."""
     from simbench import registry
 
     lines = ["robots:"]
@@ -353,9 +338,8 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
 
 
 def _preload(ctrl_c: interrupts.CtrlC) -> None:
-    """Import simbench's own extension modules and shipped plugins with Ctrl-C held back (while they load they
-    would convert or swallow it), then the outside packages' entry points with it deliverable: one that hangs can
-    be stopped. A press an entry point's import turned into its failure still interrupts the command."""
+    """Import simbench's own modules with Ctrl-C held back (extension modules would swallow it), then outside
+    entry points with it deliverable, so that a hanging one can be stopped."""
     with interrupts.held_back():
         from simbench import pipeline, registry, scenario  # noqa: F401
 
@@ -366,27 +350,20 @@ def _preload(ctrl_c: interrupts.CtrlC) -> None:
 
 
 def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) -> int:
-    """The line and exit code of a command that raised `err`: 2 bad input, 1 a run that failed or a bug; 130 where
-    Ctrl-C came first (ffmpeg's broken pipe, an extension module imported late or a user's import converted it)."""
+    """Print why the command failed; its exit code (130 where Ctrl-C came first and caused `err`)."""
     if ctrl_c.pressed:
         return _interrupted(args, ctrl_c)
-    if isinstance(err, ScenarioError):
-        _say(f"error: {err}", file=sys.stderr)
-        return 2
-    if isinstance(err, OutputError):
-        _say(f"error: {err}", file=sys.stderr)
-        return 1
-    if isinstance(err, RunError):
-        _say(f"run failed: {err}", file=sys.stderr)
-        return 1
+    for kind, prefix, code in ((ScenarioError, "error", 2), (OutputError, "error", 1), (RunError, "run failed", 1)):
+        if isinstance(err, kind):  # OutputError before RunError, whose subclass it is
+            _say(f"{prefix}: {err}", file=sys.stderr)
+            return code
     if isinstance(err, OSError) and err.filename is not None:
         return _refused(err)
     return _internal_error(err)  # not the file system's refusal either (a closed pipe, say)
 
 
 def _refused(err: OSError) -> int:
-    """A no of the file system that no module turned into ScenarioError or OutputError: met while looking at the
-    input or the destination (bad input, 2), unless the machine ran out of space (1)."""
+    """A file system refusal no module wrapped: bad input (2), unless out of space (1)."""
     path, words = os_error_line(err)
     _say(f"error: {path}: {words}", file=sys.stderr)
     return 1 if err.errno in NO_SPACE else 2

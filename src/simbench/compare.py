@@ -1,24 +1,10 @@
-"""Methods side by side: one scenario's task planned and run by several planners (and controllers), one table and
-overlaid plots (project issue 15).
+"""Methods side by side: one scenario's task planned and run by several planners (and controllers), into one
+table (comparison.csv in SI units, comparison.md, comparison.json) and overlaid plots.
 
-    result = compare("scenarios/puma600/wrist_singularity.yaml", ["decoupled_path", "mink_baseline"], None,
-                     Path("renders/compare_wrist"))
-
-Each method is the scenario with another planner or controller: the scenario's own planner takes it as it is;
-`mink_baseline` (simbench.planners.mink_baseline) takes `{follow: <the scenario's planner>, task: <its task>}`,
-so it follows the same Cartesian reference; any other planner takes the task as written (it must fit that
-planner's schema). A controller other than the scenario's own gets its default `control:` fields. Every pair of a
-planner and a controller is one method, evaluated by simbench.evaluate (plan, simulate, analyse) exactly as a
-separate run of that scenario would be; only the scenario's own pair keeps its `expect:` (a failure it is
-made to show is that method's, not the others').
-
-Written into `out` at once (simbench.atomic; never over a folder simbench did not write, simbench.destination):
-
-  comparison.csv     a row per method, SI units (m, rad/s or m/s; shares of the speed limit; singular-set
-                     distances in multiples of the scenario's near tolerance, where <= 1 is near)
-  comparison.md      the same figures, a column per method, in mm, deg/s and percent
-  comparison.json    the rows, each method's violations and plan warnings, and the scenario variants run
-  plots/tool_error.png, plots/joint_speeds.png, plots/singular_distance.png   the methods overlaid against time
+Each pair of a planner and a controller is one method, evaluated as a separate run of the scenario would be.
+`mink_baseline` gets `{follow: <the scenario's planner>, task: <its task>}` so that it follows the same reference;
+another planner gets the task as written, another controller its default fields. Only the scenario's own pair
+keeps its `expect:`.
 """
 
 from __future__ import annotations
@@ -50,9 +36,7 @@ _SOURCE = "compare"  # how a refusal of the arguments names where it comes from 
 
 @dataclass(frozen=True)
 class MethodRun:
-    """One method of a comparison: its planner and controller, the scenario it ran, and what came of it. `status`
-    is the run's (`ok`, `limits`), or `failed` (the physics failed) or `refused` (the planner refused the task),
-    with `error` saying why; `evaluation` is None unless it ran to the end."""
+    """One method and what came of it: `status` the run's, or `failed`/`refused` with `error` saying why."""
 
     label: str
     planner: str
@@ -78,11 +62,8 @@ class ComparisonResult:
 def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: list[str] | None, out: Path,
             force: bool = False, progress: bool = False, allow_code: bool = False,
             plot_format: str = "png") -> ComparisonResult:
-    """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own
-    controller) and write the table and plots (in `plot_format`: png, svg or pdf) into `out` (which must be empty
-    or absent unless `force`, and then hold only what simbench wrote). ScenarioError (one line) for an unknown or
-    unsuitable planner or controller, a bad scenario file or destination, or a policy's module named without
-    `allow_code` (simbench.policy), before anything runs."""
+    """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own) and write
+    the table and plots into `out`. ScenarioError for bad arguments, file or destination, before anything runs."""
     source = Path(scenario_path)
     check_format(plot_format, "simbench.compare")
     out = destination.followed(Path(out))
@@ -107,8 +88,7 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
 
 
 def _names(names: Any, kind: str, known: dict) -> list[str]:
-    """The planner or controller names asked for, each registered, duplicates dropped; ScenarioError (one line)
-    naming the first unknown one."""
+    """The names asked for, duplicates dropped; ScenarioError naming the first unknown one."""
     if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:
         raise ScenarioError(_SOURCE, f"{kind}s", f"expected a list of one or more {kind} names, got {names!r:.80}")
     for name in names:
@@ -122,8 +102,7 @@ def _names(names: Any, kind: str, known: dict) -> list[str]:
 
 def _variants(raw: dict, base: Scenario, source: Path, planners: list[str],
               controllers: list[str]) -> list[tuple[str, str, str, Scenario]]:
-    """(label, planner, controller, scenario) of every method, each scenario validated as a file of its own would
-    be; ScenarioError naming the method a variant does not suit."""
+    """(label, planner, controller, scenario) of every method, each validated; ScenarioError naming one unsuited."""
     out = []
     for planner in planners:
         for controller in controllers:
@@ -146,9 +125,8 @@ def _variants(raw: dict, base: Scenario, source: Path, planners: list[str],
 
 
 def _task_for(planner: str, raw: dict, base: Scenario) -> Any:
-    """The `task:` a planner gets: the scenario's own for its own planner; for the mink baseline, the scenario's
-    planner and task to follow; for the planner a mink_baseline scenario follows, the task it follows; else the
-    task as written."""
+    """The `task:` a planner gets: the mink baseline follows the scenario's planner; the planner a mink_baseline
+    scenario follows gets the followed task; any other the task as written."""
     task = raw.get("task")
     if planner == base.planner:
         return task
@@ -175,19 +153,15 @@ def _run(evaluate, label: str, planner: str, controller: str, scenario: Scenario
 # --- the table ------------------------------------------------------------------------------------------------
 
 def singular_sets(run: MethodRun) -> list[api.SingularSet]:
-    """The robot's singular sets along the run, each distance in multiples of the scenario's near tolerance
-    (<= 1: near), as the analysis measures them."""
+    """The robot's singular sets along the run, distances in multiples of the near tolerance (<= 1: near)."""
     a = run.scenario.analysis
     return run.scenario.robot_def.singular_sets(run.evaluation.recording, api.Tolerance(a.near_angle, a.near_length))
 
 
 def row(run: MethodRun) -> dict:
-    """The table's row of a method, SI units: its status, tool error and path deviation (the simulated tool, as
-    the analysis measures them, and the plan's own tool by the robot's fk), each joint's planned speed peak and
-    its share of the speed limit, the least distance to each singular set, each outside metric's figures
-    (<name>.<figure>: figures.columns), and its events counted by kind. The peaks, least distances and the
-    simulated speed share are of every sample (Analysis.extremes, Recording.qd_peak), with a recording stride too;
-    the plan's own tool deviation is of the kept rows."""
+    """The table's row of a method, SI units: status, tracking, speed peaks and shares of the limit, least
+    distances to singular sets, metrics' figures and event counts. Peaks and least distances are of every sample
+    (with a recording stride too); the plan's own path deviation is of the kept rows."""
     out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
                            "status": run.status, "error": run.error, "violations": ""}
     ev = run.evaluation
@@ -200,10 +174,8 @@ def row(run: MethodRun) -> dict:
                path_deviation_max_m=tracking["tool_max"], path_deviation_rms_m=tracking["tool_rms"],
                plan_path_deviation_max_m=_plan_deviation(robot, traj))
     peak = ev.analysis.extremes["qd_ref_peak"]  # of every sample, also where the outputs keep every k-th
-    for j, name in enumerate(robot.joints):
-        out[f"qd_peak_{name}"] = float(peak[j])
-    for j, name in enumerate(robot.joints):
-        out[f"qd_share_{name}"] = float(peak[j] / robot.qd_max[j])
+    out.update({f"qd_peak_{name}": float(peak[j]) for j, name in enumerate(robot.joints)})
+    out.update({f"qd_share_{name}": float(peak[j] / robot.qd_max[j]) for j, name in enumerate(robot.joints)})
     out["qd_share_max"] = float((peak / robot.qd_max).max())
     simulated = rec.qd_peak if rec.qd_peak is not None else np.abs(rec.thinned().qd).max(axis=0, initial=0.0)
     out["qd_share_max_simulated"] = float((simulated / robot.qd_max).max())  # every state's, a stride's too
@@ -247,9 +219,7 @@ def _cell(value: Any) -> str:
 
 
 def table_csv(rows: tuple[dict, ...]) -> str:
-    """comparison.csv: a row per method; an event kind a method did not meet counts 0, a figure a failed method
-    has not is empty; text a spreadsheet would take for a formula (an error naming the user's file, say) after a
-    single quote, as results.csv's (simbench.csv_cells)."""
+    """comparison.csv: a row per method; an event kind not met counts 0, a figure a failed method lacks is empty."""
     columns = _columns(rows)
     lines = [csv_cells.row(columns)]
     for r in rows:
@@ -291,7 +261,7 @@ def table_markdown(base: Scenario, rows: tuple[dict, ...]) -> str:
              "| | " + " | ".join(f"`{r['method']}`" for r in rows) + " |",
              "|---|" + "---:|" * len(rows)]
     for column in _columns(rows):
-        if column in ("method",):
+        if column == "method":
             continue
         label, scale, fmt = _display(column, robot)
         cells = []
@@ -339,8 +309,7 @@ def _write(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], rows: tupl
 
 
 def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_format: str) -> list[str]:
-    """The methods overlaid against time: tool error, joint speeds, distance to each singular set; drawn as a
-    run's own plots are (simbench.plots)."""
+    """The methods overlaid against time: tool error, joint speeds, distance to each singular set."""
     from matplotlib import rcParams
 
     from simbench.plots import save, time_panels

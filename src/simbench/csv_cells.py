@@ -1,11 +1,6 @@
-"""Text cells of a CSV file made safe to open in a spreadsheet, and read back as written; its rows.
-
-A spreadsheet takes a cell that begins with '=', '+', '-' or '@' (or a tab or carriage return before one) for a
-formula: a sweep's parameter or error text could run one (=HYPERLINK, =cmd|...). As OWASP's advice on CSV
-injection says, such a text cell is written with a single quote before it, which a spreadsheet shows as text;
-numbers are written as numbers (-0.5 stays -0.5: only text is quoted). A text cell that itself begins with a quote
-gets one more, so that `restored` undoes `safe` exactly: it removes the quote before any of those characters (a
-CSV file written otherwise reads the same unless a cell of it begins so).
+"""CSV rows whose text cells are safe to open in a spreadsheet and read back as written: a text cell that could
+start a formula (=HYPERLINK, say) gets a single quote before it, as OWASP advises, and so does one that starts
+with a quote, so that `restored` undoes `safe` exactly. Numbers are written as numbers.
 """
 
 from __future__ import annotations
@@ -17,8 +12,7 @@ QUOTE = "'"
 
 
 def safe(text: str) -> str:
-    """`text` as a CSV text cell no spreadsheet runs: quoted where it could start a formula (or starts with a
-    quote)."""
+    """`text` as a CSV text cell no spreadsheet runs."""
     return QUOTE + text if text.startswith((*FORMULA_STARTS, QUOTE)) else text
 
 
@@ -28,8 +22,6 @@ def restored(cell: str) -> str:
 
 
 def row(cells: Iterable[str]) -> str:
-    """One line of CSV (RFC 4180, ending in a line feed): a cell holding a comma, a double quote or a line break,
-    a carriage return included, within double quotes (Python's csv.writer leaves a lone carriage return unquoted
-    with a line feed as the line's end, and a reader then splits the row there)."""
+    """One line of CSV (RFC 4180), quoting a lone carriage return too (csv.writer does not: readers split there)."""
     return ",".join('"' + cell.replace('"', '""') + '"' if any(c in cell for c in ',"\r\n') else cell
                     for cell in cells) + "\n"

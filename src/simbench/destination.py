@@ -1,14 +1,10 @@
 """Where a run or a sweep writes: never over anything simbench did not write, one writer at a time, nothing left
-behind by a writer that was killed (project issue 11).
+behind by a writer that was killed.
 
-Every folder simbench writes holds a marker, `.simbench`, listing every file it wrote there, at every depth, by
-its path relative to the folder: one JSON line `{"written_by": "simbench", "files": [...]}`, and for a sweep,
-whose files arrive one by one, a line `{"files": [...]}` appended before each batch is written. A subfolder
-written whole (a sweep's plots, a full run inside a sweep) holds its own marker, which accounts for its files.
-`--force` replaces a folder only if every file in it, at every depth, is accounted for; anything else is the
-user's, and the run is refused naming it. A folder that holds the input, or the working folder, is never
-replaced. A lock file beside the folder (`.<name>.lock`: filelock's FileLock, an flock on a file it opens without
-following a symlink) keeps a second writer out; the kernel lets go of it when its holder dies, however it dies.
+Every folder simbench writes holds a marker, `.simbench`, of JSON lines listing the files written there by
+relative path (a sweep appends a line before each batch); `--force` replaces a folder only if markers account
+for every file in it. A lock file beside the folder (`.<name>.lock`, an flock the kernel drops when its holder
+dies) keeps a second writer out.
 """
 
 from __future__ import annotations
@@ -33,8 +29,7 @@ _HIDDEN = len(".") + len(".partial-") + len(str(2**22))
 
 @contextmanager
 def refused(out: Path, what: str = "the output folder") -> Iterator[None]:
-    """Turn an OSError met while looking at or preparing `out` into the error a user reads (errors.
-    destination_error): the file system's reason in words, naming `out`; exit 2, or 1 for a full disk."""
+    """An OSError met while looking at or preparing `out` as errors.destination_error."""
     try:
         yield
     except OSError as err:
@@ -49,9 +44,8 @@ def mark(folder: Path, names: Iterable[str] | None = None) -> None:
 
 
 def mark_more(folder: Path, names: Iterable[str]) -> None:
-    """Add `names` to the marker of `folder` (one line appended, without following a symlink): called before
-    those files are written, so that a writer stopped in between leaves a name listed, never a file unlisted. An
-    OSError (a full disk) names the first of `names`: the write of that file is what failed."""
+    """Append `names` to the marker of `folder` before those files are written, so that a writer stopped in
+    between leaves a name listed, never a file unlisted."""
     names = list(names)
     line = (json.dumps({"files": names}) + "\n").encode()
     try:
@@ -65,7 +59,7 @@ def mark_more(folder: Path, names: Iterable[str]) -> None:
 
 
 def _listed(folder: Path) -> set[str]:
-    """The paths the marker of `folder` lists (none if it has no marker, or for a line that cannot be read)."""
+    """The paths the marker of `folder` lists (unreadable lines skipped)."""
     try:
         text = (folder / MARKER).read_text()
     except OSError:
@@ -82,10 +76,7 @@ def _listed(folder: Path) -> set[str]:
 
 
 def foreign(folder: Path) -> list[Path]:
-    """The files in `folder`, at every depth, that no marker accounts for: the marker of a folder on the way
-    down lists it by its path relative to that folder (a folder's name accounts for nothing inside it). Markers
-    themselves, and what a writer left under a hidden staging name (atomic: `.<name>.partial-PID`,
-    `.<name>.old-PID`), are simbench's."""
+    """The files in `folder`, at every depth, that no marker on the way down lists (staging names excepted)."""
     listed: dict[Path, set[str]] = {}
     out = []
     for path in sorted(folder.rglob("*")):
@@ -101,16 +92,13 @@ def foreign(folder: Path) -> list[Path]:
 
 
 def _staging_pid(name: str) -> int | None:
-    """The writer's process id if `name` is a hidden name simbench writes under before moving a file or folder into
-    place, `.<name>.partial-PID` or `.<name>.old-PID` (atomic); else None."""
+    """The writer's process id if `name` is a staging name, `.<name>.partial-PID` or `.<name>.old-PID`."""
     tag, _, pid = name.rpartition("-")
     return int(pid) if name.startswith(".") and tag.endswith((".partial", ".old")) and pid.isdigit() else None
 
 
 def followed(out: Path) -> Path:
-    """`out` itself, or where it leads if it is a symlink to a folder (resolved once, before anything is checked
-    or written: the outputs go into that folder, as `--out` named it, and the link stays as it was). A broken or
-    looping link is left for check_inputs to refuse."""
+    """`out`, or where it leads if it is a symlink to a folder (the link itself stays as it was)."""
     try:
         return out.resolve() if out.is_symlink() and out.is_dir() else out
     except (OSError, RuntimeError):
@@ -118,8 +106,7 @@ def followed(out: Path) -> Path:
 
 
 def check_inputs(out: Path, inputs: Iterable[Path]) -> None:
-    """ScenarioError (naming `out`) if `out` is or holds an input or the working folder, is a file, or is a
-    symlink that leads nowhere (broken, or a loop)."""
+    """ScenarioError if `out` is or holds an input or the working folder, is a file, or is a broken symlink."""
     with refused(out):
         if out.is_symlink() and not out.exists():
             what = "a symlink loop (too many levels of symbolic links)" if _loops(out) else \
@@ -150,8 +137,7 @@ def _loops(path: Path) -> bool:
 
 
 def check_replace(out: Path, why: str = "--force replaces only simbench's own outputs") -> None:
-    """ScenarioError (naming `out` and one stranger, saying `why` that matters) unless simbench wrote every file
-    in `out`, so that it may be replaced."""
+    """ScenarioError naming one stranger unless simbench wrote every file in `out`."""
     with refused(out):
         strangers = foreign(out)
     if strangers:
@@ -161,8 +147,7 @@ def check_replace(out: Path, why: str = "--force replaces only simbench's own ou
 
 
 def check(out: Path, inputs: Iterable[Path], force: bool) -> None:
-    """ScenarioError (naming `out`) unless a run's outputs may go to `out`: check_inputs, and a folder that holds
-    anything is replaced only with `force` and only if simbench wrote everything in it."""
+    """ScenarioError unless outputs may go to `out`: a non-empty folder only with `force` and check_replace."""
     check_inputs(out, inputs)
     with refused(out):
         holds = out.is_dir() and any(out.iterdir())
@@ -175,11 +160,8 @@ def check(out: Path, inputs: Iterable[Path], force: bool) -> None:
 
 @contextmanager
 def locked(out: Path) -> Iterator[None]:
-    """Hold the lock of `out` for the block; ScenarioError if another writer holds it, or if the file system
-    refuses the lock file (a read-only folder, a file in the way, a name too long: errors.destination_error).
-    The lock file is removed when the block ends, while still held (a writer that opened it just before finds
-    it unlinked and is refused: filelock checks), and so are the folders made to hold it if `out` was not
-    written."""
+    """Hold the lock of `out` for the block; ScenarioError if another writer holds it. The lock file is unlinked
+    while still held (filelock refuses a writer that opened it just before)."""
     check_name(out)
     path = out.parent / f".{out.name}.lock"
     created = [p for p in (out.parent, *out.parent.parents) if not p.exists()]
@@ -209,9 +191,8 @@ def _remove_empty(folders: list[Path]) -> None:
 
 
 def _take(path: Path, out: Path) -> FileLock:
-    """The lock at `path`, taken without waiting: ScenarioError if another writer has it, or naming `path` if a
-    symlink is in the way (filelock opens the file with O_NOFOLLOW and never truncates it: a link there could
-    otherwise make simbench write to any file the user can write)."""
+    """The lock at `path`, taken without waiting; ScenarioError if another writer has it or a symlink is there
+    (filelock opens it with O_NOFOLLOW)."""
     lock = FileLock(path, blocking=False)
     try:
         lock.acquire()
@@ -227,7 +208,7 @@ def _take(path: Path, out: Path) -> FileLock:
 
 
 def check_name(out: Path) -> None:
-    """ScenarioError (naming `out`) if its name is too long for the hidden names simbench writes beside it."""
+    """ScenarioError if the name of `out` is too long for the staging names written beside it."""
     length, limit = len(os.fsencode(out.name)), name_max(out.parent) - _HIDDEN
     if length > limit:
         raise ScenarioError(str(out), None, f"name too long ({length} characters; at most {limit} for an output "
@@ -246,8 +227,7 @@ def _alive(pid: int) -> bool:
 
 
 def sweep_leftovers(path: Path) -> None:
-    """Remove what dead writers left beside `path`: `.<name>.partial-PID` and `.<name>.old-PID` whose process is
-    gone (a writer killed by SIGKILL, or the machine stopping, cannot clean up after itself)."""
+    """Remove the staging names beside `path` whose writer is dead (killed by SIGKILL, say)."""
     for leftover in path.parent.glob(f".{glob.escape(path.name)}.*-*"):
         pid = _staging_pid(leftover.name)
         if pid is not None and not _alive(pid):

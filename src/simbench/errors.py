@@ -1,5 +1,4 @@
-"""The two ways a simbench command fails: bad input (exit 2) and a run that cannot go on (exit 1); and the words
-for what the file system refused (one place, so that every command says it the same way)."""
+"""Bad input (exit 2), a run that cannot go on (exit 1), and the file system's refusals in words."""
 
 from __future__ import annotations
 
@@ -36,16 +35,15 @@ def described(err: BaseException) -> str:
 
 
 def printable(text: Any) -> str:
-    """Text with control characters and line breaks escaped (a key read from a file may hold any), so that an
-    error stays one line. Anything else is shown as shown() shows it."""
+    """Text (or shown(value)) with control characters and line breaks escaped, so that an error stays one line."""
     if not isinstance(text, str):
         text = shown(text)
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def shown(value: Any, limit: int = 200) -> str:
-    """repr(value), cut to `limit` characters, and for an integer too long for Python to write out in decimal its
-    size instead: formatting an error never fails itself, and stays one readable line."""
+    """repr(value) cut to `limit` characters; an integer too long to write out in decimal by its size, so that
+    formatting an error never fails."""
     if isinstance(value, int) and not isinstance(value, bool):
         digits = int(abs(value).bit_length() * 0.30103) + 1
         if digits > MAX_INT_DIGITS:
@@ -66,8 +64,7 @@ class RunError(Exception):
 
 
 class PhysicsError(RunError):
-    """The simulation failed mid-run (diverged, overflowed): when, why, the trajectory it was tracking and the
-    recording up to then (None if it failed while settling, before the first tracked sample)."""
+    """The simulation failed mid-run: when, why, the plan, and the recording so far (None while settling)."""
 
     failed = "physics failed"
 
@@ -87,8 +84,7 @@ class ControlError(PhysicsError):
 
 
 class OutputError(RunError):
-    """Writing a run's or a sweep's outputs failed (a full disk, say): the path, what the file system said, and
-    what was kept. Nothing half-written is left behind (simbench.atomic)."""
+    """Writing outputs failed (a full disk, say): the path, the file system's words, and what was kept."""
 
     def __init__(self, path: str, problem: str, kept: str):
         self.path = printable(path)
@@ -99,12 +95,10 @@ class OutputError(RunError):
 
 # --- the file system's refusals in words ------------------------------------------------------------------------
 
-# Errors that say the machine ran out (of space, of a quota), not that the user picked a bad place: a run that
-# meets one failed (exit 1), wherever it meets it.
+# The machine ran out, rather than the user picking a bad place: a run failure (exit 1) wherever met.
 NO_SPACE = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 
-# Where the system's own words (os.strerror) would mislead or say too little: a full disk, a file-size limit and a
-# quota all say "no space" (NO_SPACE: exit 1); a symlink loop and a move across file systems are named as such.
+# Where os.strerror's words would mislead or say too little.
 _WORDS = {
     errno.ENOSPC: "no space left on the device",
     errno.EFBIG: "no space for a file this large: over the file system's or this process's file-size limit",
@@ -120,8 +114,7 @@ _ERRNO_IN_TEXT = re.compile(r"^\[Errno (\d+)\] ([^\n]*)")
 
 
 def shown_path(filename: str | os.PathLike | bytes | None) -> str | None:
-    """The path the user knows for one simbench wrote to: a staged file or folder under its final name (a
-    `.report.json.partial-PID` as `report.json`), a lock file as the folder it sits in."""
+    """The path the user knows: a staged name (`.report.json.partial-PID`) as its final one, a lock as its folder."""
     if filename is None:
         return None
     path = Path(os.fsdecode(filename))
@@ -132,8 +125,7 @@ def shown_path(filename: str | os.PathLike | bytes | None) -> str | None:
 
 
 def name_max(folder: str | os.PathLike) -> int:
-    """The longest file name (in bytes) the file system holding `folder`, or its nearest existing ancestor,
-    takes."""
+    """The longest file name (bytes) the file system holding `folder` (or its nearest ancestor) takes."""
     path = Path(os.path.abspath(folder))
     for candidate in (path, *path.parents):
         try:
@@ -172,8 +164,7 @@ def _file_in_the_way(filename: str) -> str | None:
 
 
 def os_words(err: OSError) -> str:
-    """What the file system refused, in words: the errno's (os.strerror's, as EACCES "permission denied", or
-    `_WORDS`' for a few), naming the file in the way for ENOTDIR and the lengths for ENAMETOOLONG."""
+    """What the file system refused, in words, naming the file in the way or the lengths where that helps."""
     code, filename = err.errno, err.filename
     text = (err.strerror or str(err) or "").strip()
     if code is None and (m := _ERRNO_IN_TEXT.match(text)):  # an OSError made of another's text (imageio's)
@@ -201,8 +192,7 @@ def os_error_line(err: OSError) -> tuple[str | None, str]:
 
 
 def destination_error(out: Path, err: OSError, what: str = "the output folder") -> Exception:
-    """The error for a destination the file system refuses before anything is run: ScenarioError naming `out`
-    (exit 2: pick another place), or OutputError if the machine ran out of space (exit 1)."""
+    """A destination refused before anything ran: ScenarioError naming `out`, or OutputError if out of space."""
     path, words = os_error_line(err)
     if err.errno in NO_SPACE:
         return OutputError(path or str(out), words, f"{out} was left as it was")
@@ -211,8 +201,7 @@ def destination_error(out: Path, err: OSError, what: str = "the output folder") 
 
 
 def output_error(err: OSError, path: Path, kept: str) -> OutputError:
-    """OutputError for an OSError met while writing outputs into `path` (the file it names, under its final
-    name, or `path` if it names none)."""
+    """OutputError for an OSError met while writing outputs into `path`."""
     where, words = os_error_line(err)
     if err.errno in (None, errno.EPIPE, errno.EIO) and _device_full(path):  # a writer that lost the cause: a
         words = f"no space left on the device ({words})"  # pipe to ffmpeg broken by ffmpeg's own ENOSPC, say
@@ -220,7 +209,7 @@ def output_error(err: OSError, path: Path, kept: str) -> OutputError:
 
 
 def _device_full(path: Path) -> bool:
-    """Whether the file system holding `path` (or its nearest existing ancestor) has no block left."""
+    """Whether the file system holding `path` (or its nearest ancestor) has no block left."""
     for candidate in (Path(path), *Path(path).parents):
         try:
             return os.statvfs(candidate).f_bavail == 0
@@ -230,5 +219,4 @@ def _device_full(path: Path) -> bool:
 
 
 class RegistryError(Exception):
-    """A robot, planner or controller that cannot be registered (a name taken, the wrong type, a robot whose
-    description does not hold together, an entry point that fails to load): names it and what is wrong."""
+    """A plugin that cannot be registered (a name taken, the wrong type, a broken entry point)."""

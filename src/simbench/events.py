@@ -10,8 +10,7 @@ from typing import Any
 
 
 class _Entries(Mapping):
-    """A record that reads as the dict it replaced (`event["kind"]`, `.get`, `dict(event)`): its report.json
-    entries, in the order report.json writes them, so that scripts written against the dicts keep working."""
+    """A record that reads as the dict of its report.json entries (`event["kind"]`, `.get`, `dict(event)`)."""
 
     @abstractmethod
     def entries(self) -> dict[str, Any]:
@@ -29,9 +28,7 @@ class _Entries(Mapping):
 
 @dataclass(frozen=True)
 class Event(_Entries):
-    """Something a run met over a span of time (a singular set neared, a joint at its limit, an assembly-mode
-    change): from `t_start` to `t_end` (s, the plan's times; equal for an instant), its kind and what the analysis or
-    the robot found there (SI units). report.json writes it as {t_start, t_end, kind, detail}."""
+    """Something a run met from `t_start` to `t_end` (s; equal for an instant): its kind and detail (SI units)."""
 
     t_start: float
     t_end: float
@@ -43,15 +40,14 @@ class Event(_Entries):
 
     @classmethod
     def of(cls, found: Event | Mapping[str, Any]) -> Event:
-        """An Event, given one or the dict {t_start, t_end, kind[, detail]} that a robot written before it returns."""
+        """An Event, given one or its dict {t_start, t_end, kind[, detail]}."""
         return found if isinstance(found, Event) else cls(**found)
 
 
 @dataclass(frozen=True)
 class Violation(_Entries):
-    """A promise a run broke (simbench.verdict lists the kinds): what, in one line, from when (`t`, s; None where
-    it has no time), how many events show it, and the figures that say how badly (`detail`: the joint, the worst
-    excess, ...). report.json writes it as {kind, message, t, events, **detail}."""
+    """A promise a run broke (simbench.verdict): its one-line message, from when (`t`, s, or None), how many
+    events show it, and how badly (`detail`)."""
 
     kind: str
     message: str
@@ -64,8 +60,7 @@ class Violation(_Entries):
 
     @classmethod
     def of(cls, found: Violation | Mapping[str, Any]) -> Violation:
-        """A Violation, given one or the dict {kind, message[, t, events], ...} that a planner written before it
-        reports (JointTrajectory.violations): its other entries are the detail."""
+        """A Violation, given one or its dict {kind, message[, t, events], ...}, the other entries its detail."""
         if isinstance(found, Violation):
             return found
         rest = dict(found)

@@ -1,10 +1,6 @@
-"""How simbench tells that the physics failed, and says why in one line naming the joint or actuator.
-
-MuJoCo's warnings that the state blew up (NaN, infinite or huge position, velocity, acceleration or control) or
-that its constraint or contact buffer overflowed, and any speed above MAX_SPEED (no joint of a manipulator turns
-at 1000 rad/s: the integration is diverging, long before MuJoCo's own 1e10 bound) end a run. MuJoCo's own
-printing of warnings (and its MUJOCO_LOG.TXT) is silenced while simbench steps: they are read from the data and
-reported.
+"""How simbench tells that the physics failed, and says why in one line naming the joint or actuator: MuJoCo's
+fatal warnings (a state blown up, a buffer overflowed) and any speed above MAX_SPEED (no manipulator joint turns at
+1000 rad/s: the integration diverges, long before MuJoCo's own 1e10 bound).
 """
 
 from __future__ import annotations
@@ -30,8 +26,7 @@ class Fault(Exception):
 
 @contextmanager
 def quiet_mujoco():
-    """MuJoCo prints warnings and appends them to MUJOCO_LOG.TXT in the working folder; simbench reads them from
-    the data and reports them itself."""
+    """Silence MuJoCo's printing of warnings (and its MUJOCO_LOG.TXT): simbench reads them from the data."""
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(lambda message: None)
     try:

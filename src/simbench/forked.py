@@ -1,9 +1,6 @@
 """A function run in a forked child process while this one goes on: a run's plots are drawn so while its video
-renders, on a CPU of their own and with an interpreter lock of their own (on a thread, matplotlib's Python
-stalled the render loop). The child inherits the arguments (only the result or the error is pickled, back through
-a pipe); it ignores Ctrl-C and SIGTERM's handlers as the sweep's workers do: the parent answers them and stops it.
-A plain os.fork, not multiprocessing's, so that a sweep's (daemonic) worker may fork one too. Where processes
-cannot be forked, the function runs in this process when its result is asked for."""
+renders (on a thread, matplotlib stalled the render loop). Only the result or error is pickled back. A plain
+os.fork, so that a sweep's daemonic worker may fork one too; without fork, it runs here when its result is asked."""
 
 from __future__ import annotations
 
@@ -65,9 +62,8 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
 
 
 def _child(readable: int, writable: int, fn: Callable[..., Any], args: tuple) -> NoReturn:
-    """fn(*args) in the child: what it returned or raised, pickled into the pipe; then the child ends at once
-    (os._exit: none of the parent's clean-up, buffers or exit handlers run twice). It starts with Ctrl-C and
-    SIGTERM held back (forked), sets its own handlers, then takes them."""
+    """fn(*args) in the child, its result or error pickled into the pipe; then os._exit, so that none of the
+    parent's clean-up runs twice. Signals stay held back until the child's own handlers are set."""
     try:
         os.close(readable)
         signal.signal(signal.SIGINT, signal.SIG_IGN)

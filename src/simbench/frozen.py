@@ -8,9 +8,8 @@ from pydantic import BaseModel, ConfigDict, SerializerFunctionWrapHandler, field
 
 
 class SimbenchModel(BaseModel):
-    """Strict, frozen, no unknown fields, no NaN or infinity. Lists are kept as tuples, so that a loaded
-    scenario cannot be changed after it was checked (`scenario.task.start[2] = 1e9`); they are written out as
-    lists."""
+    """Strict, frozen, no unknown fields, no NaN or infinity; lists kept as tuples (written out as lists), so
+    that a loaded scenario cannot be changed after it was checked."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 

@@ -1,17 +1,11 @@
 """Ctrl-C (SIGINT) or SIGTERM during a simbench command: exit 130 (143 for SIGTERM) with one line, whenever it
 comes, after the same clean-up (staging folders removed, worker processes stopped).
 
-With CPython 3.11 and this project's dependencies, a plain KeyboardInterrupt does not always reach the command:
-- an extension module being imported turns it into an ImportError (numpy: "PyCapsule_Import could not import
-  module datetime"; MuJoCo's pybind11 modules: "initialization failed") or swallows it. The command therefore
-  imports its own dependencies with Ctrl-C held back (`held_back`); it is delivered the moment they are in.
-  Outside packages' entry points load afterwards with signals deliverable (one that hangs can be stopped, and
-  processes it starts do not inherit a blocked Ctrl-C); one that an import converts is still a press (`is_press`).
-- one that leaves an exec() of a string (scipy runs one while it is imported) is marked as unhandled, and the
-  interpreter kills itself with SIGINT at exit even after the command caught it and returned 130. The mark is
-  set for KeyboardInterrupt itself only, so Ctrl-C raises the subclass `Interrupted`.
-`CtrlC.pressed` records a press however it was converted afterwards. User code (a policy, a plugin) may raise
-KeyboardInterrupt or SystemExit itself: `is_press` tells that apart from the process's own Ctrl-C.
+A plain KeyboardInterrupt does not always reach the command: an extension module being imported turns it into an
+ImportError or swallows it (hence `held_back` while simbench's own modules load), and one that leaves an exec()
+of a string (scipy's import) makes the interpreter kill itself with SIGINT at exit (hence the subclass
+`Interrupted`). `CtrlC.pressed` records a press however it was converted; `is_press` tells it apart from user code
+raising KeyboardInterrupt or SystemExit itself.
 """
 
 from __future__ import annotations
@@ -73,10 +67,8 @@ def raising_interrupted() -> Iterator[CtrlC]:
 
 
 def is_press(err: BaseException) -> bool:
-    """Whether `err`, raised out of user code, is the user's Ctrl-C or SIGTERM rather than that code's own failure
-    (a `raise KeyboardInterrupt`, a `sys.exit()`). Where `raising_interrupted` handles the signals: Interrupted,
-    or anything once a press came (an import may have converted it). Elsewhere (a Python session's own handler):
-    a KeyboardInterrupt, as Python takes it."""
+    """Whether `err`, raised out of user code, is the user's Ctrl-C or SIGTERM rather than that code's own
+    `raise KeyboardInterrupt` or `sys.exit()` (without raising_interrupted's handler: any KeyboardInterrupt)."""
     ours = [handler for handler in map(signal.getsignal, _SIGNALS) if isinstance(handler, CtrlC)]
     if ours:
         return isinstance(err, Interrupted) or any(handler.pressed for handler in ours)
@@ -85,10 +77,8 @@ def is_press(err: BaseException) -> bool:
 
 @contextmanager
 def deferred() -> Iterator[None]:
-    """Ctrl-C and SIGTERM recorded, not handled, for the block; then each is handled as it would have been. For a
-    block that must not be cut by an exception: os.fork runs Python's at-fork hooks (logging's takes and gives back
-    its lock), and a handler pending from just before, run inside one, would leave the lock taken for good and
-    every later fork of the process (ffmpeg's) waiting on it. A no-op where Python handles no signals."""
+    """Ctrl-C and SIGTERM recorded for the block, then handled as they would have been: for os.fork, whose at-fork
+    hooks (logging's lock) a handler raising inside would leave locked for every later fork."""
     if not _handles_signals():
         yield
         return
@@ -108,8 +98,7 @@ def deferred() -> Iterator[None]:
 
 @contextmanager
 def held_back() -> Iterator[None]:
-    """Hold SIGINT (Ctrl-C) and SIGTERM back until the block is done; they are delivered then. A no-op where
-    Python handles no signals."""
+    """Hold SIGINT (Ctrl-C) and SIGTERM back until the block is done; they are delivered then."""
     if not _handles_signals():
         yield
         return

@@ -14,11 +14,9 @@ AHEAD = (1, 5, 20)  # samples ahead of now at which the references are shown
 
 
 def observation(plant: Plant, state: State, q_ref: Array, qd_ref: Array, tool_ref: Array) -> OrderedDict:
-    """The observation at `state` (its data at positions and velocities computed, as `mj_step1` leaves it) for
-    references q_ref, qd_ref (N, dof) and tool_ref (N, 3):
-
-    time (1,), q and qd (dof,), tool (3,) measured; q_ref, qd_ref (dof,) and tool_ref (3,) at this sample;
-    q_ref_ahead (len(AHEAD) * dof,): the joint references AHEAD samples on (the last one past the end)."""
+    """The observation at `state` (as `mj_step1` leaves it) for references q_ref, qd_ref (N, dof) and tool_ref
+    (N, 3): time (1,), q, qd (dof,) and tool (3,) measured; the references at this sample; and q_ref_ahead
+    (len(AHEAD) * dof,) AHEAD samples on (the last one past the end)."""
     assert state.data is not None, "an observation needs the live data"
     k, last = state.k, len(q_ref) - 1
     ahead = [min(k + h, last) for h in AHEAD]

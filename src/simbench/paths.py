@@ -36,11 +36,8 @@ class Line:
 
 @dataclass(frozen=True)
 class Arc:
-    """A circle arc: centre, radius, unit normal n, from angle theta0 to theta1 (rad) about n.
-
-    Angles are measured from the unit vector `ref` (in the circle's plane); theta1 - theta0 = 2 pi is a full
-    circle. Paper 002, eqs. 28-37.
-    """
+    """A circle arc: centre, radius, unit normal n, from angle theta0 to theta1 (rad) about n, measured from the
+    unit vector `ref` in the circle's plane. Paper 002, eqs. 28-37."""
 
     center: np.ndarray
     radius: float

@@ -1,13 +1,7 @@
-"""One run, end to end: plan, simulate, analyse, then write every output into a folder at once.
+"""One run, end to end: plan, simulate, analyse, then write every output into a folder at once (simbench.atomic).
 
-Before anything big is allocated (the model loaded, the plan made) the run's cost is estimated and checked
-against the machine (simbench.budget): too much is bad input, refused naming the field to change; a large run
-gets a one-line note of its cost on stderr when `progress` is on.
-
-Outputs are written into a hidden sibling folder and moved into place only when all of them exist, so a run
-that fails or is interrupted leaves the previous complete output (or none), never a half-written one. A run
-whose physics fails writes what it has, complete in itself: the report of the failure and the timeseries up to
-it.
+The run's cost is checked against the machine (simbench.budget) before anything big is allocated. A run whose
+physics fails writes the report of the failure and the timeseries up to it.
 """
 
 from __future__ import annotations
@@ -40,10 +34,9 @@ from simbench.verdict import Verdict, plan_verdict, run_verdict
 
 @dataclass(frozen=True)
 class Evaluation:
-    """A scenario planned, simulated and analysed, with nothing written yet, and the verdict: whether the run
-    kept every promise (simbench.verdict). Found from every sample; the plan, the recording and the analysis'
-    series hold the recording's kept rows (all but where sim.record_every thins them: what the outputs show; the
-    control period is then recording.timestep, not the thinned plan's dt)."""
+    """A scenario planned, simulated and analysed, with its verdict, nothing written yet. Found from every
+    sample; the plan, recording and series hold the kept rows (with sim.record_every, the control period is
+    recording.timestep, not the thinned plan's dt)."""
 
     trajectory: JointTrajectory
     recording: Recording
@@ -88,9 +81,7 @@ class _Stopwatch:
 
 
 def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False, allow_code: bool = False) -> Evaluation:
-    """Plan, simulate and analyse a scenario (or the scenario file at a path); ScenarioError first if it asks
-    more than the machine has (simbench.budget), or names a policy's module without `allow_code` (importing it
-    runs its code: simbench.policy)."""
+    """Plan, simulate and analyse a scenario (or scenario file), after the budget and `allow_code` checks."""
     scenario = as_scenario(scenario, "simbench.evaluate")
     _afford(scenario, progress)
     return _evaluate(scenario, progress, allow_code=allow_code)
@@ -98,8 +89,7 @@ def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False, all
 
 def _afford(scenario: Scenario, progress: bool, video: bool = False, outputs: bool = False,
             out: Path | None = None) -> budget.Estimate:
-    """The run's estimate, checked against the machine (ScenarioError if it exceeds it); its cost on stderr if
-    it is large and `progress` is on."""
+    """The run's estimate, checked against the machine; its cost on stderr if large and `progress` is on."""
     est = budget.check(scenario, video=video, outputs=outputs, out=out)
     if progress:
         budget.announce(est)
@@ -145,9 +135,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
 
 
 def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
-    """Plan without simulating, and what the plan alone shows it breaks (its joint ranges, speed limits, jumps,
-    and what the planner reports): `simbench validate`. A scenario whose run the machine could not afford is
-    refused here too (ScenarioError)."""
+    """Plan without simulating, and the verdict on what the plan alone breaks (`simbench validate`)."""
     budget.check(scenario)
     robot = scenario.robot_def
     plant = Plant.load(robot, scenario.sim.timestep)
@@ -156,8 +144,7 @@ def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
 
 
 def evaluate_report(scenario: Scenario, allow_code: bool = False) -> dict:
-    """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps of a run).
-    `allow_code` as evaluate's."""
+    """Plan, simulate and analyse; the report.json document, with nothing written (what a sweep keeps)."""
     watch = _Stopwatch()
     _afford(scenario, progress=False)
     ev = _evaluate(scenario, watch=watch, allow_code=allow_code)
@@ -166,13 +153,9 @@ def evaluate_report(scenario: Scenario, allow_code: bool = False) -> dict:
 
 def run(scenario: Scenario | str | os.PathLike, out: str | Path | None = None, video: bool = True,
         progress: bool = False, force: bool = False, allow_code: bool = False, plot_format: str = "png") -> Result:
-    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ (in `plot_format`: png, svg or pdf)
-    and (unless video=False) video.mp4 into `out` (default renders/<name>/), which must not hold anything yet unless
-    `force`. A run that breaks a
-    promise (status `limits`) writes everything as any other and returns normally. If the physics fails,
-    the report says when and why, the timeseries holds what was recorded up to then, and PhysicsError is
-    raised after they are written. `scenario` may be the path of a scenario file. A policy named by its module
-    (package.module:factory) is imported, running its code, only with `allow_code` (ScenarioError first)."""
+    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
+    into `out` (default renders/<name>/), which must be empty unless `force`. If the physics fails, PhysicsError
+    is raised after the report and the timeseries so far are written. `allow_code` as evaluate's."""
     scenario = as_scenario(scenario, "simbench.run")
     check_format(plot_format, "simbench.run")
     out = destination.followed(Path(out) if out is not None else Path("renders") / scenario.name)
@@ -196,11 +179,8 @@ def _run(scenario: Scenario, out: Path, video: bool, progress: bool, allow_code:
 
 def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = True,
                   watch: _Stopwatch | None = None, plot_format: str = "png") -> Result:
-    """Write report.json, timeseries.npz, plots/ (in `plot_format`) and (unless video=False) video.mp4 of an
-    evaluated run into `out` at once: what `run` writes after it has simulated, also for a run simulated elsewhere
-    (an episode of simbench.env). `out` is taken as it is: locking and checking it is the caller's (see `run`).
-    The plots are drawn in a forked process while the video renders (simbench.forked); the `plots` stage is the
-    time the run then waits for them."""
+    """Write the outputs of an evaluated run into `out` at once (locking and checking `out` is the caller's). The
+    plots are drawn in a forked process while the video renders; the `plots` stage is the wait for them."""
     check_format(plot_format, "simbench.write_outputs")
     watch = watch or _Stopwatch()
     robot = scenario.robot_def
@@ -210,8 +190,7 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
         outputs = {"report": "report.json", "timeseries": "timeseries.npz", "page": "index.html"}
         if video:
             r = scenario.render
-            planner = scenario.planner_def
-            decorations = planner.decorations(scenario)
+            decorations = scenario.planner_def.decorations(scenario)
             with watch.stage("video"):
                 outputs["video"] = "video.mp4"
                 outputs["video_info"] = render_video(robot.scene, rec, traj.tool_ref, tmp / "video.mp4",
@@ -229,9 +208,7 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
 
 
 def thinned(traj: JointTrajectory, rec: Recording) -> tuple[JointTrajectory, Recording]:
-    """The plan and the recording at the recording's kept rows (Recording.kept): what the outputs of a run with a
-    recording stride show (the analysis' series are at those rows already). The report's figures and events are
-    found before, from every row."""
+    """The plan and the recording at the recording's kept rows: what the outputs of a strided run show."""
     return (traj, rec) if rec.kept is None else (traj.rows(rec.kept), rec.thinned())
 
 

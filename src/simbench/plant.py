@@ -1,9 +1,6 @@
-"""A robot's scene compiled as simbench runs it: force sensors on every actuator, the timestep and servo gains of
-the scenario, position or torque actuation, and the indices of the robot's joints, actuators and sensors.
-
-Each of the robot's joints is driven by the one actuator whose transmission is that joint (found by the
-transmission, not by name). With torque actuation (the `actuation` a controller asks for) those actuators become
-motors: force = ctrl, within the same force limits, so a controller's commands are forces and torques.
+"""A robot's scene compiled as simbench runs it: force sensors on every actuator, the scenario's timestep and
+servo gains, position or torque actuation (the joints' actuators made motors within the same force limits), and
+the indices of the robot's joints, actuators (found by transmission, not name) and sensors.
 """
 
 from __future__ import annotations
@@ -50,11 +47,8 @@ class Plant:
     def load(cls, robot: Robot, timestep: float | None = None, kp: list[float] | None = None,
              kv: list[float] | None = None, force_limits: bool = True, gravity_compensation: bool = True,
              actuation: Actuation = "position") -> "Plant":
-        """The robot's compiled scene (a fresh copy: a run changes its model), with the timestep and the position
-        servos' gains (one per joint) where given, without force limits if asked, without the bodies' gravity
-        compensation (`gravcomp`: the controller's gravity feed-forward) if asked, and with the joints'
-        actuators made motors if `actuation` is "torque". Within reused_plants() the same arguments as the last
-        call's give that call's Plant, model and all."""
+        """The robot's compiled scene (a fresh copy: a run changes its model) set up as asked. Within
+        reused_plants() the same arguments as the last call's give that call's Plant."""
         key = (robot, timestep, _items(kp), _items(kv), force_limits, gravity_compensation, actuation)
         if _kept and _kept[0][0] == key:
             return _kept[0][1]
@@ -90,8 +84,7 @@ class Plant:
                    actuation=actuation)
 
     def force_limit(self) -> np.ndarray:
-        """Each joint's actuator force bound (dof,): the actuator's force range, and the joint's actuator force
-        range where that is tighter; inf where neither limits it."""
+        """Each joint's actuator force bound (dof,): the tighter of the actuator's and the joint's; inf if none."""
         m = self.model
         bound = np.where(m.actuator_forcelimited[self.actuators].astype(bool),
                          np.abs(m.actuator_forcerange[self.actuators]).min(axis=1), np.inf)
@@ -109,8 +102,7 @@ class Plant:
         return qpos
 
     def gains(self) -> dict[str, list[float]]:
-        """The position servos' stiffness kp and damping kv per joint (N/m or N m/rad, N s/m or N m s/rad), as
-        the model holds them; empty under torque actuation."""
+        """The position servos' kp and kv per joint (SI) as the model holds them; empty under torque actuation."""
         if self.actuation == "torque":
             return {}
         m = self.model
@@ -120,11 +112,8 @@ class Plant:
 
 @contextmanager
 def reused_plants() -> Iterator[None]:
-    """Within the block, Plant.load asked again with the last call's arguments returns that call's Plant instead
-    of building a fresh copy (the model copied, its actuators found): for callers that leave the model as it is,
-    such as a sweep's runs, one after another in a worker (simulate copies the model before a switch edits it).
-    Only the last Plant is kept, so between runs a process holds the one model it held during the last; it is
-    let go when the block ends."""
+    """Within the block, Plant.load asked again with the last call's arguments returns that call's Plant: for
+    callers that leave the model as it is, such as a sweep's runs in a worker. Only the last Plant is kept."""
     global _kept
     outer, _kept = _kept, []
     try:
@@ -158,8 +147,7 @@ def _set_gains(model: mujoco.MjModel, act: np.ndarray, kp: list[float] | None, k
 
 
 def _make_motors(model: mujoco.MjModel, act: np.ndarray) -> None:
-    """Position servos turned into motors (force = ctrl): no bias, and the control range the force range, so the
-    force limits still hold and an out-of-range command is clamped as a servo's would be."""
+    """Position servos turned into motors (force = ctrl) whose control range is their force range."""
     model.actuator_gaintype[act] = mujoco.mjtGain.mjGAIN_FIXED
     model.actuator_gainprm[act] = 0
     model.actuator_gainprm[act, 0] = 1
@@ -180,16 +168,13 @@ def _sensor_slices(model: mujoco.MjModel, names: tuple[str, ...]) -> dict[str, s
 
 
 def register_scene(key: str, build: Callable[[], mujoco.MjSpec]) -> None:
-    """Make `key` stand for the scene `build()` makes, wherever a scene's path is asked for (scene_spec,
-    compiled_scene): a scene built in code from a model file, with no file of its own. `build` must give the same
-    scene every time it is called with the same key."""
+    """Make `key` stand, wherever a scene's path is asked for, for the scene `build()` makes in code."""
     _built[key] = build
 
 
 def scene_spec(scene: str) -> mujoco.MjSpec:
-    """A scene as simbench runs it: the MJCF (or the scene registered under this key, register_scene), plus an
-    actuator-force sensor (FORCE_SENSOR + name) on every actuator, so that the recording holds the force MuJoCo
-    really applied, force limits included."""
+    """A scene (an MJCF, or a key of register_scene) with an actuator-force sensor on every actuator, so that the
+    recording holds the force MuJoCo really applied."""
     spec = _built[scene]() if scene in _built else mujoco.MjSpec.from_file(scene)
     for actuator in spec.actuators:
         spec.add_sensor(name=FORCE_SENSOR + actuator.name, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,

@@ -1,11 +1,5 @@
-"""Plots of a run: joints, the tool's deviation, singularity measures, the path; by matplotlib, in the run's plot
-format (PNG, SVG or PDF).
-
-Plots are for reading, so angles are drawn in degrees and lengths in millimetres; the data files stay SI.
-
-Figures are `matplotlib.figure.Figure` objects made without pyplot (no global state), drawn by `simbench.run` in
-a forked process while the video renders (simbench.forked). A robot's own plots (its `plots` hook) are such
-figures too, laid out by `time_panels`; simbench saves them beside its own (`save`).
+"""Plots of a run (joints, the tool's deviation, singularity measures, the path) in degrees and millimetres, for
+reading; matplotlib Figures made without pyplot (no global state), saved in the run's plot format.
 """
 
 from __future__ import annotations
@@ -43,8 +37,7 @@ def _shade(ax, events: list[dict], kinds: set[str] | None, color: str, joint: st
 
 
 def figure(width: float, height: float) -> Figure:
-    """An empty figure of `width` x `height` inches, at simbench's resolution. matplotlib is imported here, when a
-    figure is first made: a run without plots (a sweep's, simbench.evaluate) does not pay for it."""
+    """An empty figure of `width` x `height` inches (matplotlib imported here: a run without plots skips it)."""
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), dpi=DPI)
@@ -52,9 +45,8 @@ def figure(width: float, height: float) -> Figure:
 
 def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: float = _GAP,
                 top: float = _MARGINS[2]) -> tuple[Figure, np.ndarray]:
-    """A figure of `rows` x `cols` matplotlib Axes over one shared time axis, `width` x `height` inches, with
-    simbench's fixed margins (`top` inches over the first row, `gap` between rows; x tick labels on the lowest row
-    only); (figure, Axes as an array (rows, cols))."""
+    """(figure, Axes (rows, cols)) over one shared time axis, `width` x `height` inches, with fixed margins (`top`
+    inches over the first row, `gap` between rows)."""
     left, right, _, bottom = _MARGINS
     panel = (height - top - bottom - (rows - 1) * gap) / rows
     column = (width - left - right - (cols - 1) * _COLUMN_GAP) / cols
@@ -73,8 +65,7 @@ def save(fig: Figure, folder: Path, stem: str, plot_format: str = "png") -> str:
 
 def _joint_panels(robot: Robot, t: np.ndarray, planned: np.ndarray, simulated: np.ndarray, labels: tuple[str, str],
                   per_second: bool, title: str, decorate) -> Figure:
-    """One panel a joint: planned (dashed) against simulated, in degrees or millimetres; decorate(ax, j, scale)
-    adds each panel's limits and shading."""
+    """One panel a joint: planned (dashed) against simulated; decorate(ax, j, scale) adds limits and shading."""
     fig, axes = time_panels(robot.dof, 8, 1.8 * robot.dof + 0.6)
     for j, ax in enumerate(axes[:, 0]):
         scale, unit = _display(robot.kinds[j])

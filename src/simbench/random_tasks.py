@@ -1,9 +1,5 @@
-"""Random tasks nobody tuned for, as scenario documents: what the tests and benchmarks draw (fixed seeds) to
-check the planners beyond the papers' own cases.
-
-Each generator returns plain scenario dictionaries (SI units), so that a draw goes through the same loading,
-validation and planning as a user's file.
-"""
+"""Random tasks nobody tuned for, as plain scenario documents (SI units): what the tests and benchmarks draw
+(fixed seeds) to check the planners beyond the papers' own cases, through the same loading as a user's file."""
 
 from __future__ import annotations
 

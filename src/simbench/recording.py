@@ -9,12 +9,9 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Recording:
-    """The simulated run on the trajectory's time grid: row k is the state at t[k] (t = 0 after settling).
-
-    With a recording stride (sim.record_every), qpos, qd and ctrl hold only the rows `kept` (every k-th and the
-    last); t, q, tool, force, sensors and eq_active hold every row, since the analysis reads them. `thinned`
-    gives every column at the kept rows. `qd_peak` is of every row, a stride's too (what compare's speed share
-    reads)."""
+    """The simulated run on the trajectory's time grid: row k is the state at t[k] (t = 0 after settling). With a
+    recording stride, qpos, qd and ctrl hold only the rows `kept`, the other columns every row (the analysis reads
+    them); `qd_peak` is of every row."""
 
     t: np.ndarray
     qpos: np.ndarray
@@ -34,8 +31,8 @@ class Recording:
     qd_peak: np.ndarray | None = None  # (dof,): each joint's largest |qd| over every row, kept or not (None: unknown)
 
     def rows(self, lo: int, hi: int) -> Recording:
-        """Samples lo..hi-1 (views): every per-sample column there, and qpos, qd and ctrl at the kept rows among
-        them (`kept` counted from lo), without the run's qd_peak. What the analysis reads a window at a time."""
+        """Samples lo..hi-1 as views (qpos, qd and ctrl at the kept rows among them, `kept` counted from lo), without
+        qd_peak: a window of the analysis."""
         whole = slice(lo, hi)
         if self.kept is None:
             kept, stored = None, whole

@@ -1,12 +1,8 @@
-"""The registries: every robot, planner, controller and policy a scenario can name, and every metric a run is
-measured by, by name, with where each came from.
+"""The registries: every robot, planner, controller, policy and metric by name, with where each came from.
 
-simbench's own are declared as entry points in its pyproject.toml, exactly as an outside package declares its
-(groups simbench.robots, .planners, .controllers, .policies, .metrics), and are read first, in the order of their
-names. One of simbench's own that fails to load is a bug of simbench's and raises; an outside package's, whatever
-it raises (sys.exit too), is kept out and remembered in `broken` (a scenario naming it is told why), so that one
-broken package does not stop the others; the user's Ctrl-C is not its failure (interrupts.is_press) and stops the
-loading. `register_*` adds an object from Python at run time.
+simbench's own are entry points of its package, as an outside package's are, and are read first. One of
+simbench's own that fails to load raises; an outside one that fails (sys.exit too) is kept in `broken`, so that
+one broken package does not stop the others (the user's Ctrl-C still stops the loading).
 """
 
 from __future__ import annotations
@@ -95,8 +91,7 @@ def _is_own(ep: importlib.metadata.EntryPoint) -> bool:
 
 
 def _own(group: str) -> list[importlib.metadata.EntryPoint]:
-    """simbench's own entry points of `group`; RegistryError if simbench is not installed (its own plugins are
-    declared in its package metadata, which a source tree alone does not have)."""
+    """simbench's own entry points of `group`; RegistryError if simbench is not installed (no metadata)."""
     try:
         importlib.metadata.distribution(SHIPPED)
     except importlib.metadata.PackageNotFoundError:
@@ -115,8 +110,7 @@ _REGISTRIES: dict[str, _Registry] = {"robot": _ROBOTS, "planner": _PLANNERS, "co
 
 
 def load_shipped() -> None:
-    """simbench's own robots, planners, controllers, policies and metrics (the command line loads them first, with
-    Ctrl-C held back while their extension modules are imported, simbench.interrupts)."""
+    """Load simbench's own plugins of every kind."""
     for registry in _REGISTRIES.values():
         registry.load_shipped()
 

@@ -1,17 +1,9 @@
 """Headless video of a Recording: MuJoCo's offscreen renderer (EGL where there is no display) into H.264 MP4.
 
-Each frame poses the model at the recorded state nearest the frame's time, then draws the planned tool path
-as lines (blue: solid ahead of the reference, faint behind it) and the tool's trace so far as thin capsules
-(red), all unshaded. The faint part of the plan is translucent, drawn after the trace, so the trace shows
-through it. On a CPU a capsule costs about as much to draw as a link of the robot, so both polylines are first
-simplified (Ramer-Douglas-Peucker, 1 mm: under a pixel at these scenes' scale).
-
-Presets: `fast` (no shadows, reflections or multisampling: about 11 ms a 640x480 frame on Mesa's llvmpipe) and
-`pretty` (shadows, floor reflections and 4x multisampling: several times slower).
-
-Frames are encoded while the next ones render: a thread hands them to ffmpeg (x264 `veryfast`, CRF 23: about
-2 ms a frame, against about 5 ms at x264's default preset, in files of the same size) so the encoder works on
-whatever the rasteriser leaves of the CPU.
+Each frame poses the model at its recorded state and draws the planned tool path (blue lines, faint behind the
+reference) and the tool's trace (red capsules), both simplified first (Ramer-Douglas-Peucker, 1 mm: under a
+pixel) since on a CPU a capsule costs about as much as a robot link. Presets: `fast` (no shadows, reflections or
+multisampling) and `pretty`. A thread feeds ffmpeg (x264 `veryfast`, CRF 23) while the next frames render.
 """
 
 from __future__ import annotations
@@ -74,9 +66,8 @@ class _Encoder:
         self._frames.put(frame)
 
     def abort(self) -> None:
-        """Stop at once after a failure elsewhere (the half-made file is discarded with its staging folder):
-        drop the queued frames, end ffmpeg, and keep its complaints (a broken pipe, say) from masking the
-        failure."""
+        """Stop at once after a failure elsewhere: drop the queued frames and end ffmpeg, its complaints (a broken
+        pipe, say) kept from masking the failure."""
         try:
             while True:
                 self._frames.get_nowait()
@@ -100,9 +91,8 @@ class _Encoder:
 
 
 def _check_finished(path: Path) -> None:
-    """OSError if ffmpeg left the MP4 unfinished: it writes the index (the `moov` box) last, and imageio-ffmpeg
-    does not pass on ffmpeg's failure, so a file cut short by a full disk or a file-size limit would otherwise be
-    kept as if whole."""
+    """OSError if the MP4 lacks its index (`moov`, written last): imageio-ffmpeg does not pass on ffmpeg's failure
+    on a full disk or a file-size limit."""
     with open(path, "rb") as f:
         if b"moov" in f.read():
             return
@@ -141,8 +131,7 @@ def simplify(points: np.ndarray, tol: float) -> np.ndarray:
 
 def add_polyline(scene: mujoco.MjvScene, points: np.ndarray, rgba: np.ndarray, width: float,
                  kind: int = mujoco.mjtGeom.mjGEOM_LINE) -> None:
-    """Append unshaded lines (`width` pixels) or capsules (radius `width` m) joining consecutive points to the
-    scene, as many as it has room for."""
+    """Append unshaded lines (`width` pixels) or capsules (radius `width` m) joining consecutive points."""
     for a, b in zip(points[:-1], points[1:]):
         if scene.ngeom >= scene.maxgeom:
             return
@@ -179,8 +168,7 @@ def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length
 
 
 def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str) -> mujoco.Renderer:
-    """An offscreen renderer of exactly this size (a larger buffer costs time on a CPU), with the preset's
-    shadows and reflections."""
+    """An offscreen renderer of exactly this size (a larger buffer costs time on a CPU) and preset."""
     pretty = quality == "pretty"
     model.vis.global_.offwidth, model.vis.global_.offheight = width, height
     model.vis.quality.offsamples = 4 if pretty else 0
@@ -210,15 +198,13 @@ def _check_decorations(decorations: Sequence[Decoration]) -> None:
 
 
 def _frame_rows(t: np.ndarray, fps: int) -> np.ndarray:
-    """The recorded row each frame shows: frames every 1/fps s from 0 to t[-1], each the first row at or after
-    its time."""
+    """The recorded row of each frame (every 1/fps s): the first at or after its time."""
     frame_t = np.arange(0.0, t[-1] + 1e-9, 1.0 / fps)
     return np.clip(np.searchsorted(t, frame_t), 0, len(t) - 1)
 
 
 class _Overlay:
-    """What is drawn over the model in every frame: the decorations, the planned path (solid ahead of the
-    reference, faint behind it) and, if kept, the tool's trace up to the frame, each polyline simplified once."""
+    """What is drawn over the model in every frame: decorations, planned path and the tool's trace so far."""
 
     def __init__(self, planned: np.ndarray, tool: np.ndarray | None, decorations: Sequence[Decoration]):
         self.planned, self.tool, self.decorations = planned, tool, decorations
@@ -241,8 +227,7 @@ class _Overlay:
 
 def _frames(model: mujoco.MjModel, renderer: mujoco.Renderer, rec: Recording, rows: np.ndarray,
             camera: str | None, overlay: _Overlay, paint) -> Iterator[np.ndarray]:
-    """Each frame's pixels: the model posed at its row, painted, seen from `camera` (None: the free camera), with
-    the overlay."""
+    """Each frame's pixels, seen from `camera` (None: the free camera)."""
     data = mujoco.MjData(model)
     for row in rows:
         data.qpos[:] = rec.qpos[row]
@@ -255,8 +240,7 @@ def _frames(model: mujoco.MjModel, renderer: mujoco.Renderer, rec: Recording, ro
 
 
 def _encode(path: Path, fps: int, frames: Iterable[np.ndarray]) -> None:
-    """Encode the frames into an H.264 MP4 at `path` as they come; on any failure on the way (Ctrl-C included)
-    stop ffmpeg and raise it."""
+    """Encode the frames into an MP4 at `path` as they come; on any failure (Ctrl-C included) stop ffmpeg."""
     encoder = _Encoder(path, fps)
     try:
         for frame in frames:
@@ -270,10 +254,8 @@ def _encode(path: Path, fps: int, frames: Iterable[np.ndarray]) -> None:
 def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *, width: int = 640,
                  height: int = 480, fps: int = 30, camera: str | None = None, quality: str = "fast",
                  trace: bool = True, decorations: Sequence[Decoration] = (), paint=None) -> dict:
-    """Write the MP4 and return what was made: frames, fps, size, camera, quality. `decorations` are fixed
-    shapes to draw in every frame (simbench.api.Decoration; ValueError for a kind simbench cannot draw);
-    `paint(model, rec, row)` may recolour the model for each frame (an electromagnet by whether it grips). A scene
-    without cameras is seen from MuJoCo's free camera (FREE_CAMERA), which frames the model's extent."""
+    """Write the MP4 and return its frames, fps, size, camera and quality. `paint(model, rec, row)` may recolour
+    the model for each frame; a scene without cameras is seen from MuJoCo's free camera."""
     _check_decorations(decorations)
     model = copy.copy(compiled_scene(str(scene)))  # the run's own compilation; the copy's sizes are set below
     camera = camera or (model.camera(0).name if model.ncam else None)

@@ -20,8 +20,7 @@ from simbench.version import __version__
 
 
 def plain(value):
-    """JSON-ready copy: NumPy scalars and arrays to Python, NaN and infinities to null; mappings (an api.Event
-    or Violation too) to dicts."""
+    """JSON-ready copy: NumPy to Python, NaN and infinities to null, mappings (Event, Violation) to dicts."""
     if isinstance(value, Mapping):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -80,8 +79,7 @@ def build_failure_report(scenario, err, wall_time: dict, outputs: dict, source: 
 
 
 def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | None) -> dict:
-    """The report.json document of an Evaluation (pipeline.Evaluation): status `ok` or `limits` with the
-    violations (simbench.verdict), and what the scenario expected if it expects a failure."""
+    """The report.json document of a pipeline.Evaluation, with its verdict."""
     traj, rec, result = ev.trajectory, ev.recording, ev.analysis
     return plain({
         **_head(scenario, rec.timestep, source),
@@ -108,9 +106,7 @@ def write_report(report: dict, path: Path) -> None:
 
 
 def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analysis | None, path: Path) -> None:
-    """Write timeseries.npz, in one step: one row per control sample (per kept sample, where the run was recorded
-    with a stride and thinned: simbench.pipeline.thinned), SI units, radians. A run that failed (no analysis) has
-    the rows recorded up to the failure, and the plan's over the same times."""
+    """Write timeseries.npz in one step: one row per (kept) control sample, SI units."""
     rows = rec.t.size
     arrays = {
         "t": rec.t, "s": traj.s[:rows], "joints": np.array(robot.joints),
@@ -125,9 +121,8 @@ def write_timeseries(robot, traj: JointTrajectory, rec: Recording, result: Analy
 
 
 def savez_fast(f, arrays: dict[str, np.ndarray]) -> None:
-    """`arrays` into the open file f as np.savez_compressed writes them (np.load reads it alike), deflated at
-    zlib's fastest level instead of its default: a long run's timeseries written in about a third of the time,
-    the file some 10-20 % larger (issue 14)."""
+    """`arrays` into the open file f as np.savez_compressed writes them, but at zlib's fastest level (faster for
+    a slightly larger file: BENCHMARKS.md)."""
     with zipfile.ZipFile(f, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1, allowZip64=True) as archive:
         for name, value in arrays.items():
             with archive.open(f"{name}.npy", "w", force_zip64=True) as member:

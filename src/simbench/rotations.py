@@ -28,10 +28,8 @@ def canonical(quat: np.ndarray) -> np.ndarray:
 
 
 def matrix_to_quat(rot: np.ndarray) -> np.ndarray:
-    """Unit quaternions (N, 4), w x y z with w >= 0, of rotation matrices (N, 3, 3). Each from the largest of
-    w, x, y and z, which is well away from zero (Shepperd's method), as scipy's Rotation.from_matrix does for a
-    rotation matrix (unlike scipy, it neither orthogonalises a matrix that is not one nor refuses a reflection);
-    in NumPy, so that a run which needs no more of scipy does not load it (scipy.spatial: 34 MB resident)."""
+    """Unit quaternions (N, 4), w x y z with w >= 0, of rotation matrices (N, 3, 3), each from the largest of w,
+    x, y and z (Shepperd's method, as scipy's); in NumPy, so that a run need not load scipy.spatial."""
     m = np.reshape(rot, (-1, 3, 3))
     diag = np.einsum("nii->ni", m)
     trace = diag.sum(axis=1)

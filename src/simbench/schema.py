@@ -1,8 +1,7 @@
 """Building blocks of the scenario schema: strict models and quantities converted to SI at load time.
 
-A scenario states its units once (`units: {angle: deg, length: mm}`); every angle, length and joint vector is
-converted while it is validated, so everything downstream is in radians and metres. Joint vectors are checked
-against the robot's joint count and limits, and an error quotes the value in the file's own units.
+A scenario states its units once (`units: {angle: deg, length: mm}`); values are converted while validated, so
+that everything downstream is SI, and an error quotes the value in the file's own units.
 """
 
 from __future__ import annotations
@@ -93,8 +92,8 @@ def _to_position(value: list[float], info: ValidationInfo) -> list[float]:
 
 
 def _finite_norm(value: list[float], what: str) -> float:
-    """The length of a vector that is normalised: its items within +-MAX_COMPONENT (so that the length is
-    finite) and the length at least MIN_NORM (so that the direction is not rounding noise)."""
+    """The length of a vector to normalise: items within +-MAX_COMPONENT (a finite length), the length at least
+    MIN_NORM (a direction, not rounding noise)."""
     if any(abs(v) > MAX_COMPONENT for v in value):
         raise ValueError(f"expected {what} with items within +-{MAX_COMPONENT:g} (it is normalised), got "
                          f"{max(value, key=abs):.6g}")
@@ -149,9 +148,8 @@ def _check_name(value: str) -> str:
 
 
 def file_name(stem: str, source: str) -> str:
-    """The name a file without a `name:` field gives its outputs' folder, its `stem`, held to the same rule as a
-    `name:` (a file called `..yaml` or `<b>.yaml` would name `renders/` itself, or carry markup into a page);
-    ScenarioError naming `source` and the field to add otherwise."""
+    """The `stem` of a file without a `name:` field, held to the rule of a `name:` (a file `..yaml` would name
+    `renders/` itself); ScenarioError naming `source` otherwise."""
     try:
         return _check_name(stem)
     except ValueError as err:
@@ -189,13 +187,8 @@ Name = Annotated[str, Field(max_length=100), AfterValidator(_check_name)]
 
 
 class Orientation(SimbenchModel):
-    """A rotation, written in one of three conventions.
-
-    zyx     [yaw, pitch, roll]: R = Rz(yaw) Ry(pitch) Rx(roll) (intrinsic Z-Y-X Euler angles), in the file's angle
-            unit;
-    quat    [w, x, y, z], any non-zero length (it is normalised);
-    rotvec  rotation vector, its length the angle in the file's angle unit.
-    """
+    """A rotation: `zyx` [yaw, pitch, roll] (R = Rz(yaw) Ry(pitch) Rx(roll), intrinsic), `quat` [w, x, y, z] of
+    any non-zero length, or `rotvec` (its length the angle); angles in the file's unit."""
 
     convention: Literal["zyx", "quat", "rotvec"]
     value: list[float]
@@ -219,7 +212,7 @@ class Orientation(SimbenchModel):
 
     def matrix(self) -> np.ndarray:
         """The 3x3 rotation matrix."""
-        from scipy.spatial.transform import Rotation  # scipy.spatial: 36 MB and 0.3 s, paid by the runs that ask
+        from scipy.spatial.transform import Rotation  # scipy.spatial is large: loaded by the runs that ask only
 
         if self.convention == "zyx":
             return Rotation.from_euler("ZYX", self.value).as_matrix()

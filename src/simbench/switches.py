@@ -23,8 +23,8 @@ def relative_pose(model: mujoco.MjModel, data: mujoco.MjData, eq: int) -> np.nda
 
 
 def apply_switch(model: mujoco.MjModel, data: mujoco.MjData, switch: Switch) -> None:
-    """Turn an equality on (first setting a weld's reference to the current relative pose, so nothing snaps) or
-    off, and the released part's holding servos the other way. rollout() starts each call from eq_active0."""
+    """Turn an equality on (a weld's reference set to the current relative pose, so that nothing snaps) or off,
+    and the released part's holding servos the other way."""
     eq = model.equality(switch.equality).id
     if switch.active:
         mujoco.mj_kinematics(model, data)
@@ -44,9 +44,7 @@ def switch_steps(model: mujoco.MjModel, traj: JointTrajectory) -> np.ndarray:
 
 
 def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray]:
-    """The plant's model (a copy where the plan switches: switching edits it; the model itself otherwise, which
-    nothing else in a run writes) and data posed at the plan's first reference (passive joints assembled, the
-    plan's `initial` joints set, the switches at step 0 applied), and each switch's step."""
+    """The model (a copy if the plan switches), data posed at the plan's start, and each switch's step."""
     model = copy.copy(plant.model) if traj.switches else plant.model
     data = mujoco.MjData(model)
     data.qpos[:] = plant.initial_qpos(traj.q_ref[0])

@@ -1,14 +1,6 @@
-"""The shipped metric `tracking`: how closely the tool and the joints followed the plan, from the analysis'
-per-sample series (simbench.analysis). A Metric as an outside package's are, declared as an entry point of
-simbench's pyproject.toml; the one difference is where its figures go: report.json's `tracking` (the contract every
-report keeps), where an outside metric's go under metrics.<name>.
-
-  joint_rms, joint_max             each joint's error against its reference (rad or m), by joint name
-  tool_rms, tool_max               the tool's distance from the planned path near its reference (m)
-  tool_lag_rms, tool_lag_max       the tool's lag along the path (m; the largest magnitude)
-  tool_error_rms, _max, _final     the tool's distance from its reference point at the same time (m)
-  path_length                      the planned path's length (m)
-  orientation_rms, _max, _final    (robots whose task is an orientation) the orientation error (rad)
+"""The shipped metric `tracking`: each joint's error, the tool's distance from the planned path, its lag along it
+and its error against the reference point (RMS, max, final), the path's length, and an orientation error where
+the task is one; SI units. Its figures go to report.json's `tracking`, not under metrics.<name>.
 """
 
 from __future__ import annotations
@@ -25,8 +17,7 @@ if TYPE_CHECKING:
 
 
 class Tracking(Metric):
-    """The tracking figures, a window at a time: the series' sums of squares, largest values and last values
-    (windowed.Sums), and the planned path's length, its step into each window carried from the one before."""
+    """The tracking figures, a window at a time (windowed.Sums), and the planned path's length."""
 
     name = "tracking"
     description = "joint and tool errors against the plan: RMS, largest, final; the planned path's length"

@@ -1,8 +1,5 @@
-"""Reading YAML input and turning pydantic's validation errors into one line naming the field.
-
-Shared by scenario files and sweep files, so both fail the same way: the file, the field as the user wrote it
-(`task.goal[1]`), and what is expected.
-"""
+"""Reading YAML input, and pydantic's validation errors as one line naming the field as the user wrote it
+(`task.goal[1]`): shared by scenario and sweep files so that both fail the same way."""
 
 from __future__ import annotations
 
@@ -28,15 +25,12 @@ _MERGE = "tag:yaml.org,2002:merge"
 
 
 class _Refused(yaml.MarkedYAMLError):
-    """YAML that is valid but that simbench does not take (a merge key, a list as a key, an integer too long to
-    write out): said as it is, not as a syntax error."""
+    """Valid YAML that simbench does not take (a merge key, say): said as it is, not as a syntax error."""
 
 
 class _StrictLoader(yaml.SafeLoader):
-    """YAML's safe loader, refusing a key given twice in one mapping (YAML keeps the last, silently), merge keys
-    (`<<: *anchor`: their copies can grow exponentially, like an alias bomb, before anything could count them), a
-    list or mapping as a key (`? [a, b]`: keys are field names), and a value Python cannot build (an integer of
-    more digits than Python writes out, a date such as 2024-13-45)."""
+    """YAML's safe loader, refusing duplicate keys (YAML keeps the last silently), merge keys (their copies can
+    grow exponentially before anything counts them), non-scalar keys and values Python cannot build."""
 
     def construct_object(self, node, deep=False):
         if node.tag == _MERGE:  # `<<` as a value: YAML reads it as the merge key, not as text
@@ -83,9 +77,8 @@ _StrictLoader.add_constructor("tag:yaml.org,2002:int", _StrictLoader.construct_y
 
 
 def read_yaml(path: Path) -> Any:
-    """The YAML document in `path`; ScenarioError if it is missing or cannot be read (the file system's reason in
-    words: permission denied, a symlink loop, a name too long), too large, not text, not YAML (a key given
-    twice included), nested too deeply, too large once its aliases are expanded, or empty."""
+    """The YAML document in `path`; ScenarioError if it cannot be read, is too large, not UTF-8, not YAML,
+    nested too deeply, too large once its aliases are expanded, or empty."""
     path = Path(path)
     source = str(path)
     _check_file(path, source)
@@ -97,8 +90,7 @@ def read_yaml(path: Path) -> Any:
 
 
 def _check_file(path: Path, source: str) -> None:
-    """ScenarioError unless `path` is a regular file of at most _MAX_BYTES (if it cannot even be looked at, the
-    file system's reason)."""
+    """ScenarioError unless `path` is a regular file of at most _MAX_BYTES."""
     try:
         info = os.stat(path)
     except OSError as err:
@@ -113,8 +105,7 @@ def _check_file(path: Path, source: str) -> None:
 
 
 def _read_text(path: Path, source: str) -> str:
-    """The file's text; ScenarioError if it cannot be read, has grown past _MAX_BYTES since it was looked at, or
-    is not UTF-8."""
+    """The file's text; ScenarioError if it cannot be read, has grown past _MAX_BYTES, or is not UTF-8."""
     try:
         with open(path, "rb") as f:
             raw = f.read(_MAX_BYTES + 1)
@@ -130,8 +121,7 @@ def _read_text(path: Path, source: str) -> str:
 
 
 def _parse(text: str, source: str) -> Any:
-    """The YAML document in `text`, as plain data; ScenarioError saying where and why YAML, or simbench's
-    stricter loader, refuses it."""
+    """The YAML document in `text`, as plain data; ScenarioError saying where and why it is refused."""
     try:
         return yaml.load(text, Loader=_StrictLoader)  # a SafeLoader: builds plain data, never objects
     except _Refused as err:
@@ -156,8 +146,8 @@ def _unreachable(path: Path, err: OSError) -> str:
 
 
 def _check_shape(data: Any, source: str) -> None:
-    """Refuse a document nested more than _MAX_DEPTH deep, or holding more than _MAX_VALUES values once YAML's
-    aliases are expanded (which is what validating it would walk through: a billion-laughs file is 2 KB)."""
+    """Refuse a document nested over _MAX_DEPTH deep or holding over _MAX_VALUES values once its aliases are
+    expanded (a billion-laughs file is 2 KB)."""
     count, stack = 0, [(data, 0)]
     while stack:
         node, depth = stack.pop()
@@ -186,9 +176,8 @@ def format_loc(loc: tuple) -> str:
 
 
 def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
-    """Field names of the model found by following pydantic's error location `loc` from cls (for 'did you
-    mean'): through list items (an index), optional and union members (a union member's class name picks it) and
-    the members of lists and mappings of models; where a union's member is not named, the fields of all of them."""
+    """Field names of the model(s) at pydantic's error location `loc` from cls (for 'did you mean'); where a
+    union's member is not named, the fields of all of them."""
     models = [cls]
     for part in loc:
         if isinstance(part, int):
@@ -205,16 +194,14 @@ def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
 
 
 def _models_in(annotation: Any) -> list[type[BaseModel]]:
-    """The pydantic models an annotation holds: itself, or the members of its Optional, Union, Annotated, list or
-    dict."""
+    """The pydantic models an annotation holds, itself or inside Optional, Union, Annotated, list or dict."""
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return [annotation]
     return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
 
 
 def _field_loc(loc, document: Any) -> tuple:
-    """A pydantic error location as the user wrote it: the keys and list indices found in `document`, without
-    the names pydantic gives the members of a union it tried (float, list[float], function-after[...])."""
+    """A pydantic error location as the user wrote it, without the names of the union members pydantic tried."""
     out, node = [], document
     for part in loc:
         if isinstance(node, dict) and part in node or isinstance(node, list) and isinstance(part, int) \
@@ -238,12 +225,8 @@ def _reads_as_number(text: str) -> bool:
 
 
 def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: tuple = ()) -> tuple[str, str]:
-    """The first validation error of `document` as (field path, message in the user's terms).
-
-    An unknown field goes first: a misspelt name also makes the field it meant go missing. Of a union that a
-    mapping or list fails (`'auto'` or a mapping, say), the error inside the mapping goes before the member
-    that wanted no mapping at all.
-    """
+    """The first validation error of `document` as (field path, message in the user's terms). An unknown field
+    goes first: a misspelt name also makes the field it meant go missing."""
     errors = err.errors(include_url=False)
     first = _first_error(errors, document)
     where = _field_loc(first["loc"], document)
@@ -259,8 +242,7 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
 
 
 def _first_error(errors: list[ErrorDetails], document: Any) -> ErrorDetails:
-    """The error to report (see describe): an unknown field, else the first that no other error lies within,
-    else the first."""
+    """An unknown field, else the first error that no other lies within, else the first."""
     locs = [_field_loc(e["loc"], document) for e in errors]
 
     def inside(i: int) -> bool:  # another error lies within this one's mapping or list
@@ -282,8 +264,7 @@ def _unknown_field(cls: type[BaseModel], parent: tuple, name: str) -> str:
 
 
 def _union_message(first: ErrorDetails, same_field: list[ErrorDetails]) -> str:
-    """pydantic's message for `first`; for a value that fits no member of a union (a number or a list), which
-    fails once per member (the errors in `same_field`), what each member expects."""
+    """pydantic's message for `first`, joined with what each other member of a union expects."""
     msg = first["msg"]
     alike = [e["msg"] for e in same_field if e["msg"].startswith("Input should be")]
     if alike and msg.startswith("Input should be"):
@@ -292,8 +273,7 @@ def _union_message(first: ErrorDetails, same_field: list[ErrorDetails]) -> str:
 
 
 def _in_user_terms(msg: str, given: Any) -> str:
-    """pydantic's message as what is expected, and what was given (with a hint where YAML read a number as
-    text)."""
+    """pydantic's message as what is expected and what was given (with a hint where YAML read a number as text)."""
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
     msg = re.sub(r"a valid dictionary or instance of \w+", "a mapping of its fields", msg)
     if isinstance(given, (str, int, float, bool)) or given is None:

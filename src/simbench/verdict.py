@@ -1,29 +1,9 @@
 """Whether a run kept every promise its report makes: the status, and each promise broken, in one line.
 
-A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked.
-Otherwise its status is `limits`, with one violation per broken promise (simbench.api.Violation):
-
-  joint_limit          the plan asks a joint for a value beyond its range
-  velocity_limit       the plan asks a joint for more than its speed limit
-  reference_jump       the plan steps discontinuously (farther in one sample than ten at the speed limit)
-  actuator_saturation  an actuator sat at its force bound: the motor could not give what tracking took
-  off_path             the tool left the planned path by more than `analysis.path_tolerance`
-  orientation_error    (robots whose task is an orientation) the tool's orientation left the plan's by more
-                       than `analysis.orientation_tolerance`
-  goal_missed          the run ended farther from the plan's end than `analysis.goal_tolerance` (and, for an
-                       orientation, `analysis.goal_orientation_tolerance`), or the plan itself ends away from
-                       the task's goal (planner-reported)
-  singular_crossing    the plan crosses a singular set the mechanism cannot pass through (planner-reported)
-  clearance_margin     the plan comes nearer a singular set or an obstacle than the task's margin, or under its
-                       floor on a dexterity index (planner-reported)
-  <event kind>         an event the robot declares breaking (`Robot.breaking`: the Agile Eye's
-                       `assembly_mode_change`, the RSMG's type A and B singularities while gripping)
-
-A planner reports what it knows its plan breaks in `JointTrajectory.violations` (Violations, or the dicts
-{kind, message, ...} that planners written before them give), with kinds from KINDS.
-
-A scenario that demonstrates a failure says so (`expect: {status: limits, violations: [...]}`); the status
-stays what it is, and the verdict says whether it is the one expected: the same status and the same kinds.
+A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked;
+otherwise `limits`, with one Violation per broken promise: a kind of KINDS (planners report `goal_missed`,
+`singular_crossing` and `clearance_margin` in `JointTrajectory.violations`) or an event the robot declares
+breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says whether it met it.
 """
 
 from __future__ import annotations
@@ -44,8 +24,7 @@ KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation
 
 @dataclass(frozen=True)
 class Verdict:
-    """The status of a run (`ok` or `limits`), its violations, and whether it is what the scenario expected
-    (None when the scenario expects nothing: then only `ok` is as expected)."""
+    """A run's status (`ok` or `limits`), its violations, and the scenario's expectation (None: expects `ok`)."""
 
     status: str
     violations: tuple[Violation, ...]
@@ -82,8 +61,7 @@ def _by_joint(events: list[Event]) -> dict[str, list[Event]]:
 
 
 def _limit_violations(robot: Robot, limit_events: list[Event]) -> list[Violation]:
-    """One violation per kind and joint of the limit events that break a promise (not `at_limit`: a joint may
-    rest at its limit)."""
+    """One violation per kind and joint of the limit events that break a promise (not `at_limit`)."""
     kind_of = dict(zip(robot.joints, robot.kinds))
 
     def each_joint(kind: str) -> list[tuple[str, list[Event], str]]:  # (joint, its events of this kind, its kind)
@@ -136,9 +114,8 @@ def _actuator_saturation(name: str, events: list[Event], kind: str) -> Violation
 
 
 def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[Violation]:
-    """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal. The first
-    sample beyond a tolerance is among those where the series rose above every sample before it (Analysis.rises),
-    found from every sample of a run recorded with a stride too."""
+    """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal (the first
+    sample beyond from Analysis.rises, which saw every sample, a stride's too)."""
     out, tracking = [], analysis.tracking
     if tracking["tool_max"] > tol.path_tolerance:
         k = analysis.rises["path_deviation"].first_beyond(tol.path_tolerance)
@@ -188,9 +165,7 @@ def plan_verdict(robot: Robot, traj: JointTrajectory, limit_events: list[Event],
 
 
 def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expect=None) -> Verdict:
-    """The verdict on a simulated run: the plan's limits, the run's limit and breaking events, and its tracking
-    against the scenario's tolerances. `analysis` is an analysis.Analysis; `tolerances` the scenario's
-    `analysis` section; `expect` its `expect` section or None."""
+    """The verdict on a simulated run: limits, breaking events and tracking against the scenario's tolerances."""
     found = (_limit_violations(robot, analysis.limit_events) + _planner_violations(traj)
              + _breaking_violations(robot, analysis.singularity_events)
              + _tolerance_violations(analysis, traj.t, robot, tolerances))
@@ -198,8 +173,8 @@ def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expec
 
 
 def _verdict(found: list[Violation], expect, complete: bool = True) -> Verdict:
-    """The status of the violations found, checked against the scenario's expectation. Before the physics
-    (`complete` false) only some kinds can show, so the plan meets the expectation if it breaks none other."""
+    """The status of the violations found, checked against `expect`; before the physics (`complete` false) a
+    plan meets it if it breaks no kind but those expected."""
     status = LIMITS if found else OK
     expected = None
     if expect is not None:

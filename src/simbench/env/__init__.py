@@ -7,31 +7,13 @@
         step = env.step(policy(step.observation))
     simbench.env.write_outputs(env, "renders/weld_seam_mine")     # report.json, timeseries.npz, plots, video
 
-An episode is the scenario's run as `simbench.sim.simulate` makes it, one control step a physics step:
-
-- reset: the plan (made once, by `load`) at its start pose (`switches.at_start`), settled for `sim.settle` as
-  `simulate` settles: under position actuation the servo's first command is held (simbench.controllers.Servo,
-  stepped through `mujoco.rollout` as `simulate` steps it); under torque actuation the computed-torque controller
-  (the scenario's gains if it names computed_torque, else its defaults) holds the plan's first sample, closed
-  loop, as `simulate` settles a computed_torque run.
-- action: one value per robot joint, given to that joint's actuator: position targets, or torques and forces;
-  bounded by the actuator's control range where it has one (the joint range, or under torque actuation the force
-  range), else +-mjMAXVAL as dm_control's `action_spec` writes "unbounded".
-- step: MuJoCo's step split as simbench's closed loop splits it (`mj_step2` finishes the step `mj_step1`
-  prepared, then `mj_step1` at the new state, which the observation reads): dm_control's own step, with the
-  sensors of each step kept for the recording. The planned switches (RSMG welds) are applied at their sample,
-  before the step from it, and the plan's feedback revises the references the observations show from then on.
-- observation: simbench.observation.observation, what a `policy` controller gets: joint positions and speeds,
-  the tool point, the references now and AHEAD samples ahead, the tool's reference.
-- reward: in [0, 1], from the tool's distance to its reference at this sample (dm_control.utils.rewards.
-  tolerance, gaussian): 1 at no error, 0.5 at the scenario's `analysis.path_tolerance`.
-- end: at the plan's last sample (len(t) - 1 steps after reset), with discount 1: a time limit.
-- faults: dm_control's PhysicsError, with the time and simbench's reason (simbench.faults: a fatal MuJoCo
-  warning, a NaN state, a speed past 1000 rad/s); other MuJoCo warnings are kept for the report.
-
-Every step is recorded; `recording(env)` is the episode as a simbench.sim.Recording (the same rows as
-`simulate`'s closed loop records), `evaluation(env)` analyses it as a run is analysed, and `write_outputs(env,
-out)` writes what `simbench.run` writes. `ALL_TASKS` lists every shipped scenario as (robot, name).
+An episode is the scenario's run as `simbench.sim.simulate` makes it, one control step a physics step: reset
+settles at the plan's start as `simulate` settles; an action is one value per joint (position targets, or torques
+and forces), bounded by the actuator's control range where it has one; a step splits MuJoCo's step as
+simbench's closed loop does, applying planned switches and the plan's feedback; the observation is
+simbench.observation's; the reward is dm_control's gaussian tolerance of the tool's error, 0.5 at
+`analysis.path_tolerance`; the episode ends at the plan's last sample; physics faults are dm_control's
+PhysicsError with simbench's reason (simbench.faults).
 """
 
 from __future__ import annotations
@@ -65,9 +47,8 @@ ALL_TASKS: tuple[tuple[str, str], ...] = tuple((path.parent.name, path.stem)
 
 def load(scenario: Scenario | str | os.PathLike, actuation: Actuation = "position",
          flat_observation: bool = False) -> control.Environment:
-    """The scenario (or the scenario file at a path) as a dm_control Environment whose actions are position
-    targets or (actuation="torque") torques and forces; ScenarioError if its run is beyond the machine
-    (simbench.budget), RunError if its plan cannot be made."""
+    """The scenario (or scenario file) as a dm_control Environment whose actions are position targets or
+    (actuation="torque") torques and forces; ScenarioError if beyond the budget, RunError if it cannot plan."""
     scenario = as_scenario(scenario, "simbench.env.load")
     if actuation not in ("position", "torque"):
         raise ValueError(f"actuation must be 'position' or 'torque', got {actuation!r}")
@@ -105,8 +86,7 @@ def recording(env: control.Environment) -> Recording:
 
 
 def evaluation(env: control.Environment, control_info: dict | None = None) -> Evaluation:
-    """A finished episode analysed as `simbench.evaluate` analyses a run: its Evaluation, whose `control` is
-    {"controller": "simbench.env", "actuation": ...} and `control_info` (what ran it: your policy's name, say).
+    """A finished episode's Evaluation, as `simbench.evaluate` analyses a run; `control_info` says what ran it.
     RuntimeError if the episode has not reached its end."""
     from simbench.analysis import analyse
     from simbench.pipeline import Evaluation
@@ -131,9 +111,7 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
 
 def write_outputs(env: control.Environment, out: str | Path | None = None, video: bool = True,
                   force: bool = False, control_info: dict | None = None) -> Result:
-    """Write a finished episode's report.json, timeseries.npz, plots/ and (unless video=False) video.mp4 into
-    `out` (default renders/<name>/) as `simbench.run` writes a run's, with the same refusals (a folder that
-    holds anything unless `force`, one writer at a time, the machine's budget)."""
+    """Write a finished episode's outputs into `out` (default renders/<name>/) as `simbench.run` does."""
     from simbench import destination
     from simbench.pipeline import write_outputs as write
 

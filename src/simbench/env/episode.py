@@ -30,10 +30,8 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 class Physics(dm_mujoco.Physics):
-    """dm_control's Physics of a simbench scene, stepped as simbench's closed loop steps and checked as simbench
-    checks a run; `readings` holds the sensors MuJoCo computed during the last step (at the state it started
-    from, as `simulate` records them), `counts` MuJoCo's warning counters, and `t0` the simulated time of the
-    plan's first sample."""
+    """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop; `readings`: the
+    sensors of the last step (at its start state), `counts`: MuJoCo's warning counters, `t0`: the plan's start."""
 
     readings: Array
     counts: Array
@@ -45,8 +43,7 @@ class Physics(dm_mujoco.Physics):
         self.readings = data.ptr.sensordata.copy()
 
     def step(self, nstep: int = 1) -> None:
-        """Finish the step mj_step1 prepared (mj_step2), keep its sensors, prepare the next (mj_step1); nstep
-        times. PhysicsError at the first step that fails (checked as simbench's closed loop checks a step)."""
+        """mj_step2 then mj_step1, nstep times, keeping the sensors; PhysicsError at the first step that fails."""
         model, data = self.model.ptr, self.data.ptr
         for _ in range(nstep):
             with quiet_mujoco():
@@ -204,9 +201,8 @@ class Track(control.Task):
         return observation(self.plant, state, self.q_ref, self.qd_ref, self.plan.tool_ref)
 
     def get_reward(self, physics: Physics) -> float:
-        """1 with the tool on its reference, 0.5 at analysis.path_tolerance from it, towards 0 beyond: dm_control's
-        rewards.tolerance(error, bounds=(0, 0), margin=path_tolerance, sigmoid="gaussian", value_at_margin=0.5),
-        written out: 0.5 ** ((error / path_tolerance) ** 2), a tenth of the library call's cost."""
+        """dm_control's gaussian rewards.tolerance of the tool's error (0.5 at analysis.path_tolerance), written
+        out as 0.5 ** ((error / path_tolerance) ** 2) for speed."""
         offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
         return _REWARD_AT_TOLERANCE ** (float(offset @ offset) / self._tolerance ** 2)
 
@@ -217,9 +213,8 @@ class Track(control.Task):
     # --- the episode as a run ---------------------------------------------------------------------------------
 
     def recording(self, physics: Physics) -> Recording:
-        """The episode so far as simulate records a closed-loop run: row k the state at sample k, the sensors of
-        the step from it (the last row's from mj_forward at the last state, the last command held), the command
-        that drove that step (the last row repeats the one before), the constraints in force from it on."""
+        """The episode so far as simulate records a closed-loop run (the last row's sensors from mj_forward at
+        the last state, its command the one before)."""
         model, plant, rows = physics.model.ptr, self.plant, self.k + 1
         end = copy.copy(physics.data.ptr)
         mujoco.mj_forward(model, end)

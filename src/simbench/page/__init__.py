@@ -1,14 +1,6 @@
-"""A page per result: a self-contained `index.html` beside a run's, a reproduction's, a comparison's or a sweep's
-outputs, to read in any browser with no server and no network.
-
-    html = run_page(out, report)                       # a run folder and its report.json document
-    html = table_page(out, "Table 2", intro, [("case 1", "table2_case1.csv")], ["plots/q.png"], config)
-    write_page(out, html)                              # out/index.html, in one step
-
-Plain HTML with inline CSS and SVG (the run's timeline), no JavaScript. Images and the video are referenced by
-their paths relative to the folder, so the folder can be moved or archived whole; every text taken from a
-report or a table is escaped, so a description holding markup shows as text.
-"""
+"""A self-contained `index.html` beside a run's, a reproduction's, a comparison's or a sweep's outputs: plain
+HTML with inline CSS and SVG, no JavaScript, no network; files referenced by relative paths so that the folder
+moves whole; all text escaped."""
 
 from __future__ import annotations
 

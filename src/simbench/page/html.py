@@ -93,8 +93,7 @@ _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
 def cell(value: object, digits: int | None = 6) -> str:
-    """One <td>: numbers (and text that reads as one) right-aligned, floats to `digits` significant digits with
-    the value as given in the tooltip (None: as given), None as an empty cell, anything else as text."""
+    """One <td>: numbers right-aligned, floats to `digits` significant digits with the value as given as tooltip."""
     text = value.strip() if isinstance(value, str) else None
     if text is not None and _NUMBER.fullmatch(text):
         if digits is None or not any(c in text for c in ".eE"):
@@ -114,8 +113,7 @@ def cell(value: object, digits: int | None = 6) -> str:
 
 def table(header: Sequence[object], rows: Iterable[Sequence[object]], caption: str | None = None,
           digits: int | None = 6) -> str:
-    """A table in a horizontally scrolling box (a wide sweep table does not widen the page); `digits` as in
-    cell()."""
+    """A table in a horizontally scrolling box (a wide sweep table does not widen the page)."""
     head = "".join(f"<th>{esc(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(cell(v, digits) for v in row) + "</tr>\n" for row in rows)
     cap = f"<caption>{esc(caption)}</caption>" if caption else ""
@@ -131,8 +129,7 @@ def cards(items: Iterable[tuple[str, str, str]]) -> str:
 
 
 def png_size(path: Path) -> tuple[int, int] | None:
-    """A PNG's (or any picture Pillow reads) width and height, from its header alone (Pillow reads no pixels until
-    asked), or None if the file is not a picture Pillow can read."""
+    """A picture's width and height from its header alone, or None if Pillow cannot read it."""
     try:
         with Image.open(path) as picture:
             return picture.size
@@ -158,9 +155,8 @@ def inside(out: Path, rel: str | os.PathLike) -> None:
 
 
 def figure_grid(out: Path, items: Iterable[str | os.PathLike | tuple[str | os.PathLike, str]]) -> str:
-    """Images by their paths relative to `out`, each a <figure> with a caption (its name unless given); a PDF,
-    which no <img> shows, as a link. One that is not in `out` is named as missing rather than shown broken; one
-    outside it is a ValueError (inside())."""
+    """Images by their paths relative to `out`, each a <figure> with a caption (a PDF as a link); a missing one
+    is named rather than shown broken."""
     shown, missing = [], []
     for item in items:
         rel, caption = item if isinstance(item, tuple) else (item, Path(item).stem.replace("_", " "))
@@ -185,8 +181,7 @@ def figure_grid(out: Path, items: Iterable[str | os.PathLike | tuple[str | os.Pa
 
 
 def flatten(value: object, prefix: str = "") -> list[tuple[str, object]]:
-    """A nested document as (dotted path, value) rows; lists of scalars stay one value, lists of mappings go
-    item by item (`task.path[0].line.start`)."""
+    """A nested document as (dotted path, value) rows; lists of scalars stay one value."""
     if isinstance(value, dict):
         if not value:
             return [(prefix, {})] if prefix else []
@@ -223,8 +218,8 @@ def paragraphs(text: str | None, css: str = "") -> str:
 
 
 def document(title: str, body: str) -> str:
-    """The whole page: no script, no request beyond its own folder (the empty icon stops a favicon request);
-    written as ASCII with character references, so it reads the same whatever encoding writes it."""
+    """The whole page: no script, no request beyond its folder (the empty icon stops a favicon request); ASCII
+    with character references, so that any encoding reads it."""
     page = ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
             f'<link rel="icon" href="data:,">\n<title>{esc(title)}</title>\n<style>{_STYLE}</style>\n</head>\n'

@@ -1,5 +1,4 @@
-"""A run's page: what ran, whether it kept its promises, the headline figures, the events on a time axis, the
-video, the plots, the plan and the resolved configuration, all from its report.json document."""
+"""A run's page, from its report.json document: status, headline figures, events, video, plots and configuration."""
 
 from __future__ import annotations
 
@@ -33,9 +32,7 @@ _EXTRA_UNITS = {"closure_error_max": (_MM, "mm"), "rotor_error_max": (_DEG, "deg
 
 
 def run_page(out: Path, report: dict) -> str:
-    """The page of the run whose outputs are in `out` (write it after them: an image or video the report lists
-    but `out` lacks is named as missing, not shown broken; one outside `out` is a ValueError), from its report.json
-    document, as HTML text."""
+    """The page of the run whose outputs are in `out` (write it after them), from its report.json document."""
     out = Path(out)
     scenario = report.get("scenario") or {}
     name = scenario.get("name") or "run"
@@ -125,7 +122,7 @@ def _headline(report: dict) -> str:
 
 
 def _metrics(report: dict) -> str:
-    """Each outside metric's figures (report.json metrics.<name>: simbench.api.Metric), a table each."""
+    """Each metric's figures (report.json metrics.<name>), a table each."""
     found = report.get("metrics")
     if not isinstance(found, dict) or not found:
         return ""

@@ -21,16 +21,9 @@ MAX_ROWS = 500  # rows shown of one table; the rest are in its file
 def table_page(out: Path, title: str, intro: str, tables: Sequence[tuple[str, Rows]], figures: Sequence[Figure],
                config: dict | None = None, *, headline: Mapping[str, object] | Iterable[tuple] | None = None,
                digits: int | None = 6, max_rows: int = MAX_ROWS) -> str:
-    """A page of `title`, `intro` (plain text; a blank line between paragraphs), `headline` figures ({label:
-    value} or (label, value[, note]) items), `tables`, `figures` and the `config` that produced them, as HTML
-    text for the folder `out`.
-
-    Each table is (caption, data), data one of: CSV text (a str); a CSV file (a Path: relative to `out` or
-    absolute; one inside `out` is linked); rows of cells whose first row is the header; or mappings, their keys
-    the header. Floats are shown to `digits` significant digits (the value as given in a tooltip; None: as given),
-    and at most `max_rows` rows of a table. Figures are paths relative to `out`, or (path, caption); one that
-    `out` lacks is named as missing, not shown broken.
-    """
+    """A page of `title`, `intro`, `headline` figures ({label: value} or (label, value[, note])), `tables`,
+    `figures` (paths relative to `out`, or (path, caption)) and `config`, as HTML text. A table is (caption,
+    data): CSV text, a CSV file (a Path; linked if inside `out`), rows with a header row first, or mappings."""
     out = Path(out)
     body = [f"<h1>{esc(title)}</h1>\n", paragraphs(intro)]
     if headline:
@@ -67,8 +60,7 @@ def _table(out: Path, caption: str, data: Rows, digits: int | None, max_rows: in
 
 def _rows(data: str | Sequence[Sequence[object]] | Sequence[Mapping[str, object]]) \
         -> tuple[list[object], list[list[object]]]:
-    """(header, rows) of CSV text (its cells as simbench.csv_cells.restored reads them), rows with a header row
-    first, or mappings (the union of their keys, in order)."""
+    """(header, rows) of CSV text, rows with a header row first, or mappings (the union of their keys)."""
     items: list = ([list(map(restored, row)) for row in csv.reader(io.StringIO(data))] if isinstance(data, str)
                    else list(data))
     if not items:

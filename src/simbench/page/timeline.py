@@ -1,6 +1,4 @@
-"""A run's events on one time axis: an inline SVG with a lane per kind of event (singular sets, limits,
-re-grips, MuJoCo's warnings, broken promises, the failure), each event a mark with its kind and time, and the
-same events as a table."""
+"""A run's events on one time axis: an inline SVG with a lane per kind of event, and the same events as a table."""
 
 from __future__ import annotations
 
@@ -27,8 +25,7 @@ _LANES = (
 
 
 def events(report: dict) -> list[dict]:
-    """Every event of the report as {lane, kind, t_start, t_end, detail}: spans keep their end, instants (a
-    violation's first time, a warning, the failure) have t_end None; a violation with no time has t_start None."""
+    """Every event of the report as {lane, kind, t_start, t_end (None: an instant), detail}."""
     out: list[dict] = []
     for lane, key, _ in _LANES:
         entries = report.get(key) or []

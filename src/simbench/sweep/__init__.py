@@ -1,13 +1,5 @@
 """Sweeps: a base scenario run over parameter grids and seeded random samples, on every core of this machine or
-on a Ray cluster, into one table of results.
-
-    sweep = load_sweep("sweeps/case1_timestep.yaml")
-    result = run_sweep(sweep, workers=2)            # or ray="local", ray="HOST:PORT"
-    result.table["tool_rms"]
-
-The sweep file is described in `simbench.sweep.spec`, the output folder in `simbench.sweep.store`, the table in
-`simbench.sweep.table`.
-"""
+on a Ray cluster, into one table of results (file: sweep.spec; folder: sweep.store; table: sweep.table)."""
 
 from __future__ import annotations
 
@@ -42,11 +34,8 @@ class SweepResult:
 def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
               force: bool = False, progress: bool = False, allow_code: bool = False) -> SweepResult:
     """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
-    summary and plots. `workers`: processes at once (default: every CPU; 1 runs here, one after another), at
-    most the CPUs and as many as the memory budget affords (simbench.sweep.workers); `ray`: 'local' or a cluster's
-    address to run on Ray instead (simbench.sweep.cluster: refused, ScenarioError, if nothing answers there).
-    `allow_code`: let variants import the module their policy names (simbench.policy); without it such a variant
-    is a bad_input row."""
+    summary and plots. `workers`: processes at once (1 runs here; default and cap from sweep.workers); `ray`:
+    'local' or a cluster's address; `allow_code`: else a variant whose policy names a module is bad_input."""
     out = destination.followed(Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name)
     if ray is not None:
         cluster.reach(ray)  # before the folder is made: an address nobody answers at is one line, not a hang
@@ -81,8 +70,7 @@ def _collect(store: Store, outcomes: Iterable[tuple[int, dict]], rows: dict[int,
 
 def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed: int, backend: str,
                    start: float, workers: int) -> dict:
-    """Write the table, its plots (`workers` figures at once) and summary.json (with the runs resumed, where they
-    ran and the wall time since `start`); the summary."""
+    """Write the table, its plots (`workers` figures at once), summary.json and the page; the summary."""
     table.write_csv(columns, out / "results.csv")
     table.write_parquet(columns, out / "results.parquet")
     plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots",

@@ -1,10 +1,6 @@
-"""Where `--ray` sends a sweep: 'local' (a cluster started here), a running cluster's HOST:PORT, or a Ray Client
-address ray://HOST:PORT. An address of another form is refused before anything starts, and one that nothing
-answers at within CONNECT_TIMEOUT seconds (a TCP connection to it: refused, no route, no such host) is refused
-before the sweep's folder is made, in one line naming --ray (exit 2: the address is the user's to correct), rather
-than left to Ray, which retries for minutes. Where something answers that is not a Ray cluster, Ray is asked to
-try once (RAY_gcs_server_port_wait_time_s=1 unless set: about 40 s, with Ray's own warnings) and its refusal is
-one line too (simbench.sweep.execute).
+"""Where `--ray` sends a sweep: 'local', a running cluster's HOST:PORT, or ray://HOST:PORT. An address of another
+form, or one that refuses a TCP connection within CONNECT_TIMEOUT, is refused in one line naming --ray before the
+sweep's folder is made, rather than left to Ray, which retries for minutes.
 """
 
 from __future__ import annotations
@@ -30,8 +26,7 @@ def check_address(address: str) -> tuple[str, int] | None:
 
 
 def reach(address: str) -> None:
-    """Nothing for 'local' or an address that accepts a connection within CONNECT_TIMEOUT; ScenarioError naming
-    --ray, the address and the reason otherwise (or for an address of the wrong form)."""
+    """ScenarioError naming --ray unless the address is 'local' or accepts a connection within CONNECT_TIMEOUT."""
     where = check_address(address)
     if where is None:
         return

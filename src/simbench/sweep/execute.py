@@ -1,11 +1,6 @@
-"""Running a sweep's variants: one function per run, and three ways to call it (in this process, in worker
-processes on this machine, on a Ray cluster) that all yield the same outcomes.
-
-A run never raises: bad input, a failed run and an unexpected exception each become an outcome with a status
-and a one-line error, so a sweep's table has a row for every run. On this machine the runs go to worker
-processes forked from this one (nothing to import again), each keeping the Plant it built for a run for the
-next run that asks for the same (simbench.plant.reused_plants); a run that kills its worker (a crash in native
-code, the kernel's OOM killer) is a `crashed` row, the worker is replaced, and the other runs go on.
+"""Running a sweep's variants: one function per run, called in this process, in forked worker processes or on a
+Ray cluster, with the same outcomes. A run never raises: every failure is an outcome with a status and a
+one-line error, a run that kills its worker a `crashed` one, so that the table has a row for every run.
 """
 
 from __future__ import annotations
@@ -34,14 +29,10 @@ _WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
                 video: bool = False, allow_code: bool = False) -> dict:
-    """Plan, simulate and analyse one scenario document; return its outcome: `status` (ok | limits | bad_input |
-    run_failed | crashed), `error` (for `limits`, the promises broken), `metrics`, `wall_time` (s) and, with
-    outputs='report', the `report`. bad_input is the schema's refusal or the budget's (simbench.budget, checked
-    by the pipeline before anything big is allocated: a variant the machine cannot afford), with its line.
-    Each variant is held to the whole machine's limits, taken when it starts (MemAvailable then), not to a
-    share of them: workers running at once may together need more.
-    With outputs='full' every output of `simbench run` is written into `out`, replacing whatever a run stopped
-    before its row was recorded left there. `allow_code` as simbench.run's."""
+    """Plan, simulate and analyse one scenario document; its outcome: `status` (ok | limits | bad_input |
+    run_failed | crashed), `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`. The
+    budget holds each variant to the whole machine's memory, not a share. With outputs='full' every output of
+    `simbench run` is written into `out`."""
     start = time.perf_counter()
     report, status, error = _attempt(document, source, outputs, out, video, allow_code)
     return {"status": status, "error": error, "metrics": metrics(report) if report else {},
@@ -71,10 +62,8 @@ def _attempt(document: dict, source: str, outputs: str, out: str | None, video: 
 
 
 def metrics(report: dict) -> dict[str, Any]:
-    """The report's measurements as flat columns: tracking's entries by their own names (`tool_rms`,
-    `joint_rms.q1`), each other metric's as <name>.<figure> (figures.columns), other numbers by theirs (`kci.mean`,
-    `rotor_error_max`), and for each list of events its count and its kinds (`singularity_events`,
-    `singularity_events.kinds`)."""
+    """The report's measurements as flat columns (`tool_rms`, `joint_rms.q1`, <metric>.<figure>, `kci.mean`),
+    and each list of events as its count and its kinds (`singularity_events.kinds`)."""
     flat: dict[str, Any] = {}
     for key, value in report.items():
         if key in _NOT_METRICS:
@@ -112,10 +101,8 @@ def in_this_process(tasks: Iterable[Task]) -> Iterator[tuple[int, dict]]:
 
 
 def in_processes(tasks: Iterable[Task], workers: int) -> Iterator[tuple[int, dict]]:
-    """Up to `workers` runs at a time in worker processes forked from this one; outcomes as they finish. A worker
-    that dies takes only its own run with it (a `crashed` outcome) and is replaced. A worker is given its next
-    run as soon as it answers, before its outcome is handed on (and recorded), so it never waits on that. On an
-    interrupt the workers are stopped and no outcome is made up for their runs."""
+    """Up to `workers` runs at a time in forked worker processes; outcomes as they finish. A worker that dies
+    takes only its own run with it (`crashed`) and is replaced; one that answers gets its next run at once."""
     ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
     todo = deque(tasks)
     idle = [_Worker(ctx) for _ in range(min(workers, len(todo)))]
@@ -173,11 +160,9 @@ class _Worker:
 
 
 def _die_with(parent: int) -> None:
-    """End this process as soon as its parent is gone, however it died (SIGKILL included: then no clean-up of
-    the parent's runs), so that no worker outlives its sweep holding the folder's lock. A daemon thread watches
-    the parent's pid (the process is handed to another parent when its own dies). The pipe cannot tell: workers
-    forked later hold copies of the parent's end of it. Linux's PR_SET_PDEATHSIG would, but in a forked worker
-    of a long-lived process with threads it ended in segmentation faults."""
+    """End this process as soon as its parent is gone (SIGKILL included), so that no worker outlives its sweep
+    holding the folder's lock. A thread watches getppid(): the pipe cannot tell (later workers hold copies of its
+    parent end), and PR_SET_PDEATHSIG crashed forked workers of a threaded parent."""
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -188,16 +173,14 @@ def _die_with(parent: int) -> None:
 
 
 def as_worker() -> None:
-    """Signals in a process forked to work for this one: Ctrl-C ignored (the parent answers it and stops its
-    workers), SIGTERM the end at once, without the handler inherited from the parent (simbench.interrupts), which
-    would raise, with a traceback, in a worker stopped while it waits for work."""
+    """Signals in a worker: Ctrl-C ignored (the parent answers it), SIGTERM the end at once (the inherited handler
+    would raise a traceback in a waiting worker)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _serve(conn, parent: int) -> None:
-    """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before when
-    it is the same. The parent alone answers Ctrl-C and SIGTERM; the worker dies with it."""
+    """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before."""
     _die_with(parent)
     as_worker()
     with reused_plants():
@@ -210,9 +193,8 @@ def _serve(conn, parent: int) -> None:
 
 
 def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[int, dict]]:
-    """Every run as a Ray task; `address` 'local' starts a cluster on this machine with `workers` CPUs and
-    stops it afterwards. simbench must be installed on every node, and with outputs: full the output folder must
-    be on a filesystem every node sees."""
+    """Every run as a Ray task; 'local' starts (and stops) a cluster here with `workers` CPUs. Every node needs
+    simbench, and with outputs: full a filesystem it shares."""
     import ray
 
     started = _join_ray(address, workers)
@@ -228,10 +210,8 @@ def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[
 
 
 def _join_ray(address: str, workers: int) -> bool:
-    """Connect to Ray unless this process already is: 'local' starts a cluster here with `workers` CPUs, anything
-    else is a running cluster's address. Whether this call started the connection (and should end it). Ray's
-    refusal is one line: RunError for a cluster that cannot start here, ScenarioError naming --ray for one that
-    cannot be joined."""
+    """Connect to Ray unless already connected ('local': start a cluster here); whether this call connected. A
+    cluster that cannot start is a RunError, one that cannot be joined a ScenarioError naming --ray."""
     import ray
 
     if ray.is_initialized():
@@ -252,8 +232,7 @@ def _join_ray(address: str, workers: int) -> bool:
 
 
 def _ray_outcomes(pending: dict) -> Iterator[tuple[int, dict]]:
-    """The outcomes of the pending Ray tasks (task: run index) as they finish, each taken out of `pending`; a
-    task whose worker failed is a `crashed` outcome."""
+    """The outcomes of the pending Ray tasks (task: run index) as they finish; a failed worker's is `crashed`."""
     import ray
     import ray.exceptions
 

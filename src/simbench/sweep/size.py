@@ -1,13 +1,6 @@
-"""How big a sweep is, counted from its parts before anything is expanded: its runs (the grid's lengths times the
-random samples) and the memory their scenario documents would take. A sweep too big for this machine is the sweep
-file's error (exit 2, also for --dry-run), naming the field to blame, rather than a process that grows until the
-kernel ends it.
-
-Memory: each run holds a copy of the base document with its swept values set (the YAML values of each, a
-mapping's keys counted), while the sweep's fingerprint and manifest (simbench.sweep.store) are written as text
-from them: NODE_BYTES a value of a run, at the peak of loading a sweep and starting its folder (measured with
-tracemalloc: BENCHMARKS.md, the sweep's notes). The limit is the memory budget's (simbench.budget: half of the
-memory available).
+"""How big a sweep is, counted before anything is expanded: its runs and the memory their documents would take
+(NODE_BYTES a YAML value of a run: BENCHMARKS.md, the sweep's notes). A sweep too big for the memory budget is
+the sweep file's error, naming the field to blame, rather than a process the kernel ends.
 """
 
 from __future__ import annotations
@@ -72,8 +65,7 @@ def _drawn_values(dist) -> int:
 
 
 def check(spec, document: dict, source: str) -> Size:
-    """The sweep's size; ScenarioError (naming the field to blame and what fits) for more than MAX_RUNS runs or an
-    expansion larger than the memory budget."""
+    """The sweep's size; ScenarioError naming the field to blame for over MAX_RUNS runs or the memory budget."""
     size = measure(spec, document)
     count_field = _count_field(spec)
     if size.runs > MAX_RUNS:

@@ -1,16 +1,6 @@
-"""A sweep's output folder, kept so that an interrupted sweep resumes where it stopped.
-
-    sweep.json            the sweep's fingerprint and its runs' parameters
-    rows/<id>.json        one per finished run, written atomically as each run ends
-    runs/<id>/            the run's own outputs (report.json, or everything with outputs: full)
-    results.csv, results.parquet, summary.json, plots/   written when every run has a row
-
-Running the same sweep into the same folder again skips every run that has a row (rows are trusted: after
-changing simbench itself, start over); `force` starts over. A folder that holds anything else is replaced only
-with `force`, and only if simbench wrote all of it; a folder that holds the sweep file, its base or the working
-folder never (simbench.destination); files of the user's put inside it are never removed: a sweep that would
-replace them (its plots, a run it repeats) is refused, naming one. One sweep at a time may write into a folder: a
-lock file beside it (`.<name>.lock`) keeps a second one out.
+"""A sweep's output folder (sweep.json, rows/<id>.json as each run ends, runs/<id>/, then the table), kept so that
+the same sweep run again skips every run that has a row (rows are trusted: after changing simbench itself, start
+over with `force`).
 """
 
 from __future__ import annotations
@@ -68,8 +58,8 @@ class Store:
             raise OutputError(err.path, err.problem, f"nothing was written to {out}") from None
 
     def _clear_or_keep(self, force: bool, fingerprint: str) -> None:
-        """Empty a folder that holds anything (with force, and only if simbench wrote it all), or keep it to resume
-        if its manifest is this sweep's; ScenarioError for a folder holding other results without force."""
+        """Empty a non-empty folder (with force, if simbench wrote it all) or keep it to resume this sweep;
+        ScenarioError for other results without force."""
         out = self.out
         if not (out.exists() and any(p.name != destination.MARKER for p in out.iterdir())):
             return
@@ -84,8 +74,7 @@ class Store:
             destination.check_replace(out, "a sweep resumed here rewrites its own files, and never yours")
 
     def _start_folder(self, fingerprint: str) -> None:
-        """Create the folder, its manifest (first: a folder holding it, and nothing else yet, is one this sweep
-        resumes), its marker and rows/."""
+        """Create the folder, its manifest (first: it marks the folder as this sweep's), its marker and rows/."""
         out, sweep, manifest = self.out, self.sweep, self.out / "sweep.json"
         out.mkdir(parents=True, exist_ok=True)
         if not manifest.exists():
@@ -144,8 +133,7 @@ class Store:
 
     @contextmanager
     def writing(self) -> Iterator[None]:
-        """A write into the folder once runs have started: what the file system refuses (a full disk) is
-        OutputError, saying that the rows written so far are kept."""
+        """A write once runs have started: a refusal is OutputError saying that the rows so far are kept."""
         try:
             yield
         except OSError as err:

@@ -1,10 +1,6 @@
 """A sweep's results: one table (CSV and Parquet) with a row per run, a summary, and plots of metrics against
-parameters.
-
-Columns: `run`, `id`, one per swept parameter (named by its field path, in the sweep file's units), `status`,
-`error`, then the metrics in the order the first finished run gives them, and `wall_time` (s) last: the only
-column that depends on the machine rather than the scenario. Rows are in run order, whatever order the runs
-finished in, so the same sweep gives the same table serially, in parallel or on a cluster.
+parameters. Rows are in run order and `wall_time` (the only machine-dependent column) comes last, so that the
+same sweep gives the same table serially, in parallel or on a cluster.
 """
 
 from __future__ import annotations
@@ -62,8 +58,7 @@ def _cell(value: Any) -> str:
 
 
 def write_csv(table: dict[str, list], path: Path) -> None:
-    """results.csv: empty cells where a run has no value; lists as JSON; text that a spreadsheet would take for a
-    formula after a single quote (simbench.csv_cells)."""
+    """results.csv: empty cells where a run has no value; lists as JSON; formula-like text quoted (csv_cells)."""
     lines = [csv_cells.row(table)]
     lines += map(csv_cells.row, zip(*(map(_cell, column) for column in table.values())))
     write_text(path, "".join(lines))
@@ -101,8 +96,7 @@ def summary(table: dict[str, list], metrics: list[str]) -> dict:
 
 
 def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
-    """Positions for a parameter on an x axis, with tick labels if it is categorical; None if it cannot go on
-    one (vectors, or too many distinct labels)."""
+    """Positions (and labels if categorical) for a parameter on an x axis; None for vectors or too many labels."""
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         return np.asarray(values, float), None
     if any(isinstance(v, (list, dict)) for v in values):
@@ -115,10 +109,7 @@ def _axis(values: list) -> tuple[np.ndarray, list[str] | None] | None:
 
 def write_plots(table: dict[str, list], params: list[str], grid: list[str], metrics: list[str],
                 folder: Path, workers: int = 1) -> tuple[list[str], list[str]]:
-    """One figure per metric (a panel per parameter: runs that kept every promise as dots, runs that broke one
-    as orange dots, failed ones as crosses along the bottom), and a heat map over the first two numeric grid
-    parameters; up to `workers` figures at once (_draw). Returns (files written, notes on what could not be
-    plotted)."""
+    """A figure per metric and a heat map over two numeric grid parameters; (files, notes on what was not)."""
     figures, notes = [], []
     status = np.array(table["status"])
     axes = {p: _axis(table[p]) for p in params}
@@ -141,11 +132,8 @@ def write_plots(table: dict[str, list], params: list[str], grid: list[str], metr
 
 
 def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
-    """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in
-    one thread, so where there are more figures than one and `workers` > 1 they are drawn `workers` at once: this
-    process draws every `workers`-th and processes forked from it the others, meanwhile (the same pixels: the same
-    code on the same state), which shortens the serial end of a sweep. The pool's workers answer signals as a
-    sweep's workers do (execute.as_worker): stopped idle, they end quietly."""
+    """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in one
+    thread, so with `workers` > 1 forked processes draw all but every `workers`-th, which this one draws."""
     jobs = [(draw, (*args, folder)) for draw, args in figures]
     processes = min(workers, len(jobs))
     if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
@@ -196,8 +184,7 @@ def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], 
 
 
 def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table: dict, folder: Path) -> str:
-    """The median of the metric over the runs at each grid cell (failed runs left out; a cell with none blank;
-    `ok` marks the runs that finished, with or without a broken promise)."""
+    """The median of the metric over the finished runs (`ok`) at each grid cell; a cell with none blank."""
     xs, ys = (sorted(set(table[p])) for p in pair)
     by_cell: dict[tuple, list[float]] = {}
     for k, cell in enumerate(zip(table[pair[0]], table[pair[1]])):

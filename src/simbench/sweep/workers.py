@@ -1,11 +1,6 @@
-"""How many runs of a sweep go at once on this machine: as asked (default: one per CPU), but no more than the CPUs
-this process may use, than the memory budget gives each its share for (simbench.budget: half of the memory
-available, against the largest run's estimate and a worker's own memory), or than the runs to do. Asking for more
-is said in one line on stderr; no process beyond these is started.
-
-A worker's own memory, beyond its run's, is taken as WORKER_BYTES: a little over its proportional set size after a
-spherical arm case 1 run, forked from a process with simbench's modules loaded, which it shares (BENCHMARKS.md,
-the sweep's notes).
+"""How many runs of a sweep go at once: as asked (default: one per CPU), but no more than the CPUs, the runs to
+do, or what the memory budget affords for the largest run plus a worker's own WORKER_BYTES (BENCHMARKS.md, the
+sweep's notes). A cut is said in one line on stderr.
 """
 
 from __future__ import annotations
@@ -20,8 +15,7 @@ WORKER_BYTES = 64 * 10**6
 
 
 def count(sweep: Sweep, todo: list[Variant], asked: int | None, stream=None) -> int:
-    """Runs at once for `todo`; where fewer than `asked` (or, not asked, than the CPUs) for want of CPUs or
-    memory, a line on `stream` (stderr) saying why."""
+    """Runs at once for `todo`; a line on `stream` says why where fewer than asked (or than the CPUs)."""
     cpus = execute.cpu_count()
     reasons = []
     if asked and asked > cpus:
@@ -42,8 +36,7 @@ def count(sweep: Sweep, todo: list[Variant], asked: int | None, stream=None) -> 
 
 
 def _largest_run(sweep: Sweep, todo: list[Variant]) -> int:
-    """The memory the largest of the runs will take (simbench.budget's estimate); a run the schema refuses takes
-    none."""
+    """The budget's estimate of the largest run (one the schema refuses takes none)."""
     from simbench.scenario import parse_scenario
 
     largest = 0
