@@ -12,7 +12,15 @@ page (simbench.bench.outputs).
 
 from __future__ import annotations
 
-from simbench.bench.runner import BenchResult, plan_bench, run_bench
-from simbench.bench.suite import Suite, load_suite
+import importlib
 
 __all__ = ["BenchResult", "Suite", "load_suite", "plan_bench", "run_bench"]
+_HOMES = {"BenchResult": "runner", "plan_bench": "runner", "run_bench": "runner", "Suite": "suite",
+          "load_suite": "suite"}
+
+
+def __getattr__(name: str):
+    """The public names, imported on first use: the CLI's parser imports simbench.bench.command alone."""
+    if name in _HOMES:
+        return getattr(importlib.import_module(f"simbench.bench.{_HOMES[name]}"), name)
+    raise AttributeError(f"module 'simbench.bench' has no attribute {name!r}")

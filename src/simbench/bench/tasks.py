@@ -17,11 +17,11 @@ The percentiles are of the robot's gap over BAND_SAMPLES configurations drawn as
 (a singular value) runs smaller than an angle's, so each robot's bands are its own.
 
 The path passes through the tool's point at q_a (its end, on a robot whose set bounds its reach), in a random
-direction (in the plane of a planar arm; an arc: a random plane through it, of radius RADIUS times the reach), LENGTH times the reach on either
-side. The tool's orientation at q_a is held along it; the joints at the start (and end) follow from q_a by
-continuation: damped Newton steps along the path from the anchor (its point alone, for a robot that holds no
-orientation). A draw whose start is not reached within TOLERANCE, whose path dips under the robot's floor, or whose
-anchor is not found is drawn again (at most TRIES times).
+direction (in the plane of a planar arm; an arc: in a random plane through it, of radius RADIUS times the reach),
+LENGTH times the reach on either side. The tool's orientation at q_a is held along it; the joints at the start (and
+end) follow from q_a by continuation: damped Newton steps along the path from the anchor (its point alone, for a
+robot that holds no orientation). A draw whose start is not reached within TOLERANCE, whose path dips under the
+robot's floor, or whose anchor is not found is drawn again (at most TRIES times).
 """
 
 from __future__ import annotations
