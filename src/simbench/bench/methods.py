@@ -80,7 +80,7 @@ def _paper(task: Task, robot: BenchRobot) -> dict | None:
         return {"path": [task.segment], "orientation": {"convention": "quat", "value": list(task.orientation)},
                 "configuration": {"arm": "righty" if arm < 0 else "lefty", "elbow": "up" if elbow > 0 else "down",
                                   "wrist": "noflip" if wrist > 0 else "flip"}}
-    if robot.paper == "safe_straight_path" and task.goal is not None:
+    if robot.paper == "safe_straight_path":
         return {"start": list(task.start), "goal": list(task.goal)}
     return None
 

@@ -18,10 +18,10 @@ The percentiles are of the robot's gap over BAND_SAMPLES configurations drawn as
 
 The path passes through the tool's point at q_a (its end, on a robot whose set bounds its reach), in a random
 direction (in the plane of a planar arm; an arc: in a random plane through it, of radius RADIUS times the reach),
-LENGTH times the reach on either side. The tool's orientation at q_a is held along it; the joints at the start (and
-end) follow from q_a by continuation: damped Newton steps along the path from the anchor (its point alone, for a
-robot that holds no orientation). A draw whose start is not reached within TOLERANCE, whose path dips under the
-robot's floor, or whose anchor is not found is drawn again (at most TRIES times).
+LENGTH times the reach on either side. The tool's orientation at q_a is held along it; the joints at the start and
+the end follow from q_a by continuation: damped Newton steps along the path from the anchor (its point alone, for a
+robot that holds no orientation). A draw whose start or end is not reached within TOLERANCE, whose path dips under
+the robot's floor, or whose anchor is not found is drawn again (at most TRIES times).
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ HOLD = 0.3  # s
 
 @dataclass(frozen=True)
 class Task:
-    """One task: joints at the start (and, for a robot that holds no orientation, at the end), the path (one
+    """One task: joints at the start and at the end (both reached by continuation from the anchor), the path (one
     segment as a scenario writes it, SI), the orientation held (a quaternion w, x, y, z), the anchor and its gap,
     and the duration asked."""
 
@@ -61,7 +61,7 @@ class Task:
     kind: str
     shape: str
     start: tuple[float, ...]
-    goal: tuple[float, ...] | None
+    goal: tuple[float, ...]
     segment: dict
     orientation: tuple[float, ...]
     anchor: tuple[float, ...]
@@ -107,14 +107,12 @@ def _attempt(robot: BenchRobot, index: int, kind: str, shape: str, rng: np.rando
     start = _follow(arm, anchor, path, np.linspace(u, 0.0, STEPS + 1)[1:], rot, robot.hold)
     if start is None:
         return None
-    goal = None
-    if not robot.hold:
-        goal = _follow(arm, anchor, path, np.linspace(u, 1.0, STEPS + 1)[1:], rot, robot.hold)
-        if goal is None:
-            return None
+    goal = _follow(arm, anchor, path, np.linspace(u, 1.0, STEPS + 1)[1:], rot, robot.hold) if u < 1 else anchor
+    if goal is None:
+        return None
     length = float(np.linalg.norm(np.diff(samples, axis=0), axis=1).sum())
     rot_start = rot if robot.hold else arm.tool_rotation(start[None])[0]
-    return Task(robot.name, index, kind, shape, tuple(start.tolist()), None if goal is None else tuple(goal.tolist()),
+    return Task(robot.name, index, kind, shape, tuple(start.tolist()), tuple(goal.tolist()),
                 segment, tuple(matrix_to_quat(rot_start[None])[0].tolist()), tuple(anchor.tolist()),
                 float(robot.gap_of(anchor[None])[0]), length, max(MIN_DURATION, length / robot.speed))
 
