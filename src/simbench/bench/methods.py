@@ -17,6 +17,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from simbench.bench.robots import BenchRobot
 from simbench.bench.tasks import HOLD, Task
 
@@ -76,7 +78,7 @@ def _paper(task: Task, robot: BenchRobot) -> dict | None:
     if robot.paper == "decoupled_path":
         from simbench.robots import puma600
 
-        arm, elbow, wrist = puma600.configuration([task.start])[0]
+        arm, elbow, wrist = puma600.configuration(np.array([task.start]))[0]
         return {"path": [task.segment], "orientation": {"convention": "quat", "value": list(task.orientation)},
                 "configuration": {"arm": "righty" if arm < 0 else "lefty", "elbow": "up" if elbow > 0 else "down",
                                   "wrist": "noflip" if wrist > 0 else "flip"}}

@@ -14,6 +14,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 from tqdm import tqdm
 
@@ -24,7 +25,7 @@ from simbench.bench.suite import Suite
 from simbench.bench.tasks import draw
 from simbench.schema import SimbenchModel
 from simbench.sweep import cluster, execute
-from simbench.sweep.spec import Variant
+from simbench.sweep.spec import Sweep, Variant
 from simbench.sweep.store import Store
 from simbench.sweep.workers import count as worker_count
 
@@ -83,7 +84,7 @@ class BenchResult:
 
 def plan_bench(suite: Suite) -> Bench:
     """Every run of the suite: its tasks drawn per robot (bench.tasks), each by every method that applies."""
-    variants = []
+    variants: list[Variant] = []
     for robot in suite.robots:
         for task in draw(robot, suite.tasks, suite.seed):
             for name in suite.methods:
@@ -108,11 +109,12 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
     if ray is not None:
         cluster.reach(ray)
-    with metric.active(), Store(out, bench, force=force) as store:
+    as_sweep = cast(Sweep, bench)  # what Store and worker_count read of a Sweep, a Bench has
+    with metric.active(), Store(out, as_sweep, force=force) as store:
         rows = store.finished()
         todo = [v for v in bench.variants if v.index not in rows]
         if ray is None or ray == "local":
-            workers = worker_count(bench, todo, workers)
+            workers = worker_count(as_sweep, todo, workers)
         else:
             workers = min(workers or execute.cpu_count(), execute.cpu_count())
         start = time.perf_counter()
