@@ -184,6 +184,11 @@ def test_the_leaderboard_is_runs_csv_summarised(planar):
                                                                                  for r in mine), rel=1e-6)
         for name in ("ok_share", "deviation_p95_mm", "slowdown_median"):
             assert float(row[f"{name}_lo"]) <= float(row[name]) <= float(row[f"{name}_hi"])
+    by_kind = _read(planar.out / "leaderboard_by_kind.csv")
+    for row in by_kind:
+        mine = [r for r in runs if (r["method"], r["kind"]) == (row["method"], row["kind"])]
+        assert int(row["tasks"]) == len(mine) and int(row["ok"]) == sum(r["status"] == "ok" for r in mine)
+    assert sum(int(r["tasks"]) for r in by_kind) == len(runs)
 
 
 def test_a_bootstrap_interval_of_a_share_is_the_normal_approximations():

@@ -17,7 +17,8 @@ leaderboard.csv: robot, method, planner, tasks, ok (runs whose status is `ok`), 
 percentile over the tasks that finished), speed_share_max (the largest), slowdown_median, and for ok_share,
 deviation_p95_mm and slowdown_median a percentile bootstrap 95 % interval (`_lo`, `_hi`: BOOTSTRAP resamples of the
 tasks, drawn at the suite's seed, the robot's and the method's name), each figure to FIGURES significant digits, so
-that the same suite at the same seed writes the same bytes.
+that the same suite at the same seed writes the same bytes. leaderboard_by_kind.csv: the same, a row per robot,
+method and kind of task (through, near, far).
 """
 
 from __future__ import annotations
@@ -58,21 +59,23 @@ def status_counts(runs: dict[str, list]) -> dict[str, int]:
     return {s: runs["status"].count(s) for s in STATUSES}
 
 
-def leaderboard(runs: dict[str, list], seed: int) -> dict[str, list]:
-    """leaderboard.csv as columns: a row per robot and method, in the order they first appear in `runs`."""
-    groups: dict[tuple[str, str], list[int]] = {}
-    for i, key in enumerate(zip(runs["robot"], runs["method"])):
+def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot", "method")) -> dict[str, list]:
+    """leaderboard.csv as columns: a row per robot and method (and per value of any other column of `by`, the
+    task's kind for leaderboard_by_kind.csv), in the order they first appear in `runs`."""
+    groups: dict[tuple, list[int]] = {}
+    for i, key in enumerate(zip(*(runs[name] for name in by))):
         groups.setdefault(key, []).append(i)
-    rows = [_row(runs, robot, method, index, seed) for (robot, method), index in groups.items()]
-    return {name: [row[name] for row in rows] for name in (rows[0] if rows else _row(runs, "", "", [], seed))}
+    rows = [_row(runs, dict(zip(by, key)), index, seed) for key, index in groups.items()]
+    if not rows:
+        return {}
+    return {name: [row[name] for row in rows] for name in rows[0]}
 
 
-def _row(runs: dict[str, list], robot: str, method: str, index: list[int], seed: int) -> dict[str, Any]:
-    rng = np.random.default_rng([seed, zlib.crc32(robot.encode()), zlib.crc32(method.encode())])
+def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int) -> dict[str, Any]:
+    rng = np.random.default_rng([seed, *(zlib.crc32(value.encode()) for value in key.values())])
     ok = np.array([runs["status"][i] == "ok" for i in index], float)
     shares = _finite(runs["speed_share_max"], index)
-    row: dict[str, Any] = {"robot": robot, "method": method, "planner": runs["planner"][index[0]] if index else "",
-                           "tasks": len(index), "ok": int(ok.sum())}
+    row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum())}
     row.update(_estimate("ok_share", ok, np.mean, rng))
     row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _p95, rng))
     row["speed_share_max"] = _round(shares.max()) if len(shares) else None

@@ -1,6 +1,6 @@
-"""A bench's files beside its rows: runs.csv and runs.parquet, leaderboard.csv (simbench.bench.board), plots/ and
-summary.json, and index.html (simbench.page). Each is listed in the folder's marker before it is written, so that
-the folder stays simbench's own (simbench.destination).
+"""A bench's files beside its rows: runs.csv and runs.parquet, leaderboard.csv and leaderboard_by_kind.csv
+(simbench.bench.board), plots/ and summary.json, and index.html (simbench.page). Each is listed in the folder's
+marker before it is written, so that the folder stays simbench's own (simbench.destination).
 
 Plots, per robot: the path deviation against the closest approach to the singular set, a colour per method
 (<robot>_deviation.png); the plan's joint-speed share per method, with the limit at 1 (<robot>_speed_share.png);
@@ -19,21 +19,24 @@ from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import table
 
-RESULTS = ("runs.csv", "runs.parquet", "leaderboard.csv", "summary.json", "index.html")
+RESULTS = ("runs.csv", "runs.parquet", "leaderboard.csv", "leaderboard_by_kind.csv", "summary.json", "index.html")
 
 
-def write(store, out: Path, runs: dict[str, list], leaderboard: dict[str, list], summary: dict,
+def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list], dict[str, list]], summary: dict,
           workers: int) -> None:
-    """Every file of the bench's results into `out` (the module's docstring)."""
+    """Every file of the bench's results into `out` (the module's docstring); `boards`: the leaderboard by robot
+    and method, and by robot, method and kind of task."""
     store.claim(RESULTS)
     with store.writing():
         table.write_csv(runs, out / "runs.csv")
         table.write_parquet(runs, out / "runs.parquet")
-        table.write_csv(leaderboard, out / "leaderboard.csv")
+        table.write_csv(boards[0], out / "leaderboard.csv")
+        table.write_csv(boards[1], out / "leaderboard_by_kind.csv")
         with staged_folder(out / "plots") as tmp:
             plots = [f"plots/{name}" for name in draw(runs, tmp)]
         summary = {**summary, "workers": workers,
-                   "outputs": {"tables": ["runs.csv", "runs.parquet", "leaderboard.csv"], "plots": plots,
+                   "outputs": {"tables": ["runs.csv", "runs.parquet", "leaderboard.csv", "leaderboard_by_kind.csv"],
+                               "plots": plots,
                                "page": "index.html"}}
         write_report(summary, out / "summary.json")
         counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)
@@ -43,6 +46,7 @@ def write(store, out: Path, runs: dict[str, list], leaderboard: dict[str, list],
                  "the leaderboard's intervals are bootstrap 95 % intervals over the tasks.")
         write_page(out, table_page(out, f"Bench: {summary['suite']}", intro,
                                    [("Leaderboard (leaderboard.csv)", Path("leaderboard.csv")),
+                                    ("By kind of task (leaderboard_by_kind.csv)", Path("leaderboard_by_kind.csv")),
                                     ("Every run (runs.csv)", Path("runs.csv"))], plots, summary))
 
 

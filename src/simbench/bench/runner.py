@@ -3,8 +3,8 @@ folder store, worker processes or Ray, crash isolation, the refusal to replace f
 run the real pipeline (simbench.sweep.execute.run_variant: the same analysis and verdict as `simbench run`).
 
 The output folder is a sweep's (simbench.sweep.store: sweep.json, rows/<id>.json as each run ends, so that the same
-command resumes) with the bench's results beside: runs.csv (and runs.parquet), leaderboard.csv, plots/, summary.json
-and index.html (simbench.bench.board, simbench.bench.outputs).
+command resumes) with the bench's results beside: runs.csv (and runs.parquet), leaderboard.csv,
+leaderboard_by_kind.csv, plots/, summary.json and index.html (simbench.bench.board, simbench.bench.outputs).
 """
 
 from __future__ import annotations
@@ -126,12 +126,13 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
                 bar.update()
         runs = board.runs_table(list(rows.values()))
         leaderboard = board.leaderboard(runs, suite.seed)
+        by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
         resumed = len(bench.variants) - len(todo)
         summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
                    "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
                    "runs": len(bench.variants), "status": board.status_counts(runs), "resumed": resumed,
                    "backend": backend, "wall_time": round(time.perf_counter() - start, 3)}
-        outputs.write(store, out, runs, leaderboard, summary, workers)
+        outputs.write(store, out, runs, (leaderboard, by_kind), summary, workers)
     return BenchResult(out, runs, leaderboard, summary)
 
 
