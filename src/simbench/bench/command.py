@@ -36,6 +36,10 @@ def run(args: argparse.Namespace, say) -> None:
         raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {args.workers}")
     if args.ray is not None:
         cluster.check_address(args.ray)
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
     methods = None
     if args.methods is not None:
         methods = [m.strip() for m in args.methods.split(",")]
