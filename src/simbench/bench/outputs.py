@@ -78,7 +78,8 @@ def _deviation(ax, runs, rows, methods, robot) -> None:
             ax.scatter(np.maximum(x, 1e-5), np.maximum(y, 1e-4), s=14, alpha=0.7, label=method)
     ax.set(xscale="log", yscale="log", xlabel="closest approach to rank loss (least singular value of [Jp/L; Jr])",
            ylabel="largest deviation from the path (mm)", title=f"{robot}: path deviation")
-    ax.legend(fontsize="small")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize="small")
 
 
 def _strip(ax, runs, rows, methods, column: str) -> None:
