@@ -243,3 +243,24 @@ def test_the_bench_metric_stays_out_of_other_runs(planar):
 
     report = pipeline.evaluate_report(load_scenario(scenario_file("puma600", "line")), False)
     assert "bench" not in report.get("metrics", {})
+
+
+def test_a_jaco_through_task_passes_a_rank_loss_by_mujocos_own_jacobian():
+    """The Jaco's `through` anchor, found by minimising rank_loss, is singular by MuJoCo's own mj_jacSite on the
+    untouched model ([Jp / L; Jr] of least singular value under 1e-4, L the derived reach), and its tool point lies
+    on the task's line at the orientation held there."""
+    import mujoco
+
+    robot = SHIPPED["jaco"]()
+    task = draw(robot, 1, 0)[0]
+    model = mujoco.MjModel.from_xml_path(robot.mapping["model"])
+    data = mujoco.MjData(model)
+    data.qpos[:6] = task.anchor
+    mujoco.mj_forward(model, data)
+    site = model.site("wristsite").id
+    jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    mujoco.mj_jacSite(model, data, jp, jr, site)
+    ju = np.vstack([jp[:, :6] / robot.model_arm().reach, jr[:, :6]])
+    assert np.linalg.svd(ju, compute_uv=False)[-1] < 1e-4
+    a, b = (np.array(task.segment["line"][k]) for k in ("start", "end"))
+    assert _point_line_distance(data.site_xpos[site], a, b) < 1e-9
