@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from simbench import interrupts
+from simbench.bench import command as bench_command
 from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
                              os_error_line, printable)
 from simbench.plot_formats import FORMATS
@@ -43,6 +44,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--dry-run", action="store_true", help="check the sweep and list its runs; run nothing")
     sweep.add_argument("--quiet", action="store_true", help="print nothing but errors")
     _allow_code(sweep)
+    bench_command.add_parser(sub)
     validate = sub.add_parser("validate", help="check scenarios and their plans without simulating")
     validate.add_argument("scenarios", type=Path, nargs="+")
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
@@ -291,7 +293,8 @@ def _broken(kind) -> list[str]:
 
 
 def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
-    resume = "; the finished runs are kept: run the same command again to resume" if args.command == "sweep" else ""
+    resume = ("; the finished runs are kept: run the same command again to resume"
+              if args.command in ("sweep", "bench") else "")
     _say(f"interrupted{resume}", file=sys.stderr)
     return ctrl_c.exit_code
 
@@ -319,6 +322,8 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
             learnt_fk.train(args.samples, tuple(args.hidden), args.seed, args.out or learnt_fk.WEIGHTS)
         elif args.command == "sweep":
             _sweep(args)
+        elif args.command == "bench":
+            bench_command.run(args, _say)
         elif args.command == "reproduce":
             _reproduce(args)
         elif args.command == "compare":

@@ -1,0 +1,118 @@
+"""A bench's tables: runs.csv, a row per task and method, and leaderboard.csv, a row per robot and method. This is
+the one place that decides what a method's row says (what `compare` would share).
+
+runs.csv columns: the run's parameters (robot, task, kind, shape, method, planner, anchor_gap: the robot's own gap
+at the task's anchor, rad; length_mm, duration), status and error (simbench.verdict's, as `simbench run` gives
+them), then
+
+    deviation_max_mm   the tool's largest distance from the asked path (report.json's tracking.tool_max)
+    speed_share_max    max over joints and samples of |qd_ref| / speed limit (simbench.bench.metric)
+    slowdown           planned duration / asked duration
+    closest_approach   the least rank_loss gap along the run (rad-like: Ju's least singular value)
+
+and wall_time (s), the only column that depends on the machine. A run that did not finish (bad_input, run_failed,
+crashed) has empty figures.
+
+leaderboard.csv: robot, method, planner, tasks, ok (runs whose status is `ok`), ok_share, deviation_p95_mm (the 95th
+percentile over the tasks that finished), speed_share_max (the largest), slowdown_median, and for ok_share,
+deviation_p95_mm and slowdown_median a percentile bootstrap 95 % interval (`_lo`, `_hi`: BOOTSTRAP resamples of the
+tasks, drawn at the suite's seed, the robot's and the method's name), each figure to FIGURES significant digits, so
+that the same suite at the same seed writes the same bytes. leaderboard_by_kind.csv: the same, a row per robot,
+method and kind of task (through, near, far).
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from typing import Any
+
+import numpy as np
+
+PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "length_mm", "duration")
+FIGURES = 6
+BOOTSTRAP = 2000
+LEVEL = 95.0
+STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
+
+
+def runs_table(rows: list[dict]) -> dict[str, list]:
+    """runs.csv as columns, in run order (the module's docstring)."""
+    rows = sorted(rows, key=lambda r: r["run"])
+    table: dict[str, list] = {name: [r["params"].get(name) for r in rows] for name in PARAMS}
+    table["status"] = [r["status"] for r in rows]
+    table["error"] = [r["error"] for r in rows]
+    metrics = [r["metrics"] for r in rows]
+    table["deviation_max_mm"] = [_scaled(m.get("tool_max"), 1e3) for m in metrics]
+    for name in ("speed_share_max", "slowdown", "closest_approach"):
+        table[name] = [m.get(f"bench.{name}") for m in metrics]
+    table["wall_time"] = [r["wall_time"] for r in rows]
+    return table
+
+
+def _scaled(value: Any, factor: float) -> float | None:
+    return None if value is None else float(value) * factor
+
+
+def status_counts(runs: dict[str, list]) -> dict[str, int]:
+    """Runs by status."""
+    return {s: runs["status"].count(s) for s in STATUSES}
+
+
+def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot", "method")) -> dict[str, list]:
+    """leaderboard.csv as columns: a row per robot and method (and per value of any other column of `by`, the
+    task's kind for leaderboard_by_kind.csv), in the order they first appear in `runs`."""
+    groups: dict[tuple, list[int]] = {}
+    for i, key in enumerate(zip(*(runs[name] for name in by))):
+        groups.setdefault(key, []).append(i)
+    rows = [_row(runs, dict(zip(by, key)), index, seed) for key, index in groups.items()]
+    if not rows:
+        return {}
+    return {name: [row[name] for row in rows] for name in rows[0]}
+
+
+def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int) -> dict[str, Any]:
+    rng = np.random.default_rng([seed, *(zlib.crc32(value.encode()) for value in key.values())])
+    ok = np.array([runs["status"][i] == "ok" for i in index], float)
+    shares = _finite(runs["speed_share_max"], index)
+    row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum())}
+    row.update(_estimate("ok_share", ok, np.mean, rng))
+    row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _p95, rng))
+    row["speed_share_max"] = _round(shares.max()) if len(shares) else None
+    row.update(_estimate("slowdown_median", _finite(runs["slowdown"], index), np.median, rng))
+    return row
+
+
+def _estimate(name: str, values: np.ndarray, statistic, rng: np.random.Generator) -> dict[str, float | None]:
+    """`name`, `name`_lo and `name`_hi: the statistic of `values` and its bootstrap interval (None without values)."""
+    if not len(values):
+        return {name: None, f"{name}_lo": None, f"{name}_hi": None}
+    lo, hi = bootstrap(values, statistic, rng)
+    return {name: _round(statistic(values)), f"{name}_lo": _round(lo), f"{name}_hi": _round(hi)}
+
+
+def _p95(values: np.ndarray, axis: int | None = None) -> np.ndarray:
+    return np.percentile(values, 95.0, axis=axis)
+
+
+def _finite(column: list, index: list[int]) -> np.ndarray:
+    values = np.array([column[i] if column[i] is not None else np.nan for i in index], float)
+    return values[np.isfinite(values)]
+
+
+def bootstrap(values: np.ndarray, statistic, rng: np.random.Generator,
+              resamples: int = BOOTSTRAP) -> tuple[float, float]:
+    """The percentile bootstrap interval at LEVEL of `statistic` (a function of an array and `axis`) over
+    `values`: `resamples` resamples with replacement, each of len(values)."""
+    draws = values[rng.integers(0, len(values), (resamples, len(values)))]
+    stats = statistic(draws, axis=1)
+    tail = (100.0 - LEVEL) / 2
+    lo, hi = np.percentile(stats, [tail, 100.0 - tail])
+    return float(lo), float(hi)
+
+
+def _round(value: Any) -> float | None:
+    """`value` to FIGURES significant digits, as a float (None stays None)."""
+    if value is None or not math.isfinite(float(value)):
+        return None
+    return float(f"{float(value):.{FIGURES}g}")

@@ -1,0 +1,144 @@
+"""The robots a bench runs: each an arm derived from its model (robots.model_arm), so that every method drives the
+same MuJoCo arm and every run measures the same singular gap (rank_loss); and, for the task generator, the robot's
+own singular measure (`gap`, rad) and a way to put a configuration on its singular set (`singular`).
+
+    puma600        paper 002's PUMA 600 from its MJCF; the wrist set q5 = 0 (gap |q5|, puma600.wrist_gap)
+    spherical_arm  paper 000's RPRP arm; the lift axis cos q3 = 0 (gap |90 deg - q3|); its tool has no
+                   orientation to hold: its tasks are lines between two configurations' tool points
+    planar3r       the planar 3R of examples/planar3r (installed as simbench-planar3r); the stretched elbow q2 = 0,
+                   on the reach's boundary: a task meets it at its path's end
+    jaco           dm-control's Kinova Jaco (jaco_arm.xml); rank_loss, its singular configurations found by
+                   minimising it
+    panda          the Franka Panda of example-robot-data (URDF, 7 joints, its flange panda_link8); rank_loss;
+                   not mink (mink_baseline refuses a model whose fingers are joints it does not drive)
+
+A suite file's own arm (a robot mapping: README, "Your own arm") is found the same way as the Jaco's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from simbench.errors import ScenarioError
+from simbench.robots.rank_loss import unit_jacobian
+
+SINGULAR_TOL = 1e-4  # rad: a configuration found by minimising rank_loss counts as singular below this gap
+
+
+@dataclass(frozen=True)
+class BenchRobot:
+    """A robot of a bench: its `robot:` mapping (SI, absolute paths), what its tasks look like, its own singular
+    measure and the paper's planner for it (a method named `paper`), if any."""
+
+    name: str
+    mapping: dict
+    gap: Callable[[object, np.ndarray], np.ndarray] | None = None  # (arm, q (N, dof)) -> (N,); None: rank_loss
+    singular: Callable[[np.ndarray], np.ndarray] | None = None  # q within the ranges -> q on the set; None: search
+    hold: bool = True  # the tool's orientation is held along the path (False: the point alone is asked)
+    boundary: bool = False  # the set bounds the reach: a task meets it at the path's end, not midway
+    shapes: tuple[str, ...] = ("line", "arc")
+    speed: float = 0.1  # m/s: the tool's mean speed along a task
+    floor: float | None = None  # m: the path kept this high above z = 0 (a derived scene's floor)
+    plane: bool = False  # the tool moves in the plane z = const: paths in it
+    skip: tuple[str, ...] = ()  # methods that cannot drive it
+    paper: str | None = None
+    cache: dict = field(default_factory=dict, compare=False, repr=False)  # the derived arm, made on first use
+
+    def model_arm(self):
+        """The arm derived from `mapping` (once)."""
+        if "arm" not in self.cache:
+            from simbench.robots.robot_mapping import load_robot
+            from simbench.schema import Units
+
+            self.cache["arm"] = load_robot(self.mapping, f"bench robot {self.name}", Units())
+        return self.cache["arm"]
+
+    def gap_of(self, q: np.ndarray) -> np.ndarray:
+        """The robot's own singular gap (rad) at configurations q (N, dof)."""
+        arm = self.model_arm()
+        return self.gap(arm, q) if self.gap is not None else rank_loss_gap(arm, q)
+
+
+def rank_loss_gap(arm, q: np.ndarray) -> np.ndarray:
+    """Least singular value of [Jp / L; Jr] at each of q (N, dof): rank_loss's gap (robots.model_arm)."""
+    ju = unit_jacobian(arm.jacobian(np.atleast_2d(q)), arm.reach)
+    return np.linalg.svd(ju, compute_uv=False)[:, -1]
+
+
+def _set(index: int, value: float) -> Callable[[np.ndarray], np.ndarray]:
+    def put(q: np.ndarray) -> np.ndarray:
+        q = np.array(q, float)
+        q[index] = value
+        return q
+    return put
+
+
+def _puma() -> BenchRobot:
+    from simbench.resources import models_dir
+    from simbench.robots import puma600
+
+    return BenchRobot("puma600", {"model": str(models_dir() / "puma600" / "puma600.xml"), "tool": {"site": "tool"},
+                                  "speed_limits": puma600.QD_MAX.tolist()},
+                      gap=lambda arm, q: puma600.wrist_gap(q), singular=_set(4, 0.0), speed=0.15,
+                      paper="decoupled_path")
+
+
+def _spherical() -> BenchRobot:
+    from simbench.resources import models_dir
+    from simbench.robots import spherical_arm
+
+    return BenchRobot("spherical_arm", {"model": str(models_dir() / "spherical_arm" / "spherical_arm.xml"),
+                                        "tool": {"site": "tool"}, "speed_limits": spherical_arm.QD_MAX.tolist()},
+                      gap=lambda arm, q: np.abs(np.arcsin(np.cos(np.atleast_2d(q)[:, 2]))),
+                      singular=_set(2, np.pi / 2), hold=False, shapes=("line",), floor=0.01,
+                      paper="safe_straight_path")
+
+
+def _planar3r() -> BenchRobot:
+    try:
+        import simbench_planar3r
+    except ImportError:
+        raise ScenarioError("planar3r", None, "the planar 3R is the example package simbench-planar3r, which is "
+                                              "not installed (pip install -e examples/planar3r)") from None
+    model = Path(simbench_planar3r.__file__).parent / "models" / "scene.xml"
+    return BenchRobot("planar3r", {"model": str(model), "tool": {"site": "tool"},
+                                   "speed_limits": [np.pi, 2 * np.pi, 2 * np.pi]},
+                      gap=lambda arm, q: np.abs(np.angle(np.exp(1j * np.atleast_2d(q)[:, 1]))),
+                      singular=_set(1, 0.0), boundary=True, speed=0.15, plane=True)
+
+
+def _jaco() -> BenchRobot:
+    try:
+        import dm_control
+    except ImportError:
+        raise ScenarioError("jaco", None, "the Jaco's model comes with dm-control, which is not installed") from None
+    model = Path(dm_control.__file__).parent / "third_party" / "kinova" / "jaco_arm.xml"
+    return BenchRobot("jaco", {"model": str(model), "tool": {"site": "wristsite"},
+                               "speed_limits": np.deg2rad([36, 36, 36, 48, 48, 48]).tolist()}, floor=0.05)
+
+
+def _panda() -> BenchRobot:
+    from importlib.metadata import PackageNotFoundError, distribution
+
+    try:
+        share = distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
+    except PackageNotFoundError:
+        raise ScenarioError("panda", None, "the Panda's model comes with example-robot-data, which is not "
+                                           "installed") from None
+    model = Path(str(share)) / "robots" / "panda_description" / "urdf" / "panda.urdf"
+    return BenchRobot("panda", {"model": str(model), "tool": {"body": "panda_link8"},
+                                "joints": [f"panda_joint{i}" for i in range(1, 8)]}, floor=0.05,
+                      skip=("mink",))  # mink_baseline refuses a model with unactuated joints (the fingers)
+
+
+SHIPPED: dict[str, Callable[[], BenchRobot]] = {"puma600": _puma, "spherical_arm": _spherical,
+                                                 "planar3r": _planar3r, "jaco": _jaco, "panda": _panda}
+
+
+def custom(name: str, mapping: dict, speed: float = 0.1) -> BenchRobot:
+    """A suite file's own arm: rank_loss, its orientation held, lines and arcs, above a floor at z = 0."""
+    return BenchRobot(name, mapping, speed=speed, floor=0.05)

@@ -1,0 +1,147 @@
+"""Running a suite: every task of every robot by every method that applies, through the sweep's machinery (its
+folder store, worker processes or Ray, crash isolation, the refusal to replace files that are not simbench's), each
+run the real pipeline (simbench.sweep.execute.run_variant: the same analysis and verdict as `simbench run`).
+
+The output folder is a sweep's (simbench.sweep.store: sweep.json, rows/<id>.json as each run ends, so that the same
+command resumes) with the bench's results beside: runs.csv (and runs.parquet), leaderboard.csv,
+leaderboard_by_kind.csv, plots/, summary.json and index.html (simbench.bench.board, simbench.bench.outputs).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import cast
+
+from tqdm import tqdm
+
+from simbench import destination
+from simbench.bench import board, metric, outputs
+from simbench.bench.methods import METHODS
+from simbench.bench.suite import Suite
+from simbench.bench.tasks import draw
+from simbench.schema import SimbenchModel
+from simbench.sweep import cluster, execute
+from simbench.sweep.spec import Sweep, Variant
+from simbench.sweep.store import Store
+from simbench.sweep.workers import count as worker_count
+
+
+class BenchSpec(SimbenchModel):
+    """What decides a bench's runs, as its folder's manifest records it; `outputs` and `video` as a sweep's spec
+    has them (a bench keeps no run's own outputs)."""
+
+    suite: str
+    tasks: int
+    seed: int
+    methods: list[str]
+    robots: list[str]
+
+    @property
+    def outputs(self) -> str:
+        return "none"
+
+    @property
+    def video(self) -> bool:
+        return False
+
+
+@dataclass(frozen=True)
+class Bench:
+    """A suite drawn into runs: what simbench.sweep.store.Store and simbench.sweep.workers read of a Sweep."""
+
+    name: str
+    source: str
+    spec: BenchSpec
+    base: Path
+    variants: tuple[Variant, ...]
+
+    @property
+    def params(self) -> list[str]:
+        return list(board.PARAMS)
+
+    def fingerprint(self) -> str:
+        """A hash of everything that decides the results: a bench resumes only into a folder with the same one."""
+        from simbench import __version__
+
+        blob = json.dumps({"simbench": __version__, "bench": self.spec.model_dump(mode="json"),
+                           "runs": [v.document for v in self.variants]}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class BenchResult:
+    """A finished bench: its folder, its runs and leaderboard as columns, and its summary."""
+
+    out: Path
+    runs: dict[str, list]
+    leaderboard: dict[str, list]
+    summary: dict
+
+
+def plan_bench(suite: Suite) -> Bench:
+    """Every run of the suite: its tasks drawn per robot (bench.tasks), each by every method that applies."""
+    variants: list[Variant] = []
+    for robot in suite.robots:
+        for task in draw(robot, suite.tasks, suite.seed):
+            for name in suite.methods:
+                method = METHODS[name]
+                document = method.document(task, robot)
+                if document is None:
+                    continue
+                params = {"robot": robot.name, "task": task.id, "kind": task.kind, "shape": task.shape,
+                          "method": name, "planner": document["planner"], "anchor_gap": task.anchor_gap,
+                          "length_mm": task.length * 1e3, "duration": round(task.duration, 6)}
+                variants.append(Variant(len(variants), f"{task.id}-{name}", params, document))
+    spec = BenchSpec(suite=suite.name, tasks=suite.tasks, seed=suite.seed, methods=list(suite.methods),
+                     robots=[r.name for r in suite.robots])
+    return Bench(suite.name, suite.source, spec, Path(suite.source), tuple(variants))
+
+
+def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
+              force: bool = False, progress: bool = False) -> BenchResult:
+    """Run every run of `suite` that has no row yet in `out` (default renders/bench/<name>/), then write runs.csv,
+    leaderboard.csv, the plots, summary.json and index.html. `workers`, `ray` and `force` as simbench.run_sweep's."""
+    bench = plan_bench(suite)
+    out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
+    if ray is not None:
+        cluster.reach(ray)
+    as_sweep = cast(Sweep, bench)  # what Store and worker_count read of a Sweep, a Bench has
+    with metric.active(), Store(out, as_sweep, force=force) as store:
+        rows = store.finished()
+        todo = [v for v in bench.variants if v.index not in rows]
+        if ray is None or ray == "local":
+            workers = worker_count(as_sweep, todo, workers)
+        else:
+            workers = min(workers or execute.cpu_count(), execute.cpu_count())
+        start = time.perf_counter()
+        outcomes, backend = _backend(bench, todo, workers, ray)
+        with tqdm(total=len(bench.variants), initial=len(rows), desc=bench.name, unit="run", disable=not progress,
+                  leave=False) as bar:
+            for index, outcome in outcomes:
+                rows[index] = store.record(bench.variants[index], outcome)
+                bar.update()
+        runs = board.runs_table(list(rows.values()))
+        leaderboard = board.leaderboard(runs, suite.seed)
+        by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
+        resumed = len(bench.variants) - len(todo)
+        summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
+                   "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
+                   "runs": len(bench.variants), "status": board.status_counts(runs), "resumed": resumed,
+                   "backend": backend, "wall_time": round(time.perf_counter() - start, 3)}
+        outputs.write(store, out, runs, (leaderboard, by_kind), summary, workers)
+    return BenchResult(out, runs, leaderboard, summary)
+
+
+def _backend(bench: Bench, todo: list[Variant], workers: int, ray: str | None):
+    """The outcomes of the runs still to do, as they finish, and where they run."""
+    tasks = [(v.index, {"document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
+             for v in todo]
+    if ray is not None:
+        return execute.on_ray(tasks, ray, workers), f"ray ({ray})"
+    if workers == 1:
+        return execute.in_this_process(tasks), "this process"
+    return execute.in_processes(tasks, workers), f"{workers} processes"

@@ -1,0 +1,162 @@
+"""Bench suites: the robots, how many tasks each and at what seed, and the methods. A shipped suite is named by a
+robot (`simbench bench puma600`, or `all` for every shipped robot); a suite file says it all:
+
+    name: my_arms                       # optional: the file's stem; names the output folder
+    tasks: 30                           # tasks per robot (--tasks overrides)
+    seed: 0                             # (--seed overrides)
+    methods: [dls_adaptive, mink, paper]   # optional: every method that can run (--methods overrides)
+    robots:
+      - puma600                         # a shipped robot (simbench.bench.robots)
+      - name: my_arm                    # an arm of your own: a robot mapping (README, "Your own arm"), its paths
+        model: arms/my_arm.urdf         #   relative to this file, SI units unless it states its own `units:`
+        tool: {body: link7, offset: [0, 0, 0.1]}
+        speed: 0.1                      # m/s: the tool's mean speed along its tasks (default 0.1)
+
+Errors name the file and the field (exit 2), as a scenario's do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import Field, ValidationError
+
+from simbench.bench import methods as methods_table
+from simbench.bench.robots import SHIPPED, BenchRobot, custom
+from simbench.errors import ScenarioError
+from simbench.schema import Name, SimbenchModel, file_name
+from simbench.validation import describe, kind_of, read_yaml
+
+MAX_TASKS = 10000
+DEFAULT_TASKS = 30
+
+
+class SuiteSpec(SimbenchModel):
+    """A suite file as written."""
+
+    name: Name | None = None
+    description: str = ""
+    tasks: Annotated[int, Field(ge=1, le=MAX_TASKS)] = DEFAULT_TASKS
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
+    methods: Annotated[list[str], Field(min_length=1)] | None = None
+    robots: Annotated[list[str | dict[str, Any]], Field(min_length=1)]
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A suite ready to draw: its name, where it came from, its robots, tasks per robot, seed and methods."""
+
+    name: str
+    source: str
+    robots: tuple[BenchRobot, ...]
+    tasks: int
+    seed: int
+    methods: tuple[str, ...]
+    description: str = ""
+
+    def with_options(self, tasks: int | None = None, seed: int | None = None,
+                     methods: list[str] | None = None) -> Suite:
+        """The suite with the command line's overrides; ScenarioError naming the option at fault."""
+        if tasks is not None and not 1 <= tasks <= MAX_TASKS:
+            raise ScenarioError("--tasks", None, f"expected a number of tasks from 1 to {MAX_TASKS}, got {tasks}")
+        if seed is not None and seed < 0:
+            raise ScenarioError("--seed", None, f"expected a seed >= 0, got {seed}")
+        chosen = self.methods if methods is None else tuple(check_methods(methods, "--methods", None))
+        return Suite(self.name, self.source, self.robots, self.tasks if tasks is None else tasks,
+                     self.seed if seed is None else seed, chosen, self.description)
+
+
+def check_methods(names: list[str], source: str, field: str | None) -> list[str]:
+    """`names` if each is a method that can run now; ScenarioError naming the first that is not."""
+    known = methods_table.available()
+    for i, name in enumerate(names):
+        if name not in methods_table.METHODS:
+            where = f"{field}[{i}]" if field else None
+            raise ScenarioError(source, where, f"unknown method {name!r} (expected one of: {', '.join(known)})")
+        if name not in known:
+            where = f"{field}[{i}]" if field else None
+            raise ScenarioError(source, where, f"method {name!r} needs cartesian_path's task.method, which this "
+                                               f"simbench lacks (available: {', '.join(known)})")
+    if len(set(names)) != len(names):
+        raise ScenarioError(source, field, "a method is named twice")
+    return list(names)
+
+
+def load_suite(text: str | Path) -> Suite:
+    """A shipped suite by robot name (or `all`), or a suite file; ScenarioError naming the file and field."""
+    text = str(text)
+    if text == "all" or text in SHIPPED:
+        names = list(SHIPPED) if text == "all" else [text]
+        return Suite(text, f"{text} (shipped suite)", tuple(SHIPPED[n]() for n in names), DEFAULT_TASKS, 0,
+                     tuple(methods_table.available()))
+    path = Path(text)
+    if not path.suffix and not path.exists():
+        raise ScenarioError(text, None, f"no shipped suite or suite file called {text!r} (shipped suites: all, "
+                                        f"{', '.join(SHIPPED)})")
+    return _load_file(path)
+
+
+def _load_file(path: Path) -> Suite:
+    source = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise ScenarioError(source, None, f"expected a mapping of suite fields, got {kind_of(raw)}")
+    try:
+        spec = SuiteSpec.model_validate(raw)
+    except ValidationError as err:
+        raise ScenarioError(source, *describe(err, SuiteSpec, raw)) from None
+    robots = [_robot(entry, i, path) for i, entry in enumerate(spec.robots)]
+    names = [r.name for r in robots]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise ScenarioError(source, f"robots[{i}]", f"robot {name!r} is listed twice")
+    chosen = (check_methods(spec.methods, source, "methods") if spec.methods is not None
+              else methods_table.available())
+    return Suite(spec.name or file_name(path.stem, source), source, tuple(robots), spec.tasks, spec.seed,
+                 tuple(chosen), spec.description)
+
+
+def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
+    """The bench robot of `robots[i]`: a shipped one by name, or a mapping of the suite file's own."""
+    source, where = str(path), f"robots[{i}]"
+    if isinstance(entry, str):
+        if entry not in SHIPPED:
+            raise ScenarioError(source, where, f"unknown robot {entry!r} (shipped: {', '.join(SHIPPED)}; or a "
+                                               "mapping with name and model)")
+        try:
+            return SHIPPED[entry]()
+        except ScenarioError as err:
+            raise ScenarioError(source, where, err.message) from None
+    mapping = dict(entry)
+    name, speed = mapping.pop("name", None), mapping.pop("speed", 0.1)
+    if not isinstance(name, str):
+        raise ScenarioError(source, f"{where}.name", "missing: an arm of your own needs a name")
+    try:
+        file_name(name, source)
+    except ScenarioError as err:
+        raise ScenarioError(source, f"{where}.name", err.message) from None
+    if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not 0 < speed <= 10:
+        raise ScenarioError(source, f"{where}.speed", f"expected a tool speed in m/s, > 0 and <= 10, got {speed!r}")
+    mapping = _absolute(mapping, path.parent)
+    from simbench.robots.robot_mapping import load_robot
+    from simbench.schema import Units
+
+    try:
+        load_robot(mapping, source, Units())
+    except ScenarioError as err:
+        field = (err.field or "").removeprefix("robot").lstrip(".")
+        raise ScenarioError(source, f"{where}.{field}" if field else where, err.message) from None
+    return custom(name, mapping, float(speed))
+
+
+def _absolute(mapping: dict, folder: Path) -> dict:
+    """The mapping with its model and package paths made absolute (relative ones are the suite file's)."""
+    out = dict(mapping)
+    if isinstance(out.get("model"), str) and not Path(out["model"]).is_absolute():
+        out["model"] = str((folder / out["model"]).resolve())
+    if isinstance(out.get("packages"), dict):
+        out["packages"] = {k: str((folder / v).resolve()) if isinstance(v, str) and not Path(v).is_absolute() else v
+                           for k, v in out["packages"].items()}
+    return out

@@ -1,0 +1,266 @@
+"""`simbench bench` (issue 36): suites of random tasks through, near and far from a robot's singular set, run by
+several methods into runs.csv and leaderboard.csv. Truths: the robots' analytic kinematics (a `through` task's
+path meets the set the analytic measure defines), the leaderboard recomputed from runs.csv with the standard
+library, a bootstrap interval against the normal approximation of a share's, and the same bytes from the same
+seed serially, in parallel and after a killed run resumed."""
+
+import csv
+import json
+import math
+import os
+import signal
+import statistics
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import interrupt
+from simbench import pipeline
+from simbench.bench import board, load_suite, run_bench
+from simbench.bench.methods import METHODS, available
+from simbench.bench.robots import SHIPPED
+from simbench.bench.tasks import bands, draw
+from simbench.cli import main
+from simbench.errors import ScenarioError
+from simbench.robots import puma600 as P
+from simbench.robots import spherical_arm as S
+from simbench.scenario import parse_scenario
+
+METHODS_2 = ["dls_adaptive", "mink"]
+
+
+def _suite(tasks=2, seed=0):
+    return load_suite("planar3r").with_options(tasks=tasks, seed=seed, methods=METHODS_2)
+
+
+@pytest.fixture(scope="module")
+def planar(tmp_path_factory):
+    """A planar 3R bench of 2 tasks by 2 methods, run here one after another."""
+    return run_bench(_suite(), tmp_path_factory.mktemp("bench") / "planar", workers=1)
+
+
+def _read(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+# --- suite files -----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("text, field", [
+    ("robots: [planar3r]\ntaks: 3\n", "taks"),
+    ("robots: [planar3r]\ntasks: 0\n", "tasks"),
+    ("robots: [nobody]\n", "robots[0]"),
+    ("robots: [planar3r]\nmethods: [dls_adaptive, magic]\n", "methods[1]"),
+    ("robots: [planar3r]\nmethods: [pinv]\n", "methods[0]"),
+    ("robots: [planar3r, planar3r]\n", "robots[1]"),
+    ("robots:\n  - {model: arm.xml}\n", "robots[0].name"),
+    ("robots:\n  - {name: mine, model: nowhere.xml, tool: {site: tool}}\n", "robots[0].model"),
+    ("robots:\n  - {name: mine, model: nowhere.xml, speed: -1}\n", "robots[0].speed"),
+])
+def test_suite_file_errors_name_the_file_and_field(tmp_path, capsys, text, field):
+    if "pinv" in text and "pinv" in available():
+        pytest.skip("cartesian_path takes task.method here")
+    path = tmp_path / "suite.yaml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError) as err:
+        load_suite(path)
+    assert err.value.source == str(path) and err.value.field == field
+    assert main(["bench", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {path}: {field}: ")
+
+
+def test_a_suite_file_runs_an_arm_of_its_own(tmp_path):
+    """A robot mapping in a suite file, its model relative to the file: the planar 3R's own MJCF."""
+    model = os.path.relpath(SHIPPED["planar3r"]().mapping["model"], tmp_path)
+    path = tmp_path / "suite.yaml"
+    path.write_text(f"name: mine\ntasks: 1\nmethods: [dls_adaptive]\nrobots:\n"
+                    f"  - {{name: flat, model: {model}, tool: {{site: tool}}, speed_limits: [3, 6, 6], speed: 0.2}}\n")
+    suite = load_suite(path)
+    assert [r.name for r in suite.robots] == ["flat"] and suite.tasks == 1
+    assert suite.robots[0].speed == 0.2 and suite.robots[0].model_arm().dof == 3
+
+
+def test_every_methods_document_is_a_valid_scenario():
+    """Each method's scenario for a task of each robot it applies to passes the scenario schema and the planner's
+    own check; pinv, dls and time_scaling wait for cartesian_path's task.method."""
+    for name in ("puma600", "spherical_arm", "planar3r"):
+        robot = SHIPPED[name]()
+        task = draw(robot, 1, 0)[0]
+        for method in available():
+            doc = METHODS[method].document(task, robot)
+            if doc is not None:
+                parse_scenario(doc, f"{name} {method}")
+    assert set(available()) >= {"dls_adaptive", "mink", "paper"}
+
+
+# --- tasks: through, near, far ------------------------------------------------------------------------------------
+
+def _point_line_distance(p, a, b):
+    d = (b - a) / np.linalg.norm(b - a)
+    return np.linalg.norm((p - a) - np.dot(p - a, d) * d)
+
+
+def test_a_puma_through_line_meets_the_wrist_singularity_by_the_analytic_kinematics():
+    """On the PUMA's `through` line the tool's pose at the anchor (a point of the line, the orientation held) is
+    one whose analytic inverse kinematics (puma600.ik, paper 002) puts q5 at 0; `near` ones keep q5 off 0 within
+    the near band, `far` ones beyond the far threshold; the start joints are on the line's start by the analytic
+    forward kinematics."""
+    robot = SHIPPED["puma600"]()
+    (near_lo, near_hi), far = bands(robot)
+    for task in draw(robot, 6, 3):
+        if task.shape != "line":
+            continue
+        a, b = (np.array(task.segment["line"][k]) for k in ("start", "end"))
+        anchor = np.array(task.anchor)
+        point, rotation = P.tool_pose(anchor[None])
+        assert _point_line_distance(point[0], a, b) < 1e-9
+        q = P.ik(point, rotation, P.configuration(anchor[None]))[0]
+        np.testing.assert_allclose(P.fk(q[None])[0], point[0], atol=1e-9)
+        gap = P.wrist_gap(q[None])[0]
+        if task.kind == "through":
+            assert gap < 1e-9
+        elif task.kind == "near":
+            assert near_lo - 1e-6 <= gap <= near_hi + 1e-6
+        else:
+            assert gap >= far - 1e-9
+        np.testing.assert_allclose(P.fk(np.array([task.start]))[0], a, atol=1e-6)
+
+
+def test_a_spherical_arm_through_line_crosses_the_lift_axis():
+    """The spherical arm's singular set is its lift axis (x = y = 0, paper 000): a `through` line crosses it, a
+    `far` one passes it at a distance; the start and goal joints are on the line's ends (analytic fk, eq. 19)."""
+    robot = SHIPPED["spherical_arm"]()
+    for task in draw(robot, 3, 1):
+        a, b = (np.array(task.segment["line"][k]) for k in ("start", "end"))
+        s = np.linspace(0, 1, 20001)[:, None]
+        axis_distance = np.hypot(*(a + s * (b - a))[:, :2].T).min()
+        if task.kind == "through":
+            assert axis_distance < 1e-4  # the grid's step along a line of at most 0.26 m
+        elif task.kind == "far":
+            assert axis_distance > 1e-3
+        np.testing.assert_allclose(S.fk(np.array([task.start]))[0], a, atol=1e-6)
+        np.testing.assert_allclose(S.fk(np.array([task.goal]))[0], b, atol=1e-6)
+
+
+def test_more_tasks_keep_the_first_ones_and_another_seed_changes_them():
+    robot = SHIPPED["planar3r"]()
+    two, three = draw(robot, 2, 5), draw(robot, 3, 5)
+    assert two == three[:2]
+    assert draw(robot, 2, 6)[0].start != two[0].start
+
+
+# --- runs and leaderboard -----------------------------------------------------------------------------------------
+
+def test_runs_csv_has_a_row_per_task_and_method(planar):
+    rows = _read(planar.out / "runs.csv")
+    assert sorted((r["task"], r["method"]) for r in rows) == sorted(
+        (f"planar3r-t{i:04d}", m) for i in range(2) for m in METHODS_2)
+    assert {r["kind"] for r in rows} == {"through", "near"}
+    for r in rows:
+        assert r["status"] in board.STATUSES
+        if r["status"] in ("ok", "limits"):
+            assert float(r["deviation_max_mm"]) >= 0 and float(r["speed_share_max"]) > 0
+            assert float(r["slowdown"]) == 1.0 and float(r["closest_approach"]) >= 0
+
+
+def test_the_leaderboard_is_runs_csv_summarised(planar):
+    """ok_share, the 95th percentile of the deviation (linear interpolation between order statistics, written out
+    here), the largest speed share and the median slowdown, from runs.csv with the standard library."""
+    runs, board_rows = _read(planar.out / "runs.csv"), _read(planar.out / "leaderboard.csv")
+    assert [(r["robot"], r["method"]) for r in board_rows] == [("planar3r", m) for m in METHODS_2]
+    for row in board_rows:
+        mine = [r for r in runs if r["method"] == row["method"]]
+        assert int(row["tasks"]) == len(mine)
+        assert float(row["ok_share"]) == pytest.approx(sum(r["status"] == "ok" for r in mine) / len(mine), rel=1e-6)
+        dev = sorted(float(r["deviation_max_mm"]) for r in mine if r["deviation_max_mm"])
+        h = 0.95 * (len(dev) - 1)
+        p95 = dev[math.floor(h)] + (h - math.floor(h)) * (dev[math.ceil(h)] - dev[math.floor(h)])
+        assert float(row["deviation_p95_mm"]) == pytest.approx(p95, rel=1e-5)
+        assert float(row["speed_share_max"]) == pytest.approx(max(float(r["speed_share_max"]) for r in mine),
+                                                              rel=1e-5)
+        assert float(row["slowdown_median"]) == pytest.approx(statistics.median(float(r["slowdown"])
+                                                                                 for r in mine), rel=1e-6)
+        for name in ("ok_share", "deviation_p95_mm", "slowdown_median"):
+            assert float(row[f"{name}_lo"]) <= float(row[name]) <= float(row[f"{name}_hi"])
+    by_kind = _read(planar.out / "leaderboard_by_kind.csv")
+    for row in by_kind:
+        mine = [r for r in runs if (r["method"], r["kind"]) == (row["method"], row["kind"])]
+        assert int(row["tasks"]) == len(mine) and int(row["ok"]) == sum(r["status"] == "ok" for r in mine)
+    assert sum(int(r["tasks"]) for r in by_kind) == len(runs)
+
+
+def test_a_bootstrap_interval_of_a_share_is_the_normal_approximations():
+    """400 draws of a share of 0.3: the percentile interval is 0.3 +- 1.96 sqrt(0.3 0.7 / 400) within a tenth."""
+    values = (np.arange(400) < 120).astype(float)
+    lo, hi = board.bootstrap(values, np.mean, np.random.default_rng(0))
+    half = 1.96 * math.sqrt(0.3 * 0.7 / 400)
+    assert lo == pytest.approx(0.3 - half, abs=0.1 * half) and hi == pytest.approx(0.3 + half, abs=0.1 * half)
+    assert lo <= 0.3 <= hi
+
+
+def test_the_same_seed_gives_the_same_leaderboard_bytes_on_two_workers(planar, tmp_path):
+    again = run_bench(_suite(), tmp_path / "again", workers=2)
+    assert (again.out / "leaderboard.csv").read_bytes() == (planar.out / "leaderboard.csv").read_bytes()
+    assert again.summary["backend"] == "2 processes"
+
+
+def test_a_killed_bench_resumes_to_the_same_leaderboard(planar, tmp_path):
+    """SIGKILL once a row is on disk: the same command runs only the runs without a row, and writes the leaderboard
+    an uninterrupted bench writes."""
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "simbench", "bench", "planar3r", "--tasks", "2", "--methods", ",".join(METHODS_2),
+               "--workers", "1", "--out", str(out), "--quiet"]
+    done = interrupt(command, lambda: len(list((out / "rows").glob("*.json"))) >= 1 if (out / "rows").is_dir()
+                     else False, tmp_path, signum=signal.SIGKILL)
+    assert done.returncode == -signal.SIGKILL
+    finished = len(list((out / "rows").glob("*.json")))
+    assert 1 <= finished < 4 and not (out / "leaderboard.csv").exists()
+    assert main(command[3:]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["resumed"] == finished and summary["runs"] == 4
+    assert (out / "leaderboard.csv").read_bytes() == (planar.out / "leaderboard.csv").read_bytes()
+
+
+def test_a_bench_folder_is_not_replaced_without_force(planar, tmp_path, capsys):
+    """Another suite into the folder is refused (exit 2); --force replaces it; a stranger's file in it stops that."""
+    out = planar.out
+    args = ["bench", "planar3r", "--tasks", "1", "--methods", "dls_adaptive", "--workers", "1", "--quiet"]
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    assert main(args + ["--out", str(foreign), "--force"]) == 2
+    assert (foreign / "notes.txt").read_text() == "mine"
+    assert main(args + ["--out", str(out)]) == 2
+    assert "other results" in capsys.readouterr().err
+
+
+def test_the_bench_metric_stays_out_of_other_runs(planar):
+    """After a bench in this process, a plain run's report has no `bench` metric."""
+    from conftest import scenario_file
+    from simbench.scenario import load_scenario
+
+    report = pipeline.evaluate_report(load_scenario(scenario_file("puma600", "line")), False)
+    assert "bench" not in report.get("metrics", {})
+
+
+def test_a_jaco_through_task_passes_a_rank_loss_by_mujocos_own_jacobian():
+    """The Jaco's `through` anchor, found by minimising rank_loss, is singular by MuJoCo's own mj_jacSite on the
+    untouched model ([Jp / L; Jr] of least singular value under 1e-4, L the derived reach), and its tool point lies
+    on the task's line at the orientation held there."""
+    import mujoco
+
+    robot = SHIPPED["jaco"]()
+    task = draw(robot, 1, 0)[0]
+    model = mujoco.MjModel.from_xml_path(robot.mapping["model"])
+    data = mujoco.MjData(model)
+    data.qpos[:6] = task.anchor
+    mujoco.mj_forward(model, data)
+    site = model.site("wristsite").id
+    jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    mujoco.mj_jacSite(model, data, jp, jr, site)
+    ju = np.vstack([jp[:, :6] / robot.model_arm().reach, jr[:, :6]])
+    assert np.linalg.svd(ju, compute_uv=False)[-1] < 1e-4
+    a, b = (np.array(task.segment["line"][k]) for k in ("start", "end"))
+    assert _point_line_distance(data.site_xpos[site], a, b) < 1e-9
