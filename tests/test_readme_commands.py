@@ -20,7 +20,8 @@ PREFIXES = ("python -m simbench ", "python -P -m simbench ", "simbench ")
 PLACEHOLDER = re.compile(r"\b[A-Z][A-Z_]+\b|[\[\]{}|<>]|\.\.\.|\bA,B\b")
 # What a command writes by default, from the root, found in its words: where to look for it.
 WRITES = {"run": "renders/{name}/report.json", "sweep": "renders/sweeps/{name}/results.csv",
-          "compare": "renders/compare/{name}/comparison.csv", "reproduce": "renders/reproduce/{name}/summary.md"}
+          "compare": "renders/compare/{name}/comparison.csv", "reproduce": "renders/reproduce/{name}/summary.md",
+          "bench": "renders/bench/{name}/leaderboard.csv"}
 
 
 def shown_commands() -> list[str]:
