@@ -1,5 +1,5 @@
 """A tool path of lines and arcs for any serial arm whose kinematics simbench can evaluate (an arm derived from its
-model: robots.model_arm), by damped least-squares resolved rates with closed-loop correction.
+model: robots.model_arm), by damped least-squares resolved rates with closed-loop correction (or another method).
 
 The task: the joint values `start`, the path (decoupled_path's segments; the first line's start may be left out:
 the tool's point at `start`) on the scenario's time law, and the orientation: `hold` (the tool's orientation at
@@ -29,6 +29,15 @@ unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v /
   - where a joint's rate would pass its speed limit, all the rates are scaled down together (ours): the tool keeps
     its direction and falls behind the time law, which the closed loop then makes up where it can.
 
+`task.method` picks how a singularity is met (path_methods states each rule, with its references): the above is
+`dls_adaptive` (the default); `dls` the same with a fixed damping lambda (`task.damping`); `pinv` the pseudo-inverse,
+never scaled down: the tool stays on the path and the verdict reports the speed limits the rates break
+(`velocity_limit`); `time_scaling` keeps the path exactly and stretches its timing under the joints' speed and
+acceleration limits (path_retiming: pinv's joint path, retimed by TOPP-RA; the report's `slowdown`); `mink` solves
+mink_baseline's QP per control step towards the path's next pose (the joint ranges and speed limits its
+constraints). Every method but mink holds the joint ranges as above; a redundant arm's posture term is in the null
+space of each rule.
+
 The plan is what the integration gives, inside the joint ranges. Where the plan's own tool leaves the path (the
 polyline of its points) by more than the scenario's path tolerance, or ends farther than its goal tolerance from
 the path's end (a path out of reach, a singularity damped, a tool slowed by the speed limits, a joint held at its
@@ -38,22 +47,23 @@ limit), the plan reports it (`off_path`, `goal_missed`), and each joint held at 
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, ValidationInfo, field_validator
 
 from simbench.analysis.path_distance import path_deviation
 from simbench.api import REVOLUTE, Planner, Violation
 from simbench.paths import Composite, Line
 from simbench.planners.decoupled_path import LineSpec, Segment, join_gap, segment_waypoints
+from simbench.planners.path_methods import (DAMPING, EPSILON, LAMBDA_MAX, METHODS, SCALED, Rule, damped_rates,
+                                            rule_of)
+from simbench.planners.path_retiming import ACCEL_TIME
 from simbench.robots.rank_loss import unit_jacobian
 from simbench.rotations import axis_rotation, matrix_to_quat
-from simbench.schema import JointVector, Orientation, Position, SimbenchModel
+from simbench.schema import JointVector, Orientation, Position, SimbenchModel, Units
 from simbench.trajectory import JointTrajectory, control_grid
 
-EPSILON = 0.05  # sigma_min of Ju (about 3 deg from a rank loss) below which the damping grows
-LAMBDA_MAX = 0.05  # the damping at sigma_min = 0: joint rates at most 1 / (2 LAMBDA_MAX) = 10 per unit twist
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
 NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
@@ -92,6 +102,39 @@ class Task(SimbenchModel):
     orientation: Literal["hold"] | Orientation = Field(
         "hold", description="'hold': the tool's orientation at start, all along; or the orientation it turns to "
                             "by slerp along the path")
+    method: Literal["dls_adaptive", "pinv", "dls", "time_scaling", "mink"] = Field(
+        "dls_adaptive", description="how a singularity is met: " + ", ".join(METHODS) + " (path_methods)")
+    damping: Annotated[float, Field(gt=0, le=1)] | None = Field(
+        None, description=f"dls's fixed lambda, dimensionless (a metre at the reach's end counts as a radian); "
+                          f"default {DAMPING:g}")
+    acceleration_limits: list[float] | None = Field(
+        None, description="time_scaling's joint acceleration limits, the angle (or length) unit per s^2, one per "
+                          f"joint; default each speed limit / {ACCEL_TIME:g} s")
+
+    @field_validator("damping")
+    @classmethod
+    def _dls_only(cls, value: float | None, info: ValidationInfo) -> float | None:
+        if value is not None and info.data.get("method", "dls") != "dls":
+            raise ValueError(f"is dls's fixed damping; method {info.data['method']} has none")
+        return value
+
+    @field_validator("acceleration_limits")
+    @classmethod
+    def _per_joint(cls, value: list[float] | None, info: ValidationInfo) -> list[float] | None:
+        if value is None:
+            return None
+        if info.data.get("method", "time_scaling") != "time_scaling":
+            raise ValueError(f"are time_scaling's; method {info.data['method']} reads none")
+        robot = (info.context or {}).get("robot")
+        if robot is None:
+            return value
+        if len(value) != robot.dof:
+            raise ValueError(f"expected {robot.dof} values, one per joint ({', '.join(robot.joints)}), "
+                             f"got {len(value)}")
+        if not all(np.isfinite(v) and v > 0 for v in value):
+            raise ValueError(f"expected positive limits, got {next(v for v in value if not v > 0):g}")
+        units = (info.context or {}).get("units", Units())
+        return [v * units.factor(kind) for v, kind in zip(value, robot.kinds)]
 
 
 def _segments(task: Task, robot) -> list:
@@ -100,18 +143,9 @@ def _segments(task: Task, robot) -> list:
     return [seg.build_from(tool) for seg in task.path]
 
 
-def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """Ju# twist (the module's damped inverse), sigma_min, lambda^2 and the null space's projector I - Ju+ Ju."""
-    u, sv, vt = np.linalg.svd(ju, full_matrices=False)
-    sigma = float(sv[-1])
-    lam2 = LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0
-    rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
-    return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
-
-
 def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
-                   dt: float) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """The rates of one sample with every joint kept inside its range (the module's docstring): the damped rates
+                   dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """The rates of one sample with every joint kept inside its range (the module's docstring): the rule's rates
     of the joints not held (with a redundant arm's null-space return to q0), each joint they would take past a
     limit within dt held to reach it exactly, the rest solved again for what the held ones leave of the twist.
     Returns the rates, the whole arm's sigma_min and lambda^2, and which joints are held (dof,)."""
@@ -119,7 +153,7 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
     sigma = lam2 = 0.0
     while not held.all():
         free = ~held
-        rates, s, l2, null = damped_rates(ju[:, free], twist - ju[:, held] @ fixed[held])
+        rates, s, l2, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
         if not held.any():
             sigma, lam2 = s, l2
         if len(now) > 6:
@@ -187,7 +221,8 @@ class CartesianPath(Planner):
         return join_gap(segments)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        """Integrate the damped, closed-loop resolved rates on the control grid (the module's docstring)."""
+        """Integrate the closed-loop resolved rates of the task's method on the control grid (the module's
+        docstring), or retime pinv's joint path (time_scaling), or solve mink's QPs along the path (mink)."""
         task = scenario.task
         law = scenario.timing.law_fn()
         t = control_grid(law.duration, scenario.timing.hold, dt)
@@ -198,14 +233,35 @@ class CartesianPath(Planner):
         turn = _turn(r0, r0 if task.orientation == "hold" else task.orientation.matrix())
         angle = np.linalg.norm(turn)
         axis = turn / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
-        points, rotations = path.point(s), axis_rotation(np.tile(axis, (len(s), 1)), s * angle) @ r0
-        twists = np.hstack([path.tangent(s) / robot.reach, turn[None] * np.ones((len(s), 1))]) * ds[:, None]
-        q, qd, sigma, lam2, scale, held = self._integrate(robot, q0, points, rotations, twists, dt)
+
+        def pose(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return path.point(s), axis_rotation(np.tile(axis, (len(s), 1)), s * angle) @ r0
+
+        def twist(s: np.ndarray, ds: np.ndarray) -> np.ndarray:
+            return np.hstack([path.tangent(s) / robot.reach, turn[None] * np.ones((len(s), 1))]) * ds[:, None]
+
+        points, rotations = pose(s)
+        extra: dict = {}
+        series: dict = {}
+        if task.method == "time_scaling":
+            t, s, q, qd, sigma, held, extra = self._time_scaled(task, robot, law, pose, twist, q0, dt,
+                                                                scenario.timing.hold)
+            points, rotations = pose(s)
+            lam2, scale = np.zeros(len(t)), np.ones(len(t))
+        elif task.method == "mink":
+            q, qd, extra = _mink(robot, points, rotations, q0, dt)
+            sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q), robot.reach), compute_uv=False)[:, -1]
+            lam2, scale, held = np.zeros(len(t)), np.ones(len(t)), np.zeros(q.shape, bool)
+        else:
+            q, qd, sigma, lam2, scale, held = self._integrate(robot, q0, points, rotations, twist(s, ds), dt,
+                                                              rule_of(task.method, task.damping),
+                                                              task.method in SCALED)
+            if task.method != "dls_adaptive":
+                series = {"plan_damping": np.sqrt(lam2), "plan_speed_scale": scale}
         tool = robot.fk(q)
         off = path_deviation(points, tool)
         turned = np.array([np.linalg.norm(orientation_error(a, b)) for a, b in zip(rotations, robot.tool_rotation(q))])
-        info = {"method": "damped least-squares resolved rates on the unit-consistent tool twist, closed loop "
-                          "(Siciliano et al. 2009, eqs. 3.59, 3.70; variable damping: Chiaverini et al. 1994)",
+        info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
                               "null_gain": NULL_GAIN if robot.dof > 6 else None, "reach": robot.reach},
                 "segments": [("line" if seg.line else "arc") for seg in task.path], "path_length": path.length,
@@ -213,6 +269,13 @@ class CartesianPath(Planner):
                 "speed_scaled_from": _first(t, scale < 1), "plan_path_deviation_max": float(off.max()),
                 "plan_goal_error": float(np.linalg.norm(tool[-1] - points[-1])),
                 "plan_orientation_error_max": float(np.arcsin(np.clip(turned.max(), 0.0, 1.0)))}
+        if task.method != "dls_adaptive":
+            info["path_method"] = task.method
+            info["damping"] = float(np.sqrt(lam2.max())) if task.method == "dls" else None
+            excess = np.abs(qd) / robot.qd_max
+            info["speed_share_max"] = float(excess.max())
+            info["speed_exceeded_from"] = _first(t, (excess > 1).any(axis=1))
+            info.update(extra)
         violations = self._off_path(t, off, sigma, scenario.analysis.path_tolerance, held)
         if info["plan_goal_error"] > scenario.analysis.goal_tolerance:
             violations += (Violation("goal_missed", f"the plan's own tool ends {info['plan_goal_error'] * 1e3:.2f} mm "
@@ -223,12 +286,40 @@ class CartesianPath(Planner):
             violations += self._held(robot, t, q, held, off > scenario.analysis.path_tolerance,
                                      any(v.kind == "goal_missed" for v in violations))
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
-                               waypoints=segment_waypoints(path, s, q), info=info, violations=violations)
+                               waypoints=segment_waypoints(path, s, q), info=info, violations=violations,
+                               series=series)
+
+    @classmethod
+    def _time_scaled(cls, task: Task, robot, law, pose, twist, q0: np.ndarray, dt: float,
+                     hold: float) -> tuple:
+        """time_scaling (path_retiming): pinv's joint path on a uniform grid of s, solved exactly at each sample,
+        retimed by TOPP-RA, the joints solved exactly at the retimed samples. Returns t, s, q, qd, sigma_min,
+        the joints held at a limit (N, dof), and the report's slowdown and durations."""
+        from simbench.planners.path_retiming import exact_ik, retime
+
+        n = max(int(round(law.duration / dt)), 2) + 1
+        grid = np.linspace(0.0, 1.0, n)
+        step = law.duration / (n - 1)
+        points, rotations = pose(grid)
+        q, _, _, _, _, held = cls._integrate(robot, q0, points, rotations, twist(grid, np.full(n, 1 / law.duration)),
+                                             step, rule_of("pinv", None), False)
+        q, _ = exact_ik(robot, q, points, rotations, _pose_error(robot))
+        qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
+                   else robot.qd_max / ACCEL_TIME)
+        t, s, _, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
+        points, rotations = pose(s)
+        q_plan, residual = exact_ik(robot, q_spline, points, rotations, _pose_error(robot))
+        sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q_plan), robot.reach), compute_uv=False)[:, -1]
+        at = np.clip(np.searchsorted(grid, s), 0, n - 1)
+        extra = {"slowdown": duration / law.duration, "duration_asked": law.duration, "duration_planned": duration,
+                 "acceleration_limits": qdd_max.tolist(), "ik_residual_max": float(residual.max())}
+        return t, s, q_plan, qd, sigma, held[at], extra
 
     @staticmethod
     def _integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
-                   dt: float) -> tuple[np.ndarray, ...]:
-        """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of the module's integration from q0."""
+                   dt: float, rule: Rule = damped_rates, scaled: bool = True) -> tuple[np.ndarray, ...]:
+        """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of the module's integration from q0 by the
+        rate rule (path_methods), scaled down under the speed limits where `scaled`; and the held joints (N, dof)."""
         n, gain = len(points), CLIK_SHARE / dt
         q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.empty(n)
         scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
@@ -238,8 +329,9 @@ class CartesianPath(Planner):
             error = np.concatenate([(points[k] - robot.fk(here)[0]) / robot.reach,
                                     orientation_error(rotations[k], robot.tool_rotation(here)[0])])
             ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)
-            rates, sigma[k], lam2[k], held[k] = _clamped_rates(ju, twists[k] + gain * error, now, q0, robot, dt)
-            scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
+            rates, sigma[k], lam2[k], held[k] = _clamped_rates(ju, twists[k] + gain * error, now, q0, robot, dt, rule)
+            if scaled:
+                scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
             q[k], qd[k] = now, rates * scale[k]
             now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
         return q, qd, sigma, lam2, scale, held
@@ -276,6 +368,52 @@ class CartesianPath(Planner):
         return (Violation("off_path", f"the plan's own tool leaves the path by up to {off[worst] * 1e3:.2f} mm "
                           f"(tolerance {tolerance * 1e3:g} mm) from t = {t[k]:.3f} s: {why}", float(t[k]), 0,
                           {"worst": float(off[worst]), "sigma_min": float(sigma[worst])}),)
+
+
+def _pose_error(robot):
+    """The unit-consistent pose error (N, 6) of the tool at q (N, dof) from points, rotations: the position's
+    divided by the reach, the orientation's the module's."""
+    def error_of(points: np.ndarray, rotations: np.ndarray, q: np.ndarray) -> np.ndarray:
+        rotation = orientation_error_many(rotations, robot.tool_rotation(q))
+        return np.hstack([(points - robot.fk(q)) / robot.reach, rotation])
+    return error_of
+
+
+def orientation_error_many(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """orientation_error of each pair (N, 3, 3): (N, 3)."""
+    return 0.5 * np.cross(np.swapaxes(r, 1, 2), np.swapaxes(r_goal, 1, 2)).sum(axis=1)
+
+
+def _mink(robot, points: np.ndarray, rotations: np.ndarray, q0: np.ndarray, dt: float) -> tuple:
+    """mink: mink_baseline's QP per control step (its default weights, damping and solver; the joint ranges and
+    speed limits its constraints) towards the path's next pose, from q0. Returns q, qd and the QP's failures."""
+    import mujoco
+
+    from simbench.planners import mink_baseline as mb
+
+    poses = np.empty((len(points), 7))
+    poses[:, 4:] = points
+    for pose, rotation in zip(poses, rotations):
+        mujoco.mju_mat2Quat(pose[:4], rotation.reshape(-1))
+    defaults = {name: mb.Task.model_fields[name].default for name in ("damping", "posture_cost", "solver")}
+    costs = (mb.Task.model_fields["position_cost"].default, 1.0 if robot.dof >= 6 else 0.0)
+    q, qd, met = mb.solve(mb.scene_model(robot), robot, dt, poses, q0, defaults["damping"], costs,
+                          defaults["posture_cost"], defaults["solver"])
+    return q, qd, {"qp_failures": len(met["failed"]), "mink": {**defaults, "costs": list(costs)}}
+
+
+_DESCRIPTION = {
+    "dls_adaptive": "damped least-squares resolved rates on the unit-consistent tool twist, closed loop "
+                    "(Siciliano et al. 2009, eqs. 3.59, 3.70; variable damping: Chiaverini et al. 1994)",
+    "dls": "damped least-squares resolved rates with fixed damping on the unit-consistent tool twist, closed loop "
+           "(Wampler 1986; Nakamura and Hanafusa 1986)",
+    "pinv": "pseudo-inverse resolved rates on the unit-consistent tool twist, closed loop, joint speeds unbounded "
+            "(Whitney 1969)",
+    "time_scaling": "pinv's joint path solved exactly on the path, retimed by TOPP-RA under the joints' speed and "
+                    "acceleration limits (Pham and Pham 2018)",
+    "mink": "mink's differential-IK QP per control step along the path (joint ranges and speed limits as "
+            "constraints)",
+}
 
 
 def _first(t: np.ndarray, mask: np.ndarray) -> float | None:

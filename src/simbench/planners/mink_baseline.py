@@ -196,22 +196,30 @@ def _orientation_gap(quat: np.ndarray, quat_ref: np.ndarray) -> np.ndarray:
 def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tuple[np.ndarray, np.ndarray, dict]:
     """q (N, dof), qd (N, dof) by mink along the reference's poses from its first configuration, and what the
     solve met: the tool's position and orientation (N, 3), (N, 4) at each q, and the steps whose QP failed."""
-    import mink  # imported here: `simbench list` and validation do not pay for it
-
     task: Task = scenario.task
     model = scene_model(robot)
     poses = reference_poses(model, robot, reference.q_ref, reference.tool_ref)
+    return solve(model, robot, dt, poses, reference.q_ref[0], task.damping, task.cost(robot), task.posture_cost,
+                 task.solver)
+
+
+def solve(model: mujoco.MjModel, robot: Robot, dt: float, poses: np.ndarray, q_start: np.ndarray, damping: float,
+          costs: tuple[float, float], posture_cost: float, solver: str) -> tuple[np.ndarray, np.ndarray, dict]:
+    """follow's QPs along the poses (N, 7) from q_start, on `model` (scene_model's): q, qd (N, dof) and what the
+    solve met."""
+    import mink  # imported here: `simbench list` and validation do not pay for it
+
     qpos_adr = np.array([model.joint(name).qposadr[0] for name in robot.joints])
     dof_adr = np.array([model.joint(name).dofadr[0] for name in robot.joints])
     qpos0 = model.qpos0.copy()
-    qpos0[qpos_adr] = reference.q_ref[0]
+    qpos0[qpos_adr] = q_start
 
     configuration = mink.Configuration(model, qpos0)
-    position_cost, orientation_cost = task.cost(robot)
+    position_cost, orientation_cost = costs
     frame = mink.FrameTask(robot.tool_site, "site", position_cost=position_cost, orientation_cost=orientation_cost)
     tasks: list = [frame]
-    if task.posture_cost > 0:
-        posture = mink.PostureTask(model, cost=task.posture_cost)
+    if posture_cost > 0:
+        posture = mink.PostureTask(model, cost=posture_cost)
         posture.set_target(qpos0)
         tasks.append(posture)
     velocity = mink.VelocityLimit(model, dict(zip(robot.joints, robot.qd_max)))
@@ -219,7 +227,7 @@ def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tup
     qd_max = np.full(model.nv, np.inf)
     qd_max[dof_adr] = robot.qd_max
 
-    n = len(reference.t)
+    n = len(poses)
     q, qd = np.empty((n, robot.dof)), np.empty((n, robot.dof))
     tool, quat = np.empty((n, 3)), np.empty((n, 4))
     site = model.site(robot.tool_site).id
@@ -230,11 +238,11 @@ def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tup
         mujoco.mju_mat2Quat(quat[k], configuration.data.site_xmat[site])
         frame.set_target(mink.SE3(wxyz_xyz=poses[min(k + 1, n - 1)]))
         try:
-            v = mink.solve_ik(configuration, tasks, dt, task.solver, damping=task.damping, limits=limits)
+            v = mink.solve_ik(configuration, tasks, dt, solver, damping=damping, limits=limits)
         except mink.NoSolutionFound:
             failed.append(k)
             try:  # the joint ranges cannot be met (a followed start outside them): keep the speed limits only
-                v = mink.solve_ik(configuration, tasks, dt, task.solver, damping=task.damping, limits=[velocity])
+                v = mink.solve_ik(configuration, tasks, dt, solver, damping=damping, limits=[velocity])
             except mink.NoSolutionFound:
                 v = np.zeros(model.nv)
         v = np.clip(v, -qd_max, qd_max)  # the QP's solution holds the limit to its tolerance; held exactly here

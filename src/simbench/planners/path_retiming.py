@@ -1,0 +1,88 @@
+"""cartesian_path's `time_scaling`: the path kept exactly, its timing stretched where the joints' speed and
+acceleration limits need it.
+
+  1. The joint path q(s): pinv's closed-loop resolved rates (path_methods) along the path parameter s on a uniform
+     grid (the asked duration at constant path speed, one step per control sample), each sample then solved
+     exactly for the path's pose at its s (Newton's iterations on the pseudo-inverse, `exact_ik`).
+  2. The timing s(t): time-optimal path parameterisation by reachability analysis (TOPP-RA: Pham and Pham, IEEE
+     Trans. Robot. 34(3), 2018; the `toppra` library) of the cubic spline through q(s), under
+     |qd_j| <= MARGIN qd_max_j and |qdd_j| <= MARGIN qdd_max_j, and no faster along the path than the asked time
+     law: s itself is a further coordinate of the path whose speed limit at s is the law's ds/dt there. Where no
+     joint limit binds the asked law comes back; where one does the motion slows down. It starts and ends at rest.
+  3. The plan: at each control sample's s(t_k), the joints solved exactly for the path's pose (exact_ik from the
+     spline's q), their rates the spline's dq/ds times ds/dt.
+
+`slowdown` = the planned duration over the asked one. MARGIN leaves room for what TOPP-RA's grid does not see
+(the limits hold at its gridpoints) and for the exact solution's departure from the spline.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simbench.planners.path_methods import pinv_rates
+from simbench.robots.rank_loss import unit_jacobian
+from simbench.trajectory import control_grid
+
+ACCEL_TIME = 0.1  # s: acceleration limits where the task gives none, each joint's speed limit reached in this time
+MARGIN = 0.98  # share of the speed and acceleration limits TOPP-RA plans for
+GRIDPOINTS = 1000  # TOPP-RA's gridpoints at most: s at uniform times of the asked law (dense where it is slow)
+IK_TOL = 1e-12  # exact_ik's tolerance on the unit-consistent pose error
+IK_ITERATIONS = 30
+
+
+def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
+             error_of) -> tuple[np.ndarray, np.ndarray]:
+    """Joints (N, dof) at which the tool's pose is points, rotations (N, 3), (N, 3, 3): Newton's iterations
+    q <- q + Ju+ e from q, e the unit-consistent pose error (error_of(points, rotations, q) -> (N, 6)), kept inside
+    the joint ranges. Returns the joints and the last |e| (N,)."""
+    q = np.array(q, float)
+    for _ in range(IK_ITERATIONS):
+        error = error_of(points, rotations, q)
+        size = np.linalg.norm(error, axis=1)
+        if size.max() <= IK_TOL:
+            break
+        ju = unit_jacobian(robot.jacobian(q), robot.reach)
+        step = np.array([pinv_rates(j, e)[0] for j, e in zip(ju, error)])
+        q = np.clip(q + step, robot.lower, robot.upper)
+    return q, np.linalg.norm(error_of(points, rotations, q), axis=1)
+
+
+def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_max: np.ndarray, dt: float,
+           hold: float) -> tuple[np.ndarray, ...]:
+    """TOPP-RA's timing of the joint path q_grid (M, dof) at s_grid (M,): the control times t, s(t), ds/dt (N,),
+    the spline's q(s(t)) and dq/dt (N, dof), and the planned duration. ValueError where no timing exists."""
+    import toppra  # imported here: validation and `simbench list` do not pay for it
+    import toppra.algorithm
+    import toppra.constraint
+
+    dof = q_grid.shape[1]
+    path = toppra.SplineInterpolator(s_grid, np.hstack([q_grid, s_grid[:, None]]))
+    fine = np.linspace(0.0, law.duration, 20 * len(s_grid) + 1)
+    s_law, sd_law, sdd_law = law(fine, order=2)
+    sd_law[[0, -1]] = 0.0
+
+    def speed_limits(s: float) -> np.ndarray:
+        rate = float(np.interp(s, s_law, sd_law))
+        return np.vstack([np.column_stack([-MARGIN * qd_max, MARGIN * qd_max]), [-rate, rate]])
+
+    s_accel = 100.0 * max(float(np.abs(sdd_law).max()), 1.0 / law.duration**2)
+    accel = np.vstack([np.column_stack([-MARGIN * qdd_max, MARGIN * qdd_max]), [-s_accel, s_accel]])
+    constraints = [toppra.constraint.JointVelocityConstraintVarying(speed_limits),
+                   toppra.constraint.JointAccelerationConstraint(accel)]
+    gridpoints = np.unique(law(np.linspace(0.0, law.duration, min(GRIDPOINTS, len(s_grid))), order=0)[0])
+    solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=gridpoints, parametrizer="ParametrizeConstAccel")
+    timed = solver.compute_trajectory(0.0, 0.0)
+    if timed is None:
+        raise ValueError("TOPP-RA found no timing of the joint path within the joints' speed and acceleration "
+                         "limits")
+    duration = float(timed.duration)
+    t = control_grid(duration, hold, dt)
+    inside = np.minimum(t, duration)
+    y, yd = timed(inside), timed(inside, 1)
+    s = np.clip(y[:, -1], 0.0, 1.0)
+    s[t >= duration] = 1.0
+    rates = yd[:, :dof]
+    rates[t >= duration] = 0.0
+    sd = np.where(t >= duration, 0.0, yd[:, -1])
+    return t, s, sd, path(s)[:, :dof], rates, duration
