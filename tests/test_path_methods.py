@@ -13,6 +13,8 @@ mj_kinematics), computed here from the scenario alone:
   - a bad method or a field of another method is a one-line error naming the field (exit 2).
 """
 
+from importlib.metadata import distribution
+
 import mujoco
 import numpy as np
 import pytest
@@ -20,7 +22,8 @@ import yaml
 
 from simbench.cli import main
 from simbench.pipeline import check_plan
-from simbench.planners.cartesian_path import CLIK_SHARE
+from simbench.planners.cartesian_path import CLIK_SHARE, NULL_GAIN
+from simbench.plant import compiled_scene
 from simbench.planners.path_methods import EPSILON, LAMBDA_MAX
 from simbench.resources import models_dir
 from simbench.scenario import load_scenario
@@ -44,14 +47,14 @@ def _scenario(folder, method: str, **fields):
 
 
 class Mujoco:
-    """MuJoCo's own tool site, Jacobian and orientation of the PUMA's model at joint values."""
+    """MuJoCo's own tool site, Jacobian and orientation of a model (default: the PUMA's MJCF) at joint values."""
 
-    def __init__(self, joints):
-        self.model = mujoco.MjModel.from_xml_path(str(XML))
+    def __init__(self, joints, model=None, site="tool"):
+        self.model = mujoco.MjModel.from_xml_path(str(XML)) if model is None else model
         self.data = mujoco.MjData(self.model)
         self.adr = [self.model.joint(name).qposadr[0] for name in joints]
         self.dofs = [self.model.joint(name).dofadr[0] for name in joints]
-        self.site = self.model.site("tool").id
+        self.site = self.model.site(site).id
 
     def pose(self, q):
         self.data.qpos[self.adr] = q
@@ -66,12 +69,12 @@ class Mujoco:
         return np.vstack([jacp[:, self.dofs], jacr[:, self.dofs]])
 
 
-def _commanded(mj, plan, k, start, end, r0):
+def _commanded(mj, plan, k, start, end, r0, duration=DURATION):
     """The commanded twist [v; w] (SI) at sample k: the line's velocity under the quintic law plus K times the
     tool's error at the plan's q there (position, and 1/2 sum n x n_d of the held orientation)."""
-    tau = plan.t[k] / DURATION
+    tau = plan.t[k] / duration
     s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
-    ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / DURATION
+    ds = (30 * tau**2 - 60 * tau**3 + 30 * tau**4) / duration
     point, rotation = mj.pose(plan.q_ref[k])
     gain = CLIK_SHARE / DT
     ep = start + s * (end - start) - point
@@ -142,6 +145,44 @@ def test_dls_adaptive_damps_by_mujocos_sigma_min(tmp_path):
         checked, damped = checked + 1, damped + (lam2 > 0)
     assert checked > 30 and damped > 0
     assert "path_method" not in plan.info and not plan.series  # the default's report as before
+
+
+PANDA = (distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data") / "robots"
+         / "panda_description" / "urdf" / "panda.urdf")
+
+
+@pytest.mark.parametrize("method", ["pinv", "dls"])
+def test_a_redundant_arm_returns_to_its_start_posture_in_the_null_space(tmp_path, method):
+    """Panda (7 joints, example-robot-data's URDF): J qd is the commanded twist (pinv) or the damped rates plus the
+    null-space term (I - Ju+ Ju) K_N (q0 - q), Ju+ numpy's pseudo-inverse of MuJoCo's Ju."""
+    start = [0.0, -45.0, 0.0, -135.0, 0.0, 90.0, 45.0]
+    doc = {"robot": {"model": str(PANDA), "tool": {"body": "panda_link7", "offset": [0, 0, 107]},
+                     "joints": [f"panda_joint{i}" for i in range(1, 8)]},
+           "planner": "cartesian_path", "units": {"angle": "deg", "length": "mm"},
+           "task": {"start": start, "path": [{"line": {"end": [300.0, 250.0, 500.0]}}], "method": method},
+           "timing": {"law": "quintic", "duration": 3.0, "hold": 0.2}}
+    path = tmp_path / "panda.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    sc = load_scenario(path)
+    robot = sc.robot_def
+    plan = sc.planner_def.plan(sc, robot, DT)
+    mj = Mujoco(robot.joints, compiled_scene(str(robot.scene)), robot.tool_site)
+    q0 = np.deg2rad(start)
+    tool0, r0 = mj.pose(q0)
+    assert plan.info["range_held_from"] is None
+    unit = np.array([1 / robot.reach] * 3 + [1.0] * 3)
+    lam = plan.series["plan_damping"]
+    moving = np.flatnonzero((plan.t > 0) & (plan.t < 3.0))
+    for k in np.random.default_rng(5).choice(moving, 20, replace=False):
+        ju = unit[:, None] * mj.jacobian(plan.q_ref[k])
+        xu = unit * _commanded(mj, plan, k, tool0, np.array([0.3, 0.25, 0.5]), r0, duration=3.0)
+        null = (np.eye(7) - np.linalg.pinv(ju) @ ju) @ (NULL_GAIN * (q0 - plan.q_ref[k]))
+        task = ju.T @ np.linalg.solve(ju @ ju.T + lam[k] ** 2 * np.eye(6), xu)
+        expected = plan.series["plan_speed_scale"][k] * (task + null)
+        np.testing.assert_allclose(plan.qd_ref[k], expected, rtol=0, atol=1e-9 * (1 + abs(expected).max()))
+        if method == "pinv":
+            np.testing.assert_allclose(ju @ plan.qd_ref[k], xu, rtol=0, atol=1e-9 * (1 + abs(xu).max()))
+    assert np.abs(plan.q_ref[-1] - q0).max() > 0.01  # the joints moved (the null space does not hold them)
 
 
 def _line_distance(points, start, end):
