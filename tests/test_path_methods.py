@@ -246,3 +246,10 @@ def test_a_bad_method_or_a_field_of_another_is_a_one_line_error(tmp_path, capsys
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and where in err and str(path) in err
+
+
+def test_time_scaling_refuses_a_motion_stretched_past_a_hundred_times(tmp_path, capsys):
+    path = _scenario(tmp_path, "time_scaling", acceleration_limits=[1e-3] * 6)
+    assert main(["validate", str(path)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "100 times" in err

@@ -67,6 +67,7 @@ from simbench.trajectory import JointTrajectory, control_grid
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
 NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
+MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most
 _UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
 _NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
 
@@ -131,10 +132,13 @@ class Task(SimbenchModel):
         if len(value) != robot.dof:
             raise ValueError(f"expected {robot.dof} values, one per joint ({', '.join(robot.joints)}), "
                              f"got {len(value)}")
-        if not all(np.isfinite(v) and v > 0 for v in value):
-            raise ValueError(f"expected positive limits, got {next(v for v in value if not v > 0):g}")
         units = (info.context or {}).get("units", Units())
-        return [v * units.factor(kind) for v, kind in zip(value, robot.kinds)]
+        si = [v * units.factor(kind) for v, kind in zip(value, robot.kinds)]
+        bad = next((v for v, x in zip(value, si) if not 0 < x <= MAX_ACCELERATION), None)
+        if bad is not None:
+            raise ValueError(f"expected limits in (0, {MAX_ACCELERATION:g}] rad/s^2 or m/s^2, got {bad:g} "
+                             "(the file's unit per s^2)")
+        return si
 
 
 def _segments(task: Task, robot) -> list:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simbench.errors import RunError
 from simbench.planners.path_methods import pinv_rates
 from simbench.robots.rank_loss import unit_jacobian
 from simbench.trajectory import control_grid
@@ -27,6 +28,7 @@ from simbench.trajectory import control_grid
 ACCEL_TIME = 0.1  # s: acceleration limits where the task gives none, each joint's speed limit reached in this time
 MARGIN = 0.98  # share of the speed and acceleration limits TOPP-RA plans for
 GRIDPOINTS = 1000  # TOPP-RA's gridpoints at most: s at uniform times of the asked law (dense where it is slow)
+MAX_SLOWDOWN = 100.0  # a longer timing is refused (its samples would be the run's memory)
 IK_TOL = 1e-12  # exact_ik's tolerance on the unit-consistent pose error
 IK_ITERATIONS = 30
 
@@ -51,7 +53,7 @@ def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
 def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_max: np.ndarray, dt: float,
            hold: float) -> tuple[np.ndarray, ...]:
     """TOPP-RA's timing of the joint path q_grid (M, dof) at s_grid (M,): the control times t, s(t), ds/dt (N,),
-    the spline's q(s(t)) and dq/dt (N, dof), and the planned duration. ValueError where no timing exists."""
+    the spline's q(s(t)) and dq/dt (N, dof), and the planned duration. RunError where no timing exists."""
     import toppra  # imported here: validation and `simbench list` do not pay for it
     import toppra.algorithm
     import toppra.constraint
@@ -74,9 +76,12 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
     solver = toppra.algorithm.TOPPRA(constraints, path, gridpoints=gridpoints, parametrizer="ParametrizeConstAccel")
     timed = solver.compute_trajectory(0.0, 0.0)
     if timed is None:
-        raise ValueError("TOPP-RA found no timing of the joint path within the joints' speed and acceleration "
-                         "limits")
+        raise RunError("time_scaling: TOPP-RA found no timing of the joint path within the joints' speed and "
+                       "acceleration limits")
     duration = float(timed.duration)
+    if duration > MAX_SLOWDOWN * law.duration:
+        raise RunError(f"time_scaling: the joints' limits stretch the motion to {duration:.4g} s, more than "
+                       f"{MAX_SLOWDOWN:g} times the asked {law.duration:g} s")
     t = control_grid(duration, hold, dt)
     inside = np.minimum(t, duration)
     y, yd = timed(inside), timed(inside, 1)
