@@ -16,8 +16,7 @@ type 2 singularities by smooth bumps whose parameters SLSQP finds.
      clearance staying above its margin over the whole path (sections 6-7). SLSQP is given the gradients
      analytically (project issue 14): the KCI's and each clearance's partial derivatives in the base angles and
      in the platform's rotation (agile_eye.kci_partials, axis_gap_partials, _angle_partial), pulled back through
-     the estimate's own derivative (the network's by reverse mode, the exact FK's A^-1 B) and the bump; the KCI
-     is computed in closed form (agile_eye.kci_closed_form, within 1e-13 of agile_eye.kci).
+     the estimate's own derivative (the network's by reverse mode, the exact FK's A^-1 B) and the bump.
   4. Repeat for the next violation, up to max_windows; then check the result with the exact FK.
 
 Two additions of ours (project issue 19):
