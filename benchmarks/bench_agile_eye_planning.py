@@ -21,7 +21,7 @@ into one or two obstacles.
 
 Every plan handed over is checked here by the exact FK followed along its own q_ref
 (bench_agile_eye_crossing.verify: singular curves, obstacles, det A's sign, start and goal; and the KCI by
-agile_eye.kci, not the planner's closed form).
+agile_eye.kci).
 """
 
 from __future__ import annotations

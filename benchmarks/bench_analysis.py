@@ -1,13 +1,10 @@
-"""The analysis against the simulation on every shipped scenario (project issue 14).
+"""The analysis against the simulation on every shipped scenario.
 
 Per scenario, planned once, then in alternation: the simulation as `simbench.evaluate`'s `simulate` stage makes it
 (`sim.simulate` with the scenario's controller, then `sim.commanded`) and the analysis as its `analyse` stage makes
 it (`analysis.analyse` and `verdict.run_verdict` on that recording); the ratio is the median of the pairwise
-ratios, so that a busy machine slows both alike. (Its target, at most 0.5 on every scenario, was retired by issue
-34: the PUMA's condition number is now NumPy's SVD, not an eigenvalue solver by hand.)
-
-BEFORE holds the same figures for the code of commit 0ca0635, measured by this module (run on a copy of that
-revision's src/) on the same machine on the same day, just before the figures after.
+ratios, so that a busy machine slows both alike. BEFORE holds the same figures for the code of commit 0ca0635,
+measured by this module on a copy of that revision's src/.
 """
 
 from __future__ import annotations
@@ -22,10 +19,8 @@ from simbench.robots import Tolerance
 from simbench.sim import commanded, simulate
 from simbench.verdict import run_verdict
 
-REPEATS = 15  # pairs a scenario: with 5, one loaded run of the circle swung by +-0.05
-# Commit 0ca0635, measured by this module on 2026-11-23 (AMD EPYC, 2 cores, shared with other work) just before
-# the figures after in BENCHMARKS.md:
-# scenario: (simulate ms, analyse ms, median ratio).
+REPEATS = 15  # pairs a scenario: with 5, one loaded run swung the ratio by +-0.05
+# Commit 0ca0635 (BENCHMARKS.md says when and where): scenario -> (simulate ms, analyse ms, median ratio).
 BEFORE = {
     "agile_eye/avoidance": (99.3, 329.6, 3.31),
     "agile_eye/through_singularity": (81.2, 2964.9, 41.34),

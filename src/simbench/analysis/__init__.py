@@ -11,7 +11,7 @@ its lag along the path, and its error against the time-indexed reference, as per
                       the joint can go) and `actuator_saturation` (a joint's actuator at its force bound: the
                       motor cannot give what tracking the plan takes).
 
-Its modules: analyser (Analysis, analyse, Analyser), path_distance (the capsule tree's path search), tangents
+Its modules: analyser (Analysis, analyse, Analyser), path_distance (the path search), tangents
 (the path's direction, for the lag) and limit_events (the plan's and the joints' limit events, the plan's jumps).
 """
 

@@ -28,14 +28,12 @@ _BACK_ON_PATH = 1e-3  # m: after a jump, the tool counts as back on the path wit
 
 @dataclass(frozen=True)
 class Analysis:
-    """Tracking summary, event lists, the per-sample series behind them (at the recording's kept rows), the names
-    of the robot's singularity measures among those series, what the robot adds to the report (closure error,
-    say), the number of samples analysed, and where the path deviation and the orientation error rose above every
-    sample before them (windowed.Rises: the verdict's first sample beyond a tolerance). `extremes`: what every
-    sample shows and the kept rows of a strided run may miss: "qd_ref_peak", each joint's largest planned rate
-    magnitude (dof,), and "singular_min", each singular set's least distance (in multiples of the near
-    tolerance). `tracking`: the figures of the shipped metric `tracking`; `metrics`: every other metric's, by its
-    name."""
+    """A run's analysis: the tracking figures (the shipped metric `tracking`) and every other metric's by name,
+    the events, the per-sample series behind them (at the recording's kept rows), the names of the robot's
+    singularity measures among them, what the robot adds to the report, the samples analysed, and where the path
+    deviation and the orientation error rose above every sample before them (windowed.Rises, for the verdict).
+    `extremes`: what the kept rows of a strided run may miss: "qd_ref_peak", each joint's largest planned rate
+    (dof,), and "singular_min", each singular set's least distance (in multiples of the near tolerance)."""
 
     tracking: dict
     singularity_events: list[Event]
@@ -49,7 +47,6 @@ class Analysis:
     metrics: dict[str, dict] = field(default_factory=dict)
 
 
-
 def _closest(a: tuple, b: tuple) -> tuple:
     """Of two pieces of a span near a singular set, (distance, sample, gaps, detail) at the closest sample: the
     first."""
@@ -58,11 +55,9 @@ def _closest(a: tuple, b: tuple) -> tuple:
 
 def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance, margin: Tolerance,
             window: int | None = None, scenario: Scenario | None = None) -> Analysis:
-    """Everything the report says about a run, from every recorded sample, `window` samples at a time (default:
-    `windowed.window_size`: all of a run as short as every shipped scenario), so that a long run's analysis holds
-    a window of per-sample arrays and what it keeps of them: the figures and events of the whole run, and the
-    per-sample series at the recording's kept rows (every row without a recording stride). `scenario` (a Scenario,
-    or None) is what the metrics are made for (Metric.for_run)."""
+    """Everything the report says about a run, from every recorded sample, `window` samples at a time (default
+    `windowed.window_size`), so that a long run's analysis holds a window of per-sample arrays at a time.
+    `scenario` (or None) is what the metrics are made for (Metric.for_run)."""
     run = Analyser(robot, traj, near, margin, window, scenario)
     for lo in range(0, rec.t.size, run.window):
         run.add(rec.rows(lo, min(lo + run.window, rec.t.size)))
@@ -70,17 +65,15 @@ def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance
 
 
 class Analyser:
-    """The analysis of a run, fed its samples a window at a time, in order (as they are simulated: simbench.sim,
-    whose windows' samples are then let go). A window's plan is final: the plan's feedback revises the references
-    of samples still to come only.
+    """The analysis of a run, fed its samples a window at a time, in order (as simbench.sim simulates them). A
+    window's plan is final: the plan's feedback revises the references of samples still to come only.
 
-    Tracking series: joint errors; the tool's distance from the planned path (the polyline of the planned tool
-    points) near its reference (the stretch within windowed.NEAR_REFERENCE s: `deviation_near_reference`) and its
-    lag: the error's component along the path's tangent at the reference point, positive when the tool trails; and
-    its error against the time-indexed reference. The robot's measures, singular sets and summary (a Summariser's
-    windows, or with none the whole run's `summary` at the end), then every registered metric (registry.metrics_for)
-    given the same windows: with no Summariser, the whole run as one at the end. Spans of events that reach a
-    window's edge go on into the next (windowed.Spans)."""
+    Tracking series: joint errors; the tool's distance from the planned path near its reference (within
+    windowed.NEAR_REFERENCE s: `deviation_near_reference`); its lag, the error's component along the path's tangent
+    at the reference point (positive when the tool trails); and its error against the time-indexed reference.
+    Then the robot's measures, singular sets and summary (a Summariser's windows, or with none the whole run's
+    `summary` at the end), and every registered metric (registry.metrics_for) given the same windows. Spans of
+    events that reach a window's edge go on into the next (windowed.Spans)."""
 
     def __init__(self, robot: Robot, traj: JointTrajectory, near: Tolerance, margin: Tolerance,
                  window: int | None = None, scenario: Scenario | None = None):
@@ -188,15 +181,14 @@ class Analyser:
                                   lambda a, b, force=force: float(force[a]))
 
     def plan_from(self) -> int:
-        """The first row of the plan that the windows still to come read: the step into the next window (its
-        jump, its tangent) and the stretch of path its search takes (`path_from`). The rows before it may be let
-        go (sim.simulate's analyser does), but for the plan's times, which the events are stamped with."""
+        """The first row of the plan that the windows still to come read (the step into the next window and the
+        stretch of path its search takes, `path_from`): the rows before it may be let go, but for their times."""
         lo = self.samples
         return max(min(lo - 1, path_from(lo, windowed.near_reference(self.traj.dt))), 0)
 
     def plan(self) -> JointTrajectory:
-        """The plan at the recording's kept rows analysed so far, without its feedback (spent): what the outputs
-        of a run with a recording stride show, kept as the run goes, since its other rows may be let go."""
+        """The plan at the recording's kept rows analysed so far, without its (spent) feedback: what the outputs
+        of a run with a recording stride show."""
         return replace(joined(self.plan_kept), feedback=None)
 
     def finish(self, whole: Recording | None = None) -> Analysis:

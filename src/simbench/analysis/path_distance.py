@@ -1,6 +1,7 @@
-"""The tool's distance from the planned path: the polyline of the planned tool points, searched whole
-(`path_deviation`) or near each point's own reference (`deviation_near_reference`) by branch and bound over a
-tree of capsules about the path's stretches."""
+"""The tool's distance from the planned path (the polyline of the planned tool points), whole (`path_deviation`) or
+near each point's own reference (`deviation_near_reference`), by branch and bound over a tree of capsules about the
+path's stretches: by hand, as scipy's cKDTree with an exact refinement slows some shipped runs more than the
+project allows (BENCHMARKS.md, issue 34)."""
 
 from __future__ import annotations
 
@@ -11,28 +12,24 @@ import numpy as np
 from simbench import windowed
 from simbench.windowed import norms
 
-_BATCH = 1 << 15  # points _deviation searches at once, each with a few (point, stretch) pairs a level
-_LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one (a quarter of the memory)
+_BATCH = 1 << 15  # points _deviation searches at once (memory bounded on a long run)
+_LEAF = 2  # the capsule tree's smallest stretches: 2^_LEAF segments, searched one by one
 
 
 def path_deviation(path: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Distance of each point from the polyline `path` (see `_deviation` for how it is searched)."""
+    """Distance of each point (N, 3) from the polyline `path` (M, 3)."""
     n = len(points)
     return _deviation(np.asarray(path, float), np.asarray(points, float), [(0, n, 0, len(path) - 1)])
 
 
 def deviation_near_reference(path: np.ndarray, points: np.ndarray, window: int, start: int = 0) -> np.ndarray:
     """Distance of each points[k], the tool at path sample start + k, from the stretch of the sampled path within
-    about `window` samples of its own (from `window` to twice that: the path is cut into blocks of `window`
-    samples, each searched with its neighbours). A path that comes back to the same place later, a rotor turning
-    many times say, then does not hide a point that is off its own stretch, and the search stays as cheap as on a
-    path that never returns.
-    The blocks are searched a group at a time (windowed.group: whole blocks, at most windowed.GROUP samples, or
-    windowed.LONG in a run of more than windowed.WINDOW), each group on the stretch of path its blocks need, so
-    that the search's memory does not grow with the run (a tree of the whole ten-minute soak's path and its search
-    took 180 MB); every shipped scenario is one group. Blocks and groups are counted from the path's first sample,
-    so points given a group at a time (`start`, the analysis' windows) are searched as the run's points all at
-    once. Points and path are (N, 3)."""
+    about `window` samples of its own (the path cut into blocks of `window` samples, each searched with its
+    neighbours), so that a path that comes back to the same place later (a rotor turning many times) does not hide
+    a point that is off its own stretch. The blocks are searched a group at a time (windowed.group), each on the
+    stretch of path it needs, so that the search's memory does not grow with the run. Blocks and groups are
+    counted from the path's first sample: points given a window at a time (`start`) get what the run's points all
+    at once get. Points and path are (N, 3)."""
     path, points = np.asarray(path, float), np.asarray(points, float)
     n = len(points)
     if start + n > len(path):
@@ -61,15 +58,12 @@ def _deviation(path: np.ndarray, points: np.ndarray, blocks: list[tuple[int, int
                planned_at: int | None = None) -> np.ndarray:
     """Distance of points[a:b] from the polyline path[first:last + 1], for each block (a, b, first, last).
 
-    Exact to 1e-13 of the coordinates' scale, near the path or far from it: a branch and bound over a tree of
-    the path's stretches of 2^l segments (`_capsules`), each bounded by a capsule about its chord, so that each
-    point examines a few stretches a level (`_nearest`). `planned_at`: points[k] is planned at path[k + planned_at],
-    and the segment there gives the first bound. Repeated samples are dropped first: the polyline is the same.
-
-    Own code, not scipy's cKDTree with an exact refinement: a k-d tree bounds a piece of path by a ball about its
-    middle, which a point far from a path curving about it, or near a path crawling into motion (hundreds of short
-    segments in one place), cannot tell apart, where a capsule about a chord can: it took 1.5 to 11 times as long on
-    the shipped scenarios (BENCHMARKS.md, issue 34).
+    Exact to 1e-13 of the coordinates' scale: a branch and bound over a tree of the path's stretches of 2^l
+    segments (`_capsules`), each bounded by a capsule about its chord (`_nearest`). A k-d tree's ball about a piece
+    of path cannot tell apart the many pieces near a point far from a path, or near a path crawling into motion
+    (hundreds of short segments in one place); a capsule, whose radius is the stretch's sag, can. `planned_at`:
+    points[k] is planned at path[k + planned_at], whose segment gives the first bound. Repeated samples are
+    dropped first (the polyline is the same).
     """
     if len(path) == 0:
         raise ValueError("path_deviation needs a path of at least one point")
@@ -114,8 +108,8 @@ def _distance(ax, ay, az, bx, by, bz, px, py, pz) -> np.ndarray:
 class _Capsules:
     """A polyline's vertices (padded to 2^depth segments with copies of the last; x, y and z apart) and, for
     every level l >= _LEAF, its stretches of 2^l segments each as a capsule: the chord a -> a + ab from its first
-    vertex to its last, and a radius r within which every point of the stretch lies of the chord. Level l's rows:
-    ax, ay, az, abx, aby, abz, 1 / |ab|^2 (0 for a stretch that closes) and r."""
+    vertex to its last and a radius r that holds the stretch. Level l's rows: ax, ay, az, abx, aby, abz,
+    1 / |ab|^2 (0 for a stretch that closes) and r."""
 
     xyz: tuple[np.ndarray, np.ndarray, np.ndarray]
     levels: list[np.ndarray | None]  # None below _LEAF
@@ -130,7 +124,7 @@ def _capsules(vertices: np.ndarray) -> _Capsules:
     depth = int(np.ceil(np.log2(segments))) if segments > 1 else 0
     size = 1 << depth
     x, y, z = (np.concatenate([c, np.repeat(c[-1], size - segments)]) for c in vertices.T)  # padded, apart
-    levels: list[np.ndarray | None] = [None] * _LEAF  # below _LEAF, stretches are searched segment by segment
+    levels: list[np.ndarray | None] = [None] * _LEAF
     radius = np.zeros(size)
     for level in range(1, depth + 1):
         step = 1 << level
@@ -169,11 +163,10 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
     1e-13 of the scale of the path's and the point's coordinates (1e-12 m within 9 m of the origin).
 
     Branch and bound, level by level from the largest stretches that make up a point's range (`_cover`) down to
-    stretches of 2^_LEAF segments, whose segments are then measured one by one: a stretch's capsule bounds its
-    distance from a point from below (the distance from its chord less its radius) and from above (plus the radius:
-    every point of the chord lies within the radius of the stretch). The first upper bound is the distance from
-    segment `guess` or the one before it. A stretch that cannot come nearer than the least upper bound so far by
-    the tolerance is dropped, the others split in two.
+    stretches of 2^_LEAF segments, whose segments are then measured one by one: a capsule bounds its stretch's
+    distance from below (the chord's distance less the radius) and from above (plus the radius). The first upper
+    bound is the distance from segment `guess` or the one before it. A stretch that cannot come nearer than the
+    least upper bound by the tolerance is dropped, the others split in two.
     """
     vx, vy, vz = tree.xyz
     px, py, pz = (np.ascontiguousarray(c) for c in points.T)
@@ -181,8 +174,8 @@ def _nearest(tree: _Capsules, points: np.ndarray, first: np.ndarray, last: np.nd
     tol = 1e-13 * (1.0 + np.maximum(tree.scale, np.abs(points).max(axis=1)))  # each point's: 25 times rounding's
 
     def exact(k: np.ndarray, seg: np.ndarray) -> np.ndarray:
-        """Each point k's distance from its segment seg, _BATCH pairs at a time: the leaves' pairs, some ten a
-        point, at once would take a dozen temporaries of them (35 MB more a batch on the ten-minute soak)."""
+        """Each point k's distance from its segment seg, _BATCH pairs at a time (the leaves' pairs, some ten a
+        point, all at once would take a dozen temporaries of them)."""
         out = np.empty(len(k))
         for a in range(0, len(k), _BATCH):
             i, s = k[a:a + _BATCH], seg[a:a + _BATCH]

@@ -67,9 +67,7 @@ def ik(rot: np.ndarray, mode: np.ndarray | int = 0) -> np.ndarray:
 
 def fk_all(theta: np.ndarray) -> np.ndarray:
     """All 8 platform orientations (N, 8, 3, 3) for base angles (N, 3): two families (the two roots), each with its
-    sign flips, every root's base solution computed once and the flips applied as one broadcast product.
-
-    NaN where the two roots do not exist (never for the Agile Eye's orthogonal axes) or are degenerate.
+    sign flips. NaN where the two roots do not exist (never for the Agile Eye's orthogonal axes) or are degenerate.
     """
     w = intermediate_axes(theta)
     a = np.broadcast_to(U[0], w[:, 0].shape)
@@ -104,9 +102,8 @@ def fk_nearest(theta: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 def fk_track(theta: np.ndarray, start: np.ndarray) -> np.ndarray:
     """Platform orientations along a joint path (N, 3, 3), each the FK solution nearest the one before (largest
-    trace of R_i^T R_j), beginning nearest `start`: the assembly mode followed continuously. The solution followed
-    is assumed to stay the same one of the 8 over a stretch, its similarity to every solution at the next sample
-    computed for the whole stretch at once, and the stretch ends where another is nearer."""
+    trace of R_i^T R_j), beginning nearest `start`: the assembly mode followed continuously. Taken a stretch at a
+    time on which the followed solution stays the same one of the 8 (a Python step per change, not per sample)."""
     sols = fk_all(theta)
     count = len(sols)
     flat = sols.reshape(count, 8, 9)
@@ -141,16 +138,7 @@ def jacobians(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def kci(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """Kinematic conditioning index 1 / cond(A^-1 B) (N,): 1 isotropic, 0 singular."""
-    return kci_of(*jacobians(theta, rot))
-
-
-def kci_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The KCI of Jacobians A and B already at hand (N, 3, 3 each)."""
-    sa = np.linalg.svd(a, compute_uv=False)
-    ok = sa[:, -1] > 1e-12 * sa[:, 0]
-    j = np.linalg.solve(np.where(ok[:, None, None], a, np.eye(3)), b)
-    sj = np.linalg.svd(j, compute_uv=False)
-    return np.where(ok, sj[:, -1] / np.maximum(sj[:, 0], 1e-300), 0.0)
+    return kci_terms(theta, rot).kci
 
 
 def axis_gaps(rot: np.ndarray) -> np.ndarray:
@@ -160,10 +148,6 @@ def axis_gaps(rot: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(np.abs(np.einsum("ij,nij->ni", U, v)), 0.0, 1.0))
 
 
-# Fast forms and derivatives for the planner (project issue 14). Each gives what the function above it in this
-# file gives (kci_closed_form: kci's to about 1e-13), without a LAPACK
-# call per 3 x 3 matrix or a Python step per sample.
-
 def _scaled_rows(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """w_i (N, 3, 3), v_i, a_i = w_i x v_i (the rows of A) and b_i = u_i . a_i (B's diagonal), rows per leg."""
     w = intermediate_axes(theta)
@@ -172,48 +156,10 @@ def _scaled_rows(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.nda
     return w, v, a, np.einsum("ij,nij->ni", U, a)
 
 
-def _gram(k: np.ndarray) -> np.ndarray:
-    """K K^T (N, 3, 3)."""
-    return k @ k.transpose(0, 2, 1)
-
-
-def _det3(m00, m01, m02, m11, m12, m22):
-    """Determinant of symmetric 3 x 3 matrices given by their upper triangles (N,) each."""
-    return m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02)
-
-
-def _extreme_eigenvalues(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The least and greatest eigenvalues (N,) of symmetric positive semi-definite G (N, 3, 3) in closed form
-    (Smith's trigonometric formula; the least from det G / (lambda_max lambda_mid) where that is the better
-    conditioned), and where G is a multiple of the identity (all three equal).
-
-    Own code, not numpy.linalg.eigvalsh: LAPACK's least eigenvalue is exact to the rounding of the greatest, so
-    near a singular curve (agile_eye/through_singularity, KCI down to 1.2e-4) its KCI was 2.7e-9 off that of G's
-    exact eigenvalues where this one's was 2.8e-10; away from the curves the two agree to 1.3e-14 (issue 34)."""
-    g00, g01, g02, g11, g12, g22 = g[:, 0, 0], g[:, 0, 1], g[:, 0, 2], g[:, 1, 1], g[:, 1, 2], g[:, 2, 2]
-    q = (g00 + g11 + g22) / 3
-    d0, d1, d2 = g00 - q, g11 - q, g22 - q
-    p = np.sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2 * (g01 * g01 + g02 * g02 + g12 * g12)) / 6)
-    r = _det3(d0, g01, g02, d1, g12, d2) / (2 * np.where(p > 1e-100, p, 1.0) ** 3)
-    phi = np.arccos(np.clip(r, -1.0, 1.0)) / 3
-    high = q + 2 * p * np.cos(phi)
-    low = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
-    mid = 3 * q - high - low
-    det = _det3(g00, g01, g02, g11, g12, g22)
-    low = np.where(low < 0.5 * mid, np.maximum(det, 0.0) / np.maximum(high * mid, 1e-300), low)
-    return low, high, p <= 1e-15 * q
-
-
-def _kci_of_gram(g: np.ndarray) -> np.ndarray:
-    """sqrt(lambda_min / lambda_max) of symmetric positive semi-definite G (N, 3, 3) in closed form."""
-    low, high, isotropic = _extreme_eigenvalues(g)
-    return np.where(isotropic, 1.0, np.sqrt(np.clip(low / np.maximum(high, 1e-300), 0.0, 1.0)))
-
-
 class KciTerms(NamedTuple):
-    """The KCI in closed form and the terms on the way (kci_terms), which kci_partials reuses: per leg (rows)
-    w_i, v_i, a_i = w_i x v_i and b_i = u_i . a_i (1 where the KCI is not defined), where it is (`ok`),
-    K = B^-1 A (rows a_i / b_i) and G = K K^T."""
+    """The KCI and the terms on the way (kci_terms), which kci_partials reuses: per leg (rows) w_i, v_i,
+    a_i = w_i x v_i and b_i = u_i . a_i (1 where the KCI is not defined), where it is (`ok`) and K = B^-1 A
+    (rows a_i / b_i)."""
 
     w: np.ndarray
     v: np.ndarray
@@ -221,33 +167,20 @@ class KciTerms(NamedTuple):
     b: np.ndarray
     ok: np.ndarray
     k: np.ndarray
-    g: np.ndarray
     kci: np.ndarray
 
 
 def kci_terms(theta: np.ndarray, rot: np.ndarray) -> KciTerms:
-    """kci (N,) in closed form, with its terms: 1 / cond(A^-1 B) = 1 / cond(B^-1 A), the rows of B^-1 A being
-    a_i / b_i, and the singular values from the eigenvalues of its Gram matrix. Where some b_i is near 0 (on or
-    near a singular curve; not `ok`) the KCI is kci_of's own, the same numbers as kci."""
+    """kci (N,) with its terms: 1 / cond(A^-1 B) = sigma_min / sigma_max of K = B^-1 A, whose rows are a_i / b_i.
+    The singular values of K itself, not the eigenvalues of K K^T, so that the KCI is exact to the rounding of
+    sigma_max also near the singular curves. 0 where some b_i vanishes (within 1e-12 of A's scale: not `ok`), B
+    and so A^-1 B being singular."""
     w, v, a, b = _scaled_rows(theta, rot)
     ok = np.abs(b).min(axis=1) > 1e-12 * np.abs(a).max(axis=(1, 2))
-    if ok.all():
-        k = a / b[:, :, None]
-        g = _gram(k)
-        return KciTerms(w, v, a, b, ok, k, g, _kci_of_gram(g))
-    # rare: LAPACK judges these as kci does (a vanishing b_i with A regular gives its rounding's ratio)
-    value = kci_of(a, b[:, :, None] * np.eye(3))
     b = np.where(ok[:, None], b, 1.0)
     k = a / b[:, :, None]
-    g = _gram(k)
-    value[ok] = _kci_of_gram(g[ok])
-    return KciTerms(w, v, a, b, ok, k, g, value)
-
-
-def kci_closed_form(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """kci (N,) in closed form (kci_terms), within about 1e-13 of kci without a LAPACK call per matrix but near
-    the singular curves."""
-    return kci_terms(theta, rot).kci
+    s = np.linalg.svd(k, compute_uv=False)
+    return KciTerms(w, v, a, b, ok, k, np.where(ok, s[:, -1] / np.maximum(s[:, 0], 1e-300), 0.0))
 
 
 def platform_rates(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -260,23 +193,19 @@ def platform_rates(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
 
 def kci_partials(theta: np.ndarray, rot: np.ndarray,
                  terms: KciTerms | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The KCI (N,) in closed form (kci_closed_form), its partial derivatives in the base angles with the
-    platform held (N, 3), and in the platform's rotation (N, 3): d kci = d_theta . dtheta + d_omega . omega for
-    a small turn omega (base frame) of the platform. Along a path whose platform turns at `rates` (column j the
-    angular velocity per unit rate of theta_j: platform_rates for the exact FK), the gradient is d_theta +
-    rates^T d_omega. Reverse mode, with K = B^-1 A (rows k_i = a_i / b_i), G = K K^T and its eigenpairs
-    (lambda, e): d lambda / d k_i = 2 e_i K^T e; k_i = a_i / (u_i . a_i); a_i = w_i x v_i with dv_i = omega x v_i
-    and dw_i = u_i x w_i dtheta_i (the cross products then expanded into dot products). The partials are 0 where
-    some b_i is near 0 (not `ok`). `terms`: kci_terms(theta, rot) if at hand."""
-    w, v, _, b, ok, k, g, value = kci_terms(theta, rot) if terms is None else terms
-    lam, vec = np.linalg.eigh(np.where(ok[:, None, None], g, np.eye(3)))  # ascending; e_m = vec[:, :, m]
-    low, high = lam[:, 0], lam[:, 2]
-    ends = vec[:, :, [0, 2]]  # eigenvectors of lambda_min and lambda_max (N, 3 rows i, 2)
-    kt_e = ends.transpose(0, 2, 1) @ k  # K^T e as rows (N, 2, 3)
-    # d kci = kci / 2 (d lambda_min / lambda_min - d lambda_max / lambda_max)
-    weight = 0.5 * value[:, None] * np.stack([1.0 / np.maximum(low, 1e-300), -1.0 / np.maximum(high, 1e-300)],
-                                             axis=1)  # (N, 2)
-    d_k = 2 * (ends * weight[:, None, :]) @ kt_e  # d kci / d k_i (N, 3, 3)
+    """The KCI (N,), its partial derivatives in the base angles with the platform held (N, 3), and in the
+    platform's rotation (N, 3): d kci = d_theta . dtheta + d_omega . omega for a small turn omega (base frame) of
+    the platform. Along a path whose platform turns at `rates` (column j the angular velocity per unit rate of
+    theta_j: platform_rates for the exact FK), the gradient is d_theta + rates^T d_omega. Reverse mode, with
+    K = B^-1 A (rows k_i = a_i / b_i) = sum_m sigma_m x_m y_m^T: d sigma_m / d K = x_m y_m^T; k_i = a_i / (u_i . a_i);
+    a_i = w_i x v_i with dv_i = omega x v_i and dw_i = u_i x w_i dtheta_i (the cross products then expanded into
+    dot products). The partials are 0 where some b_i is near 0 (not `ok`). `terms`: kci_terms(theta, rot) if at
+    hand."""
+    w, v, _, b, ok, k, value = kci_terms(theta, rot) if terms is None else terms
+    x, s, y = np.linalg.svd(k)  # s descending: sigma_max first
+    # d kci = kci (d sigma_min / sigma_min - d sigma_max / sigma_max)
+    d_k = value[:, None, None] * (x[:, :, 2, None] * y[:, None, 2] / np.maximum(s[:, 2, None, None], 1e-300)
+                                  - x[:, :, 0, None] * y[:, None, 0] / np.maximum(s[:, 0, None, None], 1e-300))
     d_a = (d_k - np.einsum("nia,nia->ni", d_k, k)[:, :, None] * U) / b[:, :, None]  # d kci / d a_i
     v_w = np.einsum("nia,nia->ni", v, w)  # 0 for the exact FK, not quite for a learnt one
     # sum_i v_i x (d_a_i x w_i) = sum_i d_a_i (v_i . w_i) - w_i (v_i . d_a_i)
@@ -326,9 +255,8 @@ def _platform(rec) -> np.ndarray:
 
 
 def measures(rec) -> dict[str, np.ndarray]:
-    """KCI, the angle to the nearest singular curve, det A and the loop-closure error along a recording: the KCI
-    in closed form (kci_terms: within 1e-12 of kci_of's two SVDs a sample) and det A as the triple product of
-    its rows."""
+    """KCI, the angle to the nearest singular curve, det A (the triple product of its rows) and the loop-closure
+    error along a recording."""
     rot = _platform(rec)
     terms = kci_terms(rec.q, rot)
     a = terms.a

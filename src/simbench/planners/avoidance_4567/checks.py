@@ -18,7 +18,7 @@ _ON_CURVE = 1e-6  # rad: a platform axis this near its base axis is on a singula
 
 def summary(task: Task, theta: np.ndarray, rot: np.ndarray, kci: np.ndarray | None = None) -> dict:
     """KCI and clearances of a path, exact orientations given (and its KCI, if at hand)."""
-    kci = agile_eye.kci_closed_form(theta, rot) if kci is None else kci
+    kci = agile_eye.kci(theta, rot) if kci is None else kci
     clear = {name: float(c.min()) for name, c in clearances(task, theta, rot, kci).items()}
     gaps = agile_eye.axis_gaps(rot).min(axis=0)
     return {"kci": {"mean": float(kci.mean()), "min": float(kci.min())}, "clearance": clear,

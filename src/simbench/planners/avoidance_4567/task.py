@@ -70,10 +70,10 @@ def _matrix(convention: str, value: tuple[float, ...]) -> np.ndarray:
 def clearances(task: Task, theta: np.ndarray, rot: np.ndarray,
                kci: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Clearance (rad, negative inside) of each obstacle and of the singular curves along orientations (N, 3, 3);
-    and the KCI (or `kci` if given) where the task sets a floor on it."""
+    and the KCI (agile_eye.kci, or `kci` if given) where the task sets a floor on it."""
     out = {}
     if task.kci_min > 0:
-        out["kci"] = agile_eye.kci_closed_form(theta, rot) if kci is None else kci
+        out["kci"] = agile_eye.kci(theta, rot) if kci is None else kci
     for name, obstacle, center in zip(obstacle_names(task), task.obstacles, centers(task)):
         out[name] = rotation_angle(np.broadcast_to(center, rot.shape), rot) - obstacle.radius
     out["type2"] = agile_eye.axis_gaps(rot).min(axis=1)

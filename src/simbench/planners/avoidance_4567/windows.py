@@ -30,7 +30,7 @@ def _score(plan: Plan, t: np.ndarray, estimate: Estimator, anchor: np.ndarray,
     need = margins(task)
     clear = clearances(task, theta, rot)
     slack = {name: float(c.min() - need[name]) for name, c in clear.items()}
-    kci = clear["kci"] if "kci" in clear else agile_eye.kci_closed_form(theta, rot)
+    kci = clear["kci"] if "kci" in clear else agile_eye.kci(theta, rot)
     return float(kci.mean()), slack
 
 
