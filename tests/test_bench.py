@@ -236,13 +236,81 @@ def test_a_bench_folder_is_not_replaced_without_force(planar, tmp_path, capsys):
     assert "other results" in capsys.readouterr().err
 
 
-def test_the_bench_metric_stays_out_of_other_runs(planar):
-    """After a bench in this process, a plain run's report has no `bench` metric."""
-    from conftest import scenario_file
-    from simbench.scenario import load_scenario
+def _bench_document(method, task=0):
+    """The scenario document the planar 3R bench runs for its task `task` by `method` (the `planar` fixture's)."""
+    robot = SHIPPED["planar3r"]()
+    return METHODS[method].document(draw(robot, 2, 0)[task], robot)
 
-    report = pipeline.evaluate_report(load_scenario(scenario_file("puma600", "line")), False)
-    assert "bench" not in report.get("metrics", {})
+
+def test_a_fresh_process_run_reports_the_shipped_metric_by_mujocos_jacobian(tmp_path):
+    """`simbench run` in a fresh process (no bench, no Ray) of a bench scenario (planar 3R, pinv): report.json's
+    metrics.singularity_handling has speed_share_max = max |qd_ref| / the mapping's speed_limits over
+    timeseries.npz's plan, closest_approach = the least singular value of [Jp / L; Jr] by MuJoCo's own mj_jacSite
+    at the recorded joints (L the derived reach), and slowdown 1 (pinv keeps the timing)."""
+    import subprocess
+
+    import mujoco
+    import yaml
+
+    document = _bench_document("pinv")
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump(document))
+    out = tmp_path / "out"
+    subprocess.run([sys.executable, "-m", "simbench", "run", str(tmp_path / "run.yaml"), "--out", str(out),
+                    "--no-video", "--quiet"], check=True, timeout=300)
+    report = json.loads((out / "report.json").read_text())
+    figures = report["metrics"]["singularity_handling"]
+    with np.load(out / "timeseries.npz") as series:
+        qd_ref, q = series["qd_ref"], series["q"]
+    share = np.max(np.abs(qd_ref) / np.array(document["robot"]["speed_limits"]))
+    assert figures["speed_share_max"] == pytest.approx(share, rel=1e-12)
+    model = mujoco.MjModel.from_xml_path(document["robot"]["model"])
+    data = mujoco.MjData(model)
+    site, reach = model.site(document["robot"]["tool"]["site"]).id, report["derived_arm"]["reach"]
+    jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    least = np.inf
+    for row in q:
+        data.qpos[:] = row
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_jacSite(model, data, jp, jr, site)
+        least = min(least, np.linalg.svd(np.vstack([jp / reach, jr]), compute_uv=False)[-1])
+    assert figures["closest_approach"] == pytest.approx(least, rel=1e-6, abs=1e-9)
+    assert figures["slowdown"] == 1.0
+
+
+def test_compare_and_bench_agree_on_the_shared_figures(planar, tmp_path):
+    """comparison.csv's row of a bench scenario's own method (planar 3R, task 0, dls_adaptive) and runs.csv's row
+    of that task and method give the same status, deviation (m against mm), speed share, slowdown and closest
+    approach: two separate runs of the same document, scored by simbench.scoring."""
+    import yaml
+
+    (tmp_path / "task.yaml").write_text(yaml.safe_dump(_bench_document("dls_adaptive")))
+    assert main(["compare", str(tmp_path / "task.yaml"), "--planners", "cartesian_path", "--out",
+                 str(tmp_path / "cmp"), "--quiet"]) in (0, 1)
+    ours = _read(tmp_path / "cmp" / "comparison.csv")[0]
+    theirs = next(r for r in _read(planar.out / "runs.csv")
+                  if (r["task"], r["method"]) == ("planar3r-t0000", "dls_adaptive"))
+    assert ours["status"] == theirs["status"]
+    assert float(ours["path_deviation_max_m"]) * 1e3 == pytest.approx(float(theirs["deviation_max_mm"]), rel=1e-12)
+    assert float(ours["qd_share_max"]) == pytest.approx(float(theirs["speed_share_max"]), rel=1e-12)
+    for name in ("slowdown", "closest_approach"):
+        assert float(ours[name]) == pytest.approx(float(theirs[name]), rel=1e-12)
+
+
+def test_the_shipped_metric_never_fails_a_run_of_a_robot_without_speed_limits():
+    """A robot with no qd_max and a plan with no rates: the figures are None or 1, not an exception."""
+    from types import SimpleNamespace
+
+    from simbench.singularity_handling import SingularityHandling
+
+    robot = SimpleNamespace(dof=2)
+    traj = SimpleNamespace(info=None, qd_ref=None)
+    metric = SingularityHandling.for_run(robot, traj, None)
+    metric.add(traj, None, {})
+    assert metric.finish() == {"speed_share_max": None, "closest_approach": None, "slowdown": 1.0}
+    robot = SimpleNamespace(dof=2, qd_max=[1.0, 0.0])  # a limit that is no limit
+    assert SingularityHandling.for_run(robot, SimpleNamespace(info={"slowdown": "x"}), None).finish() == {
+        "speed_share_max": None, "closest_approach": None, "slowdown": None}
 
 
 def test_a_jaco_through_task_passes_a_rank_loss_by_mujocos_own_jacobian():

@@ -28,6 +28,8 @@ from simbench.errors import PhysicsError, RunError, ScenarioError
 from simbench.figures import columns
 from simbench.policy import refuse_code
 from simbench.scenario import Scenario, load_scenario, parse_scenario
+from simbench.scoring import score
+from simbench.singularity_handling import SingularityHandling
 from simbench.validation import read_yaml
 
 MINK = "mink_baseline"
@@ -159,30 +161,36 @@ def singular_sets(run: MethodRun) -> list[api.SingularSet]:
 
 
 def row(run: MethodRun) -> dict:
-    """The table's row of a method, SI units: status, tracking, speed peaks and shares of the limit, least
-    distances to singular sets, metrics' figures and event counts. Peaks and least distances are of every sample
-    (with a recording stride too); the plan's own path deviation is of the kept rows."""
-    out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
-                           "status": run.status, "error": run.error, "violations": ""}
+    """The table's row of a method, SI units: status, tracking, speed peaks and shares of the limit, slowdown,
+    least distances to singular sets, metrics' figures and event counts; status, error, path_deviation_max_m,
+    qd_share_max, slowdown and closest_approach as simbench.scoring decides them for `simbench bench` too. Peaks
+    and least distances are of every sample (with a recording stride too); the plan's own path deviation is of the
+    kept rows."""
     ev = run.evaluation
+    shared = score(run.status, run.error, None if ev is None else ev.analysis.tracking,
+                   None if ev is None else ev.analysis.metrics)
+    out: dict[str, Any] = {"method": run.label, "planner": run.planner, "controller": run.controller,
+                           "status": shared["status"], "error": shared["error"], "violations": ""}
     if ev is None:
         return out
     robot = run.scenario.robot_def
     tracking, traj, rec = ev.analysis.tracking, ev.trajectory, ev.recording
     out["violations"] = " ".join(sorted({v["kind"] for v in ev.verdict.violations}))
     out.update(tool_error_max_m=tracking["tool_error_max"], tool_error_rms_m=tracking["tool_error_rms"],
-               path_deviation_max_m=tracking["tool_max"], path_deviation_rms_m=tracking["tool_rms"],
+               path_deviation_max_m=shared["deviation_max"], path_deviation_rms_m=tracking["tool_rms"],
                plan_path_deviation_max_m=_plan_deviation(robot, traj))
     peak = ev.analysis.extremes["qd_ref_peak"]  # of every sample, also where the outputs keep every k-th
     out.update({f"qd_peak_{name}": float(peak[j]) for j, name in enumerate(robot.joints)})
     out.update({f"qd_share_{name}": float(peak[j] / robot.qd_max[j]) for j, name in enumerate(robot.joints)})
-    out["qd_share_max"] = float((peak / robot.qd_max).max())
+    out["qd_share_max"] = shared["speed_share_max"]
     simulated = rec.qd_peak if rec.qd_peak is not None else np.abs(rec.thinned().qd).max(axis=0, initial=0.0)
     out["qd_share_max_simulated"] = float((simulated / robot.qd_max).max())  # every state's, a stride's too
+    out.update(slowdown=shared["slowdown"], closest_approach=shared["closest_approach"])
     for name, least in ev.analysis.extremes["singular_min"].items():
         out[f"singular_min_{name}"] = least
     for name, figures in ev.analysis.metrics.items():
-        out.update(columns(name, figures))
+        if name != SingularityHandling.name:  # its figures are the shared columns above
+            out.update(columns(name, figures))
     for prefix, events in (("singular_events", ev.analysis.singularity_events),
                            ("limit_events", ev.analysis.limit_events)):
         for kind in sorted({e["kind"] for e in events}):
@@ -239,6 +247,10 @@ def _display(column: str, robot) -> tuple[str, float, str]:
     if column.startswith("qd_share_"):
         what = column.removeprefix("qd_share_").replace("_", " ")
         return f"{what} speed peak (% of limit)", 100.0, "{:.1f}"
+    if column == "slowdown":
+        return "slowdown (planned / asked duration)", 1.0, "{:.3f}"
+    if column == "closest_approach":
+        return "closest approach to rank loss (rad-like gap)", 1.0, "{:.4f}"
     if column.startswith("singular_min_"):
         return f"min distance to {column.removeprefix('singular_min_')} (x near tol.)", 1.0, "{:.3f}"
     if "_events_" in column:

@@ -1,12 +1,13 @@
-"""A bench's tables: runs.csv, a row per task and method, and leaderboard.csv, a row per robot and method. This is
-the one place that decides what a method's row says (what `compare` would share).
+"""A bench's tables: runs.csv, a row per task and method, and leaderboard.csv, a row per robot and method. What a
+method's row says is simbench.scoring's, shared with `compare`.
 
 runs.csv columns: the run's parameters (robot, task, kind, shape, method, planner, anchor_gap: the robot's own gap
 at the task's anchor, rad; length_mm, duration), status and error (simbench.verdict's, as `simbench run` gives
-them), then
+them), then the figures simbench.scoring decides for `compare` too (report.json's, every run's:
+metrics.singularity_handling)
 
     deviation_max_mm   the tool's largest distance from the asked path (report.json's tracking.tool_max)
-    speed_share_max    max over joints and samples of |qd_ref| / speed limit (simbench.bench.metric)
+    speed_share_max    max over joints and samples of |qd_ref| / speed limit
     slowdown           planned duration / asked duration
     closest_approach   the least rank_loss gap along the run (rad-like: Ju's least singular value)
 
@@ -29,23 +30,25 @@ from typing import Any
 
 import numpy as np
 
+from simbench.scoring import score_flat
+
 PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "length_mm", "duration")
 FIGURES = 6
 BOOTSTRAP = 2000
 LEVEL = 95.0
 STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
+COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_max",  # runs.csv's: scoring's
+           "speed_share_max": "speed_share_max", "slowdown": "slowdown", "closest_approach": "closest_approach"}
 
 
 def runs_table(rows: list[dict]) -> dict[str, list]:
     """runs.csv as columns, in run order (the module's docstring)."""
     rows = sorted(rows, key=lambda r: r["run"])
     table: dict[str, list] = {name: [r["params"].get(name) for r in rows] for name in PARAMS}
-    table["status"] = [r["status"] for r in rows]
-    table["error"] = [r["error"] for r in rows]
-    metrics = [r["metrics"] for r in rows]
-    table["deviation_max_mm"] = [_scaled(m.get("tool_max"), 1e3) for m in metrics]
-    for name in ("speed_share_max", "slowdown", "closest_approach"):
-        table[name] = [m.get(f"bench.{name}") for m in metrics]
+    scores = [score_flat(r["status"], r["error"], r["metrics"]) for r in rows]
+    for name, shared in COLUMNS.items():
+        table[name] = [s[shared] for s in scores]
+    table["deviation_max_mm"] = [_scaled(d, 1e3) for d in table["deviation_max_mm"]]
     table["wall_time"] = [r["wall_time"] for r in rows]
     return table
 

@@ -19,7 +19,7 @@ from typing import cast
 from tqdm import tqdm
 
 from simbench import destination
-from simbench.bench import board, metric, outputs
+from simbench.bench import board, outputs
 from simbench.bench.methods import METHODS
 from simbench.bench.suite import Suite
 from simbench.bench.tasks import draw
@@ -110,7 +110,7 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     if ray is not None:
         cluster.reach(ray)
     as_sweep = cast(Sweep, bench)  # what Store and worker_count read of a Sweep, a Bench has
-    with metric.active(), Store(out, as_sweep, force=force) as store:
+    with Store(out, as_sweep, force=force) as store:
         rows = store.finished()
         todo = [v for v in bench.variants if v.index not in rows]
         if ray is None or ray == "local":

@@ -1,0 +1,44 @@
+"""What a method's row says, decided in one place for `compare` (comparison.csv) and `simbench bench` (runs.csv):
+the figures both tables show, from a run's status, error and report figures. Each table names them in its own
+columns and units (compare: path_deviation_max_m, qd_share_max; bench: deviation_max_mm, speed_share_max).
+
+    status, error       the run's, as its caller states them
+    deviation_max       m: the tool's largest distance from the planned path (report.json's tracking.tool_max)
+    speed_share_max     the plan's largest joint rate over the speed limit (metrics.singularity_handling)
+    slowdown            planned duration over asked (metrics.singularity_handling)
+    closest_approach    the least rank_loss gap along the run, rad-like (metrics.singularity_handling)
+
+A run that did not get as far as its figures (no tracking) has None for each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from simbench.singularity_handling import SingularityHandling
+
+FIGURES = ("deviation_max", "speed_share_max", "slowdown", "closest_approach")
+_METRIC = SingularityHandling.name
+
+
+def score(status: str, error: str | None, tracking: Mapping[str, Any] | None,
+          metrics: Mapping[str, Mapping[str, Any]] | None) -> dict[str, Any]:
+    """The shared columns of a run's row (the module's docstring): `tracking` as report.json's, `metrics` its
+    metrics by name."""
+    ours = (metrics or {}).get(_METRIC) or {}
+    deviation = (tracking or {}).get("tool_max")
+    return {"status": status, "error": error,
+            "deviation_max": None if deviation is None else float(deviation),
+            **{name: _number(ours.get(name)) for name in FIGURES[1:]}}
+
+
+def score_flat(status: str, error: str | None, flat: Mapping[str, Any]) -> dict[str, Any]:
+    """`score` of a sweep's flat figures (simbench.sweep.execute.metrics: tool_max, <metric>.<figure>)."""
+    tracking = {"tool_max": flat["tool_max"]} if flat.get("tool_max") is not None else None
+    metrics = {_METRIC: {name: flat.get(f"{_METRIC}.{name}") for name in FIGURES[1:]}}
+    return score(status, error, tracking, metrics)
+
+
+def _number(value: Any) -> float | None:
+    return None if value is None else float(value)
