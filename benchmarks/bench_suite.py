@@ -1,0 +1,80 @@
+"""`simbench bench` on 2 worker processes against the same bench on 1, in one run (issue 36's target: at least
+1.6 times as fast).
+
+The bench is the shipped `planar3r` suite at seed 0, TASKS tasks by each of its methods, timed whole through
+`simbench.bench.run_bench` (the runs, then runs.csv, the leaderboards, the plots and index.html), each time into
+a fresh folder so that nothing resumes. The two are timed in turn, REPEATS rounds after one warm-up of each; the
+speed-up is the median of the rounds' ratios. Beside it, the same two-against-one speed-up of pure CPU work
+(bench_sweep's reference: forked processes, nothing shared), measured in the same rounds: how far this machine's
+two cores fall short of two of one at the time.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.bench_sweep import _cpu_work
+from simbench.bench import load_suite, run_bench
+
+SUITE = "planar3r"
+TASKS = 6
+SEED = 0
+REPEATS = 3
+
+
+def _seconds(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def measure(tasks: int = TASKS, repeats: int = REPEATS) -> dict:
+    """Median seconds of the bench on 1 and 2 workers, the median pairwise speed-up, and the reference's."""
+    suite = load_suite(SUITE).with_options(tasks=tasks, seed=SEED)
+    runs = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        count = iter(range(1_000_000))
+
+        def bench_on(workers: int):
+            def run() -> None:
+                nonlocal runs
+                runs = run_bench(suite, Path(tmp) / f"out{next(count)}", workers=workers).summary["runs"]
+            return run
+
+        jobs = {"one": bench_on(1), "two": bench_on(2), "cpu1": lambda: _cpu_work(1), "cpu2": lambda: _cpu_work(2)}
+        for fn in jobs.values():  # warm-up
+            fn()
+        times: dict[str, list[float]] = {name: [] for name in jobs}
+        for _ in range(repeats):
+            for name, fn in jobs.items():
+                times[name].append(_seconds(fn))
+    t = {name: np.array(v) for name, v in times.items()}
+    return {"suite": SUITE, "tasks": tasks, "methods": list(suite.methods), "runs": runs, "repeats": repeats,
+            "one_s": float(np.median(t["one"])), "two_s": float(np.median(t["two"])),
+            "speedup": float(np.median(t["one"] / t["two"])),
+            "reference_speedup": float(np.median(t["cpu1"] / t["cpu2"]))}
+
+
+def markdown(r: dict) -> str:
+    """The results as a BENCHMARKS.md section."""
+    return "\n".join([
+        f"### Bench: 2 processes against 1 (`simbench bench {r['suite']}`, {r['tasks']} tasks at seed {SEED} by "
+        f"{', '.join(r['methods'])}: {r['runs']} runs; {r['repeats']} rounds in turn)",
+        "",
+        "| workers | seconds (median) | runs/s |",
+        "|---|---|---|",
+        f"| 1 (in this process) | {r['one_s']:.2f} | {r['runs'] / r['one_s']:.2f} |",
+        f"| 2 (worker processes) | {r['two_s']:.2f} | {r['runs'] / r['two_s']:.2f} |",
+        "",
+        f"Speed-up (median of the rounds' ratios): **{r['speedup']:.2f}** (target: at least 1.6). Pure CPU work in "
+        f"forked processes, the same rounds: {r['reference_speedup']:.2f}.",
+    ])
+
+
+if __name__ == "__main__":
+    result = measure()
+    print(markdown(result))
