@@ -150,7 +150,8 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
     (simulated whole and analysed after, in the same windows) at the kept rows, bit for bit, with the same
     figures, events (re-grips, reference jumps and their cost, spans cut by windows) and verdict; an outside
     metric's figures (conftest.PEAK_SPEED: the joints' speeds, recorded at the kept rows) are the stride-1
-    recording's own at those rows, from every window."""
+    recording's own at those rows, from every window; the shipped singularity_handling's speed share is the
+    stride-1 plan's max |qd_ref| / qd_max."""
     whole = simbench.evaluate(_strided(robot, name, 1))
     window = _windows_of_a_block(monkeypatch, whole.trajectory.dt)
     whole = simbench.evaluate(_strided(robot, name, 1))
@@ -172,7 +173,11 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
         assert np.array_equal(qpos, whole.recording.qpos[lo + kept])
     _same_at_the_kept_rows(thin, whole, k)
     truth = np.abs(whole.recording.qd[_rows(n, k)]).max(axis=0)  # qd is recorded at the kept rows
-    assert thin.analysis.metrics == {"peak_speed": {"qd0_max": truth[0], "qd_max": truth.tolist(), "samples": n}}
+    assert thin.analysis.metrics["peak_speed"] == {"qd0_max": truth[0], "qd_max": truth.tolist(), "samples": n}
+    # the shipped singularity_handling reads the plan of every sample, also of the rows handed back after
+    shares = np.abs(whole.trajectory.qd_ref) / _strided(robot, name, 1).robot_def.qd_max
+    assert thin.analysis.metrics["singularity_handling"]["speed_share_max"] == shares.max()
+    assert thin.analysis.metrics["singularity_handling"] == whole.analysis.metrics["singularity_handling"]
 
 
 def test_only_a_strided_run_of_a_robot_whose_summary_streams_is_analysed_as_it_is_simulated():
