@@ -1,6 +1,6 @@
 """Run the benchmarks and write their results into BENCHMARKS.md: python -m benchmarks.run [bench_x ...]
 
-With no names it runs every module of MODULES (9 to 11.5 minutes on 2 cores); with names, those alone. Each
+With no names it runs every module of MODULES (each block states the seconds it took); with names, those alone. Each
 module's results go into BENCHMARKS.md between two marker lines of its own (HTML comments, unseen on a rendered
 page), stamped with the machine, the date, the time it took and the load average; everything outside the markers
 (the notes written by hand: earlier runs, what was tried and dropped, before-and-after tables of an issue) is kept

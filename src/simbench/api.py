@@ -123,7 +123,7 @@ class _NoSummary(Summariser):
         return {}, []
 
 
-Figures = dict[str, float | list[float] | dict[str, float]]  # a metric's figures by name, SI units
+Figures = dict[str, float | None | list[float] | dict[str, float]]  # a metric's figures by name, SI; None: not found
 
 
 class Metric(ABC):

@@ -46,11 +46,11 @@ class SingularityHandling(Metric):
         return cls(_limits(robot), _slowdown(traj.info))
 
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> None:
-        qd = getattr(traj, "qd_ref", None)
-        if self.share is not None and qd is not None and len(qd):
+        qd, limits = getattr(traj, "qd_ref", None), self.qd_max
+        if self.share is not None and limits is not None and qd is not None and len(qd):
             qd = np.asarray(qd, float)
-            if qd.ndim == 2 and qd.shape[1] == self.qd_max.size:
-                self.share = max(self.share, float(np.max(np.abs(qd) / self.qd_max)))
+            if qd.ndim == 2 and qd.shape[1] == limits.size:
+                self.share = max(self.share, float(np.max(np.abs(qd) / limits)))
             else:
                 self.share = None
         gap = series.get(GAP)
