@@ -52,15 +52,13 @@ def _read(path):
     ("robots: [planar3r]\ntasks: 0\n", "tasks"),
     ("robots: [nobody]\n", "robots[0]"),
     ("robots: [planar3r]\nmethods: [dls_adaptive, magic]\n", "methods[1]"),
-    ("robots: [planar3r]\nmethods: [pinv]\n", "methods[0]"),
+    ("robots: [planar3r]\nmethods: [nonesuch]\n", "methods[0]"),
     ("robots: [planar3r, planar3r]\n", "robots[1]"),
     ("robots:\n  - {model: arm.xml}\n", "robots[0].name"),
     ("robots:\n  - {name: mine, model: nowhere.xml, tool: {site: tool}}\n", "robots[0].model"),
     ("robots:\n  - {name: mine, model: nowhere.xml, speed: -1}\n", "robots[0].speed"),
 ])
 def test_suite_file_errors_name_the_file_and_field(tmp_path, capsys, text, field):
-    if "pinv" in text and "pinv" in available():
-        pytest.skip("cartesian_path takes task.method here")
     path = tmp_path / "suite.yaml"
     path.write_text(text)
     with pytest.raises(ScenarioError) as err:
@@ -84,7 +82,7 @@ def test_a_suite_file_runs_an_arm_of_its_own(tmp_path):
 
 def test_every_methods_document_is_a_valid_scenario():
     """Each method's scenario for a task of each robot it applies to passes the scenario schema and the planner's
-    own check; pinv, dls and time_scaling wait for cartesian_path's task.method."""
+    own check."""
     for name in ("puma600", "spherical_arm", "planar3r"):
         robot = SHIPPED[name]()
         task = draw(robot, 1, 0)[0]
@@ -92,7 +90,7 @@ def test_every_methods_document_is_a_valid_scenario():
             doc = METHODS[method].document(task, robot)
             if doc is not None:
                 parse_scenario(doc, f"{name} {method}")
-    assert set(available()) >= {"dls_adaptive", "mink", "paper"}
+    assert set(available()) == {"dls_adaptive", "pinv", "dls", "time_scaling", "mink", "paper"}
 
 
 # --- tasks: through, near, far ------------------------------------------------------------------------------------

@@ -1,10 +1,10 @@
 """A bench's methods: each a named way to plan a common task (bench.tasks.Task), as a scenario's planner and the
-task fields it takes. One place decides what a method runs; a method that does not apply to a robot (or whose
-planner lacks the field it needs) has no row there.
+task fields it takes. One place decides what a method runs; a method that does not apply to a robot has no row
+there.
 
     dls_adaptive   cartesian_path: damped least squares, its damping grown near a rank loss (Chiaverini 1994)
     pinv, dls, time_scaling
-                   cartesian_path with `task.method` set to the name, once cartesian_path takes that field
+                   cartesian_path with `task.method` set to the name (planners/path_methods.py, path_retiming.py)
     mink           mink_baseline: mink's QP with the speed limits, on cartesian_path's path (or, for a robot that
                    holds no orientation, on the paper planner's line)
     paper          the paper's own planner for the robot: decoupled_path (paper 002, the PUMA: the path, the
@@ -32,15 +32,6 @@ class Method:
     description: str
     fields: Callable[[Task, BenchRobot], dict | None]
     planner: Callable[[BenchRobot], str | None]
-    needs: str | None = None  # a field of cartesian_path's task this method sets: present only once it exists
-
-    def available(self) -> bool:
-        """Whether the planner it runs takes what it sets."""
-        if self.needs is None:
-            return True
-        from simbench.planners.cartesian_path import Task as PathTask
-
-        return self.needs in PathTask.model_fields
 
     def document(self, task: Task, robot: BenchRobot) -> dict | None:
         """The scenario document (SI) of `task` by this method, or None where it does not apply."""
@@ -94,10 +85,10 @@ def _cartesian(robot: BenchRobot) -> str | None:
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("dls_adaptive", "cartesian_path as it is: damped least squares, damping grown near a rank loss",
            _path_task, _cartesian),
-    Method("pinv", "cartesian_path, the pseudo-inverse", _with("pinv"), _cartesian, needs="method"),
-    Method("dls", "cartesian_path, fixed damping", _with("dls"), _cartesian, needs="method"),
+    Method("pinv", "cartesian_path, the pseudo-inverse", _with("pinv"), _cartesian),
+    Method("dls", "cartesian_path, fixed damping", _with("dls"), _cartesian),
     Method("time_scaling", "cartesian_path, the path kept and retimed under the limits", _with("time_scaling"),
-           _cartesian, needs="method"),
+           _cartesian),
     Method("mink", "mink_baseline: mink's QP under the speed limits", _mink,
            lambda robot: "mink_baseline" if robot.hold or robot.paper else None),
     Method("paper", "the paper's own planner for the robot", _paper, lambda robot: robot.paper),
@@ -105,5 +96,5 @@ METHODS: dict[str, Method] = {m.name: m for m in (
 
 
 def available() -> list[str]:
-    """The methods that can run now, in the table's order."""
-    return [name for name, method in METHODS.items() if method.available()]
+    """The methods, in the table's order."""
+    return list(METHODS)
