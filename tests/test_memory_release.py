@@ -118,6 +118,29 @@ def test_the_schedules_contacts_and_their_caches_are_freed_when_planning_returns
     assert len(traj.t) > 1
 
 
+def test_a_streamed_runs_plan_is_freed_when_evaluate_returns(monkeypatch):
+    """A strided RSMG run analysed as it is simulated: once evaluate returns, the plan's per-sample arrays are
+    freed by reference counting alone (the outputs keep the plan at the kept rows, copies), with no reference cycle
+    holding the run, and the plan with it, until the interpreter's collector comes by."""
+    from simbench.planners.round_robin import planner
+
+    doc = yaml.safe_load(scenario_file("rsmg", "tumble").read_text())
+    doc["sim"] = {**doc.get("sim", {}), "record_every": 10}
+    scenario = parse_scenario(doc, "strided", default_name="strided")
+    planned = []
+    plan = planner.RoundRobin.plan
+    monkeypatch.setattr(planner.RoundRobin, "plan", lambda *a: planned.append(plan(*a)) or planned[-1])
+    gc.disable()
+    try:
+        ev = simbench.evaluate(scenario)
+        arrays = [weakref.ref(a) for a in (planned[0].q_ref, planned[0].qd_ref, planned[0].tool_ref)]
+        planned.clear()
+        assert [a() for a in arrays] == [None] * 3
+    finally:
+        gc.enable()
+    assert len(ev.trajectory.t) == len(ev.recording.t)
+
+
 def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_plan_has_them(monkeypatch):
     """The feedback finds the rotor's commanded orientations a block at a time as grips ask for them, dropping the
     blocks behind: the same numbers as all of them found at once, bit for bit, for rows asked for in time order

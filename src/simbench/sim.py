@@ -71,7 +71,11 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     controller = controller if controller is not None else Servo()
     controller.bind(plant, traj)
     with quiet_mujoco():
-        return _Run(plant, traj, controller, settle, record_every, revise_in_place, analyser).go(progress)
+        run = _Run(plant, traj, controller, settle, record_every, revise_in_place, analyser)
+        try:
+            return run.go(progress)
+        finally:
+            run.stream = None  # it refers back to the run: the run's arrays go as it ends, not at the next collection
 
 
 def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
