@@ -1,7 +1,9 @@
 """What a run holds once it has simulated, and the analysis done a chunk of samples at a time to keep a long run's
 temporaries small: the same numbers as computed whole (benchmarks/bench_soak.py measures the peak memory)."""
 
+import gc
 import tracemalloc
+import weakref
 
 import numpy as np
 import yaml
@@ -90,6 +92,53 @@ def test_revising_in_place_steps_as_revising_copies_on_random_rsmg_tasks():
         for name in ("q_ref", "qd_ref", "qpos", "q", "ctrl", "tool", "force"):
             assert np.array_equal(getattr(own, name), getattr(copied, name)), (scenario.task.motion, name)
     assert revised >= 8
+
+
+def test_the_schedules_contacts_and_their_caches_are_freed_when_planning_returns(monkeypatch):
+    """With general contacts, the schedule's contacts (their IK cache, the rotor's axes on the schedule grid) are
+    freed as soon as the planner drops them, by reference counting alone: nothing the plan keeps refers to them,
+    and no reference cycle holds them until the interpreter's collector comes by."""
+    from simbench.planners.round_robin import planner
+
+    doc = yaml.safe_load(scenario_file("rsmg", "tumble").read_text())
+    doc["task"]["contacts"] = "general"
+    scenario = parse_scenario(doc, "general", default_name="general")
+    found = []
+    schedule = planner.schedule_grips
+    monkeypatch.setattr(planner, "schedule_grips", lambda *a: found.append(schedule(*a)) or found[-1])
+    robot = scenario.robot_def
+    dt = float(Plant.load(robot, scenario.sim.timestep).model.opt.timestep)
+    gc.disable()
+    try:
+        traj = scenario.planner_def.plan(scenario, robot, dt)
+        contacts = weakref.ref(found.pop().contacts)
+        assert contacts() is None
+    finally:
+        gc.enable()
+    assert len(traj.t) > 1
+
+
+def test_a_streamed_runs_plan_is_freed_when_evaluate_returns(monkeypatch):
+    """A strided RSMG run analysed as it is simulated: once evaluate returns, the plan's per-sample arrays are
+    freed by reference counting alone (the outputs keep the plan at the kept rows, copies), with no reference cycle
+    holding the run, and the plan with it, until the interpreter's collector comes by."""
+    from simbench.planners.round_robin import planner
+
+    doc = yaml.safe_load(scenario_file("rsmg", "tumble").read_text())
+    doc["sim"] = {**doc.get("sim", {}), "record_every": 10}
+    scenario = parse_scenario(doc, "strided", default_name="strided")
+    planned = []
+    plan = planner.RoundRobin.plan
+    monkeypatch.setattr(planner.RoundRobin, "plan", lambda *a: planned.append(plan(*a)) or planned[-1])
+    gc.disable()
+    try:
+        ev = simbench.evaluate(scenario)
+        arrays = [weakref.ref(a) for a in (planned[0].q_ref, planned[0].qd_ref, planned[0].tool_ref)]
+        planned.clear()
+        assert [a() for a in arrays] == [None] * 3
+    finally:
+        gc.enable()
+    assert len(ev.trajectory.t) == len(ev.recording.t)
 
 
 def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_plan_has_them(monkeypatch):

@@ -341,9 +341,8 @@ class Controller(ABC):
     A controller whose commands do not depend on the measured state returns them from `open_loop` (an array, or
     Commands found a chunk at a time): the physics then runs in C through `mujoco.rollout`, without a Python call
     per step. `reads_past`: whether the controller may read the plan's references of samples more than
-    windowed.NEAR_REFERENCE (2 s) before the step at hand; the run then keeps them. Where it does not (the shipped
-    controllers), a long run with a recording stride hands back the plan's rows it has passed where the planner
-    put them on pages of their own (pages.releasable: the RSMG's), and they read as zeros.
+    windowed.NEAR_REFERENCE (2 s) before the step at hand; the run then keeps them. Where it does not, a long
+    strided run hands back the plan's rows it has passed where they are on pages of their own (pages.releasable).
     `actuation` says what the commands are: position targets of the scene's position servos, or forces and
     torques ("torque": the plant's joint actuators are made motors, their force limits kept).
     """

@@ -1,61 +1,25 @@
 """What a run will cost, estimated before anything big is allocated, and the refusal of what the machine cannot give.
 
-A run's memory grows with its samples, (timing.duration + timing.hold) / sim.timestep + 1 of them (plus
-sim.settle / sim.timestep steps of settling), and its video with its frames, (duration + hold) * render.fps of
-render.width x render.height. Nothing bounds their product but this module: a scenario whose estimate exceeds
-the machine is refused (ScenarioError, exit 2) before the model is loaded, naming the field most to blame, the
-estimate, the limit and the way out; one that is large but possible gets a one-line note of its cost.
+A run's memory grows with its samples and its video with its frames, and nothing bounds their product but this
+module: a scenario whose estimate exceeds the machine is refused (ScenarioError, exit 2) before the model is
+loaded, naming the field most to blame, the estimate, the limit and the way out; one that is large but possible
+gets a one-line note of its cost. The model, calibrated on the shipped scenarios (BENCHMARKS.md, "The run's cost
+estimate"):
 
-The estimate (calibrated on the shipped scenarios with their duration stretched to 30-120 s: the peak of
-tracemalloc above the process's start, serially, on 2 CPU cores, MuJoCo 3.17, NumPy 2):
+- Memory. A sample keeps `columns` float64 numbers (the trajectory and the Recording; _model), R = 8 columns
+  bytes. Planning, simulating and analysing peak at _RUN_FACTOR R a sample, writing the outputs at
+  _OUTPUT_FACTOR R. A recording stride k keeps the full state and qd of every k-th sample only: the run holds R_k
+  = 8 (columns - nstate - dof + (nstate + dof) / k) a sample. A strided run analysed as it is simulated
+  (api.Robot.streams) holds every step's readings for a window of samples (windowed.window_size) at _RUN_FACTOR
+  R, and through the run the plan, the commands and the kept rows (_STREAM_FACTOR of them). The process's
+  libraries and its allocator's slack come on top: hence the limit is half of what the machine has.
+- Time: stepping per column and step, planning and analysing per sample (and the planner's seconds_per_sample),
+  the path search per searched pair, the outputs per written row, a video frame per pixel.
+- Disk: the compressed timeseries per sample, the plots, the MP4 per frame and pixel.
 
-- Memory. A run keeps `columns` float64 numbers a sample: the trajectory (t, s, q_ref, qd_ref, tool_ref: 5 +
-  2 dof) and the Recording (t, the full physics state, q, qd, force, ctrl, every sensor: 1 + nstate + 3 dof + nu +
-  nsensordata; simbench.sim._Run._record), 8 * columns = R bytes: measured 388, 588, 1023 and 530 B a sample kept
-  after simulating for the spherical arm, PUMA 600, RSMG and Agile Eye against R = 368, 568, 904 and 488. Planning,
-  simulating and analysing peak at (tracemalloc's peak of evaluate(), 2026-11-23, recorded whole) 2.4 R
-  (spherical arm case1, 40 s), 2.2 R (120 s), 2.2 R (RSMG three_turns, 30 s), 3.3 R (Agile Eye
-  through_singularity, 8 s: its planner's fixed cost), 2.3 R (20 s): taken as 2.8 R. The analysis' search of
-  the planned path near each sample (simbench.analysis.path_deviation) adds no term of its own: its capsule tree
-  is a few columns of the path, and it searches 32,768 samples at a time. Writing the outputs (plots, the
-  compressed timeseries) peaks at 4.65, 4.38, 4.31 and 3.27 R: taken as 4.5 R. Estimated against tracemalloc's
-  peak of evaluate() (MB): spherical arm case1 for 40 and 120 s: 42, 124 against 35, 97; RSMG three_turns for
-  30 s: 78 against 61; Agile Eye through_singularity (0.5 ms) for 8 and 20 s: 24, 57 against 27, 45
-  (tests/test_budget.py holds three of them within 1/1.5 to 2). With the outputs written: 100 MB against 103 MB
-  (case1, 60 s). The
-  process's resident size grows 1.2-1.4 times what it allocates (its allocator's slack), on top of its
-  libraries (~90 MB at import, ~150 MB once a planner's scipy and the plots' matplotlib are loaded): hence the
-  limit is half of what the machine has.
-  A recording stride (sim.record_every = k) keeps the full physics state and qd (nstate + dof columns) of every
-  k-th sample only, R_k = 8 (columns - nstate - dof + (nstate + dof) / k) a sample, and writes every k-th: the
-  run holds R_k instead of R (planning and analysing still work at every sample: 1.8 R + R_k; measured at
-  stride 10 against stride 1, MB: spherical arm 30 against 35, RSMG 51 against 61, Agile Eye 24 against 27), and
-  writing holds the run (R_k) while it works on the thinned outputs (3.5 R / k).
-  Where the robot's summary comes a window at a time (api.Robot.streams), the pipeline analyses a strided run as
-  it simulates it (simbench.sim's analyser): it holds every step's readings and the analysis' temporaries for a
-  window of samples only (2.8 R a sample of the window, simbench.windowed.window_size: the whole run up to 2^15
-  samples, about 8,000 beyond), and through the whole run the plan (t, s, tool_ref, q_ref, qd_ref: 5 + 2 dof
-  columns), the controller's commands (nu) and the kept rows (R / k), taken 1.3 times (the plan's own series,
-  the allocator's slack): calibrated on the ten-minute soak, whose resident size peaked 290 MiB above its
-  libraries (estimated 299 MB; the model above gave 1.3 GB). That bounds any planner and controller; the soak's
-  own now peak lower (about 175 MiB above its libraries), as the servo finds its commands a chunk at a time
-  (api.Commands) and the RSMG's plan is handed back as the run passes it (pages.releasable). Writing its outputs
-  then holds the thinned run only (4.5 R / k a sample: the soak's 122 MB, measured 120 MiB).
-- Time: stepping 0.13 us per column per step (measured 4.4-17 us a step), planning and analysing 10 us a
-  sample and 1.2 us a searched pair (the pairs of the k-d tree search the analysis used until issue 14, kept as
-  the estimate, which runs high: 4 a sample, and 0.001 x the samples a sample under the 4-5-6-7 law, whose ends
-  crawl longest), writing the outputs 0.5 s (the plots, with matplotlib's import) and 20 us
-  a written row (measured 2026-11-23 on the shipped scenarios: 0.18-0.57 s in all; 7 us a row for the spherical
-  arm's 120 s, 19-21 for the RSMG's, whose rows are widest);
-  a video frame on Mesa's llvmpipe 10 ms + 40 ns a pixel (`fast`: 25 ms at 640x480, 97 ms at 1920x1080) or
-  100 ms + 120 ns a pixel (`pretty`: 125 and 346 ms). A GPU renders faster: the time is a rough guide.
-- Disk: the timeseries 0.75 R a sample compressed (0.66-0.70 measured), the plots 1 MB, the MP4 200 B + 0.0005 B
-  a pixel a frame (x264 CRF 23 on these scenes: 288 B a 640x480 frame, 914 at 1920x1080).
-
-Limits (Limits.of_machine): memory half of what the machine has available now (psutil's: MemAvailable, and the
-cgroup's limit less its usage where lower), at most 64 GiB; time 24 h; disk the free space where the outputs go.
+Limits (Limits.of_machine): memory half of what the machine has available now (psutil's, and the cgroup's limit
+less its usage where lower), at most 64 GiB; time 24 h; disk the free space where the outputs go.
 """
-
 from __future__ import annotations
 
 import math

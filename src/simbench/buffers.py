@@ -1,11 +1,10 @@
 """A long run's every-step rows held a window at a time (simbench.sim's run analysed as it is simulated).
 
 Such a run reads each step's sensors, commands, joint positions and constraints once, for the analysis' window
-of samples they belong to, and keeps only the recording's kept rows (copied out). A `WindowBuffer` is indexed as
-the whole run's array would be, but holds a fixed number of consecutive rows from `start`: the steppers write a
-chunk of steps into it, the analysis reads a window of them, and `drop` lets the rows before a step go, moving
-those after it to the front. The run then holds a window and a chunk of every step's rows, however long it is,
-in plain NumPy arrays, the same on every platform.
+they belong to, and keeps only the recording's kept rows. A `WindowBuffer` is indexed as the whole run's array
+would be, but holds a fixed number of consecutive rows: the steppers write a chunk of steps into it, the analysis
+reads a window of them, and `drop` lets the rows before a step go. The run then holds a window and a chunk of
+every step's rows, however long it is.
 """
 
 from __future__ import annotations

@@ -108,8 +108,8 @@ class ComputedTorque(Controller):
 
     def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
         """The planned acceleration, and a serial arm's inverse dynamics, redone only at the rows k0 - 1 to k1 that
-        np.gradient's differences of the changed rows reach: the same numbers as binding to the revised references
-        (a long run re-grips hundreds of times; redoing every row to the end made it quadratic)."""
+        np.gradient's differences of the changed rows reach: the same numbers as binding to the revised references,
+        without redoing every row to the end at each of a long run's re-grips."""
         self.q_ref, self.qd_ref = q_ref, qd_ref
         a, b = max(k0 - 1, 0), min(k1 + 1, len(qd_ref))  # the differences at rows k0 - 1 .. k1
         self.qdd_ref[a:b] = gradient_rows(qd_ref, a, b, float(self.plant.model.opt.timestep))

@@ -83,10 +83,8 @@ class Servo(Controller):
 
 class _Targets(Commands):
     """The servo's commands, Servo.targets of its references (as revised so far) at the rows asked for. The last
-    stretch of rows asked for by a slice is kept, and rows within it are read from it while the references are
-    the same: a run checks its commands a chunk at a time before it steps (sim._check_finite), then steps them a
-    chunk at a time and records them, so that a run of at most one chunk finds its commands once, not three
-    times."""
+    stretch of rows asked for by a slice is kept and read from while the references are the same: a run checks,
+    steps and records the same chunk of commands in turn."""
 
     def __init__(self, servo: Servo):
         self.servo = servo

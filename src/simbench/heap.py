@@ -1,10 +1,9 @@
 """Handing the RSMG planner's freed memory back to the system before the plan's references are made.
 
-The schedule's search allocates and frees many arrays smaller than glibc's mmap threshold (its IK cache, up to
-80 MB, the contacts and the rotor's axes on the schedule grid); the heap keeps those pages, and every later
-stage's arrays then stack on top of them in the peak resident size: without this the ten-minute soak's peak is
-above issue 34's 300 MB (BENCHMARKS.md). Cyclic garbage is collected first: the search leaves some that the
-interpreter's own collection would free only later. Elsewhere than glibc there is no trim, and `give_back` only
+The schedule's search allocates and frees many arrays smaller than glibc's mmap threshold (its IK cache, the
+contacts and the rotor's axes on the schedule grid); the heap keeps those pages, and every later stage's arrays
+then stack on top of them in the peak resident size (the ten-minute soak's: BENCHMARKS.md). Cyclic garbage is
+collected first, so that what it held is trimmed too. Elsewhere than glibc there is no trim, and `give_back` only
 collects.
 """
 
@@ -28,9 +27,8 @@ _MALLOC_TRIM = _malloc_trim()
 
 
 def give_back(samples: int) -> None:
-    """Collect the cyclic garbage and return the heap's free pages to the system, for a plan of `samples` control
-    samples at least TRIM_SAMPLES long. A short one frees a few MB, and the collection and trim would cost it a
-    few milliseconds (a sweep's runs)."""
+    """Collect the cyclic garbage and return the heap's free pages to the system, for a plan of at least
+    TRIM_SAMPLES control samples (a short one frees a few MB, not worth the milliseconds in a sweep's runs)."""
     if samples >= TRIM_SAMPLES:
         gc.collect()
         if _MALLOC_TRIM is not None:

@@ -1,13 +1,12 @@
 """Arrays whose rows can be handed back to the system once they have been read: a long plan's.
 
 A long run recorded with a stride (sim.record_every) is analysed a window of samples at a time while it is
-simulated (every step's readings held a window at a time: simbench.buffers); the plan is made whole by its
-planner, and once the run and the analysis have passed a row of it, that row is not read again. On an array of
-`releasable`, those rows' pages go back to the system (madvise MADV_DONTNEED on a private anonymous mapping: pages
-not yet touched cost nothing; on Linux pages handed back read as zeros, elsewhere they may keep their values), so
-the run holds the plan still to come, not all of it (the ten-minute soak's plan is 117 MB: held whole, the soak's
-peak rises above issue 34's 300 MB; BENCHMARKS.md).
-Where the system has no such mapping (Windows), `releasable` is np.empty and `release` does nothing.
+simulated; the plan is made whole by its planner, and once the run and the analysis have passed a row of it,
+that row is not read again. On an array of `releasable`, those rows' pages go back to the system (madvise
+MADV_DONTNEED on a private anonymous mapping: on Linux pages handed back read as zeros, elsewhere they may keep
+their values), so the run holds the plan still to come, not all of it (the ten-minute soak's memory:
+BENCHMARKS.md). Where the system has no such mapping (Windows), `releasable` is np.empty and `release` does
+nothing.
 """
 
 from __future__ import annotations

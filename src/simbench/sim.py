@@ -9,9 +9,8 @@ into segments and are applied between them; a plan with feedback (the RSMG's arm
 then revise the references still to come.
 
 With a recording stride, a run may be analysed as it is simulated (simulate's analyser): each window of samples
-is handed to the analysis once its readings are in, and then let go but for its kept rows, every step's readings
-being held a window and a chunk of steps at a time (simbench.buffers), and the plan's rows the run has passed
-handed back where its planner put them on pages of their own (simbench.pages).
+is analysed once its readings are in, then let go but for its kept rows (simbench.buffers), and the plan's rows
+the run has passed are handed back where they are on pages of their own (simbench.pages).
 
 The physics is checked as it runs (simbench.faults): the run stops at the first step at fault with a
 PhysicsError that carries the recording up to the last sound state (ControlError for a controller's bad
@@ -53,19 +52,15 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     since switching edits it. PhysicsError if the physics fails on the way, ControlError if the controller does.
 
     A plan with feedback has its references revised in copies (Recording.q_ref), or with `revise_in_place` in
-    traj's own arrays, for a caller that has no further use for the plan as planned (the pipeline: simbench.run
-    and evaluate, sweeps, compare; two (N, dof) arrays fewer, 77 MB on the ten-minute soak). The feedback then
-    reads the plan's references as revised so far (the RSMG's reads only its gripping arm's rows from the grip on,
-    which no earlier change touched).
+    traj's own arrays, for a caller with no further use for the plan as planned (the pipeline): two (N, dof)
+    arrays fewer. The feedback then reads the references as revised so far.
 
     With an `analyser` (simbench.analysis.Analyser, whose robot's summary comes a window at a time), the run is
-    analysed as it is simulated, a window of samples at a time, and each window's samples are let go once its
-    kept rows are copied out: a long run with a recording stride then holds a window and a chunk of every step's
-    readings (simbench.buffers), not all of them. Its Recording, and a PhysicsError's, hold the kept rows only
-    (Recording.thinned's); the plan's feedback, if any, must revise in place, so that the analysis reads the
-    references as commanded. The plan is then the run's to use up: where its arrays are on pages of their own
-    (pages.releasable) the rows the run has passed are handed back, and read as zeros after it; the plan at the
-    kept rows is the analyser's (Analyser.plan)."""
+    analysed as it is simulated, and each window's samples are let go once its kept rows are copied out: a long
+    strided run holds a window of every step's readings, not all of them. Its Recording, and a PhysicsError's,
+    hold the kept rows only (Recording.thinned's); a feedback must revise in place, so that the analysis reads the
+    references as commanded. The plan is then the run's to use up: rows on pages of their own (pages.releasable)
+    are handed back once passed, and read as zeros; the plan at the kept rows is the analyser's (Analyser.plan)."""
     if analyser is not None and not (record_every > 1 and analyser.streams):
         raise ValueError("a run is analysed as it is simulated with a recording stride (record_every > 1) and a "
                          "robot whose summary comes a window at a time (Robot.streams)")
@@ -76,14 +71,16 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     controller = controller if controller is not None else Servo()
     controller.bind(plant, traj)
     with quiet_mujoco():
-        return _Run(plant, traj, controller, settle, record_every, revise_in_place, analyser).go(progress)
+        run = _Run(plant, traj, controller, settle, record_every, revise_in_place, analyser)
+        try:
+            return run.go(progress)
+        finally:
+            run.stream = None  # it refers back to the run: the run's arrays go as it ends, not at the next collection
 
 
 def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
-    """The plan with the references the run really commanded: its own, or those its feedback revised. Revised
-    ones come without the feedback, which is spent: simulating them again should not revise them twice, and the
-    feedback holds what the analysis after a run does not need (the RSMG's: the plan's references as planned,
-    where they were revised in copies, and its blocks of rotor orientations)."""
+    """The plan with the references the run really commanded: its own, or those its feedback revised, then without
+    the feedback, which is spent (simulating them again should not revise them twice)."""
     return traj if rec.q_ref is None else replace(traj, q_ref=rec.q_ref, qd_ref=rec.qd_ref, feedback=None)
 
 
@@ -166,8 +163,8 @@ class _Run:
         """Step every segment between switches; the Recording, or PhysicsError with the one up to the fault."""
         n_settle, n = self.rows.n_settle, len(self.rows.sensors) - 1
         bounds = sorted({int(k) + n_settle for k in self.steps if 0 < k < n - n_settle}) + [n]
-        # A streamed run's windows are analysed as the stepper's chunks come in (the samples whose readings are all
-        # in), on the chunks a run recorded whole takes: MuJoCo's warnings are stamped at the end of their chunk.
+        # Windows are analysed as the stepper's chunks come in, on the chunks a run recorded whole takes: MuJoCo's
+        # warnings are stamped at the end of their chunk.
         after = None if self.stream is None else (lambda step: self.stream.feed(step - n_settle))
         done = 0
         with tqdm(total=n, desc="simulate", unit="step", disable=not (progress and sys.stderr.isatty()),
@@ -195,9 +192,8 @@ class _Run:
                 self._revise(self.traj.feedback(switch, self.model, self.data, k))
 
     def _revise(self, change: tuple | None) -> None:
-        """Apply a feedback change (k0, columns, q) to the references (copies of the plan's from the first change
-        on, or the plan's own in place), and to the controller (whose open-loop commands the steps still to come
-        then take)."""
+        """Apply a feedback change (k0, columns, q) to the references (Revisions) and to the controller, whose
+        open-loop commands the steps to come then take."""
         rows = self.references.apply(change)
         if rows is None:
             return
@@ -285,10 +281,9 @@ class _Stream:
             self._let_plan_go()
 
     def _let_plan_go(self) -> None:
-        """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the run (whose controller
-        reads the references of the steps to come: not Controller.reads_past) reads again, where its arrays are on
-        pages of their own (pages.releasable: a long plan's, as the RSMG's planner makes them), but its times: the
-        events are stamped with them. The analyser keeps the plan's kept rows."""
+        """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the controller (unless
+        Controller.reads_past) reads again, where they are on pages of their own (pages.releasable); not its times,
+        which stamp the events. The analyser keeps the plan's kept rows."""
         if self.run.controller.reads_past:  # it may read them: the plan stays whole
             return
         traj, upto = self.run.traj, min(self.analyser.plan_from(), self.lo)
@@ -322,16 +317,16 @@ class _Stream:
 
 
 def _columns(index: np.ndarray) -> slice | np.ndarray:
-    """Columns `index` as a slice where they are consecutive (every shipped scene's actuator forces), so that
-    a recording's column is a view of the sensor rows, not an (N, dof) copy of them; else the index itself."""
+    """Columns `index` as a slice where they are consecutive, so that a recording's column is a view of the sensor
+    rows, not an (N, dof) copy; else the index itself."""
     if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
         return slice(int(index[0]), int(index[0]) + len(index))
     return index
 
 
 def _check_finite(ctrl: np.ndarray | Commands, traj: JointTrajectory) -> None:
-    """RunError at the first sample without a finite command (the plan has no finite reference there), the
-    commands read a chunk at a time (Commands find them as they are read)."""
+    """RunError at the first sample without a finite command (the plan has no finite reference there), reading the
+    commands a chunk at a time."""
     for lo in range(0, len(ctrl), CHUNK):
         bad = ~np.isfinite(ctrl[lo:lo + CHUNK]).all(axis=1)
         if bad.any():

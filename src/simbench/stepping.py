@@ -44,10 +44,9 @@ class Rows:
     the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, the
     constraints in force from it on (during step n_settle + r), and its full physics state where the row is one
     of `kept`.
-    The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a long run with a
-    recording stride never holds every step's state; a run analysed as it is simulated holds every step's
-    sensors, commands, q and constraints a window at a time too (simbench.buffers: `drop`). `qd_peak`: each
-    joint's largest speed |qd| (at `qd_columns` of the state) over every recorded row so far, kept or not."""
+    The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a strided run never holds
+    every step's state; a run analysed as it is simulated holds the other rows a window at a time too (`drop`).
+    `qd_peak`: each joint's largest speed |qd| (at `qd_columns` of the state) over every recorded row so far."""
 
     sensors: np.ndarray | WindowBuffer
     controls: np.ndarray | WindowBuffer  # (n, nu), or (0, nu) where the commands are not kept here
@@ -69,11 +68,9 @@ class Rows:
         """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
         (kept_rows), the joint positions at `q_columns` of the state and their speeds at `qd_columns` (none by
         default); `start`: row 0's state when there is no settling. `controls`: whether the rows keep every
-        step's command (not where an open-loop controller's array has them all: a second (n, nu) copy, 37 MB on
-        the ten-minute soak).
-        `window`: every step's sensors, commands, joint positions and constraints held for a window of this many
-        samples and a chunk of steps only (WindowBuffer: a run analysed as it is simulated, which `drop`s the
-        rows of each window analysed); None: for every step."""
+        step's command (not where an open-loop controller has them all: that would be a second copy).
+        `window`: every step's other rows held for a window of this many samples and a chunk of steps only
+        (WindowBuffer, for a run analysed as it is simulated, which `drop`s them); None: for every step."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
         q_columns = np.zeros(0, int) if q_columns is None else q_columns
         qd_columns = np.zeros(0, int) if qd_columns is None else qd_columns

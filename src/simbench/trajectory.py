@@ -37,16 +37,13 @@ class JointTrajectory:
     plan turns on and off (an electromagnet's grip), and `initial` the qpos of joints the robot cannot assemble
     from its actuated joints alone (a free rotor), by joint name. `feedback`, where the method closes a loop, is
     called by the simulator after each switch it applies during the run, as feedback(switch, model, data, k) at
-    row k (reading the references from row k on: earlier ones may have been handed back, below); it returns None,
-    or (k0, columns, q): new references q for those joints from row k0 on (an RSMG arm
-    re-solving its hold for the point it really gripped); the pipeline (simbench.run, evaluate) applies those to
-    q_ref and qd_ref in place (sim.simulate's revise_in_place). `violations` are the promises the planner knows its
-    plan breaks (it ends away from the task's goal, say), each a simbench.api.Violation (or the dict {"kind",
-    "message", ...} it reads as, as planners written before it give): the run cannot end `ok`.
+    row k (reading the references from row k on); it returns None, or (k0, columns, q): new references q for those
+    joints from row k0 on (an RSMG arm re-solving its hold for the point it really gripped). `violations` are the
+    promises the planner knows its plan breaks (it ends away from the task's goal, say), each a
+    simbench.api.Violation (or the dict {"kind", "message", ...} it reads as): the run cannot end `ok`.
 
-    A planner of long runs may make the per-sample arrays with simbench.pages.releasable: a run with a recording
-    stride, analysed as it is simulated, then hands back the rows it has passed (all but t), keeping the plan at its
-    kept rows for the outputs (analysis.Analyser.plan); the plan is the run's to use up (the pipeline's).
+    A planner of long runs may make the per-sample arrays with simbench.pages.releasable: a strided run analysed
+    as it is simulated then hands back the rows it has passed (all but t; sim.simulate).
     """
 
     t: np.ndarray
@@ -85,9 +82,8 @@ def joined(pieces: list[JointTrajectory]) -> JointTrajectory:
 
 
 def gradient_rows(x: np.ndarray, lo: int, hi: int, spacing: float = 1.0) -> np.ndarray:
-    """np.gradient(x, spacing, axis=0)[lo:hi] from rows lo - 1 .. hi of x alone: each row's difference is of its
-    own and its neighbours' samples, so the same numbers, without the whole array's temporaries (a long plan's
-    rates, a block at a time)."""
+    """np.gradient(x, spacing, axis=0)[lo:hi] from rows lo - 1 .. hi of x alone: the same numbers, without the whole
+    array's temporaries."""
     a, b = max(lo - 1, 0), min(hi + 1, len(x))
     return np.gradient(x[a:b], spacing, axis=0)[lo - a:hi - a]
 

@@ -47,8 +47,7 @@ def window_size(dt: float, samples: int) -> int:
 
 
 def spans(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Index ranges [start, end] (inclusive) of the runs of True in mask. Most masks the analysis asks about (a
-    joint past a limit, an actuator saturated) have none: those return at once."""
+    """Index ranges [start, end] (inclusive) of the runs of True in mask (at once where there are none: most)."""
     mask = np.asarray(mask, bool)
     if not mask.any():
         return []
@@ -202,9 +201,7 @@ class BlockSum:
 
 
 def norms(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of v (N, 3; the analysis' points are 3-D): the numbers np.linalg.norm(v, axis=1)
-    gives (the squares added in the same order) in a quarter of its time. NumPy reduces an (N, 3) or (N, dof) array
-    across its short rows several times as slowly as it does the arithmetic, so the analysis works a column at a
-    time there."""
+    """Euclidean norm of each row of v (N, 3): the numbers np.linalg.norm(v, axis=1) gives (the squares added in the
+    same order), a column at a time, since NumPy reduces across short rows slowly."""
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     return np.sqrt(x * x + y * y + z * z)

@@ -16,8 +16,7 @@ from simbench.rotations import matrix_to_quat
 from simbench.trajectory import Switch, gradient_rows
 
 # control samples whose orientations and rates are found at a time, in planning (rotor_references, joint_rates)
-# and during the run, as grips ask for them (Orientations): the temporaries of a rotation matrix for each of
-# 65,536 samples took 28 MB
+# and during the run (Orientations), so that their temporaries stay small
 BLOCK = 8192
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
 
@@ -64,8 +63,7 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
 
 def _span(t: np.ndarray, start: float, stop: float) -> slice:
     """The samples of increasing times t from `start` to before `stop` as a slice: the mask
-    (t >= start) & (t < stop), found by bisection, not by a pass over all samples for every hold (a ten-minute run:
-    hundreds of holds, 600,000 samples)."""
+    (t >= start) & (t < stop), found by bisection, not by a pass over all samples for every hold."""
     return slice(int(np.searchsorted(t, start)), int(np.searchsorted(t, stop)))
 
 
@@ -73,7 +71,6 @@ def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
     """Value, rate and acceleration at time `at`, from a quadratic fitted to the samples."""
     c = np.polynomial.polynomial.polyfit(t - at, y, 2)
     return np.array([c[0], c[1], 2 * c[2]])
-
 
 
 def joint_paths(t: np.ndarray, sched: ScheduleGrid) -> np.ndarray:
@@ -114,12 +111,10 @@ def engaged_arms(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarr
     return engaged
 
 
-
 def rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The marker's planned point (N, 3) and the rotor's planned orientation as quaternions (N, 4) at path
-    parameters s, from the rotor's orientations a BLOCK of samples at a time: all of a long run's at once (43 MB
-    on the ten-minute soak's 600,000 samples), and the temporaries of their matrices and quaternions, would be
-    planning's peak. Each row's numbers are those of the whole run's arrays."""
+    parameters s, from the rotor's orientations a BLOCK of samples at a time (each row's numbers those of the
+    whole run's arrays), not all of a long run's at once."""
     tool_ref, quat = pages.releasable((len(s), 3)), pages.releasable((len(s), 4))
     for i in range(0, len(s), BLOCK):
         rot = motion.orientation(s[i:i + BLOCK])
@@ -130,8 +125,7 @@ def rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 def joint_rates(q_ref: np.ndarray, dt: float) -> np.ndarray:
     """np.gradient(q_ref, dt, axis=0), as the grip feedback's revisions take it (trajectory.revise), BLOCK rows at
-    a time (trajectory.gradient_rows): the same numbers, without temporaries of three and a half times q_ref at
-    once (on the soak's 600,000 samples, 135 MB).
+    a time (trajectory.gradient_rows): the same numbers, without temporaries of several times q_ref.
     The spacing is the control period, not the differences of t: np.gradient takes a block whose t steps happen to
     be equal for uniform, and rounds differently there."""
     qd_ref = pages.releasable(q_ref.shape)
@@ -142,10 +136,8 @@ def joint_rates(q_ref: np.ndarray, dt: float) -> np.ndarray:
 
 class Orientations:
     """The rotor's commanded orientations R (N, 3, 3) at the plan's path parameters s, found from the motion a
-    block of BLOCK rows at a time as the run's grips ask for them, not kept whole: all of them would hold 43 MB
-    through the ten-minute soak's run. The grips come in time order, so the blocks before the latest asked for are
-    dropped (and found again should an earlier row be asked for); each row is then found about once, though the
-    four arms' holds overlap."""
+    block of BLOCK rows at a time as the run's grips ask for them, not kept whole. The grips come in time order,
+    so the blocks before the latest asked for are dropped (and found again should an earlier row be asked for)."""
 
     def __init__(self, motion: Motion, s: np.ndarray):
         self.motion, self.s = motion, s

@@ -21,15 +21,11 @@ class RoundRobin(Planner):
     description = "paper 001: RSMG rotor motion by round-robin re-gripping of four electromagnet arms"
     task = Task
     robots = ("rsmg",)
-    # The schedule's search with general contacts: the ten-minute soak's tumble plans in 14 s, 23 us a sample in
-    # all (2026-11-23), of which budget.py's _SAMPLE_SECONDS (planning and analysing) covers 10; three_turns takes
-    # 2 us a sample.
-    seconds_per_sample = 13e-6
+    seconds_per_sample = 13e-6  # the search with general contacts, beyond budget.py's _SAMPLE_SECONDS
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
         """Schedule the grips and solve every arm at every control sample. The per-sample arrays are on pages of their
-        own (pages.releasable), so that a long run with a recording stride hands their rows back as it passes them
-        (sim.simulate's analyser: the ten-minute soak's plan is 117 MB)."""
+        own (pages.releasable): a long run with a recording stride hands their rows back as it passes them."""
         task = scenario.task
         law = scenario.timing.law_fn()
         try:
@@ -39,15 +35,14 @@ class RoundRobin(Planner):
                 raise
             raise RunError(refusal(task, law, scenario.timing.hold, stuck)) from None
         t = control_grid(law.duration, scenario.timing.hold, dt)
-        # The search's caches (general contacts': up to 80 MB) go before the per-sample arrays come: the arms' paths
-        # read their IK again, a few MB, the same numbers.
-        sched.contacts.forget()
+        sched.contacts.forget()  # the search's caches go before the per-sample arrays come
         s = law(t, order=0)[0]
         q_ref = joint_paths(t, sched)
         switches = grip_switches(sched.holds, sched.grid, sched.contacts)
+        sched.contacts.forget()  # the paths' IK: its cached blocks refer back to the contacts, which then go at once
         holds, grid, count = sched.holds, sched.grid, sched.contacts.count
         del sched  # the contacts and the rotor's axes on the schedule grid go before the references that remain come
-        heap.give_back(len(t))  # with the search's caches: freed, they stay in the C heap (simbench.heap)
+        heap.give_back(len(t))
         engaged = engaged_arms(t, holds, grid)
         feedback = RegripFeedback(task.motion, s, q_ref, holds, grid, dt, round(task.swing_time / dt)) \
             if task.regrip_feedback else None
