@@ -32,25 +32,25 @@ SCALED = ("dls_adaptive", "dls")  # the rules whose rates cartesian_path scales 
 Rule = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, float, np.ndarray]]
 
 
-def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """dls_adaptive: Ju# twist with the variable damping, sigma_min, lambda^2 and I - Ju+ Ju."""
+def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float]):
+    """Ju^T (Ju Ju^T + lambda^2 I)^-1 twist by the SVD (V S (S^2 + lambda^2)^-1 U^T), lambda^2 = lam2_of(sigma_min);
+    sigma_min, lambda^2 and I - Ju+ Ju."""
     u, sv, vt = np.linalg.svd(ju, full_matrices=False)
     sigma = float(sv[-1])
-    lam2 = LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0
+    lam2 = lam2_of(sigma)
     rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
     return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
 
 
+def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """dls_adaptive: the variable damping."""
+    return _damped(ju, twist, lambda sigma: LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0)
+
+
 def fixed_damping(damping: float) -> Rule:
-    """dls: Ju^T (Ju Ju^T + lambda^2 I)^-1 twist with lambda = `damping` (by the SVD: V S (S^2 + lambda^2)^-1 U^T)."""
+    """dls: lambda = `damping`."""
     lam2 = float(damping) ** 2
-
-    def rule(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-        u, sv, vt = np.linalg.svd(ju, full_matrices=False)
-        rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
-        return rates, float(sv[-1]), lam2, np.eye(ju.shape[1]) - vt.T @ vt
-
-    return rule
+    return lambda ju, twist: _damped(ju, twist, lambda sigma: lam2)
 
 
 def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
