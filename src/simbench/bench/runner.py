@@ -10,7 +10,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import ClassVar, cast
 
 from tqdm import tqdm
 
@@ -35,14 +35,8 @@ class BenchSpec(SimbenchModel):
     seed: int
     methods: list[str]
     robots: list[str]
-
-    @property
-    def outputs(self) -> str:
-        return "none"
-
-    @property
-    def video(self) -> bool:
-        return False
+    outputs: ClassVar[str] = "none"
+    video: ClassVar[bool] = False
 
 
 @dataclass(frozen=True)

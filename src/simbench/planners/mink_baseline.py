@@ -115,9 +115,7 @@ class Task(SimbenchModel):
     @classmethod
     def _followed_task(cls, value: Any, info: ValidationInfo) -> Any:
         follow = info.data.get("follow")
-        if follow is None:  # `follow` itself failed: its error is the one reported
-            return value
-        if isinstance(value, SimbenchModel):  # the direct form's, already checked
+        if follow is None or isinstance(value, SimbenchModel):  # `follow` failed (its error is reported); direct form
             return value
         if not isinstance(value, dict):
             raise ValueError(f"expected a mapping: the task of '{follow}', as its own scenarios write it")
@@ -129,10 +127,8 @@ class Task(SimbenchModel):
 
     def cost(self, robot: Robot) -> tuple[float, float]:
         """(position, orientation) costs of the FrameTask for `robot`."""
-        orientation = self.orientation_cost
-        if orientation is None:
-            orientation = 1.0 if robot.dof >= 6 else 0.0
-        return self.position_cost, orientation
+        default = 1.0 if robot.dof >= 6 else 0.0
+        return self.position_cost, default if self.orientation_cost is None else self.orientation_cost
 
 
 def _split(task: dict) -> tuple[dict, dict]:

@@ -11,9 +11,8 @@
     dls_adaptive  the same with lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2) below EPSILON, else 0
                   (Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2), 1994, sec. III).
 
-Each returns the rates, Ju's least singular value, the lambda^2 it used and the null space's projector I - Ju+ Ju
-(a redundant arm's posture term, cartesian_path). The damped rules' rates are scaled down under the speed limits
-by cartesian_path; pinv's are not (the verdict reports the speed limits they break: `velocity_limit`).
+Each returns the rates, Ju's least singular value, the lambda^2 it used and the null-space projector I - Ju+ Ju
+(a redundant arm's posture term). cartesian_path scales the damped rules' rates down under the speed limits.
 """
 
 from __future__ import annotations
