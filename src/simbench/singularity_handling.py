@@ -44,7 +44,7 @@ class SingularityHandling(Metric):
 
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> None:
         qd, limits = getattr(traj, "qd_ref", None), self.qd_max
-        if self.share is not None and qd is not None and len(qd):  # share is None where limits are
+        if self.share is not None and limits is not None and qd is not None and len(qd):
             qd = np.asarray(qd, float)
             if qd.ndim == 2 and qd.shape[1] == limits.size:
                 self.share = max(self.share, float(np.max(np.abs(qd) / limits)))
