@@ -285,8 +285,8 @@ class CartesianPath(Planner):
     @classmethod
     def _time_scaled(cls, task: Task, robot, law, pose, twist, q0: np.ndarray, dt: float,
                      hold: float) -> tuple:
-        """time_scaling (path_retiming): t, s, q, qd, sigma_min, the joints held at a limit (N, dof), and the
-        report's slowdown and durations."""
+        """time_scaling (path_retiming: pinv's joint path retimed by TOPP-RA): t, s, q, qd, sigma_min, the joints held
+        at a limit (N, dof), and the report's slowdown and durations."""
         from simbench.planners.path_retiming import exact_ik, retime
 
         n = max(int(round(law.duration / dt)), 2) + 1
