@@ -54,13 +54,11 @@ class Timing(SimbenchModel):
 
 
 class Sim(SimbenchModel):
-    """Physics settings; the timestep is also the control period. `kp` and `kv` replace the model's servo gains
-    (one number for every servo, or one per joint; SI: N/m or N m/rad, and N s/m or N m s/rad, whatever the
-    file's units). `force_limits: false` lifts the servos' force limits (ideal actuators), to tell what the plan
-    asks from what the motors can give; stiff gains without limits can make the integration diverge.
-    `gravity_compensation: false` removes the controller's gravity feed-forward (the models' body `gravcomp`), so
-    that the servos carry the arm's weight as a plain PD would. `record_every: k` thins a long run's timeseries
-    to every k-th sample (and the last); the report's errors and events are still found from every sample."""
+    """Physics settings; the timestep is also the control period. `kp`, `kv` replace the model's servo gains (one
+    for all or one per joint; SI whatever the file's units). `force_limits: false` lifts the servos' force limits,
+    to tell what the plan asks from what the motors give. `gravity_compensation: false` removes the bodies'
+    `gravcomp`, so that the servos carry the arm's weight. `record_every: k` keeps every k-th sample (and the last)
+    of the timeseries; the report is still found from every sample."""
 
     timestep: seconds(1e-5, 0.01) | None = None
     settle: seconds(0.0, 10.0) = 0.2
@@ -73,9 +71,9 @@ class Sim(SimbenchModel):
 
 
 class Thresholds(SimbenchModel):
-    """The `analysis:` section. How near a singular set or a joint limit counts as near (angles for revolute, lengths for prismatic), and
-    the tolerances a run must keep to end `ok`: the tool's distance from the planned path, its distance from the
-    plan's end when the run ends, and for a robot whose task is an orientation, the same for the orientation."""
+    """The `analysis:` section: how near a singular set or a joint limit counts as near (angles for revolute,
+    lengths for prismatic joints), and the tolerances a run must keep to end `ok`: the tool's distance from the
+    planned path and from the plan's end, and for an orientation task, the same for the orientation."""
 
     near_angle: PositiveAngle = float(np.deg2rad(2.0))
     near_length: PositiveLength = 0.002
@@ -181,8 +179,7 @@ def load_scenario(path: str | Path) -> Scenario:
 
 
 def as_scenario(value: Scenario | str | os.PathLike, caller: str) -> Scenario:
-    """A Scenario, or the one in the file at a path; TypeError saying what to pass for anything else (the public
-    functions take either)."""
+    """A Scenario, or the one in the file at a path; TypeError saying what to pass for anything else."""
     if isinstance(value, Scenario):
         return value
     if isinstance(value, (str, os.PathLike)):
@@ -238,8 +235,8 @@ def _controller_name(raw: dict, source: str) -> str:
 
 
 def _name_field(raw: dict, field: str, known: dict, source: str, path: str | None = None) -> str:
-    """raw[field], the name of a registered robot, planner or controller; ScenarioError naming `path` (default
-    the field) if it is missing, unknown or broken."""
+    """raw[field], a registered robot's, planner's or controller's name; ScenarioError naming `path` (default the
+    field) if it is missing, unknown or broken."""
     value, path = raw.get(field), path or field
     options = ", ".join(sorted(known))
     if value is None:

@@ -1,14 +1,7 @@
-"""What a method's row says, decided in one place for `compare` (comparison.csv) and `simbench bench` (runs.csv):
-the figures both tables show, from a run's status, error and report figures. Each table names them in its own
-columns and units (compare: path_deviation_max_m, qd_share_max; bench: deviation_max_mm, speed_share_max).
-
-    status, error       the run's, as its caller states them
-    deviation_max       m: the tool's largest distance from the planned path (report.json's tracking.tool_max)
-    speed_share_max     the plan's largest joint rate over the speed limit (metrics.singularity_handling)
-    slowdown            planned duration over asked (metrics.singularity_handling)
-    closest_approach    the least rank_loss gap along the run, rad-like (metrics.singularity_handling)
-
-A run that did not get as far as its figures (no tracking) has None for each.
+"""What a method's row says, decided in one place for `compare` (comparison.csv) and `simbench bench` (runs.csv),
+each table naming the figures in its own columns and units: the run's status and error, deviation_max (m: the
+tool's largest distance from the planned path, report.json's tracking.tool_max), and speed_share_max, slowdown and
+closest_approach (simbench.singularity_handling). A run that got no figures has None for each.
 """
 
 from __future__ import annotations

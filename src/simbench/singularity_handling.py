@@ -1,15 +1,12 @@
 """The shipped metric `singularity_handling`: how a run's plan meets the singular sets and the speed limits, the
-figures that set the methods of a path near a singularity apart (issue 36: `compare`, `simbench bench`). In every
-run's report.json under metrics.singularity_handling:
+figures that set the methods of a path near a singularity apart (`compare`, `simbench bench`). In report.json:
 
     speed_share_max     max over joints and samples of |qd_ref| / qd_max: the plan's joint rates against the
                         robot's speed limits (above 1 the plan asks more than a drive gives); None for a robot
                         without one positive speed limit per joint
-    closest_approach    the least, over the samples, of the robot's `sigma_min_unit` measure (an arm derived from
-                        its model: the least singular value of [Jp / L; Jr], the rank_loss set's gap, about the
-                        angle from the set in rad). None for the papers' robots: their singular sets' gaps are in
-                        units of their own (m for the PUMA's shoulder, a determinant for the RSMG's), not this
-                        rad-like gap; each set's least distance is in `compare`'s singular_min_<set> columns
+    closest_approach    the least of the robot's `sigma_min_unit` measure over the run (an arm derived from its
+                        model: the rank_loss gap, about the angle from the set in rad). None for the papers' robots,
+                        whose gaps are in units of their own (`compare`'s singular_min_<set> columns)
     slowdown            the plan's own `slowdown` (planned duration over asked: a planner that retimes the path,
                         cartesian_path's time_scaling), else 1
 

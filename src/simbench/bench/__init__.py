@@ -4,10 +4,8 @@
     result = run_bench(suite.with_options(tasks=20), workers=2)
     result.leaderboard["ok_share"]
 
-A suite (simbench.bench.suite) is robots, random tasks per robot drawn through, near and far from each one's singular
-set (simbench.bench.tasks), and methods (simbench.bench.methods); every run is simbench's pipeline, run by the
-sweep's machinery (simbench.bench.runner), into runs.csv and leaderboard.csv (simbench.bench.board), plots and a
-page (simbench.bench.outputs).
+A suite (bench.suite) is robots, random tasks per robot through, near and far from its singular set (bench.tasks),
+and methods (bench.methods); the runs (bench.runner) go into tables (bench.board), plots and a page (bench.outputs).
 """
 
 from __future__ import annotations

@@ -2,17 +2,9 @@
 method's row says is simbench.scoring's, shared with `compare`.
 
 runs.csv columns: the run's parameters (robot, task, kind, shape, method, planner, anchor_gap: the robot's own gap
-at the task's anchor, rad; length_mm, duration), status and error (simbench.verdict's, as `simbench run` gives
-them), then the figures simbench.scoring decides for `compare` too (report.json's, every run's:
-metrics.singularity_handling)
-
-    deviation_max_mm   the tool's largest distance from the asked path (report.json's tracking.tool_max)
-    speed_share_max    max over joints and samples of |qd_ref| / speed limit
-    slowdown           planned duration / asked duration
-    closest_approach   the least rank_loss gap along the run (rad-like: Ju's least singular value)
-
-and wall_time (s), the only column that depends on the machine. A run that did not finish (bad_input, run_failed,
-crashed) has empty figures.
+at the task's anchor, rad; length_mm, duration), then simbench.scoring's status, error, deviation_max_mm,
+speed_share_max, slowdown and closest_approach, and wall_time (s), the only column that depends on the machine. A
+run that did not finish has empty figures.
 
 leaderboard.csv: robot, method, planner, tasks, ok (runs whose status is `ok`), ok_share, deviation_p95_mm (the 95th
 percentile over the tasks that finished), speed_share_max (the largest), slowdown_median, and for ok_share,
@@ -48,13 +40,9 @@ def runs_table(rows: list[dict]) -> dict[str, list]:
     scores = [score_flat(r["status"], r["error"], r["metrics"]) for r in rows]
     for name, shared in COLUMNS.items():
         table[name] = [s[shared] for s in scores]
-    table["deviation_max_mm"] = [_scaled(d, 1e3) for d in table["deviation_max_mm"]]
+    table["deviation_max_mm"] = [None if d is None else float(d) * 1e3 for d in table["deviation_max_mm"]]
     table["wall_time"] = [r["wall_time"] for r in rows]
     return table
-
-
-def _scaled(value: Any, factor: float) -> float | None:
-    return None if value is None else float(value) * factor
 
 
 def status_counts(runs: dict[str, list]) -> dict[str, int]:

@@ -1,10 +1,7 @@
-"""A bench's files beside its rows: runs.csv and runs.parquet, leaderboard.csv and leaderboard_by_kind.csv
-(simbench.bench.board), plots/ and summary.json, and index.html (simbench.page). Each is listed in the folder's
-marker before it is written, so that the folder stays simbench's own (simbench.destination).
-
-Plots, per robot: the path deviation against the closest approach to the singular set, a colour per method
-(<robot>_deviation.png); the plan's joint-speed share per method, with the limit at 1 (<robot>_speed_share.png);
-the slowdown per method (<robot>_slowdown.png). A run that did not finish has no point.
+"""A bench's files beside its rows: the tables (simbench.bench.board), plots/, summary.json and index.html, each
+claimed in the folder's marker before it is written (simbench.destination). Plots, per robot: the path deviation
+against the closest approach (<robot>_deviation.png), the plan's joint-speed share (<robot>_speed_share.png) and the
+slowdown (<robot>_slowdown.png), per method.
 """
 
 from __future__ import annotations

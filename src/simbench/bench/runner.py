@@ -1,10 +1,6 @@
 """Running a suite: every task of every robot by every method that applies, through the sweep's machinery (its
-folder store, worker processes or Ray, crash isolation, the refusal to replace files that are not simbench's), each
-run the real pipeline (simbench.sweep.execute.run_variant: the same analysis and verdict as `simbench run`).
-
-The output folder is a sweep's (simbench.sweep.store: sweep.json, rows/<id>.json as each run ends, so that the same
-command resumes) with the bench's results beside: runs.csv (and runs.parquet), leaderboard.csv,
-leaderboard_by_kind.csv, plots/, summary.json and index.html (simbench.bench.board, simbench.bench.outputs).
+folder store, so that the same command resumes, worker processes or Ray, crash isolation), each run the real
+pipeline (simbench.sweep.execute.run_variant), the bench's results beside (simbench.bench.outputs).
 """
 
 from __future__ import annotations
@@ -14,7 +10,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import ClassVar, cast
 
 from tqdm import tqdm
 
@@ -39,14 +35,8 @@ class BenchSpec(SimbenchModel):
     seed: int
     methods: list[str]
     robots: list[str]
-
-    @property
-    def outputs(self) -> str:
-        return "none"
-
-    @property
-    def video(self) -> bool:
-        return False
+    outputs: ClassVar[str] = "none"
+    video: ClassVar[bool] = False
 
 
 @dataclass(frozen=True)

@@ -135,24 +135,13 @@ def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
         raise ScenarioError(source, f"{where}.name", err.message) from None
     if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not 0 < speed <= 10:
         raise ScenarioError(source, f"{where}.speed", f"expected a tool speed in m/s, > 0 and <= 10, got {speed!r}")
-    mapping = _absolute(mapping, path.parent)
-    from simbench.robots.robot_mapping import load_robot
+    from simbench.robots.robot_mapping import anchored, load_robot
     from simbench.schema import Units
 
+    mapping = anchored(mapping, path.parent)
     try:
         load_robot(mapping, source, Units())
     except ScenarioError as err:
         field = (err.field or "").removeprefix("robot").lstrip(".")
         raise ScenarioError(source, f"{where}.{field}" if field else where, err.message) from None
     return custom(name, mapping, float(speed))
-
-
-def _absolute(mapping: dict, folder: Path) -> dict:
-    """The mapping with its model and package paths made absolute (relative ones are the suite file's)."""
-    out = dict(mapping)
-    if isinstance(out.get("model"), str) and not Path(out["model"]).is_absolute():
-        out["model"] = str((folder / out["model"]).resolve())
-    if isinstance(out.get("packages"), dict):
-        out["packages"] = {k: str((folder / v).resolve()) if isinstance(v, str) and not Path(v).is_absolute() else v
-                           for k, v in out["packages"].items()}
-    return out

@@ -1,9 +1,9 @@
 """A bench's tasks: random lines and arcs for a robot, drawn at a fixed seed to pass through, near and far from its
 singular set, each as the joints at its start (and end) and its path, in SI.
 
-Task i of a robot is `through`, `near` or `far` in turn (i mod 3), a line or an arc in turn among the robot's
-shapes, drawn by its own generator (seeded by the suite's seed, the robot's name and i), so that asking for more
-tasks keeps the first ones. Each is anchored at a configuration q_a:
+Task i of a robot is `through`, `near` or `far` in turn (i mod 3), a line or an arc in turn, drawn by its own
+generator (seeded by the suite's seed, the robot's name and i), so that more tasks keep the first ones. Each is
+anchored at a configuration q_a:
 
     through   q_a on the singular set: a configuration drawn uniformly within the joint ranges (10 % of each
               width clear of its ends; a joint without a range within +-180 deg), put on the set by the robot
@@ -16,12 +16,11 @@ tasks keeps the first ones. Each is anchored at a configuration q_a:
 The percentiles are of the robot's gap over BAND_SAMPLES configurations drawn as above at seed 0: a rank_loss gap
 (a singular value) runs smaller than an angle's, so each robot's bands are its own.
 
-The path passes through the tool's point at q_a (its end, on a robot whose set bounds its reach), in a random
-direction (in the plane of a planar arm; an arc: in a random plane through it, of radius RADIUS times the reach),
-LENGTH times the reach on either side. The tool's orientation at q_a is held along it; the joints at the start and
-the end follow from q_a by continuation: damped Newton steps along the path from the anchor (its point alone, for a
-robot that holds no orientation). A draw whose start or end is not reached within TOLERANCE, whose path dips under
-the robot's floor, or whose anchor is not found is drawn again (at most TRIES times).
+The path passes through the tool's point at q_a (its end, on a robot whose set bounds its reach) in a random
+direction (an arc: in a random plane, of radius RADIUS times the reach), LENGTH times the reach on either side, the
+orientation at q_a held. The joints at its start and end follow from q_a by damped Newton steps along the path. A
+draw whose ends are not reached within TOLERANCE, whose path dips under the floor, or whose anchor is not found is
+drawn again (at most TRIES times).
 """
 
 from __future__ import annotations
@@ -52,9 +51,8 @@ HOLD = 0.3  # s
 
 @dataclass(frozen=True)
 class Task:
-    """One task: joints at the start and at the end (both reached by continuation from the anchor), the path (one
-    segment as a scenario writes it, SI), the orientation held (a quaternion w, x, y, z), the anchor and its gap,
-    and the duration asked."""
+    """One task: joints at the start and the end, the path (one segment as a scenario writes it, SI), the
+    orientation held (quaternion w, x, y, z), the anchor and its gap, and the duration asked."""
 
     robot: str
     index: int
@@ -155,8 +153,7 @@ def _anchor(robot: BenchRobot, kind: str, rng: np.random.Generator) -> np.ndarra
 
 
 def bands(robot: BenchRobot) -> tuple[tuple[float, float], float]:
-    """The robot's near band and far threshold (rad): percentiles NEAR and FAR of its gap (the module's
-    docstring)."""
+    """The robot's near band and far threshold (rad): percentiles NEAR and FAR of its gap."""
     if "bands" not in robot.cache:
         low, high = _ranges(robot.model_arm())
         gaps = robot.gap_of(np.random.default_rng(0).uniform(low, high, (BAND_SAMPLES, len(low))))

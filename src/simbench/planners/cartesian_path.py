@@ -1,10 +1,10 @@
-"""A tool path of lines and arcs for any serial arm whose kinematics simbench can evaluate (an arm derived from its
-model: robots.model_arm), by damped least-squares resolved rates with closed-loop correction (or another method).
+"""A tool path of lines and arcs for any serial arm simbench can evaluate (robots.model_arm), by damped
+least-squares resolved rates with closed-loop correction (or another method).
 
-The task: the joint values `start`, the path (decoupled_path's segments; the first line's start may be left out:
-the tool's point at `start`) on the scenario's time law, and the orientation: `hold` (the tool's orientation at
-`start`), or a goal orientation reached by slerp along the path. At each control sample k, in the
-unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v / L; w], L the reach):
+The task: the joints `start`, the path (decoupled_path's segments; the first line's start may be left out: the
+tool's point at `start`) on the scenario's time law, and the orientation: `hold`, or a goal reached by slerp along
+the path. At each control sample k, in the unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist
+x = [v / L; w], L the reach):
 
     qd_k = Ju# (x_d + K e_k) + (I - Ju+ Ju) K_N (q_start - q_k)        q_{k+1} = q_k + dt qd_k
 
@@ -12,37 +12,27 @@ unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v /
     error at q_k: the point's, and the orientation's 1/2 (n x n_d + s x s_d + a x a_d) (Siciliano et al.,
     Robotics: Modelling, Planning and Control, 2009, eq. 3.85), the position part divided by L;
   - closed-loop inverse kinematics with gain K = CLIK_SHARE / dt (ibid., sec. 3.7, eq. 3.70 with the damped
-    inverse): each sample removes CLIK_SHARE of the error left by the one before, so Euler's integration error
-    does not accumulate, and the gain stays under the 1 / dt at which explicit Euler would overshoot;
+    inverse): each sample removes CLIK_SHARE of the error left, so Euler's error does not accumulate, the gain
+    under the 1 / dt at which explicit Euler would overshoot;
   - Ju# = Ju^T (Ju Ju^T + lambda^2 I)^-1, the damped least-squares inverse (ibid., eq. 3.59; Nakamura and
-    Hanafusa, J. Dyn. Sys. Meas. Control 108, 1986, eq. 15), its damping grown as the least singular value
-    sigma_min of Ju falls below EPSILON: lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2), else 0
-    (the variable damping reviewed by Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2),
-    1994, sec. III): exact where the arm is well away from a singularity, bounded joint rates near one, where the
-    tool lags the path along the lost direction instead;
+    Hanafusa, J. Dyn. Sys. Meas. Control 108, 1986, eq. 15), lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2)
+    below EPSILON, else 0 (Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2), 1994,
+    sec. III): exact away from a singularity, bounded rates near one, where the tool lags along the lost direction;
   - a redundant arm (more than 6 joints) is pulled back to its start posture at rate K_N = NULL_GAIN in the null
     space of Ju (ibid., eq. 3.54; Ju+ the pseudo-inverse);
   - every joint kept inside its range: a joint the rates would take past a limit within the sample is held to
-    reach it exactly, its column taken out of Ju, and the other joints solved again for the twist it leaves
-    (until none passes): the saturation of Flacco, De Luca and Khatib (IEEE Trans. Robot. 31(3), 2015, Alg. 1,
-    without its task scaling). A joint at its limit moves again as soon as the rates turn it back inside;
+    reach it exactly, its column taken out of Ju, and the others solved again for the twist it leaves (until none
+    passes): Flacco, De Luca and Khatib (IEEE Trans. Robot. 31(3), 2015, Alg. 1, without its task scaling);
   - where a joint's rate would pass its speed limit, all the rates are scaled down together (ours): the tool keeps
-    its direction and falls behind the time law, which the closed loop then makes up where it can.
+    its direction and falls behind the time law, which the closed loop makes up where it can.
 
-`task.method` picks how a singularity is met (path_methods states each rule, with its references): the above is
-`dls_adaptive` (the default); `dls` the same with a fixed damping lambda (`task.damping`); `pinv` the pseudo-inverse,
-never scaled down: the tool stays on the path and the verdict reports the speed limits the rates break
-(`velocity_limit`); `time_scaling` keeps the path exactly and stretches its timing under the joints' speed and
-acceleration limits (path_retiming: pinv's joint path, retimed by TOPP-RA; the report's `slowdown`); `mink` solves
-mink_baseline's QP per control step towards the path's next pose (the joint ranges and speed limits its
-constraints). Every method but mink holds the joint ranges as above; a redundant arm's posture term is in the null
-space of each rule.
+`task.method` picks the rate rule (path_methods, with references): the above is `dls_adaptive`; `dls` has a fixed
+lambda (`task.damping`); `pinv` is never scaled down (the verdict reports `velocity_limit`); `time_scaling` retimes
+pinv's joint path by TOPP-RA under the speed and acceleration limits (path_retiming; the report's `slowdown`);
+`mink` solves mink_baseline's QP per control step. Every method but mink holds the joint ranges as above.
 
-The plan is what the integration gives, inside the joint ranges. Where the plan's own tool leaves the path (the
-polyline of its points) by more than the scenario's path tolerance, or ends farther than its goal tolerance from
-the path's end (a path out of reach, a singularity damped, a tool slowed by the speed limits, a joint held at its
-limit), the plan reports it (`off_path`, `goal_missed`), and each joint held at a limit there as a `joint_limit`
-(the path needs it past its range).
+Where the plan's own tool leaves the path by more than the path tolerance, or ends farther than the goal tolerance
+from its end, the plan reports it (`off_path`, `goal_missed`), with each joint held at a limit there (`joint_limit`).
 """
 
 from __future__ import annotations
@@ -174,9 +164,9 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
 
 
 def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """1/2 (n x n_d + s x s_d + a x a_d) (3,) (Siciliano et al. 2009, eq. 3.85): sin(angle) times the axis of the
-    rotation from r to r_goal, world frame."""
-    return 0.5 * np.cross(r.T, r_goal.T).sum(axis=0)
+    """1/2 (n x n_d + s x s_d + a x a_d) (..., 3) of rotations (..., 3, 3) (Siciliano et al. 2009, eq. 3.85):
+    sin(angle) times the axis of the rotation from r to r_goal, world frame."""
+    return 0.5 * np.cross(np.swapaxes(r, -1, -2), np.swapaxes(r_goal, -1, -2)).sum(axis=-2)
 
 
 def _turn(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
@@ -225,8 +215,7 @@ class CartesianPath(Planner):
         return join_gap(segments)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        """Integrate the closed-loop resolved rates of the task's method on the control grid (the module's
-        docstring), or retime pinv's joint path (time_scaling), or solve mink's QPs along the path (mink)."""
+        """The task's method on the control grid (the module's docstring)."""
         task = scenario.task
         law = scenario.timing.law_fn()
         t = control_grid(law.duration, scenario.timing.hold, dt)
@@ -296,9 +285,8 @@ class CartesianPath(Planner):
     @classmethod
     def _time_scaled(cls, task: Task, robot, law, pose, twist, q0: np.ndarray, dt: float,
                      hold: float) -> tuple:
-        """time_scaling (path_retiming): pinv's joint path on a uniform grid of s, solved exactly at each sample,
-        retimed by TOPP-RA, the joints solved exactly at the retimed samples. Returns t, s, q, qd, sigma_min,
-        the joints held at a limit (N, dof), and the report's slowdown and durations."""
+        """time_scaling (path_retiming: pinv's joint path retimed by TOPP-RA): t, s, q, qd, sigma_min, the joints held
+        at a limit (N, dof), and the report's slowdown and durations."""
         from simbench.planners.path_retiming import exact_ik, retime
 
         n = max(int(round(law.duration / dt)), 2) + 1
@@ -362,8 +350,7 @@ class CartesianPath(Planner):
     @staticmethod
     def _off_path(t: np.ndarray, off: np.ndarray, sigma: np.ndarray, tolerance: float,
                   held: np.ndarray) -> tuple[Violation, ...]:
-        """The plan's own tool beyond the path tolerance: from when, how far, and the arm's sigma_min there (or the
-        joints it holds at a limit there)."""
+        """The plan's own tool beyond the path tolerance: from when, how far, and why."""
         if off.max() <= tolerance:
             return ()
         k, worst = int(np.argmax(off > tolerance)), int(np.argmax(off))
@@ -375,22 +362,16 @@ class CartesianPath(Planner):
 
 
 def _pose_error(robot):
-    """The unit-consistent pose error (N, 6) of the tool at q (N, dof) from points, rotations: the position's
-    divided by the reach, the orientation's the module's."""
+    """The unit-consistent pose error (N, 6) of the tool at q (N, dof) from points, rotations."""
     def error_of(points: np.ndarray, rotations: np.ndarray, q: np.ndarray) -> np.ndarray:
-        rotation = orientation_error_many(rotations, robot.tool_rotation(q))
+        rotation = orientation_error(rotations, robot.tool_rotation(q))
         return np.hstack([(points - robot.fk(q)) / robot.reach, rotation])
     return error_of
 
 
-def orientation_error_many(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """orientation_error of each pair (N, 3, 3): (N, 3)."""
-    return 0.5 * np.cross(np.swapaxes(r, 1, 2), np.swapaxes(r_goal, 1, 2)).sum(axis=1)
-
-
 def _mink(robot, points: np.ndarray, rotations: np.ndarray, q0: np.ndarray, dt: float) -> tuple:
-    """mink: mink_baseline's QP per control step (its default weights, damping and solver; the joint ranges and
-    speed limits its constraints) towards the path's next pose, from q0. Returns q, qd and the QP's failures."""
+    """mink: mink_baseline's QP per control step (its defaults) towards the path's next pose, from q0. Returns q,
+    qd and the QP's failures."""
     import mujoco
 
     from simbench.planners import mink_baseline as mb

@@ -15,20 +15,16 @@ It follows the Cartesian reference of another planner's plan, so that the two ca
 or, without `follow`, a path of its own: cartesian_path's task written directly beside the QP's fields
 (`task: {start: [...], path: [...], orientation: hold, damping: 1.0e-3}`), cartesian_path's plan the reference.
 
-The followed planner plans first. Its tool points (`tool_ref`) and, at its joint references, the orientation of the
-MuJoCo tool site (mj_kinematics on a scratch MjData of the robot's scene) make the reference pose X_k at every
-control step. From the followed plan's first configuration q_0, each step k solves mink's QP (mink.solve_ik)
+The followed plan's tool points and, at its joint references, the MuJoCo tool site's orientation make the
+reference pose X_k at every control step. From its first configuration q_0, each step k solves mink's QP
 
     min_dq  |W (J(q_k) dq - e(q_k, X_{k+1}))|^2 + c^2 |dq + q_k - q_0|^2 + damping |dq|^2
     s.t.    the joints' ranges (ConfigurationLimit), |dq| <= qd_max dt (VelocityLimit)
 
-with e the FrameTask's pose error and W its costs, then q_{k+1} = q_k + dq and qd_k = dq / dt (the last sample's
-rate is the step it would take next; a step's rate is clipped to the speed limit, which the QP holds only to its
-tolerance). A step whose QP has no solution (a start outside the joint ranges) is solved again with the speed
-limits alone, and the plan warns of it. The method knows
-nothing of the robot's singular sets or its analytic inverse kinematics: where the Jacobian loses rank the
-damping and the speed limits keep the joint speeds bounded, and the tool leaves the path instead, which the plan
-reports (`warnings`, `info`, an `off_path` violation beyond the scenario's `path_tolerance`).
+with e the FrameTask's pose error and W its costs, then q_{k+1} = q_k + dq and qd_k = dq / dt, clipped to the speed
+limit (the QP holds it only to its tolerance). A step whose QP has no solution (a start outside the joint ranges) is
+solved again with the speed limits alone, with a warning. The method knows nothing of the robot's singular sets:
+where the Jacobian loses rank the tool leaves the path instead, which the plan reports (`off_path`).
 """
 
 from __future__ import annotations
@@ -119,9 +115,7 @@ class Task(SimbenchModel):
     @classmethod
     def _followed_task(cls, value: Any, info: ValidationInfo) -> Any:
         follow = info.data.get("follow")
-        if follow is None:  # `follow` itself failed: its error is the one reported
-            return value
-        if isinstance(value, SimbenchModel):  # the direct form's, already checked
+        if follow is None or isinstance(value, SimbenchModel):  # `follow` failed (its error is reported); direct form
             return value
         if not isinstance(value, dict):
             raise ValueError(f"expected a mapping: the task of '{follow}', as its own scenarios write it")
@@ -133,10 +127,8 @@ class Task(SimbenchModel):
 
     def cost(self, robot: Robot) -> tuple[float, float]:
         """(position, orientation) costs of the FrameTask for `robot`."""
-        orientation = self.orientation_cost
-        if orientation is None:
-            orientation = 1.0 if robot.dof >= 6 else 0.0
-        return self.position_cost, orientation
+        default = 1.0 if robot.dof >= 6 else 0.0
+        return self.position_cost, default if self.orientation_cost is None else self.orientation_cost
 
 
 def _split(task: dict) -> tuple[dict, dict]:
@@ -146,8 +138,8 @@ def _split(task: dict) -> tuple[dict, dict]:
 
 
 def _nested(err: ValidationError, schema: type, value: dict) -> ValidationError:
-    """The followed task's first error, worded by simbench.validation.describe against that task's own schema
-    (which knows its fields), and located inside `task.task` (pydantic prefixes the outer path)."""
+    """The followed task's first error, worded against its own schema, located inside `task.task` (pydantic
+    prefixes the outer path)."""
     where, message = describe(err, schema, value)
     loc = tuple(int(index) if index else key for key, index in re.findall(r"([^.\[\]]+)|\[(\d+)\]", where))
     return ValidationError.from_exception_data("Task", [InitErrorDetails(
@@ -175,7 +167,7 @@ def scene_model(robot: Robot) -> mujoco.MjModel:
 
 def reference_poses(model: mujoco.MjModel, robot: Robot, q_ref: np.ndarray, tool_ref: np.ndarray) -> np.ndarray:
     """The reference pose (N, 7) [w, x, y, z, x, y, z] of every sample: the followed tool point, and the tool
-    site's orientation at the followed joints (mj_kinematics on a scratch MjData)."""
+    site's orientation at the followed joints."""
     data = mujoco.MjData(model)
     adr = np.array([model.joint(name).qposadr[0] for name in robot.joints])
     site = model.site(robot.tool_site).id
@@ -205,8 +197,7 @@ def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tup
 
 def solve(model: mujoco.MjModel, robot: Robot, dt: float, poses: np.ndarray, q_start: np.ndarray, damping: float,
           costs: tuple[float, float], posture_cost: float, solver: str) -> tuple[np.ndarray, np.ndarray, dict]:
-    """follow's QPs along the poses (N, 7) from q_start, on `model` (scene_model's): q, qd (N, dof) and what the
-    solve met."""
+    """follow's QPs along the poses (N, 7) from q_start, on scene_model's `model`."""
     import mink  # imported here: `simbench list` and validation do not pay for it
 
     qpos_adr = np.array([model.joint(name).qposadr[0] for name in robot.joints])

@@ -11,9 +11,8 @@
     dls_adaptive  the same with lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2) below EPSILON, else 0
                   (Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2), 1994, sec. III).
 
-Each returns the rates, Ju's least singular value, the lambda^2 it used and the null space's projector I - Ju+ Ju
-(a redundant arm's posture term, cartesian_path). The damped rules' rates are scaled down under the speed limits
-by cartesian_path; pinv's are not (the verdict reports the speed limits they break: `velocity_limit`).
+Each returns the rates, Ju's least singular value, the lambda^2 it used and the null-space projector I - Ju+ Ju
+(a redundant arm's posture term). cartesian_path scales the damped rules' rates down under the speed limits.
 """
 
 from __future__ import annotations
@@ -32,25 +31,25 @@ SCALED = ("dls_adaptive", "dls")  # the rules whose rates cartesian_path scales 
 Rule = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, float, np.ndarray]]
 
 
-def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """dls_adaptive: Ju# twist with the variable damping, sigma_min, lambda^2 and I - Ju+ Ju."""
+def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float]):
+    """Ju^T (Ju Ju^T + lambda^2 I)^-1 twist by the SVD (V S (S^2 + lambda^2)^-1 U^T), lambda^2 = lam2_of(sigma_min);
+    sigma_min, lambda^2 and I - Ju+ Ju."""
     u, sv, vt = np.linalg.svd(ju, full_matrices=False)
     sigma = float(sv[-1])
-    lam2 = LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0
+    lam2 = lam2_of(sigma)
     rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
     return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
 
 
+def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """dls_adaptive: the variable damping."""
+    return _damped(ju, twist, lambda sigma: LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0)
+
+
 def fixed_damping(damping: float) -> Rule:
-    """dls: Ju^T (Ju Ju^T + lambda^2 I)^-1 twist with lambda = `damping` (by the SVD: V S (S^2 + lambda^2)^-1 U^T)."""
+    """dls: lambda = `damping`."""
     lam2 = float(damping) ** 2
-
-    def rule(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-        u, sv, vt = np.linalg.svd(ju, full_matrices=False)
-        rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
-        return rates, float(sv[-1]), lam2, np.eye(ju.shape[1]) - vt.T @ vt
-
-    return rule
+    return lambda ju, twist: _damped(ju, twist, lambda sigma: lam2)
 
 
 def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:

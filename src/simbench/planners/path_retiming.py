@@ -1,19 +1,16 @@
 """cartesian_path's `time_scaling`: the path kept exactly, its timing stretched where the joints' speed and
 acceleration limits need it.
 
-  1. The joint path q(s): pinv's closed-loop resolved rates (path_methods) along the path parameter s on a uniform
-     grid (the asked duration at constant path speed, one step per control sample), each sample then solved
-     exactly for the path's pose at its s (Newton's iterations on the pseudo-inverse, `exact_ik`).
+  1. The joint path q(s): pinv's closed-loop resolved rates (path_methods) on a uniform grid of s (one step per
+     control sample), each sample then solved exactly for the path's pose (`exact_ik`).
   2. The timing s(t): time-optimal path parameterisation by reachability analysis (TOPP-RA: Pham and Pham, IEEE
      Trans. Robot. 34(3), 2018; the `toppra` library) of the cubic spline through q(s), under
      |qd_j| <= MARGIN qd_max_j and |qdd_j| <= MARGIN qdd_max_j, and no faster along the path than the asked time
-     law: s itself is a further coordinate of the path whose speed limit at s is the law's ds/dt there. Where no
-     joint limit binds the asked law comes back; where one does the motion slows down. It starts and ends at rest.
-  3. The plan: at each control sample's s(t_k), the joints solved exactly for the path's pose (exact_ik from the
-     spline's q), their rates the spline's dq/ds times ds/dt.
+     law: s is a further coordinate whose speed limit at s is the law's ds/dt there. It starts and ends at rest.
+  3. The plan: the joints solved exactly at each s(t_k) (exact_ik from the spline's q), their rates the spline's.
 
-`slowdown` = the planned duration over the asked one. MARGIN leaves room for what TOPP-RA's grid does not see
-(the limits hold at its gridpoints) and for the exact solution's departure from the spline.
+`slowdown` = planned duration / asked. MARGIN leaves room for what TOPP-RA's grid does not see and for the exact
+solution's departure from the spline.
 """
 
 from __future__ import annotations

@@ -1,13 +1,12 @@
-"""What simbench reads from an arm's MJCF model, from MuJoCo's own model arrays: the chain of joints from the world
-to the tool (hinge and slide joints, their kinds and ranges; a joint without a range is continuous), the tool, the
-arm's reach, and what each actuator on the chain is, its kind read from its gain and bias, never assumed:
+"""What simbench reads from an arm's MJCF model's arrays: the chain of hinge and slide joints from the world to the
+tool (a joint without a range is continuous), the tool, the reach, and each actuator's kind, read from its gain and
+bias, never assumed:
 
     position servo   force = kp ctrl - kp q - kv qd   (gain fixed kp, bias affine [0, -kp, -kv], unit gear)
     velocity servo   force = kv ctrl - kv qd          (gain fixed kv, bias affine [0, 0, -kv])
     motor            force = gear ctrl                (gain fixed, no bias)
 
-and anything else (activation dynamics, a non-unit gear on a servo) is named as the general actuator it is.
-Errors are ArmError, naming the field of the robot mapping at fault.
+and anything else (activation dynamics, a non-unit gear on a servo) is a general actuator. Errors are ArmError.
 """
 
 from __future__ import annotations
@@ -47,10 +46,9 @@ class Tool:
 
 @dataclass(frozen=True)
 class Chain:
-    """The joints from the world to the tool, in that order, with their kinds and ranges (SI; +-inf where a joint
-    is continuous), the tool, and the reach: the length of the polyline from the first joint's anchor through
-    every joint's to the tool point at the model's reference pose (qpos0), plus the stroke of each slide joint.
-    The reach is the characteristic length L that makes the Jacobian's units consistent (robots.model_arm)."""
+    """The joints from the world to the tool with their kinds and ranges (SI; +-inf: continuous), the tool, and
+    the reach L that makes the Jacobian's units consistent (robots.model_arm): the polyline through the joints'
+    anchors to the tool point at qpos0, plus each slide joint's stroke."""
 
     joints: tuple[str, ...]
     kinds: tuple[str, ...]
@@ -141,19 +139,15 @@ def _default_tool(model: mujoco.MjModel) -> Tool:
     return Tool(body=model.body(body).name)
 
 
-def tool_point(model: mujoco.MjModel, data: mujoco.MjData, tool: Tool) -> np.ndarray:
-    """The tool point (3,) in the world, from `data`'s body and site poses (after mj_kinematics)."""
-    if tool.site is not None:
-        return data.site(tool.site).xpos.copy()
-    body = data.body(tool.body)
-    return body.xpos + body.xmat.reshape(3, 3) @ np.asarray(tool.offset)
-
-
 def _reach(model: mujoco.MjModel, joints: list[int], tool: Tool) -> float:
     """The chain's length at qpos0, and the slide joints' strokes (Chain.reach); at least 1 mm."""
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    points = np.vstack([data.xanchor[joints], tool_point(model, data, tool)])
+    if tool.site is not None:
+        end = data.site(tool.site).xpos
+    else:
+        end = data.body(tool.body).xpos + data.body(tool.body).xmat.reshape(3, 3) @ np.asarray(tool.offset)
+    points = np.vstack([data.xanchor[joints], end])
     length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
     for j in joints:
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE and model.jnt_limited[j]:

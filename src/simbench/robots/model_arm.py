@@ -1,19 +1,15 @@
 """simbench.api.Robot of an arm derived from its MJCF model (robots.model_scene): kinematics from MuJoCo itself.
 
-The tool point is MuJoCo's (mj_kinematics on a private MjData of the scene, the other joints at qpos0), and the
-tool's Jacobian mj_jacSite's: J = [Jp; Jr] (6 x dof), the tool point's velocity (m/s) and the tool's angular
-velocity (rad/s) per joint speed. Its singular measures, per sample:
+The tool point and its Jacobian J = [Jp; Jr] (6 x dof: m/s and rad/s per joint speed) are MuJoCo's (mj_kinematics,
+mj_jacSite on a private MjData, the other joints at qpos0). Its singular measures, per sample:
 
     sigma_min           least singular value of J (of the min(6, dof) it has), SI as J is
     manipulability      Yoshikawa's, the product of J's singular values (sqrt det(J J^T) where dof >= 6)
     inverse_condition   sigma_min / sigma_max of the unit-consistent Jacobian Ju = [Jp / L; Jr]
 
-with L the arm's reach (robots.chain.Chain.reach): dividing the position rows by it makes a metre of tool motion
-at the end of the reach count as a radian does. The singular set `rank_loss` is where Ju loses rank: its gap is
-Ju's least singular value, which near a singularity grows as the joint angle away from it (rad; a joint of an arm
-folded or stretched at the end of its reach, a wrist's axes aligned), so it is near when below the analysis'
-`near_angle`. Its event names, at its closest sample (where the columns the loss binds are nearest dependence),
-the twist lost there and the joint motion that moves nothing (robots.rank_loss).
+with L the arm's reach (robots.chain.Chain.reach), so that a metre of tool motion at the end of the reach counts as
+a radian. The singular set `rank_loss` is where Ju loses rank; its gap, Ju's least singular value, grows near it as
+the joint angle away from it (rad), so it is near below the analysis' `near_angle` (robots.rank_loss).
 """
 
 from __future__ import annotations
@@ -31,9 +27,8 @@ from simbench.robots.rank_loss import closest_sample, rank_loss_detail, unit_jac
 
 
 class ModelArm(Robot):
-    """An arm read from its model file: DerivedArm's chain, driven and staged as it says, with speed limits
-    `qd_max` (SI, one per joint). Its scene has no file of its own: it is registered under the model's path
-    followed by '#simbench' (plant.register_scene)."""
+    """An arm read from its model file (DerivedArm), with speed limits `qd_max` (SI, one per joint). Its scene is
+    registered under the model's path followed by '#simbench' (plant.register_scene)."""
 
     def __init__(self, arm: DerivedArm, qd_max: Array):
         self.arm = arm
@@ -108,9 +103,8 @@ class ModelArm(Robot):
         return self.singular_sets_from(rec, tol, self.measures(rec))
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
-        """rank_loss: Ju's least singular value, near below tol.angle; its event's closest sample is where the
-        columns the loss binds are nearest dependence, and says which twist is lost and which joint motion moves
-        nothing there (robots.rank_loss)."""
+        """rank_loss: Ju's least singular value, near below tol.angle; its event's closest sample and detail as
+        robots.rank_loss finds them."""
         gap = measures["sigma_min_unit"]
         return [SingularSet("rank_loss", "Jacobian rank loss",
                             f"least singular value of [Jp / L; Jr] = 0 (L = {self.reach:.4g} m, the reach)",
@@ -127,8 +121,7 @@ class ModelArm(Robot):
 
 
 class _Derived(Summariser):
-    """The report's entry `derived_arm`: the model the arm was read from, what was done to its actuators and what
-    was dropped from it."""
+    """The report's entry `derived_arm`: the model, what was done to its actuators and what was dropped."""
 
     def __init__(self, arm: DerivedArm):
         self.arm = arm

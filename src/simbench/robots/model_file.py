@@ -1,15 +1,11 @@
-"""An arm's model file read into an MjSpec: MJCF as it is, URDF through MuJoCo's own URDF reader, made ready to
-compile. Reading a model runs no code.
-
-For a URDF:
-  - every link is kept as a body (MuJoCo would fuse the links a fixed joint holds into their parent, and a URDF's
-    tool link, e.g. a UR's `tool0`, is one of them);
-  - a mesh named `package://NAME/rest` is read from the folder of package NAME: the one the robot mapping's
-    `packages: {NAME: folder}` gives, else the nearest folder called NAME above the URDF;
-  - a mesh MuJoCo cannot decode (anything but STL, OBJ and MSH, e.g. COLLADA .dae) is dropped with a note where
-    only visual geoms (contype and conaffinity 0) use it, and is bad input otherwise;
-  - the joints' `velocity` limits (URDF_LIMITS) are read from the file, as MuJoCo keeps none; their `effort` MuJoCo
-    keeps as the joint's actuator force range.
+"""An arm's model file read into an MjSpec ready to compile: MJCF as it is, URDF through MuJoCo's own reader.
+Reading a model runs no code. For a URDF:
+  - every link is kept as a body (MuJoCo would fuse fixed-joint links, a UR's tool link `tool0` among them);
+  - a mesh `package://NAME/rest` is read from the mapping's `packages: {NAME: folder}`, else the nearest folder
+    called NAME above the URDF;
+  - a mesh MuJoCo cannot decode (not STL, OBJ or MSH, e.g. COLLADA .dae) is dropped with a note where only visual
+    geoms use it, and is bad input otherwise;
+  - the joints' `velocity` limits are read from the file, as MuJoCo keeps none (their `effort` it keeps).
 """
 
 from __future__ import annotations
@@ -65,8 +61,7 @@ def _resolve_meshes(spec: mujoco.MjSpec, path: str, packages: dict[str, str]) ->
 
 
 def _package_folder(named: str, path: str, packages: dict[str, str]) -> Path:
-    """The folder of the package a package:// URI names: the mapping's, else the nearest folder of that name above
-    the URDF."""
+    """The folder of a package:// URI's package (the module's docstring)."""
     name = named[len(_PACKAGE):].partition("/")[0]
     if name in packages:
         return Path(packages[name])

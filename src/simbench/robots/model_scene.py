@@ -1,14 +1,12 @@
 """An arm's MJCF model made into a scene simbench runs (MjSpec), with what was done to it said.
 
-Every joint of the chain (robots.chain) ends with exactly one position servo on it, of unit gear: the model's own
-where it has one, kept; else one added, its gains those of computed_torque's defaults (computed_torque.pd_gains)
-for the joint's effective inertia at the start (the diagonal of the joint-space inertia matrix, armature included,
-at qpos0 with each joint clipped into its range): Kp = I w^2, Kd = 2 zeta I w, w the `bandwidth` (rad/s, default
-50) and zeta the `damping_ratio` (default 1). A velocity servo, a motor or a general actuator on a chain joint is
-replaced by such a servo, never driven as if it were one; the force bound it had is carried over (a motor's
-control range times its gear), as is the joint's own (its actuatorfrcrange, a URDF's `effort`). The scene also
-gets a site on the tool where it needs one, a `framepos` sensor on it, gravity compensation on every body the chain
-moves (unless turned off), and where the model lacks them a floor, a light and a camera framing the arm's reach.
+Every chain joint (robots.chain) ends with exactly one position servo of unit gear: the model's own, kept; else one
+added with gains Kp = I w^2, Kd = 2 zeta I w (computed_torque.pd_gains), I the joint's effective inertia at the
+start (the joint-space inertia's diagonal at qpos0 clipped into the ranges), w the `bandwidth` (rad/s) and zeta the
+`damping_ratio`. Any other actuator on a chain joint is replaced by such a servo, its force bound carried over (a
+motor's control range times its gear), as is the joint's own. The scene also gets a tool site where needed, a
+`framepos` sensor on it, gravity compensation on the bodies the chain moves (unless turned off), and where the
+model lacks them a floor, a light and a camera framing the reach.
 """
 
 from __future__ import annotations
@@ -91,7 +89,7 @@ class DerivedArm:
         return [f"{d.joint}: {d.describe()}" for d in self.drives if d.action != "kept"]
 
     def spec(self) -> mujoco.MjSpec:
-        """The scene (built anew at each call: a spec is changed by compiling it into a scene with sensors)."""
+        """The scene (built anew at each call: compiling changes a spec)."""
         return _scene(self)
 
 
@@ -126,8 +124,7 @@ def _force_limits(options: ArmOptions, chain: Chain) -> tuple[float | None, ...]
 
 
 def _start_inertia(model: mujoco.MjModel, chain: Chain) -> np.ndarray:
-    """Each chain joint's effective inertia at the start: the diagonal of the joint-space inertia matrix (armature
-    included) at qpos0, the chain's joints clipped into their ranges."""
+    """Each chain joint's effective inertia at the start (the module's docstring; armature included)."""
     data = mujoco.MjData(model)
     for name, lo, hi in zip(chain.joints, chain.lower, chain.upper):
         adr = model.joint(name).qposadr[0]
@@ -156,8 +153,7 @@ def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOption
 
 
 def _joint_bound(model: mujoco.MjModel, joint: str) -> float:
-    """The force the joint's actuators may give together (its actuatorfrcrange, a URDF's `effort`); inf where
-    unbounded."""
+    """The joint's actuatorfrcrange bound (a URDF's `effort`); inf where unbounded."""
     j = model.joint(joint).id
     return float(np.abs(model.jnt_actfrcrange[j]).min()) if model.jnt_actfrclimited[j] else float(np.inf)
 
@@ -171,8 +167,7 @@ def _names(model: mujoco.MjModel, which: tuple[int, ...]) -> str:
 
 
 def _bound(model: mujoco.MjModel, i: int) -> float:
-    """The force actuator i can give: its force range where limited, else a motor's control range times its gear;
-    inf where neither bounds it."""
+    """Actuator i's force bound: its force range, else a motor's control range times its gear; else inf."""
     if model.actuator_forcelimited[i]:
         return float(np.abs(model.actuator_forcerange[i]).min())
     if actuator_kind(model, i) == "motor" and model.actuator_ctrllimited[i]:
