@@ -137,14 +137,7 @@ def _sweep(args) -> None:
     """The sweep command: run (or with --dry-run, list) the sweep's runs."""
     from simbench.sweep import cluster, load_sweep, run_sweep
 
-    if args.workers is not None and args.workers < 1:
-        raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {args.workers}")
-    if args.ray is not None:
-        cluster.check_address(args.ray)
-        try:
-            import ray  # noqa: F401
-        except ImportError:
-            raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
+    cluster.check_where(args.workers, args.ray)
     sweep = load_sweep(args.sweep)
     if args.dry_run:
         listing, refused = _dry_run(sweep)

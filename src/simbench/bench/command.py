@@ -32,14 +32,7 @@ def run(args: argparse.Namespace, say) -> None:
     from simbench.bench import load_suite, run_bench
     from simbench.sweep import cluster
 
-    if args.workers is not None and args.workers < 1:
-        raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {args.workers}")
-    if args.ray is not None:
-        cluster.check_address(args.ray)
-        try:
-            import ray  # noqa: F401
-        except ImportError:
-            raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
+    cluster.check_where(args.workers, args.ray)
     methods = None
     if args.methods is not None:
         methods = [m.strip() for m in args.methods.split(",")]

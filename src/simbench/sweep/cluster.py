@@ -25,6 +25,19 @@ def check_address(address: str) -> tuple[str, int] | None:
     return host.strip("[]"), int(port)
 
 
+def check_where(workers: int | None, address: str | None) -> None:
+    """The --workers and --ray arguments of a command that runs many runs (sweep, bench): ScenarioError naming the
+    one that cannot be, before anything runs."""
+    if workers is not None and workers < 1:
+        raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {workers}")
+    if address is not None:
+        check_address(address)
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
+
+
 def reach(address: str) -> None:
     """ScenarioError naming --ray unless the address is 'local' or accepts a connection within CONNECT_TIMEOUT."""
     where = check_address(address)
