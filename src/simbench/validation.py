@@ -10,13 +10,15 @@ import re
 import stat
 import typing
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic_core import ErrorDetails
 
 from simbench.errors import MAX_INT_DIGITS, ScenarioError, os_words, printable, shown
+
+_Model = TypeVar("_Model", bound=BaseModel)
 
 _MAX_BYTES = 1 << 20
 _MAX_VALUES = 100_000  # a scenario has hundreds; an alias bomb has billions once expanded
@@ -283,3 +285,16 @@ def _in_user_terms(msg: str, given: Any) -> str:
     elif isinstance(given, (list, dict)):
         msg += f", got {kind_of(given)}"
     return msg
+
+
+def read_spec(path: Path, cls: type[_Model], what: str) -> _Model:
+    """A YAML file of `what` fields (a sweep's, a suite's) validated by `cls`; ScenarioError naming the file and
+    the field at fault."""
+    source = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise ScenarioError(source, None, f"expected a mapping of {what} fields, got {kind_of(raw)}")
+    try:
+        return cls.model_validate(raw)
+    except ValidationError as err:
+        raise ScenarioError(source, *describe(err, cls, raw)) from None

@@ -130,8 +130,4 @@ def _backend(bench: Bench, todo: list[Variant], workers: int, ray: str | None):
     """The outcomes of the runs still to do, as they finish, and where they run."""
     tasks = [(v.index, {"document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
              for v in todo]
-    if ray is not None:
-        return execute.on_ray(tasks, ray, workers), f"ray ({ray})"
-    if workers == 1:
-        return execute.in_this_process(tasks), "this process"
-    return execute.in_processes(tasks, workers), f"{workers} processes"
+    return execute.started(tasks, workers, ray)

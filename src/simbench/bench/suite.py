@@ -21,13 +21,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import Field, ValidationError
+from pydantic import Field
 
 from simbench.bench import methods as methods_table
 from simbench.bench.robots import SHIPPED, BenchRobot, custom
 from simbench.errors import ScenarioError
 from simbench.schema import Name, SimbenchModel, file_name
-from simbench.validation import describe, kind_of, read_yaml
+from simbench.validation import read_spec
 
 MAX_TASKS = 10000
 DEFAULT_TASKS = 30
@@ -96,13 +96,7 @@ def load_suite(text: str | Path) -> Suite:
 
 def _load_file(path: Path) -> Suite:
     source = str(path)
-    raw = read_yaml(path)
-    if not isinstance(raw, dict):
-        raise ScenarioError(source, None, f"expected a mapping of suite fields, got {kind_of(raw)}")
-    try:
-        spec = SuiteSpec.model_validate(raw)
-    except ValidationError as err:
-        raise ScenarioError(source, *describe(err, SuiteSpec, raw)) from None
+    spec = read_spec(path, SuiteSpec, "suite")
     robots = [_robot(entry, i, path) for i, entry in enumerate(spec.robots)]
     names = [r.name for r in robots]
     for i, name in enumerate(names):

@@ -96,8 +96,4 @@ def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None,
                         "out": str(run_folder(out, v.id)) if kept == "full" else None, "video": sweep.spec.video,
                         "allow_code": allow_code})
              for v in todo]
-    if ray is not None:
-        return execute.on_ray(tasks, ray, workers), f"ray ({ray})"
-    if workers == 1:
-        return execute.in_this_process(tasks), "this process"
-    return execute.in_processes(tasks, workers), f"{workers} processes"
+    return execute.started(tasks, workers, ray)

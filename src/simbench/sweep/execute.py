@@ -192,6 +192,16 @@ def _serve(conn, parent: int) -> None:
             conn.send(run_variant(**kwargs))
 
 
+def started(tasks: list[Task], workers: int, ray: str | None) -> tuple[Iterator[tuple[int, dict]], str]:
+    """The outcomes of `tasks` as they finish, on a Ray cluster, in this process (one worker) or in worker
+    processes, and a description of where they run."""
+    if ray is not None:
+        return on_ray(tasks, ray, workers), f"ray ({ray})"
+    if workers == 1:
+        return in_this_process(tasks), "this process"
+    return in_processes(tasks, workers), f"{workers} processes"
+
+
 def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[int, dict]]:
     """Every run as a Ray task; 'local' starts (and stops) a cluster here with `workers` CPUs. Every node needs
     simbench, and with outputs: full a filesystem it shares."""

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, model_validator
 
 from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
@@ -44,7 +44,7 @@ from simbench.scenario import parse_scenario
 from simbench.schema import Name, SimbenchModel, file_name
 from simbench.sweep import size
 from simbench.sweep.size import MAX_RUNS
-from simbench.validation import describe, kind_of, read_yaml
+from simbench.validation import kind_of, read_spec, read_yaml
 
 _PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
 _PART = re.compile(r"\.?([A-Za-z_]\w*)|\[(\d+)\]")
@@ -204,13 +204,7 @@ def load_sweep(path: str | Path) -> Sweep:
     """Read and validate a sweep file and expand it into its runs; ScenarioError names the field at fault."""
     path = Path(path)
     source = str(path)
-    raw = read_yaml(path)
-    if not isinstance(raw, dict):
-        raise ScenarioError(source, None, f"expected a mapping of sweep fields, got {kind_of(raw)}")
-    try:
-        spec = SweepSpec.model_validate(raw)
-    except ValidationError as err:
-        raise ScenarioError(source, *describe(err, SweepSpec, raw)) from None
+    spec = read_spec(path, SweepSpec, "sweep")
     base = _find_base(spec.base, path.parent, source)
     document = read_yaml(base)
     parse_scenario(document, str(base), default_name=base.stem)  # the base alone must be a valid scenario
