@@ -253,3 +253,33 @@ def test_time_scaling_refuses_a_motion_stretched_past_a_hundred_times(tmp_path, 
     assert main(["validate", str(path)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "100 times" in err
+
+
+def test_time_scaling_never_asks_past_a_speed_limit_between_toppras_gridpoints():
+    """Lines and arcs of the planar 3R through, near and far from its stretched elbow (the bench's tasks): each is
+    planned within every speed limit (|qd_ref| <= qd_max at every sample) or refused as too slow. Before the
+    timing was probed between TOPP-RA's gridpoints, the line ending at full stretch was planned at more than twice
+    q2's limit."""
+    import json
+
+    from simbench.bench.methods import METHODS
+    from simbench.bench.robots import SHIPPED
+    from simbench.bench.tasks import draw
+    from simbench.errors import RunError
+    from simbench.scenario import parse_scenario
+
+    robot = SHIPPED["planar3r"]()
+    planned, refused = 0, 0
+    for task in draw(robot, 6, 0):
+        document = json.loads(json.dumps(METHODS["time_scaling"].document(task, robot), default=float))
+        scenario = parse_scenario(document, "planar3r time_scaling")
+        arm = scenario.robot_def
+        try:
+            plan = scenario.planner_def.plan(scenario, arm, 0.001)
+        except RunError as err:
+            assert "more than 100 times the asked" in str(err)
+            refused += 1
+            continue
+        assert np.all(np.abs(plan.qd_ref) <= arm.qd_max), task.id
+        planned += 1
+    assert planned >= 4

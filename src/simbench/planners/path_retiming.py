@@ -9,8 +9,8 @@ acceleration limits need it.
      law: s is a further coordinate whose speed limit at s is the law's ds/dt there. It starts and ends at rest.
   3. The plan: the joints solved exactly at each s(t_k) (exact_ik from the spline's q), their rates the spline's.
 
-`slowdown` = planned duration / asked. MARGIN leaves room for what TOPP-RA's grid does not see and for the exact
-solution's departure from the spline.
+`slowdown` = planned duration / asked. MARGIN leaves room for the exact solution's departure from the spline; what
+TOPP-RA's grid does not see (the spline's rates between gridpoints) stretches the whole timing uniformly.
 """
 
 from __future__ import annotations
@@ -25,17 +25,23 @@ from simbench.trajectory import control_grid
 ACCEL_TIME = 0.1  # s: acceleration limits where the task gives none, each joint's speed limit reached in this time
 MARGIN = 0.98  # share of the speed and acceleration limits TOPP-RA plans for
 GRIDPOINTS = 1000  # TOPP-RA's gridpoints at most: s at uniform times of the asked law (dense where it is slow)
+PROBE = 8  # times between two gridpoints at which the timing's joint rates are checked
 MAX_SLOWDOWN = 100.0  # a longer timing is refused (its samples would be the run's memory)
 IK_TOL = 1e-12  # exact_ik's tolerance on the unit-consistent pose error
 IK_ITERATIONS = 30
+IK_ACCEPT = 1e-9  # a sample's exact solution is taken where its pose error ends below this, else the start kept
+IK_STEP = 0.1  # rad (or m): the most a Newton step, and the whole solution, may move a joint
 
 
 def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
              error_of) -> tuple[np.ndarray, np.ndarray]:
     """Joints (N, dof) at which the tool's pose is points, rotations (N, 3), (N, 3, 3): Newton's iterations
-    q <- q + Ju+ e from q, e the unit-consistent pose error (error_of(points, rotations, q) -> (N, 6)), kept inside
-    the joint ranges. Returns the joints and the last |e| (N,)."""
-    q = np.array(q, float)
+    q <- q + Ju+ e from q, e the unit-consistent pose error (error_of(points, rotations, q) -> (N, 6)), each step at
+    most IK_STEP rad, kept inside the joint ranges. A sample that does not converge to IK_ACCEPT within IK_STEP of
+    where it started (near a singularity Newton may wander to another branch) keeps its start. Returns the joints
+    and the last |e| (N,)."""
+    start = np.array(q, float)
+    q = start.copy()
     for _ in range(IK_ITERATIONS):
         error = error_of(points, rotations, q)
         size = np.linalg.norm(error, axis=1)
@@ -43,7 +49,11 @@ def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
             break
         ju = unit_jacobian(robot.jacobian(q), robot.reach)
         step = np.array([pinv_rates(j, e)[0] for j, e in zip(ju, error)])
-        q = np.clip(q + step, robot.lower, robot.upper)
+        longest = np.abs(step).max(axis=1, keepdims=True)
+        q = np.clip(q + step * np.minimum(1.0, IK_STEP / np.maximum(longest, 1e-300)), robot.lower, robot.upper)
+    size = np.linalg.norm(error_of(points, rotations, q), axis=1)
+    kept = (size > IK_ACCEPT) | (np.abs(q - start).max(axis=1) > IK_STEP)
+    q[kept] = start[kept]
     return q, np.linalg.norm(error_of(points, rotations, q), axis=1)
 
 
@@ -75,16 +85,32 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
     if timed is None:
         raise RunError("time_scaling: TOPP-RA found no timing of the joint path within the joints' speed and "
                        "acceleration limits")
-    duration = float(timed.duration)
-    if duration > MAX_SLOWDOWN * law.duration:
-        raise RunError(f"time_scaling: the joints' limits stretch the motion to {duration:.4g} s, more than "
-                       f"{MAX_SLOWDOWN:g} times the asked {law.duration:g} s")
+    _refuse_longer(float(timed.duration), law.duration)
+    excess = _excess(timed, dof, qd_max, max(PROBE * len(gridpoints), 2 * int(timed.duration / dt)))
+    stretch = excess / MARGIN if excess > 1.0 else 1.0  # back to MARGIN of the limit where the grid let it pass
+    duration = float(timed.duration) * stretch
+    _refuse_longer(duration, law.duration)
     t = control_grid(duration, hold, dt)
-    inside = np.minimum(t, duration)
-    y, yd = timed(inside), timed(inside, 1)
+    inside = np.minimum(t, duration) / stretch
+    y, yd = timed(inside), timed(inside, 1) / stretch
     s = np.clip(y[:, -1], 0.0, 1.0)
     s[t >= duration] = 1.0
     rates = yd[:, :dof]
     rates[t >= duration] = 0.0
     sd = np.where(t >= duration, 0.0, yd[:, -1])
     return t, s, sd, path(s)[:, :dof], rates, duration
+
+
+def _refuse_longer(duration: float, asked: float) -> None:
+    if duration > MAX_SLOWDOWN * asked:
+        raise RunError(f"time_scaling: the joints' limits stretch the motion to {duration:.4g} s, more than "
+                       f"{MAX_SLOWDOWN:g} times the asked {asked:g} s")
+
+
+def _excess(timed, dof: int, qd_max: np.ndarray, count: int) -> float:
+    """The largest |qd_j| / qd_max_j of TOPP-RA's timing at `count` uniform times. TOPP-RA keeps the limits at its
+    gridpoints only: between them the spline may ask more (near a singularity, where q(s) bends sharply), and the
+    timing is then stretched uniformly."""
+    times = np.linspace(0.0, float(timed.duration), count + 1)
+    return max(float(np.max(np.abs(timed(chunk, 1)[:, :dof]) / qd_max)) for chunk in np.array_split(
+        times, max(1, len(times) // 65536)))
