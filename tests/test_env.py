@@ -67,12 +67,9 @@ def fresh(env) -> control.Environment:
 
 
 def servo_policy(env):
-    """The servo as a policy: the position targets `simulate` commands (Servo.targets) for the references the
-    observation shows (revised where the plan's feedback revised them)."""
-    task = env.task
-    servo = Servo.from_scenario(task.scenario)
-    servo.bind(task.plant, task.plan)
-    return lambda obs: servo.targets(obs["q_ref"][None], obs["qd_ref"][None])[0, task.plant.actuators]
+    """The servo as a policy: simbench.env.servo_policy, the position targets `simulate` commands (Servo.targets)
+    for the references the observation shows (revised where the plan's feedback revised them)."""
+    return simbench_env.servo_policy(env)
 
 
 def episode(env, policy) -> tuple[int, list[float]]:

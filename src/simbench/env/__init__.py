@@ -41,8 +41,8 @@ from simbench.switches import at_start
 if TYPE_CHECKING:
     from simbench.pipeline import Evaluation, Result
 
-__all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Physics", "Snapshot", "Track", "evaluation", "load", "load_task", "recording",
-           "restore", "servo_policy", "snapshot", "write_outputs"]
+__all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Physics", "Snapshot", "Track", "evaluation", "load", "load_task",
+           "recording", "restore", "servo_policy", "snapshot", "write_outputs"]
 
 ALL_TASKS: tuple[tuple[str, str], ...] = tuple((path.parent.name, path.stem)
                                                for path in sorted(scenarios_dir().glob("*/*.yaml")))

@@ -32,13 +32,14 @@ def check(scenario: Scenario) -> None:
 
 def draw(track: Track) -> tuple[JointTrajectory, mujoco.MjData]:
     """A random task's plan from track.random, and the data posed at its start (switches.at_start)."""
-    scenario, plant = track.scenario, track.plant
+    scenario, plant, random = track.scenario, track.plant, track.random
+    assert random is not None, "a Track made with random"
     lo, hi = track.bounds
     margin = MARGIN * (hi - lo)
     planner = registry.planners()["joint_move"]
     cls = _scenario_class("joint_move")
     for _ in range(TRIES):
-        start, goal = (track.random.uniform(lo + margin, hi - margin) for _ in range(2))
+        start, goal = (random.uniform(lo + margin, hi - margin) for _ in range(2))
         fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
         fields.update(planner="joint_move", expect=None, task=planner.task.model_construct(
             start=tuple(start.tolist()), goal=tuple(goal.tolist())))

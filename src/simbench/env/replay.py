@@ -31,7 +31,7 @@ class Snapshot:
     rows: dict[str, np.ndarray]
     references: Any
     warnings: list
-    random: tuple | None
+    random: Any
     environment: dict[str, Any]
 
 
@@ -72,7 +72,7 @@ def restore(env: control.Environment, snap: Snapshot) -> None:
     for name, rows in snap.rows.items():
         getattr(task, name)[:len(rows)] = rows
     task.references, task.warnings = copy.deepcopy(snap.references), list(snap.warnings)
-    if snap.random is not None:
+    if snap.random is not None and task.random is not None:
         task.random.set_state(snap.random)
     mujoco.mj_resetData(model, data)
     mujoco.mj_setState(model, data, snap.state, _STATE)
