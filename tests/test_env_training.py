@@ -204,3 +204,38 @@ def test_an_episode_the_physics_ended_is_evaluated_failed():
     assert ev.verdict.status == "failed" and ev.verdict.violations[0].kind == "failed"
     assert ev.verdict.violations[0].message.startswith("the physics failed at t = 0.0110 s")
     assert ev.recording.t.size == ev.trajectory.t.size == 11
+
+
+def test_random_tasks_on_a_planar_arm_and_an_arm_derived_from_its_urdf(tmp_path):
+    """The example's planar 3R (a plugin robot) and the UR5 read from its URDF: seeded random joint moves whose
+    goals lie within MuJoCo's joint ranges, the same for the same seed; the RSMG (no forward kinematics of its
+    joints) is refused in one line."""
+    from importlib.metadata import distribution
+
+    urdf = distribution("example-robot-data").locate_file(
+        "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
+    path = tmp_path / "ur5.yaml"
+    path.write_text(f"robot: {{model: {urdf}, tool: {{body: wrist_3_link}}}}\nplanner: joint_move\n"
+                    "units: {angle: deg}\n"
+                    "task: {start: [0, -60, 60, -90, -90, 0], goal: [30, -80, 90, -100, -60, 40]}\n"
+                    "timing: {duration: 0.5, hold: 0.1}\n")
+    planar = planar3r_scenarios() / "line.yaml"
+    for source in (planar, path):
+        envs = [simbench_env.load(source, task_kwargs={"random": 11}) for _ in range(2)]
+        a, b = starts(envs[0], 2), starts(envs[1], 2)
+        assert all(np.array_equal(x, y) for x, y in zip(a, b)) and not np.allclose(a[0], a[1])
+        model, act = envs[0].physics.model.ptr, envs[0].task.plant.actuators
+        jnt = model.actuator_trnid[act, 0]
+        goal = envs[0].task.plan.q_ref[-1]
+        limited = model.jnt_limited[jnt].astype(bool)
+        assert (goal[limited] >= model.jnt_range[jnt[limited], 0]).all()
+        assert (goal[limited] <= model.jnt_range[jnt[limited], 1]).all()
+    with pytest.raises(ValueError, match="no random tasks for the rsmg"):
+        simbench_env.load_task("rsmg", "three_turns", task_kwargs={"random": 1})
+
+
+def planar3r_scenarios():
+    from pathlib import Path
+
+    from simbench_planar3r import control as planar3r_control
+    return Path(planar3r_control.__file__).parent / "scenarios"

@@ -7,13 +7,18 @@
         step = env.step(policy(step.observation))
     simbench.env.write_outputs(env, "renders/weld_seam_mine")     # report.json, timeseries.npz, plots, video
 
-An episode is the scenario's run as `simbench.sim.simulate` makes it, one control step a physics step: reset
-settles at the plan's start as `simulate` settles; an action is one value per joint (position targets, or torques
-and forces), bounded by the actuator's control range where it has one; a step splits MuJoCo's step as
-simbench's closed loop does, applying planned switches and the plan's feedback; the observation is
-simbench.observation's; the reward is dm_control's gaussian tolerance of the tool's error, 0.5 at
-`analysis.path_tolerance`; the episode ends at the plan's last sample; physics faults are dm_control's
-PhysicsError with simbench's reason (simbench.faults).
+An episode is the scenario's run as `simbench.sim.simulate` makes it: reset settles at the plan's start as
+`simulate` settles (physics.time() and the observed time are 0 after it); an action is one value per joint
+(position targets within the joint ranges, a joint with none the plan's span +- CONTINUOUS_SPAN; or torques and
+forces within the force limits), held for the control step's physics steps (environment_kwargs' n_sub_steps or
+control_timestep; 1 by default), each split as simbench's closed loop splits MuJoCo's step, applying planned
+switches and the plan's feedback, and recorded; the observation is simbench.observation's and the reward
+dm_control's gaussian tolerance of the tool's error (0.5 at `analysis.path_tolerance`), both at the control
+step's last physics step; the episode ends at the plan's last sample (timing.duration + timing.hold; the last
+control step may be shorter), at time_limit (discount 1) or where the physics fails (discount 0, reward 0, the
+physics back at the last sound sample, `Track.failure` saying when and why). `evaluation` analyses every physics
+step that ran: `failed` or `truncated` where the episode ended early. task_kwargs={'random': seed} draws a random
+task at each reset (simbench.env.random_task); snapshot/restore replay an episode exactly.
 """
 
 from __future__ import annotations

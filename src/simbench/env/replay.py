@@ -17,7 +17,7 @@ from simbench.env.episode import Track
 # Everything that decides the next steps: the integration state (warm start included), what switches edited
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 _ROWS = ("_qpos", "_qvel", "_readings", "_ctrl", "_eq")  # the recording, rows 0..k
-_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_settler")
+_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_settler", "_hold")
 
 
 @dataclass(frozen=True)
