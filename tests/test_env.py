@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import unittest
 
 import dm_env
@@ -66,12 +67,9 @@ def fresh(env) -> control.Environment:
 
 
 def servo_policy(env):
-    """The servo as a policy: the position targets `simulate` commands (Servo.targets) for the references the
-    observation shows (revised where the plan's feedback revised them)."""
-    task = env.task
-    servo = Servo.from_scenario(task.scenario)
-    servo.bind(task.plant, task.plan)
-    return lambda obs: servo.targets(obs["q_ref"][None], obs["qd_ref"][None])[0, task.plant.actuators]
+    """The servo as a policy: simbench.env.servo_policy, the position targets `simulate` commands (Servo.targets)
+    for the references the observation shows (revised where the plan's feedback revised them)."""
+    return simbench_env.servo_policy(env)
 
 
 def episode(env, policy) -> tuple[int, list[float]]:
@@ -184,16 +182,22 @@ def test_torque_actuation_settles_and_steps_as_simulate_does_with_computed_torqu
 # --- an episode's steps, specs and reward ----------------------------------------------------------------------
 
 def test_specs_describe_the_actions_and_observations():
-    """One action per joint bounded by its actuator's control range (+-mjMAXVAL where it has none), and every
-    observation of an episode of the spec's shapes, float64 and finite."""
+    """One action per joint bounded by its joint's range within its actuator's control range (a joint with none:
+    the plan's span +- pi), and every observation of an episode of the spec's shapes, float64 and finite."""
     env = environment("spherical_arm", "case1", short=True)
     model, act = env.physics.model.ptr, env.task.plant.actuators
     spec = env.action_spec()
     assert spec.shape == (4,) and spec.dtype == np.float64
     for i, a in enumerate(act):
-        lo, hi = model.actuator_ctrlrange[a] if model.actuator_ctrllimited[a] else (-mujoco.mjMAXVAL, mujoco.mjMAXVAL)
+        j = model.actuator_trnid[a, 0]
+        if model.jnt_limited[j]:
+            lo, hi = model.jnt_range[j]
+            if model.actuator_ctrllimited[a]:
+                lo, hi = max(lo, model.actuator_ctrlrange[a, 0]), min(hi, model.actuator_ctrlrange[a, 1])
+        else:
+            lo, hi = env.task.plan.q_ref[:, i].min() - np.pi, env.task.plan.q_ref[:, i].max() + np.pi
         assert (spec.minimum[i], spec.maximum[i]) == (lo, hi)
-    assert not model.actuator_ctrllimited[act[0]] and model.actuator_ctrllimited[act[1]]  # both kinds checked
+    assert not model.jnt_limited[model.actuator_trnid[act[0], 0]] and model.jnt_limited[model.actuator_trnid[act[1], 0]]
     obs_spec = env.observation_spec()
     assert list(obs_spec) == ["time", "q", "qd", "tool", "q_ref", "qd_ref", "tool_ref", "q_ref_ahead"]
     assert obs_spec["q_ref_ahead"].shape == (12,)
@@ -255,7 +259,7 @@ def test_wrong_actions_and_calls_are_refused_in_one_line():
         env.step(np.zeros(3))
     with pytest.raises(ValueError, match="the action for joint 'q3' is nan"):
         env.step([0.0, 0.1, np.nan, 0.1])
-    with pytest.raises(RuntimeError, match="the episode is at step 0 of 50: step it to its end"):
+    with pytest.raises(RuntimeError, match="the episode has taken no step since its reset"):
         simbench_env.evaluation(env)
     with pytest.raises(TypeError, match="expected an environment of simbench.env.load"):
         simbench_env.recording(object())
@@ -265,19 +269,29 @@ def test_wrong_actions_and_calls_are_refused_in_one_line():
         simbench_env.load(env.task.scenario, actuation="velocity")
 
 
-def test_diverging_physics_stops_the_episode_with_the_time_and_the_joint():
-    """Torques far beyond what the arm takes, its force limits lifted: dm_control's PhysicsError at the first
-    step, saying when and which joint, as simbench says it of a run; the recording holds the sound rows."""
+def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
+    """Torques far beyond what the arm takes, its force limits lifted (the spec then bounds nothing: refused):
+    the first step ends the episode (LAST, discount 0, reward 0), saying when and which joint, as simbench says
+    it of a run; the recording holds the sound rows, the observation the last sound state, and the evaluation of
+    what ran is `failed`."""
     raw = yaml.safe_load(scenario_file("spherical_arm", "case1").read_text())
     raw["timing"].update(SHORT)
     raw.setdefault("sim", {})["force_limits"] = False
-    env = simbench_env.load(parse_scenario(raw, "spherical_arm/case1", default_name="case1"), actuation="torque")
-    env.reset()
-    with pytest.raises(control.PhysicsError, match=r"the physics failed at t = 0\.0010 s: the speed of DOF 0 "
-                                                    r"\(joint 'q1'\) passed 1000 rad/s"):
-        env.step(np.full(4, 1e7))
+    scenario = parse_scenario(raw, "spherical_arm/case1", default_name="case1")
+    with pytest.raises(ValueError, match="no force limits"):
+        simbench_env.load(scenario, actuation="torque")
+    env = simbench_env.load(scenario)  # position targets far beyond the range, gains raised: the same divergence
+    model = env.physics.model.ptr
+    model.actuator_gainprm[env.task.plant.actuators, 0] *= 1e6
+    model.actuator_biasprm[env.task.plant.actuators, 1] *= 1e6
+    start = env.reset()
+    step = env.step(np.full(4, 1e3))
+    assert step.last() and step.discount == 0.0 and step.reward == 0.0
+    assert np.array_equal(step.observation["q"], start.observation["q"])
+    assert re.fullmatch(r"the physics failed at t = 0\.0010 s: .* DOF 0 \(joint 'q1'\).*", env.task.failure)
     rec = simbench_env.recording(env)
     assert rec.t.size == 1 and np.isfinite(rec.q).all()
+    assert env.step(np.zeros(4)).first()
 
 
 # --- an episode as a run ----------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ A run is `ok` only if the plan stayed within the mechanism's limits and the mech
 otherwise `limits`, with one Violation per broken promise: a kind of KINDS (planners report `goal_missed`,
 `singular_crossing` and `clearance_margin` in `JointTrajectory.violations`) or an event the robot declares
 breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says whether it met it.
+An episode that ended early (simbench.env) is `failed` where its physics failed, else `truncated`: never `ok`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from simbench.robots import REVOLUTE, Robot
 from simbench.trajectory import JointTrajectory
 
 OK, LIMITS = "ok", "limits"
+FAILED, TRUNCATED = "failed", "truncated"  # a run cut short: its physics failed, or it was stopped
 # Violation kinds every robot can have (besides its own `breaking` events and its planner's).
 KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
          "goal_missed", "singular_crossing", "clearance_margin")
@@ -186,3 +188,12 @@ def _verdict(found: list[Violation], expect, complete: bool = True) -> Verdict:
             expected["unexpected"] = sorted(set(kinds) - set(wanted))
             expected["missing"] = sorted(set(wanted) - set(kinds))
     return Verdict(status, tuple(found), expected)
+
+
+def cut_short(verdict: Verdict, status: str, t: float, why: str) -> Verdict:
+    """The verdict on a run that stopped at time t before its plan's end (status FAILED or TRUNCATED): the
+    violations of what ran, and the reason first."""
+    assert status in (FAILED, TRUNCATED), status
+    stop = Violation(status, why, t, 1, {})
+    expected = None if verdict.expected is None else {**verdict.expected, "met": False}
+    return Verdict(status, (stop, *verdict.violations), expected)

@@ -7,13 +7,18 @@
         step = env.step(policy(step.observation))
     simbench.env.write_outputs(env, "renders/weld_seam_mine")     # report.json, timeseries.npz, plots, video
 
-An episode is the scenario's run as `simbench.sim.simulate` makes it, one control step a physics step: reset
-settles at the plan's start as `simulate` settles; an action is one value per joint (position targets, or torques
-and forces), bounded by the actuator's control range where it has one; a step splits MuJoCo's step as
-simbench's closed loop does, applying planned switches and the plan's feedback; the observation is
-simbench.observation's; the reward is dm_control's gaussian tolerance of the tool's error, 0.5 at
-`analysis.path_tolerance`; the episode ends at the plan's last sample; physics faults are dm_control's
-PhysicsError with simbench's reason (simbench.faults).
+An episode is the scenario's run as `simbench.sim.simulate` makes it: reset settles at the plan's start as
+`simulate` settles (physics.time() and the observed time are 0 after it); an action is one value per joint
+(position targets within the joint ranges, a joint with none the plan's span +- CONTINUOUS_SPAN; or torques and
+forces within the force limits), held for the control step's physics steps (environment_kwargs' n_sub_steps or
+control_timestep; 1 by default), each split as simbench's closed loop splits MuJoCo's step, applying planned
+switches and the plan's feedback, and recorded; the observation is simbench.observation's and the reward
+dm_control's gaussian tolerance of the tool's error (0.5 at `analysis.path_tolerance`), both at the control
+step's last physics step; the episode ends at the plan's last sample (timing.duration + timing.hold; the last
+control step may be shorter), at time_limit (discount 1) or where the physics fails (discount 0, reward 0, the
+physics back at the last sound sample, `Track.failure` saying when and why). `evaluation` analyses every physics
+step that ran: `failed` or `truncated` where the episode ended early. task_kwargs={'random': seed} draws a random
+task at each reset (simbench.env.random_task); snapshot/restore replay an episode exactly.
 """
 
 from __future__ import annotations
@@ -24,11 +29,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import mujoco
+import numpy as np
 from dm_control.mujoco import wrapper
 from dm_control.rl import control
 
 from simbench import budget
-from simbench.env.episode import Physics, Track
+from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track
+from simbench.env.replay import Snapshot, restore, servo_policy, snapshot
 from simbench.errors import RunError
 from simbench.plant import Actuation, Plant
 from simbench.resources import scenarios_dir
@@ -39,38 +46,53 @@ from simbench.switches import at_start
 if TYPE_CHECKING:
     from simbench.pipeline import Evaluation, Result
 
-__all__ = ["ALL_TASKS", "Physics", "Track", "evaluation", "load", "load_task", "recording", "write_outputs"]
+__all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Physics", "Snapshot", "Track", "evaluation", "load", "load_task",
+           "recording", "restore", "servo_policy", "snapshot", "write_outputs"]
 
 ALL_TASKS: tuple[tuple[str, str], ...] = tuple((path.parent.name, path.stem)
                                                for path in sorted(scenarios_dir().glob("*/*.yaml")))
 
 
-def load(scenario: Scenario | str | os.PathLike, actuation: Actuation = "position",
+def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None,
+         environment_kwargs: dict | None = None, *, actuation: Actuation = "position",
          flat_observation: bool = False) -> control.Environment:
-    """The scenario (or scenario file) as a dm_control Environment whose actions are position targets or
-    (actuation="torque") torques and forces; ScenarioError if beyond the budget, RunError if it cannot plan."""
+    """The scenario (or scenario file) as a dm_control Environment, as dm_control's `suite.load`: `task_kwargs`
+    ({'random': seed or RandomState, 'actuation': 'position' or 'torque', 'task': a Track subclass, and that
+    class's own}) make the task, `environment_kwargs` (control_timestep or n_sub_steps, time_limit,
+    flat_observation) go to control.Environment. ScenarioError if beyond the budget, RunError if it cannot plan."""
     scenario = as_scenario(scenario, "simbench.env.load")
+    task_kwargs = dict(task_kwargs or {})
+    environment_kwargs = {"flat_observation": flat_observation, **(environment_kwargs or {})}
+    actuation = task_kwargs.pop("actuation", actuation)
+    task_class = task_kwargs.pop("task", Track)
     if actuation not in ("position", "torque"):
         raise ValueError(f"actuation must be 'position' or 'torque', got {actuation!r}")
+    if not (isinstance(task_class, type) and issubclass(task_class, Track)):
+        raise TypeError(f"task_kwargs['task'] must be a subclass of simbench.env.Track, got {task_class!r}")
     budget.check(scenario)
     sim, robot = scenario.sim, scenario.robot_def
     plant = Plant.load(robot, sim.timestep, sim.kp, sim.kv, sim.force_limits, sim.gravity_compensation, actuation)
     if plant.model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
         raise RunError(f"the {robot.name} scene's RK4 integrator cannot be stepped as an environment steps (mj_step1, "
                        "then mj_step2); use implicitfast or Euler")
+    if task_kwargs.get("random") is not None:
+        from simbench.env.random_task import check
+        check(scenario)
     plan = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     _, data, _ = at_start(plant, plan)  # the environment's own model copy: switching edits it
     physics = Physics(wrapper.MjData(data))
-    return control.Environment(physics, Track(scenario, plant, plan, physics), flat_observation=flat_observation)
+    return control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),
+                               **environment_kwargs)
 
 
-def load_task(robot: str, name: str, actuation: Actuation = "position",
-              flat_observation: bool = False) -> control.Environment:
+def load_task(robot: str, name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
+              *, actuation: Actuation = "position", flat_observation: bool = False) -> control.Environment:
     """The environment of the shipped scenario scenarios/<robot>/<name>.yaml (one of ALL_TASKS)."""
     if (robot, name) not in ALL_TASKS:
         raise ValueError(f"no shipped scenario {robot}/{name}; ALL_TASKS lists them: "
                          f"{', '.join(f'{r}/{n}' for r, n in ALL_TASKS)}")
-    return load(scenarios_dir() / robot / f"{name}.yaml", actuation, flat_observation)
+    return load(scenarios_dir() / robot / f"{name}.yaml", task_kwargs, environment_kwargs, actuation=actuation,
+                flat_observation=flat_observation)
 
 
 def _track(env: control.Environment) -> Track:
@@ -86,32 +108,39 @@ def recording(env: control.Environment) -> Recording:
 
 
 def evaluation(env: control.Environment, control_info: dict | None = None) -> Evaluation:
-    """A finished episode's Evaluation, as `simbench.evaluate` analyses a run; `control_info` says what ran it.
-    RuntimeError if the episode has not reached its end."""
+    """The episode's Evaluation, as `simbench.evaluate` analyses a run; `control_info` says what ran it. An
+    episode that ended early is analysed as far as it ran: status `failed` where its physics failed, else
+    `truncated` (simbench.verdict). RuntimeError before its first step."""
     from simbench.analysis import analyse
     from simbench.pipeline import Evaluation
     from simbench.robots import Tolerance
     from simbench.sim import commanded
-    from simbench.verdict import run_verdict
+    from simbench.verdict import FAILED, TRUNCATED, cut_short, run_verdict
 
     task = _track(env)
-    if task.k < task.n - 1:
-        raise RuntimeError(f"the episode is at step {task.k} of {task.n - 1}: step it to its end (the last "
-                           "TimeStep) before analysing it")
+    if task.k == 0:
+        raise RuntimeError("the episode has taken no step since its reset: nothing to evaluate")
     rec = recording(env)
     scenario, robot = task.scenario, task.plant.robot
     traj = commanded(task.plan, rec)
+    if task.k < task.n - 1:
+        traj = traj.rows(np.arange(task.k + 1))
     a = scenario.analysis
     result = analyse(robot, traj, rec, near=Tolerance(a.near_angle, a.near_length),
                      margin=Tolerance(a.limit_angle, a.limit_length), scenario=scenario)
     verdict = run_verdict(robot, traj, result, a, scenario.expect)
+    if task.failure is not None:
+        verdict = cut_short(verdict, FAILED, float(rec.t[-1]), task.failure)
+    elif task.k < task.n - 1:
+        verdict = cut_short(verdict, TRUNCATED, float(rec.t[-1]), f"the episode stopped at t = {rec.t[-1]:.4f} s, "
+                            f"before the plan's end at {task.plan.t[-1]:.4f} s (step {task.k} of {task.n - 1})")
     info = {"controller": "simbench.env", "actuation": task.actuation, **(control_info or {})}
     return Evaluation(traj, rec, result, verdict, info)
 
 
 def write_outputs(env: control.Environment, out: str | Path | None = None, video: bool = True,
                   force: bool = False, control_info: dict | None = None) -> Result:
-    """Write a finished episode's outputs into `out` (default renders/<name>/) as `simbench.run` does."""
+    """Write an episode's outputs into `out` (default renders/<name>/) as `simbench.run` does."""
     from simbench import destination
     from simbench.pipeline import write_outputs as write
 

@@ -17,7 +17,7 @@ from dm_env import specs
 from simbench.api import Array, JointTrajectory, State
 from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
-from simbench.faults import MAX_SPEED, Fault, fatal_cause, quiet_mujoco, step_fault
+from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
 from simbench.observation import observation
 from simbench.plant import Actuation, Plant
 from simbench.scenario import Scenario
@@ -31,11 +31,13 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 class Physics(dm_mujoco.Physics):
     """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop; `readings`: the
-    sensors of the last step (at its start state), `counts`: MuJoCo's warning counters, `t0`: the plan's start."""
+    sensors of the last step (at its start state), `counts`: MuJoCo's warning counters, `t0`: the plan's start,
+    `track`: the task that records each physics step."""
 
     readings: Array
     counts: Array
     t0: float = 0.0
+    track: Track
 
     def _reload_from_data(self, data: wrapper.MjData) -> None:
         super()._reload_from_data(data)
@@ -43,50 +45,75 @@ class Physics(dm_mujoco.Physics):
         self.readings = data.ptr.sensordata.copy()
 
     def step(self, nstep: int = 1) -> None:
-        """mj_step2 then mj_step1, nstep times, keeping the sensors; PhysicsError at the first step that fails."""
-        model, data = self.model.ptr, self.data.ptr
+        """mj_step2 then mj_step1, up to nstep times, the task recording each step: no step past the plan's last
+        sample; a step that fails ends the episode at the last sound state (Track.failure says why)."""
+        model, data, track = self.model.ptr, self.data.ptr, self.track
         for _ in range(nstep):
+            if track.k >= track.n - 1 or track.failure is not None:
+                return
             with quiet_mujoco():
                 try:
                     mujoco.mj_step2(model, data)
+                    cause = None
                 except mujoco.FatalError as err:
-                    raise control.PhysicsError(self._when(fatal_cause(err))) from None
+                    cause = fatal_cause(err)
                 # NaN fails the comparison: one reduction finds a NaN, an infinite or a diverging speed
-                if self.counts.any() or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED:
+                if cause is None and (self.counts.any() or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED):
                     cause = step_fault(model, data)
-                    if cause:
-                        raise control.PhysicsError(self._when(cause))
+                if cause:
+                    track.fail(self, self._when(cause))
+                    return
                 self.readings = data.sensordata.copy()
                 mujoco.mj_step1(model, data)
+            track.record(self)
+
+    def time(self) -> float:
+        """The episode's time: 0 at the plan's start (the settle before it excluded), as the observation's."""
+        return float(self.data.time - self.t0)
 
     def _when(self, cause: str) -> str:
-        return f"the physics failed at t = {self.data.time - self.t0:.4f} s: {cause}"
+        """The fault at the end of the step that failed (MuJoCo may have reset the data's time)."""
+        track = self.track
+        return f"the physics failed at t = {track.plan.t[track.k] + track.dt:.4f} s: {cause}"
 
 
 class Track(control.Task):
-    """The scenario's episode: settle at the plan's start, then follow it to its last sample."""
+    """The scenario's episode: settle at the plan's start, then follow it to its last sample. `random` (a seed or
+    a RandomState, dm_control's `base.Task` convention): each reset draws a new task for the robot from it
+    (simbench.env.random_task); `failure`: why the physics ended the episode, None while it is sound."""
 
-    def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics):
-        self.scenario, self.plant, self.plan = scenario, plant, plan
-        self.actuation: Actuation = plant.actuation
+    def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
+                 random: int | np.random.RandomState | None = None):
+        super().__init__()
+        self.scenario, self.plant, self.actuation = scenario, plant, plant.actuation
+        self.random = random if random is None or isinstance(random, np.random.RandomState) \
+            else np.random.RandomState(random)
+        physics.track = self
         model, data = physics.model.ptr, physics.data.ptr
         self.dt = float(model.opt.timestep)
-        self.n = plan.t.size  # samples; an episode is n - 1 steps
         self.n_settle = round(scenario.sim.settle / self.dt)
+        self._model0 = (model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator))
+        self._tool = plant.sensors[plant.robot.tool_sensor]
+        self._tolerance = scenario.analysis.path_tolerance
+        self.bounds = action_bounds(model, plant, plan)
+        self.failure: str | None = None
+        self._use(plan, data)
+        self._rows(model)
+
+    def _use(self, plan: JointTrajectory, data: mujoco.MjData) -> None:
+        """Episodes of this plan from the start state in `data` (posed by switches.at_start)."""
+        model = self.plant.model
+        self.plan, self.n = plan, plan.t.size  # samples; an episode is n - 1 steps
         # The start: the state and grips at_start left, and what switching changes in the model (restored at reset).
         self._start = np.empty(mujoco.mj_stateSize(model, _FULL))
         mujoco.mj_getState(model, data, self._start, _FULL)
         self._eq_active = data.eq_active.copy()
-        self._model0 = (model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator))
         steps = switch_steps(model, plan)
         self._switches: dict[int, list] = {}
         for switch, k in zip(plan.switches, steps):
             if 0 < k < self.n - 1:  # as simulate: the step-0 ones are in the start, none after the last step
                 self._switches.setdefault(int(k), []).append(switch)
         self._settler = self._settling_controller()
-        self._tool = plant.sensors[plant.robot.tool_sensor]
-        self._tolerance = scenario.analysis.path_tolerance
-        self._rows(model)
 
     def _settling_controller(self) -> Servo | ComputedTorque:
         """What holds the start while the robot settles: the servo (position) or computed torque (torque)."""
@@ -107,11 +134,13 @@ class Track(control.Task):
         """An empty recording, and the references and sample of an episode's start."""
         n = self.n
         self.k = 0
+        self.failure = None
         self.references = Revisions(self.plan)  # as the plan's feedback revises them, in copies
         self.warnings: list[dict] = []
         self._qpos, self._qvel = np.empty((n, model.nq)), np.empty((n, model.nv))
         self._readings, self._ctrl = np.empty((n, model.nsensordata)), np.zeros((n, model.nu))
         self._eq = np.empty((n, model.neq), bool)
+        self._command = np.zeros(model.nu)
 
     @property
     def q_ref(self) -> Array:
@@ -126,10 +155,14 @@ class Track(control.Task):
     # --- control.Task -----------------------------------------------------------------------------------------
 
     def initialize_episode(self, physics: Physics) -> None:
-        """The start pose and grips, settled for sim.settle (PhysicsError if that fails)."""
+        """A new random task if `random` is set; the start pose and grips, settled for sim.settle (PhysicsError
+        if that fails)."""
         model, data = physics.model.ptr, physics.data.ptr
         model.eq_data[:], model.eq_active0[:] = self._model0[:2]
         model.opt.disableactuator = self._model0[2]
+        if self.random is not None:
+            from simbench.env.random_task import draw
+            self._use(*draw(self))
         mujoco.mj_resetData(model, data)
         mujoco.mj_setState(model, data, self._start, _FULL)
         data.eq_active[:] = self._eq_active
@@ -151,11 +184,12 @@ class Track(control.Task):
         self._qpos[0], self._qvel[0], self._eq[0] = data.qpos, data.qvel, data.eq_active
 
     def before_step(self, action: Any, physics: Physics) -> None:
-        """The action to the joints' actuators; ValueError if it is not one finite value per joint."""
+        """The action to the joints' actuators, held for the control step; ValueError if it is not one finite
+        value per joint."""
         action = np.asarray(action, dtype=float)
         if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
             raise ValueError(self._refusal(action))
-        ctrl = self._ctrl[self.k]  # zero but for the joints' actuators
+        self._command = ctrl = np.zeros(physics.model.ptr.nu)  # zero but for the joints' actuators
         ctrl[self.plant.actuators] = action
         physics.data.ptr.ctrl[:] = ctrl
 
@@ -168,10 +202,10 @@ class Track(control.Task):
         bad = int(np.flatnonzero(~np.isfinite(action))[0])
         return f"the action for joint '{robot.joints[bad]}' is {action[bad]}"
 
-    def after_step(self, physics: Physics) -> None:
-        """Record the step; at a planned switch's sample apply it, and the plan's feedback on it."""
+    def record(self, physics: Physics) -> None:
+        """Record a physics step; at a planned switch's sample apply it, and the plan's feedback on it."""
         model, data = physics.model.ptr, physics.data.ptr
-        self._readings[self.k] = physics.readings
+        self._readings[self.k], self._ctrl[self.k] = physics.readings, self._command
         self.k = k = self.k + 1
         self._qpos[k], self._qvel[k] = data.qpos, data.qvel
         if physics.counts.any():
@@ -184,14 +218,20 @@ class Track(control.Task):
             mujoco.mj_step1(model, data)  # the constraints as they now are, for the next step
         self._eq[k] = data.eq_active
 
+    def fail(self, physics: Physics, why: str) -> None:
+        """End the episode: the physics back at the last sound sample, `failure` saying why."""
+        model, data = physics.model.ptr, physics.data.ptr
+        self.failure = why
+        data.qpos[:], data.qvel[:] = self._qpos[self.k], self._qvel[self.k]
+        data.time = physics.t0 + self.plan.t[self.k] - self.plan.t[0]
+        data.qacc_warmstart[:] = 0
+        mujoco.mj_forward(model, data)
+        clear_warnings(data)
+
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
-        """One value per robot joint, within its actuator's control range where it has one."""
-        model, act = physics.model.ptr, self.plant.actuators
-        limited = model.actuator_ctrllimited[act].astype(bool)
-        lo = np.where(limited, model.actuator_ctrlrange[act, 0], -mujoco.mjMAXVAL)
-        hi = np.where(limited, model.actuator_ctrlrange[act, 1], mujoco.mjMAXVAL)
-        return specs.BoundedArray(shape=(self.plant.robot.dof,), dtype=float, minimum=lo, maximum=hi,
-                                  name="action")
+        """One value per robot joint within `bounds` (simbench.env.episode.action_bounds)."""
+        return specs.BoundedArray(shape=(self.plant.robot.dof,), dtype=float, minimum=self.bounds[0],
+                                  maximum=self.bounds[1], name="action")
 
     def get_observation(self, physics: Physics) -> OrderedDict:
         """simbench.observation.observation at this sample, with the references as revised."""
@@ -202,12 +242,16 @@ class Track(control.Task):
 
     def get_reward(self, physics: Physics) -> float:
         """dm_control's gaussian rewards.tolerance of the tool's error (0.5 at analysis.path_tolerance), written
-        out as 0.5 ** ((error / path_tolerance) ** 2) for speed."""
+        out as 0.5 ** ((error / path_tolerance) ** 2) for speed; 0 once the physics has failed."""
+        if self.failure is not None:
+            return 0.0
         offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
         return _REWARD_AT_TOLERANCE ** (float(offset @ offset) / self._tolerance ** 2)
 
     def get_termination(self, physics: Physics) -> float | None:
-        """Discount 1 at the plan's last sample (the episode's time limit), None before."""
+        """Discount 1 at the plan's last sample (the episode's end), 0 where the physics failed, None before."""
+        if self.failure is not None:
+            return 0.0
         return 1.0 if self.k >= self.n - 1 else None
 
     # --- the episode as a run ---------------------------------------------------------------------------------
@@ -225,3 +269,28 @@ class Track(control.Task):
         revised = {name: ref.copy() for name, ref in self.references.recorded().items()}  # the episode goes on
         return recording(plant, model, self.plan.t[:rows].copy(), readings, qpos[:, plant.qpos_adr], qpos,
                          self._qvel[:rows], self._eq[:rows].copy(), ctrl, self.warnings, **revised)
+
+
+CONTINUOUS_SPAN = {mujoco.mjtJoint.mjJNT_HINGE: np.pi, mujoco.mjtJoint.mjJNT_SLIDE: 0.1}  # rad, m
+
+
+def action_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:
+    """Each joint's action bounds: under position actuation its range (a joint with none: the plan's span
+    widened by CONTINUOUS_SPAN either side), under torque +-its force limit; within the actuator's control range
+    where it has one."""
+    act = plant.actuators
+    if plant.actuation == "torque":
+        limit = plant.force_limit()
+        lo, hi = -limit, limit
+    else:
+        jnt = model.actuator_trnid[act, 0]
+        span = np.array([CONTINUOUS_SPAN[mujoco.mjtJoint(t)] for t in model.jnt_type[jnt]])
+        limited = model.jnt_limited[jnt].astype(bool)
+        lo = np.where(limited, model.jnt_range[jnt, 0], plan.q_ref.min(axis=0) - span)
+        hi = np.where(limited, model.jnt_range[jnt, 1], plan.q_ref.max(axis=0) + span)
+    ctrl = model.actuator_ctrllimited[act].astype(bool)
+    lo = np.where(ctrl, np.maximum(lo, model.actuator_ctrlrange[act, 0]), lo)
+    hi = np.where(ctrl, np.minimum(hi, model.actuator_ctrlrange[act, 1]), hi)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        raise ValueError(f"the {plant.robot.name}'s actuators have no force limits: a torque action needs them")
+    return lo.astype(float), hi.astype(float)

@@ -1,0 +1,105 @@
+"""An episode's exact snapshot and replay, and the servo as a policy (simbench.env re-exports them)."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+from dm_control.rl import control
+
+from simbench.controllers import Servo
+from simbench.env.episode import Track
+
+# Everything that decides the next steps: the integration state (warm start included), what switches edited
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+_ROWS = ("_qpos", "_qvel", "_readings", "_ctrl", "_eq")  # the recording, rows 0..k
+_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_settler", "_hold")
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """An episode at a control step: the physics, the task's episode state and the environment's step count."""
+
+    state: np.ndarray
+    model: tuple
+    physics: dict[str, Any]
+    task: dict[str, Any]
+    rows: dict[str, np.ndarray]
+    references: Any
+    warnings: list
+    random: Any
+    environment: dict[str, Any]
+
+
+def _track(env: control.Environment) -> Track:
+    task = getattr(env, "task", None)
+    if not isinstance(task, Track):
+        raise TypeError(f"expected an environment of simbench.env.load, got {type(env).__name__}")
+    return task
+
+
+def snapshot(env: control.Environment) -> Snapshot:
+    """The episode as it is now, for restore: replaying the same actions from it gives the same steps, bit for
+    bit."""
+    task, physics = _track(env), env.physics
+    model, data = physics.model.ptr, physics.data.ptr
+    state = np.empty(mujoco.mj_stateSize(model, _STATE))
+    mujoco.mj_getState(model, data, state, _STATE)
+    rows = {name: getattr(task, name)[:task.k + 1].copy() for name in _ROWS}
+    return Snapshot(state=state, model=(model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator)),
+                    physics={"t0": physics.t0, "readings": physics.readings.copy()},
+                    task={name: copy.copy(getattr(task, name, None)) for name in _TASK},
+                    rows=rows, references=copy.deepcopy(task.references), warnings=list(task.warnings),
+                    random=None if task.random is None else task.random.get_state(),
+                    environment={"_step_count": env._step_count, "_reset_next_step": env._reset_next_step})
+
+
+def restore(env: control.Environment, snap: Snapshot) -> None:
+    """Put the episode back as it was at `snapshot(env)`: the environment must be the same one (or one over the
+    same scenario and task)."""
+    task, physics = _track(env), env.physics
+    model, data = physics.model.ptr, physics.data.ptr
+    model.eq_data[:], model.eq_active0[:] = snap.model[:2]
+    model.opt.disableactuator = snap.model[2]
+    for name, value in snap.task.items():
+        setattr(task, name, copy.copy(value))
+    task._rows(model)  # rows for the plan restored, then the recorded ones
+    task.k, task.failure, task._command = snap.task["k"], snap.task["failure"], snap.task["_command"].copy()
+    for name, rows in snap.rows.items():
+        getattr(task, name)[:len(rows)] = rows
+    task.references, task.warnings = copy.deepcopy(snap.references), list(snap.warnings)
+    if snap.random is not None and task.random is not None:
+        task.random.set_state(snap.random)
+    mujoco.mj_resetData(model, data)
+    mujoco.mj_setState(model, data, snap.state, _STATE)
+    mujoco.mj_step1(model, data)  # the position- and velocity-dependent quantities the next mj_step2 uses
+    physics.t0, physics.readings = snap.physics["t0"], snap.physics["readings"].copy()
+    for name, value in snap.environment.items():
+        setattr(env, name, value)
+
+
+def servo_policy(env: control.Environment) -> Callable[[Any], np.ndarray]:
+    """simbench's servo as a policy, timestep (or observation) -> action: the position targets `simulate`
+    commands for the references the observation shows (as the plan's feedback revised them); with a flat
+    observation, the task's references at its sample. One physics step a control step, it reproduces
+    simulate()."""
+    task = _track(env)
+    if task.actuation != "position":
+        raise ValueError("the servo's actions are position targets: load the environment with position actuation")
+    servo = Servo.from_scenario(task.scenario)
+    servo.bind(task.plant, task.plan)
+    act = task.plant.actuators
+
+    def policy(timestep: Any) -> np.ndarray:
+        obs = getattr(timestep, "observation", timestep)
+        if isinstance(obs, dict) and "q_ref" in obs:
+            q_ref, qd_ref = obs["q_ref"], obs["qd_ref"]
+        else:
+            q_ref, qd_ref = task.q_ref[task.k], task.qd_ref[task.k]
+        return servo.targets(np.asarray(q_ref)[None], np.asarray(qd_ref)[None])[0, act]
+
+    return policy
