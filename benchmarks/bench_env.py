@@ -6,8 +6,9 @@ actions (recorded from one episode first: the reference as the target for simben
 actions within the spec for the reacher), so a policy's cost is not counted; and the raw loop: a copy of the reset
 state, each recorded step's `data.ctrl` set and `mj_step` called as many times as the environment's control
 timestep holds physics steps. The overhead a step is (environment's time - raw loop's time) / steps: what
-dm_control's Environment and the task add (observation, reward, termination, simbench's split step and switches). Every environment and its raw loop are timed in turn,
-environments round-robin, repeat after repeat (one warm-up round first); figures are medians over the repeats.
+dm_control's Environment and the task add (observation, reward, termination, simbench's split step and switches).
+Every environment and its raw loop are timed in turn, environments round-robin, repeat after repeat (one warm-up
+round first); figures are medians over the repeats.
 The RSMG's raw loop runs without the planned weld switches (as loaded), so its physics is not quite the
 episode's.
 """
