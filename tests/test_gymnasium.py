@@ -15,14 +15,8 @@ gymnasium = pytest.importorskip("gymnasium", reason="Gymnasium (and shimmy) are 
 shimmy = pytest.importorskip("shimmy", reason="shimmy (and Gymnasium) are in the [test] and [rl] extras")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-# Under position actuation the joints without a range (the spherical arm's q1, the Agile Eye's, every RSMG joint)
-# have a target spec of +-mjMAXVAL (1e10): issue 37, item 1.
-UNBOUNDED_TARGETS = {"agile_eye", "rsmg", "spherical_arm"}
 CASES = [pytest.param(robot, name, actuation, id=f"{robot}/{name}/{actuation}")
          for actuation in ("position", "torque") for robot, name in simbench_env.ALL_TASKS]
-BOUNDED_CASES = [pytest.param(*case.values, id=case.id, marks=pytest.mark.xfail(
-    strict=True, reason="position targets of a joint without a range are +-1e10 (issue 37.1)"))
-    if case.values[2] == "position" and case.values[0] in UNBOUNDED_TARGETS else case for case in CASES]
 
 
 def gym_env(robot: str, name: str, actuation: str):
@@ -42,7 +36,7 @@ def test_check_env(robot, name, actuation):
     env.close()
 
 
-@pytest.mark.parametrize("robot, name, actuation", BOUNDED_CASES)
+@pytest.mark.parametrize("robot, name, actuation", CASES)
 def test_action_space_is_bounded(robot, name, actuation):
     """Every bound finite; a position target of a limited joint within that joint's range (the model's jnt_range),
     so that actions sampled from the space are ones the joint can reach."""
