@@ -217,3 +217,24 @@ def test_ctrl_c_at_any_moment_of_a_runs_outputs_leaves_nothing_and_never_hangs(t
         done = interrupt(command, lambda: any(out.parent.glob(".demo.partial-*")), tmp_path, timeout=60)
         assert (done.returncode, done.stderr) == (130, "interrupted\n")
         assert list(out.parent.iterdir()) == []
+
+
+def test_a_ctrl_c_handled_as_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """The Ctrl-C of the test above, sent as soon as `.demo.partial-PID` appears, may be handled right as mkdir
+    returns, before the block that removes the folder on the way out was entered (it left the folder, now and
+    then, on a loaded machine): made here deterministic, an interrupt raised just after the folder is made."""
+    from pathlib import Path
+
+    from simbench import atomic
+
+    made = Path.mkdir
+
+    def mkdir_then_interrupted(self, *args, **kwargs):
+        made(self, *args, **kwargs)
+        if ".partial-" in self.name:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "mkdir", mkdir_then_interrupted)
+    with pytest.raises(KeyboardInterrupt), atomic.staged_folder(tmp_path / "demo"):
+        pass
+    assert list(tmp_path.iterdir()) == []

@@ -62,8 +62,8 @@ def staged_folder(out: Path) -> Iterator[Path]:
         sweep_leftovers(out)
         tmp = _beside(out, "partial")
         shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir()
         try:
+            tmp.mkdir()  # inside the try: a Ctrl-C handled as mkdir returns still removes it
             yield tmp
             mark(tmp)
             if out.exists():
