@@ -29,6 +29,8 @@ import numpy as np  # noqa: E402
 from scipy.spatial.transform import Rotation, Slerp  # noqa: E402
 
 from simbench.errors import RunError  # noqa: E402
+from simbench.random_tasks import orientation_doc as _quat  # noqa: E402
+from simbench.random_tasks import plain_path_crosses  # noqa: E402
 from simbench.robots import agile_eye  # noqa: E402
 from simbench.rotations import rotation_angle  # noqa: E402
 from simbench.scenario import parse_scenario  # noqa: E402
@@ -40,20 +42,6 @@ MARGIN = np.deg2rad(10.0)  # from the singular curves
 CLEARANCE = np.deg2rad(1.0)  # outside the obstacles
 ENDS = np.deg2rad(15.0)  # the ends' least angle to the singular curves
 DURATION = 4.0
-
-
-def _quat(rot: np.ndarray) -> dict:
-    x, y, z, w = Rotation.from_matrix(rot).as_quat()
-    return {"convention": "quat", "value": [float(w), float(x), float(y), float(z)]}
-
-
-def plain_path_crosses(start: np.ndarray, goal: np.ndarray, samples: int = 2000) -> bool:
-    """Whether det A changes sign along the plain joint path from start to goal (working mode 0)."""
-    theta0 = agile_eye.ik(start, 0)[0]
-    theta1 = theta0 + np.angle(np.exp(1j * (agile_eye.ik(goal, 0)[0] - theta0)))
-    theta = theta0 + np.linspace(0.0, 1.0, samples)[:, None] * (theta1 - theta0)
-    det = np.linalg.det(agile_eye.jacobians(theta, agile_eye.fk_track(theta, start))[0])
-    return bool(np.any(np.sign(det[1:]) * np.sign(det[:-1]) < 0))
 
 
 def tasks(n: int = TASKS, seed: int = SEED) -> list[dict]:

@@ -34,29 +34,25 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
 
-from benchmarks.bench_agile_eye_crossing import _quat, plain_path_crosses, task_scenario, verify  # noqa: E402
+from benchmarks.bench_agile_eye_crossing import task_scenario, verify  # noqa: E402
 from benchmarks.common import interleaved, shipped  # noqa: E402
 from simbench.errors import RunError  # noqa: E402
-from simbench.planners import avoidance_4567, learnt_fk  # noqa: E402
+from simbench.planners import avoidance_4567  # noqa: E402
 from simbench.planners.avoidance_4567 import windows  # noqa: E402
 from simbench.plant import Plant  # noqa: E402
+from simbench.random_tasks import AGILE_EYE_CLEARANCE, AGILE_EYE_KCI_MIN, AGILE_EYE_MARGIN  # noqa: E402
+from simbench.random_tasks import agile_eye_tasks  # noqa: E402
 from simbench.robots import agile_eye  # noqa: E402
-from simbench.rotations import rotation_angle  # noqa: E402
 from simbench.sim import commanded, simulate  # noqa: E402
-from simbench.timing import TimeLaw  # noqa: E402
 
 REPEATS = 7
 TASKS = 20
 SEED = 14
 DURATION = 4.0
-MARGIN = np.deg2rad(10.0)  # from the singular curves
-CLEARANCE = np.deg2rad(1.0)  # outside the obstacles
-KCI_MIN = 0.1
-ENDS = np.deg2rad(15.0)  # the ends' least angle to the singular curves
-ENDS_KCI = 0.15  # and their least KCI
-RADII = np.deg2rad([4.0, 10.0])
+MARGIN = AGILE_EYE_MARGIN  # from the singular curves
+CLEARANCE = AGILE_EYE_CLEARANCE  # outside the obstacles
+KCI_MIN = AGILE_EYE_KCI_MIN
 # The planner before issue 14 (commit 0ca0635), measured by this module (measure(plan=<that planner's plan>)) on
 # the same machine just before the figures after that BENCHMARKS.md gives: filled in from that run.
 BEFORE = {
@@ -70,46 +66,10 @@ BEFORE = {
 }
 
 
-def _plain_platform(start: np.ndarray, goal: np.ndarray, samples: int = 1001) -> np.ndarray:
-    """The exact FK of the plain 4-5-6-7 joint path (working mode 0) followed from the start, at `samples`
-    evenly spaced times."""
-    theta0 = agile_eye.ik(start, 0)[0]
-    theta1 = theta0 + np.angle(np.exp(1j * (agile_eye.ik(goal, 0)[0] - theta0)))
-    s = TimeLaw("4567", 1.0)(np.linspace(0.0, 1.0, samples), order=0)[0]
-    return agile_eye.fk_track(theta0 + s[:, None] * (theta1 - theta0), start)
-
-
 def tasks(n: int = TASKS, seed: int = SEED) -> list[dict]:
-    """n task sections (orientations as quaternions, angles in radians) whose plain path runs into 1 or 2
-    obstacles and does not cross the type 2 surface."""
-    rng = np.random.default_rng(seed)
-    out = []
-    while len(out) < n:
-        ends = learnt_fk.sample_workspace(2, rng)
-        if (agile_eye.axis_gaps(ends).min() < ENDS or plain_path_crosses(*ends)
-                or agile_eye.kci(agile_eye.ik(ends, 0), ends).min() < ENDS_KCI):
-            continue
-        path = _plain_platform(*ends)
-        count = 1 + len(out) % 2
-        edges = np.linspace(0.2, 0.8, count + 1)
-        obstacles = []
-        for k in range(count):
-            for _ in range(100):
-                radius = rng.uniform(*RADII)
-                at = path[int(round(rng.uniform(edges[k], edges[k + 1]) * (len(path) - 1)))]
-                axis = rng.normal(size=3)
-                nudge = Rotation.from_rotvec(axis / np.linalg.norm(axis) * rng.uniform(0, radius / 2)).as_matrix()
-                center = at @ nudge
-                if rotation_angle(np.broadcast_to(center, (2, 3, 3)), ends).min() > radius + CLEARANCE + np.deg2rad(5):
-                    obstacles.append({"name": f"obstacle{k + 1}", "center": _quat(center),
-                                      "radius": float(radius)})
-                    break
-        if len(obstacles) < count:
-            continue
-        out.append({"start": _quat(ends[0]), "goal": _quat(ends[1]), "obstacles": obstacles,
-                    "singularity_clearance": float(MARGIN), "obstacle_clearance": float(CLEARANCE),
-                    "kci_min": KCI_MIN, "avoidance": {"window": 1.0, "max_windows": 4, "estimator": "network"}})
-    return out
+    """n task sections (random_tasks.agile_eye_tasks) whose plain path runs into 1 or 2 obstacles and does not
+    cross the type 2 surface."""
+    return agile_eye_tasks(n, seed)
 
 
 def _outcome(traj) -> str:

@@ -151,9 +151,10 @@ def starts(env, resets: int = 3) -> list[np.ndarray]:
     return out
 
 
-@pytest.mark.parametrize("robot, name", [("puma600", "line"), ("spherical_arm", "case1"), ("agile_eye", "avoidance")])
+@pytest.mark.parametrize("robot, name", [("spherical_arm", "case1"), ("spherical_arm", "case1_joint_move")])
 def test_seeded_random_tasks_are_deterministic_and_differ_by_seed(robot, name):
-    """task_kwargs={'random': seed}: each reset a new joint move, its start and goal within the action bounds
+    """task_kwargs={'random': seed}, a planner that draws no random tasks (Planner.random_task not overridden):
+    each reset a new joint move, its start and goal within the action bounds
     (the settled start within 1e-3 of the plan's), the same for the same seed (also a RandomState), different for
     another; the episode runs to its end under the servo."""
     def make(random):
@@ -170,6 +171,86 @@ def test_seeded_random_tasks_are_deterministic_and_differ_by_seed(robot, name):
     assert env.task.scenario.planner == "joint_move"
     steps = run(env, simbench_env.servo_policy(env))
     assert steps[-1].discount == 1.0 and env.task.k == env.task.n - 1
+
+
+def plans(env, resets: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    out = []
+    for _ in range(resets):
+        env.reset()
+        out.append((env.task.plan.t, env.task.plan.q_ref))
+    return out
+
+
+def same(a, b) -> bool:
+    return a[0].shape == b[0].shape and np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+@pytest.mark.parametrize("robot, name, planner", [("agile_eye", "avoidance", "avoidance_4567"),
+                                                  ("rsmg", "three_turns", "round_robin"),
+                                                  ("puma600", "line", "decoupled_path")])
+def test_the_scenario_planners_random_tasks_are_deterministic_and_differ_by_seed(robot, name, planner):
+    """A planner that draws random tasks (Planner.random_task) gives the resets' tasks, planned by it: two resets
+    with seed 1 plan the same as a fresh environment's two with seed 1, differ from each other and from seed 2's."""
+    def make(seed):
+        return simbench_env.load_task(robot, name, task_kwargs={"random": seed})
+
+    env = make(1)
+    a, b, c = plans(env, 2), plans(make(1), 2), plans(make(2), 1)
+    assert env.task.scenario.planner == planner
+    assert same(a[0], b[0]) and same(a[1], b[1])
+    assert not same(a[0], a[1]) and not same(a[0], c[0])
+
+
+def test_an_agile_eye_random_task_has_obstacles_its_plan_clears():
+    """The Agile Eye's random tasks (start, goal, 1 or 2 obstacles): over three resets, both counts of obstacles;
+    the planned platform orientation (by scipy's Rotation) starts at the task's start, ends at its goal and stays
+    beyond every obstacle's radius (and its clearance) from the obstacle's centre."""
+    from scipy.spatial.transform import Rotation
+
+    env = simbench_env.load_task("agile_eye", "avoidance", task_kwargs={"random": 5})
+    counts = set()
+    for _ in range(3):
+        env.reset()
+        task = env.task.scenario.task
+        counts.add(len(task.obstacles))
+        platform = Rotation.from_quat(env.task.plan.series["platform_quat_ref"], scalar_first=True)
+        start, goal = (Rotation.from_matrix(end.matrix()) for end in (task.start, task.goal))
+        assert (start.inv() * platform[0]).magnitude() < 1e-6 and (goal.inv() * platform[-1]).magnitude() < 1e-6
+        for obstacle in task.obstacles:
+            away = (Rotation.from_matrix(obstacle.center.matrix()).inv() * platform).magnitude()
+            assert away.min() > obstacle.radius + task.obstacle_clearance - 1e-3
+    assert counts == {1, 2}
+
+
+def test_an_rsmg_random_episode_runs_under_the_servo():
+    """The RSMG's random tasks (rotor motions with general contacts): 300 steps of a random episode under the
+    servo policy raise nothing and the physics stays sound; with the planner's hook gone, the RSMG (no forward
+    kinematics of its joints, so no joint moves) is refused in one line."""
+    env = simbench_env.load_task("rsmg", "three_turns", task_kwargs={"random": 3})
+    policy, step = simbench_env.servo_policy(env), env.reset()
+    assert env.task.scenario.task.contacts == "general" and env.task.n > 300
+    for _ in range(300):
+        step = env.step(policy(step))
+    assert env.task.failure is None and not step.last()
+    assert all(np.isfinite(v).all() for v in step.observation.values())
+
+
+def test_a_robot_with_neither_random_tasks_nor_joint_moves_is_refused(monkeypatch):
+    from simbench.planners.round_robin import RoundRobin
+
+    monkeypatch.setattr(RoundRobin, "random_task", lambda self, robot, random: None)
+    with pytest.raises(ValueError, match="no random tasks for the rsmg: its planner 'round_robin' draws none"):
+        simbench_env.load_task("rsmg", "three_turns", task_kwargs={"random": 1})
+
+
+def test_the_benchmarks_draw_their_tasks_from_simbench():
+    """The benchmarks whose generators moved into simbench draw the same tasks as those generators."""
+    from benchmarks import bench_agile_eye_planning, bench_rsmg_contacts
+    from simbench.planners.rsmg_contacts import random_motions
+    from simbench.random_tasks import agile_eye_tasks
+
+    assert bench_agile_eye_planning.tasks(2) == agile_eye_tasks(2, bench_agile_eye_planning.SEED)
+    assert bench_rsmg_contacts.random_motions is random_motions
 
 
 def test_a_task_subclass_brings_its_own_reward():
@@ -208,8 +289,7 @@ def test_an_episode_the_physics_ended_is_evaluated_failed():
 
 def test_random_tasks_on_a_planar_arm_and_an_arm_derived_from_its_urdf(tmp_path):
     """The example's planar 3R (a plugin robot) and the UR5 read from its URDF: seeded random joint moves whose
-    goals lie within MuJoCo's joint ranges, the same for the same seed; the RSMG (no forward kinematics of its
-    joints) is refused in one line."""
+    goals lie within MuJoCo's joint ranges, the same for the same seed."""
     from importlib.metadata import distribution
 
     urdf = distribution("example-robot-data").locate_file(
@@ -230,8 +310,6 @@ def test_random_tasks_on_a_planar_arm_and_an_arm_derived_from_its_urdf(tmp_path)
         limited = model.jnt_limited[jnt].astype(bool)
         assert (goal[limited] >= model.jnt_range[jnt[limited], 0]).all()
         assert (goal[limited] <= model.jnt_range[jnt[limited], 1]).all()
-    with pytest.raises(ValueError, match="no random tasks for the rsmg"):
-        simbench_env.load_task("rsmg", "three_turns", task_kwargs={"random": 1})
 
 
 def planar3r_scenarios():

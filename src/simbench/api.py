@@ -270,6 +270,13 @@ class Planner(ABC, Generic[TaskT]):
         """Shapes the video draws in every frame (obstacles, say)."""
         return []
 
+    def random_task(self, robot: Robot, random: np.random.RandomState) -> dict[str, Any] | None:
+        """A random task for `robot` drawn from `random` alone (an environment's resets with task_kwargs={'random':
+        seed}): the scenario sections it sets, as a scenario file writes them in SI units: `task`, and `timing`
+        where the task sets its own pace (else the scenario's is kept). None (the default): not offered, and the
+        environment draws a joint move instead. A task the planner then refuses is drawn again."""
+        return None
+
     def refuses(self, robot: Robot) -> str | None:
         """Why this planner cannot plan for `robot`, or None if it can."""
         if self.robots is not None and robot.name not in self.robots:

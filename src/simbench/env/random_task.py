@@ -1,16 +1,19 @@
-"""Random tasks for an environment's resets (task_kwargs={'random': seed}): a joint move of the scenario's robot,
-on its timing, from a random start to a random goal, both drawn uniformly within the action bounds (the joint
-ranges; a joint with none: the plan's span widened by episode.CONTINUOUS_SPAN) shrunk by MARGIN at either end."""
+"""Random tasks for an environment's resets (task_kwargs={'random': seed}): the scenario planner's own where it
+draws them (api.Planner.random_task: start and goal, obstacles, motions), the rest of the scenario kept; else a
+joint move of the scenario's robot, on its timing, from a random start to a random goal, both drawn uniformly
+within the action bounds (the joint ranges; a joint with none: the plan's span widened by episode.CONTINUOUS_SPAN)
+shrunk by MARGIN at either end. A draw the planner refuses is drawn again, up to TRIES times."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from simbench import registry
 from simbench.errors import RunError, ScenarioError
 from simbench.scenario import Scenario, _scenario_class
+from simbench.schema import Units
 from simbench.switches import at_start
 
 if TYPE_CHECKING:
@@ -20,36 +23,66 @@ if TYPE_CHECKING:
     from simbench.trajectory import JointTrajectory
 
 MARGIN = 0.05  # of each joint's span, kept clear of its bounds
-TRIES = 20  # draws before giving up on a robot whose random moves cannot be planned
+TRIES = 20  # draws before giving up on a robot whose random tasks cannot be planned
+
+
+def offered(scenario: Scenario) -> bool:
+    """Whether the scenario's planner draws random tasks for its robot (one draw from a scratch RandomState)."""
+    return scenario.planner_def.random_task(scenario.robot_def, np.random.RandomState(0)) is not None
 
 
 def check(scenario: Scenario) -> None:
-    """ValueError if the scenario's robot cannot take random joint moves."""
+    """ValueError if the scenario's robot can take neither its planner's random tasks nor random joint moves."""
+    if offered(scenario):
+        return
     refusal = registry.planners()["joint_move"].refuses(scenario.robot_def)
     if refusal:
-        raise ValueError(f"no random tasks for the {scenario.robot_def.name}: {refusal}")
+        raise ValueError(f"no random tasks for the {scenario.robot_def.name}: its planner "
+                         f"'{scenario.planner}' draws none, and {refusal}")
+
+
+def _own(scenario: Scenario, sections: dict[str, Any]) -> Scenario:
+    """The scenario with the task (and timing) its planner drew, in SI units; ValueError if it is not valid."""
+    robot = scenario.robot_def
+    fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
+    fields.update(expect=None, task=sections["task"], timing=sections.get("timing", scenario.timing))
+    drawn = _scenario_class(scenario.planner, scenario.control.controller).model_validate(
+        fields, context={"robot": robot, "units": Units()})
+    drawn._robot = scenario._robot
+    problem = drawn.planner_def.check(drawn, robot)
+    if problem:
+        raise ValueError(f"{problem[0]}: {problem[1]}")
+    return drawn
+
+
+def _joint_move(track: Track) -> Scenario:
+    """The scenario turned into a random joint move within the action bounds."""
+    scenario, random = track.scenario, track.random
+    assert random is not None, "a Track made with random"
+    lo, hi = track.bounds
+    margin = MARGIN * (hi - lo)
+    start, goal = (random.uniform(lo + margin, hi - margin) for _ in range(2))
+    fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
+    fields.update(planner="joint_move", expect=None, task=registry.planners()["joint_move"].task.model_construct(
+        start=tuple(start.tolist()), goal=tuple(goal.tolist())))
+    drawn = _scenario_class("joint_move").model_construct(**fields)
+    drawn._robot = scenario._robot
+    return drawn
 
 
 def draw(track: Track) -> tuple[JointTrajectory, mujoco.MjData]:
     """A random task's plan from track.random, and the data posed at its start (switches.at_start)."""
     scenario, plant, random = track.scenario, track.plant, track.random
     assert random is not None, "a Track made with random"
-    lo, hi = track.bounds
-    margin = MARGIN * (hi - lo)
-    planner = registry.planners()["joint_move"]
-    cls = _scenario_class("joint_move")
+    robot = scenario.robot_def
     for _ in range(TRIES):
-        start, goal = (random.uniform(lo + margin, hi - margin) for _ in range(2))
-        fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
-        fields.update(planner="joint_move", expect=None, task=planner.task.model_construct(
-            start=tuple(start.tolist()), goal=tuple(goal.tolist())))
-        drawn = cls.model_construct(**fields)
-        drawn._robot = scenario._robot
+        sections = scenario.planner_def.random_task(robot, random)
         try:
-            plan = planner.plan(drawn, scenario.robot_def, track.dt)
+            drawn = _joint_move(track) if sections is None else _own(scenario, sections)
+            plan = drawn.planner_def.plan(drawn, robot, track.dt)
         except (RunError, ScenarioError, ValueError):
             continue
         if np.isfinite(plan.tool_ref).all():
             track.scenario = drawn
             return plan, at_start(plant, plan)[1]
-    raise RunError(f"no random joint move of the {scenario.robot_def.name} could be planned in {TRIES} draws")
+    raise RunError(f"no random task of the {robot.name} could be planned in {TRIES} draws")

@@ -368,6 +368,12 @@ class DecoupledPath(Planner):
         return JointTrajectory(t=t, s=s, q_ref=chosen.q, qd_ref=chosen.qd, tool_ref=tool_ref,
                                waypoints=segment_waypoints(path, s, chosen.q), info=info)
 
+    def random_task(self, robot, random: np.random.RandomState) -> dict | None:
+        """A random reachable line, torch at a random orientation (random_tasks.puma_line)."""
+        from simbench import random_tasks  # imported when drawn, not when registered
+
+        return random_tasks.first(lambda: random_tasks.puma_line(random), "PUMA line")
+
     def check(self, scenario, robot) -> tuple[str, str] | None:
         """Segments must join end to start, and every segment's ends must be within the wrist's reach."""
         task = scenario.task

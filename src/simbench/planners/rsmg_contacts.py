@@ -339,11 +339,9 @@ def _spread(points: np.ndarray, candidates: np.ndarray, score: np.ndarray) -> li
     return picked
 
 
-def random_motions(n: int, seed: int, contacts: str = "general") -> list[dict]:
-    """n untuned random `round_robin` scenario documents (SI) for tests and benchmarks: half turn about a random
-    axis, half tumble (spin and precession), over 6 to 30 s."""
-    rng = np.random.default_rng(seed)
-
+def random_motion(rng: np.random.Generator | np.random.RandomState, contacts: str = "general") -> dict:
+    """One untuned random `round_robin` motion (SI) as random_motions draws it: its `task` and `timing` sections,
+    a turn about a random axis or a tumble (spin and precession) with even odds, over 6 to 30 s."""
     def axis() -> list[float]:
         v = rng.normal(size=3)
         return (v / np.linalg.norm(v)).tolist()
@@ -351,15 +349,18 @@ def random_motions(n: int, seed: int, contacts: str = "general") -> list[dict]:
     def turns(lo: float, hi: float) -> float:
         return float(rng.choice([-1.0, 1.0]) * rng.uniform(lo, hi))
 
-    out = []
-    for i in range(n):
-        if rng.random() < 0.5:
-            motion = {"kind": "turns", "axis": axis(), "turns": turns(1, 5)}
-        else:
-            motion = {"kind": "tumble", "spin_axis": axis(), "spin_turns": turns(1, 3), "precession_axis": axis(),
-                      "precession_turns": turns(0.5, 2)}
-        out.append({"name": f"rsmg_motion_{seed}_{i}", "robot": "rsmg", "planner": "round_robin",
-                    "task": {"motion": motion, "contacts": contacts},
-                    "timing": {"law": "trapezoidal", "accel_fraction": 0.1, "duration": round(rng.uniform(6, 30), 2),
-                               "hold": 0.5}})
-    return out
+    if rng.random() < 0.5:
+        motion = {"kind": "turns", "axis": axis(), "turns": turns(1, 5)}
+    else:
+        motion = {"kind": "tumble", "spin_axis": axis(), "spin_turns": turns(1, 3), "precession_axis": axis(),
+                  "precession_turns": turns(0.5, 2)}
+    return {"task": {"motion": motion, "contacts": contacts},
+            "timing": {"law": "trapezoidal", "accel_fraction": 0.1, "duration": round(rng.uniform(6, 30), 2),
+                       "hold": 0.5}}
+
+
+def random_motions(n: int, seed: int, contacts: str = "general") -> list[dict]:
+    """n untuned random `round_robin` scenario documents (SI) for tests and benchmarks (random_motion)."""
+    rng = np.random.default_rng(seed)
+    return [{"name": f"rsmg_motion_{seed}_{i}", "robot": "rsmg", "planner": "round_robin",
+             **random_motion(rng, contacts)} for i in range(n)]

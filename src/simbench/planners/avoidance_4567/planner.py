@@ -114,6 +114,13 @@ class Avoidance4567(Planner):
                 return f"task.{field}", "lies on a singular curve (some v_i = +-u_i): its base angles are undefined"
         return None
 
+    def random_task(self, robot, random: np.random.RandomState) -> dict | None:
+        """A random start and goal whose plain path runs into 1 or 2 obstacles (random_tasks.agile_eye_task)."""
+        from simbench import random_tasks  # imported when drawn, not when registered
+
+        count = 1 + int(random.randint(2))
+        return {"task": random_tasks.first(lambda: random_tasks.agile_eye_task(random, count), "Agile Eye task")}
+
     def decorations(self, scenario) -> list[Decoration]:
         """The obstacles as the cones of lines of sight they contain, for the video."""
         out = []

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from simbench import heap
 from simbench.api import Planner
 from simbench.errors import RunError
@@ -57,6 +59,13 @@ class RoundRobin(Planner):
         return JointTrajectory(t=t, s=s, q_ref=q_ref, qd_ref=joint_rates(q_ref, dt), tool_ref=tool_ref, info=info,
                                switches=switches, series={"rotor_quat_ref": quat, "engaged_ref": engaged},
                                initial={"rotor": quat[0].tolist()}, feedback=feedback)
+
+
+    def random_task(self, robot, random: np.random.RandomState) -> dict | None:
+        """A random rotor motion with general contacts (rsmg_contacts.random_motion)."""
+        from simbench.planners.rsmg_contacts import random_motion
+
+        return random_motion(random)
 
 
 PLANNER = RoundRobin()
