@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import errno
 import queue
-import resource
 import shutil
 import threading
 from collections.abc import Iterable, Iterator, Sequence
@@ -96,13 +95,22 @@ def _check_finished(path: Path) -> None:
     with open(path, "rb") as f:
         if b"moov" in f.read():
             return
-    size = path.stat().st_size
-    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
-    if soft != resource.RLIM_INFINITY and size >= soft:
+    if _at_file_size_limit(path.stat().st_size):
         raise OSError(errno.EFBIG, "ffmpeg stopped at the file-size limit", str(path))
     if shutil.disk_usage(path.parent).free < (1 << 20):
         raise OSError(errno.ENOSPC, "ffmpeg ran out of space", str(path))
     raise OSError(errno.EIO, "ffmpeg did not finish the video", str(path))
+
+
+def _at_file_size_limit(size: int) -> bool:
+    """Whether a file of `size` bytes has reached the process's file-size limit (RLIMIT_FSIZE; a platform without
+    the `resource` module, Windows, has none to reach)."""
+    try:
+        import resource
+    except ImportError:
+        return False
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    return soft != resource.RLIM_INFINITY and size >= soft
 
 
 def simplify(points: np.ndarray, tol: float) -> np.ndarray:
