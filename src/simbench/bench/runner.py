@@ -12,18 +12,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar, cast
 
-from tqdm import tqdm
-
 from simbench import destination
 from simbench.bench import board, outputs
 from simbench.bench.methods import METHODS
 from simbench.bench.suite import Suite
 from simbench.bench.tasks import draw
 from simbench.schema import SimbenchModel
-from simbench.sweep import cluster, execute
+from simbench.sweep import cluster, run_remaining
 from simbench.sweep.spec import Sweep, Variant
 from simbench.sweep.store import Store
-from simbench.sweep.workers import count as worker_count
 
 
 class BenchSpec(SimbenchModel):
@@ -99,35 +96,17 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
     if ray is not None:
         cluster.reach(ray)
-    as_sweep = cast(Sweep, bench)  # what Store and worker_count read of a Sweep, a Bench has
+    as_sweep = cast(Sweep, bench)  # what Store and run_remaining read of a Sweep, a Bench has
     with Store(out, as_sweep, force=force) as store:
-        rows = store.finished()
-        todo = [v for v in bench.variants if v.index not in rows]
-        if ray is None or ray == "local":
-            workers = worker_count(as_sweep, todo, workers)
-        else:
-            workers = min(workers or execute.cpu_count(), execute.cpu_count())
-        start = time.perf_counter()
-        outcomes, backend = _backend(bench, todo, workers, ray)
-        with tqdm(total=len(bench.variants), initial=len(rows), desc=bench.name, unit="run", disable=not progress,
-                  leave=False) as bar:
-            for index, outcome in outcomes:
-                rows[index] = store.record(bench.variants[index], outcome)
-                bar.update()
-        runs = board.runs_table(list(rows.values()))
+        ran = run_remaining(store, workers, ray, progress, lambda v: {
+            "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
+        runs = board.runs_table(list(ran.rows.values()))
         leaderboard = board.leaderboard(runs, suite.seed)
         by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
-        resumed = len(bench.variants) - len(todo)
         summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
                    "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
-                   "runs": len(bench.variants), "status": board.status_counts(runs), "resumed": resumed,
-                   "backend": backend, "wall_time": round(time.perf_counter() - start, 3)}
-        outputs.write(store, out, runs, (leaderboard, by_kind), summary, workers)
+                   "runs": len(bench.variants), "status": board.status_counts(runs), "resumed": ran.resumed,
+                   "backend": ran.backend, "wall_time": round(time.perf_counter() - ran.start, 3)}
+        outputs.write(store, out, runs, (leaderboard, by_kind), summary, ran.workers)
     return BenchResult(out, runs, leaderboard, summary)
 
-
-def _backend(bench: Bench, todo: list[Variant], workers: int, ray: str | None):
-    """The outcomes of the runs still to do, as they finish, and where they run."""
-    tasks = [(v.index, {"document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
-             for v in todo]
-    return execute.started(tasks, workers, ray)

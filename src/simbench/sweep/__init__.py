@@ -4,7 +4,7 @@ on a Ray cluster, into one table of results (file: sweep.spec; folder: sweep.sto
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,7 +14,7 @@ from simbench import destination
 from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import cluster, execute, table
-from simbench.sweep.spec import Sweep, load_sweep
+from simbench.sweep.spec import Sweep, Variant, load_sweep
 from simbench.sweep.store import RESULTS, Store, run_folder
 from simbench.sweep.workers import count as worker_count
 
@@ -39,33 +39,53 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
     out = destination.followed(Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name)
     if ray is not None:
         cluster.reach(ray)  # before the folder is made: an address nobody answers at is one line, not a hang
+    kept = sweep.spec.outputs
     with Store(out, sweep, force=force) as store:
-        rows = store.finished()
-        todo = [v for v in sweep.variants if v.index not in rows]
-        if ray is None or ray == "local":
-            workers = worker_count(sweep, todo, workers)
-        else:  # a cluster elsewhere has its own CPUs and memory: here the plots are drawn
-            workers = min(workers or execute.cpu_count(), execute.cpu_count())
-        start = time.perf_counter()
-        outcomes, backend = _backend(sweep, todo, out, workers, ray, allow_code)
-        _collect(store, outcomes, rows, progress)
-        columns = table.columns(list(rows.values()), sweep.params)
+        ran = run_remaining(store, workers, ray, progress, lambda v: {
+            "document": v.document, "source": f"{sweep.source} {v.id}", "outputs": kept,
+            "out": str(run_folder(out, v.id)) if kept == "full" else None, "video": sweep.spec.video,
+            "allow_code": allow_code})
+        columns = table.columns(list(ran.rows.values()), sweep.params)
         store.claim(RESULTS)
         with store.writing():  # a full disk here keeps the rows: the same command writes the table again
-            summary = _write_results(sweep, columns, out, resumed=len(sweep.variants) - len(todo), backend=backend,
-                                     start=start, workers=workers)
+            summary = _write_results(sweep, columns, out, resumed=ran.resumed, backend=ran.backend, start=ran.start,
+                                     workers=ran.workers)
     return SweepResult(out, columns, summary, summary["resumed"])
 
 
-def _collect(store: Store, outcomes: Iterable[tuple[int, dict]], rows: dict[int, dict], progress: bool) -> None:
-    """Record each run's row as it finishes, into the store and into `rows` (by run index), with a progress bar."""
+@dataclass(frozen=True)
+class Ran:
+    """The runs of a store's sweep, those of an earlier start and those run now: every row by run index, how many
+    were there before, where the rest ran (`backend`, on `workers` at once) and when they started."""
+
+    rows: dict[int, dict]
+    resumed: int
+    backend: str
+    workers: int
+    start: float
+
+
+def run_remaining(store: Store, workers: int | None, ray: str | None, progress: bool,
+                  arguments: Callable[[Variant], dict]) -> Ran:
+    """Run every variant of store.sweep that has no row yet, each by run_variant(**arguments(variant)), here, on
+    worker processes (their number as sweep.workers.count decides) or on Ray, recording each row as it finishes,
+    with a progress bar. A sweep and a bench (simbench.bench.runner) both run so."""
     sweep = store.sweep
+    rows = store.finished()
+    todo = [v for v in sweep.variants if v.index not in rows]
+    if ray is None or ray == "local":
+        workers = worker_count(sweep, todo, workers)
+    else:  # a cluster elsewhere has its own CPUs and memory: here the plots are drawn
+        workers = min(workers or execute.cpu_count(), execute.cpu_count())
+    start = time.perf_counter()
+    outcomes, backend = execute.started([(v.index, arguments(v)) for v in todo], workers, ray)
     tqdm.monitor_interval = 0  # no monitor thread: the worker processes are forked from this one
     with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,
               leave=False) as bar:
         for index, outcome in outcomes:
             rows[index] = store.record(sweep.variants[index], outcome)
             bar.update()
+    return Ran(rows, len(sweep.variants) - len(todo), backend, workers, start)
 
 
 def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed: int, backend: str,
@@ -87,13 +107,3 @@ def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed
                                [("Every run (results.csv)", Path("results.csv"))], [f"plots/{p}" for p in plots],
                                summary))
     return summary
-
-
-def _backend(sweep: Sweep, todo: list, out: Path, workers: int, ray: str | None, allow_code: bool):
-    """The outcomes of the runs still to do, as they finish, and a description of where they run."""
-    kept = sweep.spec.outputs
-    tasks = [(v.index, {"document": v.document, "source": f"{sweep.source} {v.id}", "outputs": kept,
-                        "out": str(run_folder(out, v.id)) if kept == "full" else None, "video": sweep.spec.video,
-                        "allow_code": allow_code})
-             for v in todo]
-    return execute.started(tasks, workers, ray)
