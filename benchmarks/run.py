@@ -3,8 +3,8 @@
 With no names it runs every module of MODULES (each block states the seconds it took); with names, those alone. Each
 module's results go into BENCHMARKS.md between two marker lines of its own (HTML comments, unseen on a rendered
 page), stamped with the machine, the date, the time it took and the load average; everything outside the markers
-(the notes written by hand: earlier runs, what was tried and dropped, before-and-after tables of an issue) is kept
-byte for byte, so a rerun replaces the figures and never the history. A module with no block yet gets one at the
+(written by hand: the targets, what each module measures and how to rerun it, measurements taken by hand) is kept
+byte for byte, so a rerun replaces the figures and never the notes. A module with no block yet gets one at the
 end. The file is replaced whole, never left half-written.
 """
 
@@ -25,8 +25,9 @@ MODULES = ("bench_tracking", "bench_render", "bench_sweep", "bench_planners", "b
            "bench_env")
 TARGET = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
 HEADER = ("# Benchmarks\n\nWritten by `python -m benchmarks.run` (from the repository root, in the test environment):\n"
-          "each section's figures between its markers, with the machine, the date, the time and the load average\n"
-          "they were measured with; the notes around them by hand.\n")
+          "each module's figures between its markers, with the machine, the date, the time and the load average\n"
+          "they were measured with; the targets, each module's description and the measurements taken by hand\n"
+          "around them.\n")
 
 
 def begin(name: str) -> str:
