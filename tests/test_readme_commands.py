@@ -30,14 +30,27 @@ def shown_commands() -> list[str]:
     for doc in DOCS:
         text = doc.read_text(encoding="utf-8")
         candidates = [line.strip() for line in text.splitlines() if line.startswith("    ")]
-        candidates += [line.strip() for block in re.findall(r"```(?:sh|bash|shell|console)?\n(.*?)```", text, re.S)
-                       for line in block.splitlines()]
+        candidates += [line.strip() for line in _shell_fenced_lines(text)]
         candidates += re.findall(r"`([^`\n]+)`", text)
         for command in candidates:
             if command.startswith(PREFIXES) and not PLACEHOLDER.search(command) and command not in found \
                     and _complete(command):
                 found.append(command)
     return found
+
+
+def _shell_fenced_lines(text: str) -> list[str]:
+    """The lines inside fenced blocks of shell (or unnamed) language: fences are paired in order, so the prose
+    between a closing fence and the next opening one is never taken for a block."""
+    lines, shell, inside = [], False, False
+    for line in text.splitlines():
+        fence = re.match(r"\s*```(\w*)", line)
+        if fence:
+            inside = not inside
+            shell = inside and fence.group(1) in ("", "sh", "bash", "shell", "console")
+        elif inside and shell:
+            lines.append(line)
+    return lines
 
 
 def _complete(command: str) -> bool:
