@@ -48,8 +48,11 @@ def __getattr__(name: str) -> Any:
 
 
 REVOLUTE = "revolute"
+"""A joint kind (`Robot.kinds`): a hinge, its values in radians."""
 PRISMATIC = "prismatic"
+"""A joint kind (`Robot.kinds`): a slide, its values in metres."""
 Array = NDArray[np.float64]
+"""A NumPy array of floats: what joint values, tool points and per-sample series are."""
 
 
 @dataclass(frozen=True)
@@ -123,7 +126,8 @@ class _NoSummary(Summariser):
         return {}, []
 
 
-Figures = dict[str, float | None | list[float] | dict[str, float]]  # a metric's figures by name, SI; None: not found
+Figures = dict[str, float | None | list[float] | dict[str, float]]
+"""A metric's figures by name (`Metric.finish`), SI: a number (None: not found), a short list, or numbers by name."""
 
 
 class Metric(ABC):
