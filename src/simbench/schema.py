@@ -200,7 +200,7 @@ def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:
     return [float(v) for v in values]
 
 
-def seconds(lo: float, hi: float, low_open: bool = False):
+def seconds(lo: float, hi: float, low_open: bool = False) -> Any:
     """The type of a time in seconds within bounds.
 
     Args:
