@@ -45,6 +45,11 @@ class Event(_Entries):
     detail: dict[str, Any] = field(default_factory=dict)
 
     def entries(self) -> dict[str, Any]:
+        """The event as report.json writes it.
+
+        Returns:
+            `t_start`, `t_end`, `kind` and `detail`.
+        """
         return {"t_start": self.t_start, "t_end": self.t_end, "kind": self.kind, "detail": self.detail}
 
     @classmethod
@@ -81,6 +86,11 @@ class Violation(_Entries):
     detail: dict[str, Any] = field(default_factory=dict)
 
     def entries(self) -> dict[str, Any]:
+        """The violation as report.json writes it.
+
+        Returns:
+            `kind`, `message`, `t` and `events`, and the detail's entries beside them.
+        """
         return {"kind": self.kind, "message": self.message, "t": self.t, "events": self.events, **self.detail}
 
     @classmethod

@@ -124,7 +124,16 @@ class Summariser(ABC):
         """
 
     def whole(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
-        """The Summary of a whole run taken as one window (arguments as `add`'s)."""
+        """The Summary of a whole run taken as one window.
+
+        Args:
+            traj: The plan.
+            rec: The recording.
+            series: The analysis's per-sample series.
+
+        Returns:
+            The whole run's summary.
+        """
         extra = self.add(traj, rec, series)
         return Summary(*self.finish(), extra)
 
@@ -205,7 +214,11 @@ class Robot(ABC):
         return type(self).fk is not Robot.fk
 
     def cameras(self) -> tuple[str, ...]:
-        """Names of the cameras the scene defines."""
+        """The cameras the scene defines.
+
+        Returns:
+            Their names.
+        """
         return _camera_names(str(self.scene))
 
     def fk(self, q: Array) -> Array:
@@ -243,7 +256,16 @@ class Robot(ABC):
         """
 
     def singular_sets_from(self, rec: Recording, tol: Tolerance, measures: dict[str, Array]) -> list[SingularSet]:
-        """`singular_sets(rec, tol)` given `measures(rec)`: override it so as not to compute them twice."""
+        """`singular_sets(rec, tol)` given `measures(rec)`: override it so as not to compute them twice.
+
+        Args:
+            rec: The recording (or a window of it).
+            tol: What counts as near.
+            measures: `measures(rec)`.
+
+        Returns:
+            As `singular_sets`'s.
+        """
         return self.singular_sets(rec, tol)
 
     def assemble(self, q: Array) -> dict[str, float]:

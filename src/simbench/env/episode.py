@@ -79,7 +79,11 @@ class Physics(dm_mujoco.Physics):
             track.record(self)
 
     def time(self) -> float:
-        """The episode's time: 0 at the plan's start (the settle before it excluded), as the observation's."""
+        """The episode's time, as the observation's.
+
+        Returns:
+            The time (s): 0 at the plan's start, the settle before it excluded.
+        """
         return float(self.data.time - self.t0)
 
     def _when(self, cause: str) -> str:
