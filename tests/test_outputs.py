@@ -1,4 +1,4 @@
-"""What `python -m simbench run` writes, checked as a user would read it (DESIGN.md section 3)."""
+"""What `python -m simbench run` writes, checked as a user would read it (docs/guide/outputs.md)."""
 
 import json
 

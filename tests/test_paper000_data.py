@@ -1,5 +1,5 @@
 """The data file of paper 000's Table 2 (simbench/reproduce/data/paper000_table2.yaml) holds the values the paper
-prints: the same as they were first typed from the paper's text (../shared/papers/000_*.txt) into
+prints: the same as they were first typed from the paper's text into
 simbench.reproduce.paper000, copied here once as the independent record of the paper's numbers."""
 
 from simbench.reproduce import paper000

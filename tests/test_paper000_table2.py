@@ -1,4 +1,5 @@
-"""Paper 000's generation method against its Table 2 (nd = 11), with the typos NOTES.md section 1 lists.
+"""Paper 000's generation method against its Table 2 (nd = 11), with the typos its Errata list
+(docs/papers/000-spherical-arm.md).
 
 Rows are x, y, z (mm), q1 (deg), q2 (mm), q3 (deg), q4 (mm) as printed (simbench.reproduce.paper000.PRINTED),
 corrected where that module classifies a typo or an error; case 3's q1 is 120 deg, as its x and y say.
@@ -22,7 +23,7 @@ def si(row_deg_mm):
 
 
 # The printed Table 2 lives in one place, simbench.reproduce.paper000 (copied from the paper's text); the rows
-# here are its path rows with the typos and errors that module classifies applied (NOTES.md section 1).
+# here are its path rows with the typos and errors that module classifies applied (paper 000's Errata).
 TABLE2 = {case.name: case for case in paper000.PRINTED}
 CASE1, CASE2, CASE3, CASE4 = (paper000.corrected_rows(TABLE2[f"case {k}"]) for k in (1, 2, 3, 4))
 

@@ -49,7 +49,8 @@ def test_method_agrees_with_the_analytic_ik_of_the_same_configuration(path, rots
 
 
 def test_distance_equation_has_real_roots_exactly_within_reach():
-    """Eq. 14 is solvable where |K - C| <= sqrt(A^2 + B^2) (NOTES.md), i.e. between the folded and stretched arm."""
+    """Eq. 14 is solvable where |K - C| <= sqrt(A^2 + B^2) (paper 002's Errata), i.e. between the folded and
+    stretched arm."""
     amp = np.hypot(method.COEF_A, method.COEF_B)
     k = method.COEF_C + amp * np.array([-1.001, -0.999, 0.0, 0.999, 1.001])
     q3 = method.q3_from_distance(k, np.ones(5))

@@ -21,7 +21,7 @@ from simbench.robots.spherical_arm import D4, fk
 CELLS = paper000.compare()
 TABLE2 = {case.name: case for case in paper000.PRINTED}
 
-# NOTES.md section 1: the printed values that differ from the method, and the class of each.
+# Paper 000's Errata: the printed values that differ from the method, and the class of each.
 EXPECTED_DIFFERING = {
     **{("case 1", "path", r, "q4"): TYPO for r in (7, 8)},  # rows 7 and 8 have their q4 swapped
     **{("case 4", "path", 2, c): TYPO for c in ("q1", "q3")},  # row 2: q1 304.3462, q3 24.8714

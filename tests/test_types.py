@@ -11,7 +11,7 @@ MYPY = [sys.executable, "-m", "mypy", "--ignore-missing-imports", "--follow-impo
 
 
 def test_the_public_api_and_the_example_type_check():
-    files = [ROOT / "src/simbench/api.py", ROOT / "src/simbench/controllers.py", ROOT / "src/simbench/tracking.py",
+    files = [ROOT / "src/simbench/api", ROOT / "src/simbench/controllers.py", ROOT / "src/simbench/tracking.py",
              ROOT / "src/simbench/singularity_handling.py",
              ROOT / "src/simbench/computed_torque.py", ROOT / "src/simbench/policy.py",
              ROOT / "examples/planar3r/src/simbench_planar3r"]

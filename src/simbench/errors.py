@@ -15,7 +15,13 @@ if TYPE_CHECKING:
 
 
 class ScenarioError(Exception):
-    """A scenario file that cannot be used: names the file, the field and what is expected."""
+    """Bad input (exit 2): a scenario file that cannot be used.
+
+    Attributes:
+        source: The file.
+        field: The field at fault, or None.
+        message: What is expected.
+    """
 
     def __init__(self, source: str, field: str | None, message: str):
         self.source = printable(source)
@@ -60,11 +66,18 @@ MAX_INT_DIGITS = (sys.get_int_max_str_digits() if hasattr(sys, "get_int_max_str_
 
 
 class RunError(Exception):
-    """A valid scenario whose run failed: an unreachable path, diverged physics."""
+    """A valid scenario whose run failed (exit 1): an unreachable path, diverged physics."""
 
 
 class PhysicsError(RunError):
-    """The simulation failed mid-run: when, why, the plan, and the recording so far (None while settling)."""
+    """The simulation failed mid-run.
+
+    Attributes:
+        t: When (s); negative while settling at the start pose.
+        cause: Why, in words.
+        trajectory: The plan.
+        recording: The recording so far; None while settling.
+    """
 
     failed = "physics failed"
 
@@ -84,7 +97,13 @@ class ControlError(PhysicsError):
 
 
 class OutputError(RunError):
-    """Writing outputs failed (a full disk, say): the path, the file system's words, and what was kept."""
+    """Writing outputs failed (a full disk, say).
+
+    Attributes:
+        path: The file that could not be written.
+        problem: The file system's words.
+        kept: What was kept of the outputs.
+    """
 
     def __init__(self, path: str, problem: str, kept: str):
         self.path = printable(path)

@@ -28,7 +28,16 @@ class _Entries(Mapping):
 
 @dataclass(frozen=True)
 class Event(_Entries):
-    """Something a run met from `t_start` to `t_end` (s; equal for an instant): its kind and detail (SI units)."""
+    """Something a run met: a singular set neared, a joint limit reached.
+
+    Read as the dict report.json holds (`event["kind"]`).
+
+    Attributes:
+        t_start: When it began (s).
+        t_end: When it ended (s); `t_start` for an instant.
+        kind: What it is (`joint_limit`, a singular set's name, ...).
+        detail: What else it says, SI units.
+    """
 
     t_start: float
     t_end: float
@@ -36,18 +45,39 @@ class Event(_Entries):
     detail: dict[str, Any] = field(default_factory=dict)
 
     def entries(self) -> dict[str, Any]:
+        """The event as report.json writes it.
+
+        Returns:
+            `t_start`, `t_end`, `kind` and `detail`.
+        """
         return {"t_start": self.t_start, "t_end": self.t_end, "kind": self.kind, "detail": self.detail}
 
     @classmethod
     def of(cls, found: Event | Mapping[str, Any]) -> Event:
-        """An Event, given one or its dict {t_start, t_end, kind[, detail]}."""
+        """An Event, given one or its dict.
+
+        Args:
+            found: An Event, or a dict {t_start, t_end, kind[, detail]}.
+
+        Returns:
+            The Event.
+        """
         return found if isinstance(found, Event) else cls(**found)
 
 
 @dataclass(frozen=True)
 class Violation(_Entries):
-    """A promise a run broke (simbench.verdict): its one-line message, from when (`t`, s, or None), how many
-    events show it, and how badly (`detail`)."""
+    """A promise a run broke (`simbench.verdict`): why its status is not `ok`.
+
+    Read as the dict report.json holds (`violation["kind"]`), its detail's entries beside the others.
+
+    Attributes:
+        kind: Which promise (`velocity_limit`, `off_path`, ...).
+        message: What happened, in one line.
+        t: From when (s), or None.
+        events: How many events show it.
+        detail: How badly, SI units.
+    """
 
     kind: str
     message: str
@@ -56,11 +86,23 @@ class Violation(_Entries):
     detail: dict[str, Any] = field(default_factory=dict)
 
     def entries(self) -> dict[str, Any]:
+        """The violation as report.json writes it.
+
+        Returns:
+            `kind`, `message`, `t` and `events`, and the detail's entries beside them.
+        """
         return {"kind": self.kind, "message": self.message, "t": self.t, "events": self.events, **self.detail}
 
     @classmethod
     def of(cls, found: Violation | Mapping[str, Any]) -> Violation:
-        """A Violation, given one or its dict {kind, message[, t, events], ...}, the other entries its detail."""
+        """A Violation, given one or its dict.
+
+        Args:
+            found: A Violation, or a dict {kind, message[, t, events], ...}, the other entries its detail.
+
+        Returns:
+            The Violation.
+        """
         if isinstance(found, Violation):
             return found
         rest = dict(found)

@@ -10,13 +10,24 @@ import numpy as np
 from simbench.api import Array, State
 from simbench.plant import Plant
 
-AHEAD = (1, 5, 20)  # samples ahead of now at which the references are shown
+AHEAD = (1, 5, 20)
+"""The samples ahead of now at which the observation shows the references."""
 
 
 def observation(plant: Plant, state: State, q_ref: Array, qd_ref: Array, tool_ref: Array) -> OrderedDict:
-    """The observation at `state` (as `mj_step1` leaves it) for references q_ref, qd_ref (N, dof) and tool_ref
-    (N, 3): time (1,), q, qd (dof,) and tool (3,) measured; the references at this sample; and q_ref_ahead
-    (len(AHEAD) * dof,) AHEAD samples on (the last one past the end)."""
+    """What a policy sees at a control step.
+
+    Args:
+        plant: The compiled robot.
+        state: The measured state, as `mj_step1` leaves it.
+        q_ref: The joint references (N, dof).
+        qd_ref: Their rates (N, dof).
+        tool_ref: The tool's reference points (N, 3).
+
+    Returns:
+        `time` (1,), `q`, `qd` (dof,) and `tool` (3,) measured; `q_ref`, `qd_ref` and `tool_ref` at this sample;
+        and `q_ref_ahead` (len(AHEAD) * dof,), the references AHEAD samples on (the last sample past the end).
+    """
     assert state.data is not None, "an observation needs the live data"
     k, last = state.k, len(q_ref) - 1
     ahead = [min(k + h, last) for h in AHEAD]

@@ -34,9 +34,18 @@ from simbench.verdict import Verdict, plan_verdict, run_verdict
 
 @dataclass(frozen=True)
 class Evaluation:
-    """A scenario planned, simulated and analysed, with its verdict, nothing written yet. Found from every
-    sample; the plan, recording and series hold the kept rows (with sim.record_every, the control period is
-    recording.timestep, not the thinned plan's dt)."""
+    """A scenario planned, simulated and analysed, with its verdict, nothing written yet.
+
+    Found from every sample; the plan, recording and series hold the kept rows (with `sim.record_every`, the
+    control period is `recording.timestep`, not the thinned plan's dt).
+
+    Attributes:
+        trajectory: The plan.
+        recording: The simulated run.
+        analysis: Tracking, singularity and limit events, and per-sample series.
+        verdict: The status (`ok`, `limits`, ...) and each promise broken.
+        control: The controller, its actuation and its gains, as report.json gives them.
+    """
 
     trajectory: JointTrajectory
     recording: Recording
@@ -47,7 +56,13 @@ class Evaluation:
 
 @dataclass(frozen=True)
 class Result:
-    """A finished run: where its outputs are and what it found."""
+    """A finished run: where its outputs are and what it found.
+
+    Attributes:
+        out: The output folder.
+        report: report.json's contents.
+        evaluation: The plan, the recording, the analysis and the verdict.
+    """
 
     out: Path
     report: dict
@@ -81,7 +96,20 @@ class _Stopwatch:
 
 
 def evaluate(scenario: Scenario | str | os.PathLike, progress: bool = False, allow_code: bool = False) -> Evaluation:
-    """Plan, simulate and analyse a scenario (or scenario file), after the budget and `allow_code` checks."""
+    """Plan, simulate and analyse a scenario, writing nothing.
+
+    Args:
+        scenario: A Scenario, or the path of a scenario file.
+        progress: Whether to show progress bars.
+        allow_code: Whether a `policy` controller may import the Python its scenario names (`module:function`).
+
+    Returns:
+        The evaluation.
+
+    Raises:
+        ScenarioError: The scenario is bad input, or beyond what the machine can give (the run's budget).
+        RunError: The run failed; PhysicsError where the physics did.
+    """
     scenario = as_scenario(scenario, "simbench.evaluate")
     _afford(scenario, progress)
     return _evaluate(scenario, progress, allow_code=allow_code)
@@ -153,9 +181,28 @@ def evaluate_report(scenario: Scenario, allow_code: bool = False) -> dict:
 
 def run(scenario: Scenario | str | os.PathLike, out: str | Path | None = None, video: bool = True,
         progress: bool = False, force: bool = False, allow_code: bool = False, plot_format: str = "png") -> Result:
-    """Plan, simulate, analyse and write report.json, timeseries.npz, plots/ and (unless video=False) video.mp4
-    into `out` (default renders/<name>/), which must be empty unless `force`. If the physics fails, PhysicsError
-    is raised after the report and the timeseries so far are written. `allow_code` as evaluate's."""
+    """Plan, simulate and analyse a scenario, and write its outputs.
+
+    The outputs are report.json, timeseries.npz, plots/, index.html and (unless `video` is false) video.mp4.
+
+    Args:
+        scenario: A Scenario, or the path of a scenario file.
+        out: The output folder, which must be empty unless `force`; None: `renders/<name>/`.
+        video: Whether to render the video.
+        progress: Whether to show progress bars.
+        force: Whether to replace what the folder holds.
+        allow_code: As `evaluate`'s.
+        plot_format: The plots' format: `png`, `svg` or `pdf`.
+
+    Returns:
+        The result: where the outputs are, and what they say.
+
+    Raises:
+        ScenarioError: The scenario or the output folder is bad input, or the run is beyond the machine.
+        PhysicsError: The physics failed; the report and the timeseries so far are written first.
+        RunError: The run failed otherwise (the task cannot be planned, say).
+        OutputError: Writing the outputs failed (a full disk, say).
+    """
     scenario = as_scenario(scenario, "simbench.run")
     check_format(plot_format, "simbench.run")
     out = destination.followed(Path(out) if out is not None else Path("renders") / scenario.name)

@@ -32,7 +32,18 @@ _built: dict[str, Callable[[], mujoco.MjSpec]] = {}
 
 @dataclass(frozen=True)
 class Plant:
-    """A robot's compiled model with the indices the simulator needs."""
+    """A robot's compiled model with the indices the simulator needs.
+
+    Attributes:
+        model: The compiled scene, set up for the run (its own copy).
+        robot: The robot.
+        qpos_adr: Each actuated joint's index into qpos (dof,).
+        dof_adr: Each actuated joint's index into qvel (dof,).
+        actuators: Each actuated joint's actuator (dof,).
+        sensors: Each recorded sensor's slice of sensordata, by name.
+        force_sensors: Each actuator's force sensor's index into sensordata (dof,).
+        actuation: `"position"` (position servos) or `"torque"` (motors).
+    """
 
     model: mujoco.MjModel
     robot: Robot
@@ -47,8 +58,22 @@ class Plant:
     def load(cls, robot: Robot, timestep: float | None = None, kp: list[float] | None = None,
              kv: list[float] | None = None, force_limits: bool = True, gravity_compensation: bool = True,
              actuation: Actuation = "position") -> "Plant":
-        """The robot's compiled scene (a fresh copy: a run changes its model) set up as asked. Within
-        reused_plants() the same arguments as the last call's give that call's Plant."""
+        """The robot's compiled scene set up as asked: a fresh copy, since a run changes its model.
+
+        Within `reused_plants()`, the same arguments as the last call's give that call's Plant.
+
+        Args:
+            robot: The robot.
+            timestep: The physics timestep (s); None: the scene's.
+            kp: The position servos' stiffness per joint, SI; None: the scene's.
+            kv: Their damping per joint, SI; None: the scene's.
+            force_limits: Whether the scene's force limits hold.
+            gravity_compensation: Whether the scene's gravity compensation holds.
+            actuation: `"position"`, or `"torque"`: the joint actuators made motors, their force limits kept.
+
+        Returns:
+            The plant.
+        """
         key = (robot, timestep, _items(kp), _items(kv), force_limits, gravity_compensation, actuation)
         if _kept and _kept[0][0] == key:
             return _kept[0][1]
@@ -84,7 +109,11 @@ class Plant:
                    actuation=actuation)
 
     def force_limit(self) -> np.ndarray:
-        """Each joint's actuator force bound (dof,): the tighter of the actuator's and the joint's; inf if none."""
+        """Each joint's actuator force bound: the tighter of the actuator's and the joint's.
+
+        Returns:
+            The bounds (dof,), SI; inf where there is none.
+        """
         m = self.model
         bound = np.where(m.actuator_forcelimited[self.actuators].astype(bool),
                          np.abs(m.actuator_forcerange[self.actuators]).min(axis=1), np.inf)
@@ -94,7 +123,14 @@ class Plant:
         return np.minimum(bound, joint_bound)
 
     def initial_qpos(self, q: np.ndarray) -> np.ndarray:
-        """Full qpos for actuated joints q: the model's reference pose, q, and any passive joints assembled."""
+        """The full qpos of actuated joint values: the model's reference pose, q, and any passive joints assembled.
+
+        Args:
+            q: The actuated joints' values (dof,).
+
+        Returns:
+            MuJoCo's qpos (nq,).
+        """
         qpos = self.model.qpos0.copy()
         qpos[self.qpos_adr] = q
         for name, value in self.robot.assemble(q).items():
@@ -102,7 +138,11 @@ class Plant:
         return qpos
 
     def gains(self) -> dict[str, list[float]]:
-        """The position servos' kp and kv per joint (SI) as the model holds them; empty under torque actuation."""
+        """The position servos' gains as the model holds them.
+
+        Returns:
+            `kp` and `kv`, one per joint, SI; empty under torque actuation.
+        """
         if self.actuation == "torque":
             return {}
         m = self.model

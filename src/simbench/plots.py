@@ -37,7 +37,15 @@ def _shade(ax, events: list[dict], kinds: set[str] | None, color: str, joint: st
 
 
 def figure(width: float, height: float) -> Figure:
-    """An empty figure of `width` x `height` inches (matplotlib imported here: a run without plots skips it)."""
+    """An empty figure at simbench's resolution (matplotlib imported here: a run without plots skips it).
+
+    Args:
+        width: Its width (inches).
+        height: Its height (inches).
+
+    Returns:
+        The figure.
+    """
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), dpi=DPI)
@@ -45,8 +53,19 @@ def figure(width: float, height: float) -> Figure:
 
 def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: float = _GAP,
                 top: float = _MARGINS[2]) -> tuple[Figure, np.ndarray]:
-    """(figure, Axes (rows, cols)) over one shared time axis, `width` x `height` inches, with fixed margins (`top`
-    inches over the first row, `gap` between rows)."""
+    """Panels over one shared time axis, laid out as simbench's own plots (fixed margins).
+
+    Args:
+        rows: Panels in a column.
+        width: The figure's width (inches).
+        height: The figure's height (inches).
+        cols: Columns of panels.
+        gap: Between rows (inches).
+        top: Over the first row, for a title (inches).
+
+    Returns:
+        The figure and its matplotlib Axes (rows, cols).
+    """
     left, right, _, bottom = _MARGINS
     panel = (height - top - bottom - (rows - 1) * gap) / rows
     column = (width - left - right - (cols - 1) * _COLUMN_GAP) / cols
@@ -57,7 +76,17 @@ def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: floa
 
 
 def save(fig: Figure, folder: Path, stem: str, plot_format: str = "png") -> str:
-    """Write the figure as folder/<stem>.<plot_format>; the file's name."""
+    """Write the figure as `folder/<stem>.<plot_format>`.
+
+    Args:
+        fig: The figure.
+        folder: Where to write it.
+        stem: The file's name without its suffix.
+        plot_format: `png`, `svg` or `pdf`.
+
+    Returns:
+        The file's name.
+    """
     name = f"{stem}.{plot_format}"
     fig.savefig(folder / name, format=plot_format)
     return name

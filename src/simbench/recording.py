@@ -9,9 +9,29 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Recording:
-    """The simulated run on the trajectory's time grid: row k is the state at t[k] (t = 0 after settling). With a
-    recording stride, qpos, qd and ctrl hold only the rows `kept`, the other columns every row (the analysis reads
-    them); `qd_peak` is of every row."""
+    """The simulated run on the plan's time grid: row k is the state at t[k] (t = 0 after settling).
+
+    With a recording stride, qpos, qd and ctrl hold only the rows `kept`, the other columns every row (the
+    analysis reads them).
+
+    Attributes:
+        t: Time of each row (N,), s.
+        qpos: MuJoCo's qpos at each kept row.
+        q: The actuated joints' values (N, dof).
+        qd: Their speeds at each kept row.
+        ctrl: The actuator commands at each kept row.
+        tool: The tool point (N, 3), m, as the scene's tool sensor measures it.
+        timestep: The control period (s).
+        force: Each joint's actuator force as MuJoCo applied it, after clamping (N, dof).
+        force_limit: Each actuator's force bound (dof,); inf where unlimited.
+        warnings: MuJoCo's warnings during the run.
+        sensors: The robot's further sensors' readings by name (`Robot.sensors`).
+        eq_active: Each equality constraint's state (on or off) at each row, by name.
+        q_ref: The position references as commanded, where the plan's feedback revised them; else None.
+        qd_ref: The speed references likewise.
+        kept: The rows qpos, qd and ctrl hold; None: every row.
+        qd_peak: Each joint's largest |qd| over every row, kept or not (dof,); None: unknown.
+    """
 
     t: np.ndarray
     qpos: np.ndarray
@@ -31,8 +51,15 @@ class Recording:
     qd_peak: np.ndarray | None = None  # (dof,): each joint's largest |qd| over every row, kept or not (None: unknown)
 
     def rows(self, lo: int, hi: int) -> Recording:
-        """Samples lo..hi-1 as views (qpos, qd and ctrl at the kept rows among them, `kept` counted from lo), without
-        qd_peak: a window of the analysis."""
+        """A window of the analysis: rows lo to hi - 1 as views, without qd_peak.
+
+        Args:
+            lo: The first row.
+            hi: The row after the last.
+
+        Returns:
+            The window (qpos, qd and ctrl at the kept rows among them, `kept` counted from lo).
+        """
         whole = slice(lo, hi)
         if self.kept is None:
             kept, stored = None, whole
@@ -47,7 +74,11 @@ class Recording:
                        qd_ref=None if self.qd_ref is None else self.qd_ref[whole], kept=kept, qd_peak=None)
 
     def thinned(self) -> Recording:
-        """The recording at its kept rows only, every column: what the outputs of a strided run show."""
+        """The recording at its kept rows only, every column: what the outputs of a strided run show.
+
+        Returns:
+            The thinned recording (itself where every row is kept).
+        """
         if self.kept is None:
             return self
         k = self.kept

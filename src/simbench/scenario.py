@@ -124,7 +124,24 @@ class Expect(SimbenchModel):
 
 
 class Scenario(SimbenchModel):
-    """Fields every scenario has; `task` is added per planner."""
+    """A scenario, validated and in SI: what a scenario file holds (see the guide's Scenarios page).
+
+    The fields every scenario has; `task` is added per planner (an instance of its `Planner.task`), and
+    `control` is an instance of its controller's `Controller.settings`.
+
+    Attributes:
+        name: The scenario's name (default: the file's stem), naming its output folder.
+        description: One line on what it shows.
+        robot: A registered robot's name, or the name of the arm a robot mapping derives (`robot: {model: ...}`).
+        planner: A registered planner's name.
+        units: How the file writes angles and lengths.
+        timing: The time law, its duration and the hold at the goal.
+        sim: The physics: timestep, gains, force limits, recording stride.
+        analysis: What counts as near, and the tolerances a run must keep to end `ok`.
+        control: The `control:` section: which controller, and its own fields.
+        render: The video's settings.
+        expect: What the scenario expects of its run (status, violations), or None.
+    """
 
     name: Name | None = None
     description: str = ""
@@ -171,7 +188,17 @@ def _scenario_class(planner_name: str, controller_name: str = "servo") -> type[S
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file; ScenarioError names the field at fault."""
+    """Read and validate a scenario file.
+
+    Args:
+        path: The scenario file (YAML).
+
+    Returns:
+        The scenario, in SI.
+
+    Raises:
+        ScenarioError: The file cannot be used; the error names the field at fault and what is expected.
+    """
     path = Path(path)
     scenario = parse_scenario(read_yaml(path), str(path), default_name=path.stem)
     scenario._source = str(path)

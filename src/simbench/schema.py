@@ -29,7 +29,12 @@ MAX_GAIN = 1e9  # servo gains, SI
 
 
 class Units(SimbenchModel):
-    """How the scenario file writes angles and lengths."""
+    """How the scenario file writes angles and lengths (`units: {angle: deg, length: mm}`).
+
+    Attributes:
+        angle: `rad` (default) or `deg`.
+        length: `m` (default) or `mm`.
+    """
 
     angle: Literal["rad", "deg"] = "rad"
     length: Literal["m", "mm"] = "m"
@@ -45,11 +50,25 @@ class Units(SimbenchModel):
         return 1e-3 if self.length == "mm" else 1.0
 
     def factor(self, kind: str) -> float:
-        """SI per file unit for a joint of this kind."""
+        """SI per file unit for a joint of this kind.
+
+        Args:
+            kind: `REVOLUTE` or `PRISMATIC`.
+
+        Returns:
+            Radians per angle unit, or metres per length unit.
+        """
         return self.angle_factor if kind == REVOLUTE else self.length_factor
 
     def name(self, kind: str) -> str:
-        """The file's unit for a joint of this kind."""
+        """The file's unit for a joint of this kind.
+
+        Args:
+            kind: `REVOLUTE` or `PRISMATIC`.
+
+        Returns:
+            `rad` or `deg`, or `m` or `mm`.
+        """
         return self.angle if kind == REVOLUTE else self.length
 
 
@@ -148,8 +167,20 @@ def _check_name(value: str) -> str:
 
 
 def file_name(stem: str, source: str) -> str:
-    """The `stem` of a file without a `name:` field, held to the rule of a `name:` (a file `..yaml` would name
-    `renders/` itself); ScenarioError naming `source` otherwise."""
+    """The name of a scenario without a `name:` field: its file's stem, held to the rule of a `name:`.
+
+    A file `..yaml` would otherwise name `renders/` itself.
+
+    Args:
+        stem: The file's stem.
+        source: The file, for the error.
+
+    Returns:
+        The stem.
+
+    Raises:
+        ScenarioError: The stem cannot name an output folder.
+    """
     try:
         return _check_name(stem)
     except ValueError as err:
@@ -169,26 +200,51 @@ def _to_gains(value: float | list[float], info: ValidationInfo) -> list[float]:
     return [float(v) for v in values]
 
 
-def seconds(lo: float, hi: float, low_open: bool = False):
-    """A time in seconds within [lo, hi] (or (lo, hi])."""
+def seconds(lo: float, hi: float, low_open: bool = False) -> Any:
+    """The type of a time in seconds within bounds.
+
+    Args:
+        lo: The least time (s).
+        hi: The greatest time (s).
+        low_open: Whether `lo` itself is refused.
+
+    Returns:
+        An annotated float type for a schema's field.
+    """
     return Annotated[float, AfterValidator(lambda value: _bounded(value, 1.0, lo, hi, "s", "a time", low_open))]
 
 
-Angle = Annotated[float, _angle(-MAX_ANGLE, MAX_ANGLE)]  # a joint or path angle: a few turns either way
-PositiveAngle = Annotated[float, _angle(0.0, np.pi, low_open=True)]  # a radius, clearance or tolerance on a sphere
+Angle = Annotated[float, _angle(-MAX_ANGLE, MAX_ANGLE)]
+"""A joint or path angle in the file's angle unit, in radians once loaded: a few turns either way."""
+PositiveAngle = Annotated[float, _angle(0.0, np.pi, low_open=True)]
+"""An angle in (0, pi] rad (a radius, clearance or tolerance on a sphere), in the file's angle unit."""
 NonNegativeAngle = Annotated[float, _angle(0.0, np.pi)]
+"""An angle in [0, pi] rad, in the file's angle unit."""
 PositiveLength = Annotated[float, _length(MIN_LENGTH, MAX_LENGTH)]
+"""A length in the file's length unit, in metres once loaded, from a micrometre to the workspace's scale."""
 Position = Annotated[list[float], AfterValidator(_to_position)]
+"""A point [x, y, z] in the file's length unit, in metres once loaded."""
 Direction = Annotated[list[float], AfterValidator(_to_direction)]
+"""A direction [x, y, z] of any non-zero length, a unit vector once loaded."""
 JointVector = Annotated[list[float], AfterValidator(_to_joints)]
-Gains = Annotated[float | list[float], AfterValidator(_to_gains)]  # SI, whatever the file's units
+"""One value per joint of the scenario's robot, each in the file's unit of its kind and within its range, SI once
+loaded."""
+Gains = Annotated[float | list[float], AfterValidator(_to_gains)]
+"""Servo gains, SI whatever the file's units: one for every joint, or one per joint."""
 Weight = Annotated[float, Field(ge=0, le=1e3)]
+"""A weight of a cost's term, 0 to 1000."""
 Name = Annotated[str, Field(max_length=100), AfterValidator(_check_name)]
+"""A name that can name a file: letters, digits, '_', '.' or '-', starting with a letter or digit."""
 
 
 class Orientation(SimbenchModel):
-    """A rotation: `zyx` [yaw, pitch, roll] (R = Rz(yaw) Ry(pitch) Rx(roll), intrinsic), `quat` [w, x, y, z] of
-    any non-zero length, or `rotvec` (its length the angle); angles in the file's unit."""
+    """A rotation, as a task writes it; angles in the file's unit, radians once loaded.
+
+    Attributes:
+        convention: `zyx` [yaw, pitch, roll] (R = Rz(yaw) Ry(pitch) Rx(roll), intrinsic), `quat` [w, x, y, z] of
+            any non-zero length, or `rotvec` (its length the angle).
+        value: The rotation's numbers in that convention.
+    """
 
     convention: Literal["zyx", "quat", "rotvec"]
     value: list[float]
@@ -211,7 +267,11 @@ class Orientation(SimbenchModel):
         return self
 
     def matrix(self) -> np.ndarray:
-        """The 3x3 rotation matrix."""
+        """The rotation as a matrix.
+
+        Returns:
+            The 3x3 rotation matrix.
+        """
         from scipy.spatial.transform import Rotation  # scipy.spatial is large: loaded by the runs that ask only
 
         if self.convention == "zyx":

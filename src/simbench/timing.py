@@ -2,7 +2,7 @@
 
 Each law starts and ends at rest. The polynomial laws are written in tau = t / T:
 
-    cubic        3 tau^2 - 2 tau^3                          (paper 002, eqs. 24-25 as corrected in NOTES.md)
+    cubic        3 tau^2 - 2 tau^3                          (paper 002, eqs. 24-25 as its page's Errata fix)
     quintic      10 tau^3 - 15 tau^4 + 6 tau^5              (zero velocity and acceleration at both ends)
     4567         35 tau^4 - 84 tau^5 + 70 tau^6 - 20 tau^7  (paper 003: zero velocity, acceleration and jerk)
     trapezoidal  constant acceleration for a fraction f of T, cruise, constant deceleration for f of T

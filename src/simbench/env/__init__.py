@@ -51,15 +51,31 @@ __all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Physics", "Snapshot", "Track", "eval
 
 ALL_TASKS: tuple[tuple[str, str], ...] = tuple((path.parent.name, path.stem)
                                                for path in sorted(scenarios_dir().glob("*/*.yaml")))
+"""The shipped scenarios as (robot, name) pairs, as dm_control's `suite.ALL_TASKS`: what `load_task` loads."""
 
 
 def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None,
          environment_kwargs: dict | None = None, *, actuation: Actuation = "position",
          flat_observation: bool = False) -> control.Environment:
-    """The scenario (or scenario file) as a dm_control Environment, as dm_control's `suite.load`: `task_kwargs`
-    ({'random': seed or RandomState, 'actuation': 'position' or 'torque', 'task': a Track subclass, and that
-    class's own}) make the task, `environment_kwargs` (control_timestep or n_sub_steps, time_limit,
-    flat_observation) go to control.Environment. ScenarioError if beyond the budget, RunError if it cannot plan."""
+    """A scenario as a dm_control Environment, as dm_control's `suite.load` loads a task.
+
+    Args:
+        scenario: A Scenario, or the path of a scenario file.
+        task_kwargs: What makes the task: `random` (a seed or a RandomState: a new random task at each reset),
+            `actuation`, `task` (a subclass of Track, for a reward or observation of your own) and that class's
+            own arguments.
+        environment_kwargs: What goes to `control.Environment`: `control_timestep` or `n_sub_steps`,
+            `time_limit`, `flat_observation`.
+        actuation: `"position"` (targets of the position servos) or `"torque"` (forces and torques).
+        flat_observation: Whether the observation is one flat array.
+
+    Returns:
+        The environment.
+
+    Raises:
+        ScenarioError: The scenario is bad input, or beyond what the machine can give.
+        RunError: The scenario cannot be planned, or its scene cannot be stepped as an environment steps.
+    """
     scenario = as_scenario(scenario, "simbench.env.load")
     task_kwargs = dict(task_kwargs or {})
     environment_kwargs = {"flat_observation": flat_observation, **(environment_kwargs or {})}
@@ -87,7 +103,22 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
 
 def load_task(robot: str, name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
               *, actuation: Actuation = "position", flat_observation: bool = False) -> control.Environment:
-    """The environment of the shipped scenario scenarios/<robot>/<name>.yaml (one of ALL_TASKS)."""
+    """The environment of a shipped scenario, `scenarios/<robot>/<name>.yaml`.
+
+    Args:
+        robot: The robot's folder, as in `ALL_TASKS`.
+        name: The scenario's name, as in `ALL_TASKS`.
+        task_kwargs: As `load`'s.
+        environment_kwargs: As `load`'s.
+        actuation: As `load`'s.
+        flat_observation: As `load`'s.
+
+    Returns:
+        The environment.
+
+    Raises:
+        ValueError: No such shipped scenario.
+    """
     if (robot, name) not in ALL_TASKS:
         raise ValueError(f"no shipped scenario {robot}/{name}; ALL_TASKS lists them: "
                          f"{', '.join(f'{r}/{n}' for r, n in ALL_TASKS)}")
@@ -103,14 +134,33 @@ def _track(env: control.Environment) -> Track:
 
 
 def recording(env: control.Environment) -> Recording:
-    """The episode so far (from the last reset) as a simbench.sim.Recording."""
+    """The episode so far, from the last reset.
+
+    Args:
+        env: An environment of `load`.
+
+    Returns:
+        The recording, as `simbench.evaluate` records a run.
+    """
     return _track(env).recording(env.physics)
 
 
 def evaluation(env: control.Environment, control_info: dict | None = None) -> Evaluation:
-    """The episode's Evaluation, as `simbench.evaluate` analyses a run; `control_info` says what ran it. An
-    episode that ended early is analysed as far as it ran: status `failed` where its physics failed, else
-    `truncated` (simbench.verdict). RuntimeError before its first step."""
+    """The episode analysed as `simbench.evaluate` analyses a run.
+
+    An episode that ended early is analysed as far as it ran: its status is `failed` where its physics failed,
+    else `truncated`.
+
+    Args:
+        env: An environment of `load`.
+        control_info: What ran the episode, for the report (a policy's name and settings, say).
+
+    Returns:
+        The evaluation.
+
+    Raises:
+        RuntimeError: The episode has taken no step since its reset.
+    """
     from simbench.analysis import analyse
     from simbench.pipeline import Evaluation
     from simbench.robots import Tolerance
@@ -140,7 +190,18 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
 
 def write_outputs(env: control.Environment, out: str | Path | None = None, video: bool = True,
                   force: bool = False, control_info: dict | None = None) -> Result:
-    """Write an episode's outputs into `out` (default renders/<name>/) as `simbench.run` does."""
+    """Write an episode's outputs as `simbench.run` writes a run's.
+
+    Args:
+        env: An environment of `load`.
+        out: The output folder, which must be empty unless `force`; None: `renders/<name>/`.
+        video: Whether to render the video.
+        force: Whether to replace what the folder holds.
+        control_info: As `evaluation`'s.
+
+    Returns:
+        The result: where the outputs are, and what they say.
+    """
     from simbench import destination
     from simbench.pipeline import write_outputs as write
 

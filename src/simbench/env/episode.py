@@ -30,9 +30,14 @@ _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 class Physics(dm_mujoco.Physics):
-    """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop; `readings`: the
-    sensors of the last step (at its start state), `counts`: MuJoCo's warning counters, `t0`: the plan's start,
-    `track`: the task that records each physics step."""
+    """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop.
+
+    Attributes:
+        readings: The sensors of the last step, at its start state.
+        counts: MuJoCo's warning counters.
+        t0: The plan's start in MuJoCo's time (s).
+        track: The task that records each physics step.
+    """
 
     readings: Array
     counts: Array
@@ -45,8 +50,14 @@ class Physics(dm_mujoco.Physics):
         self.readings = data.ptr.sensordata.copy()
 
     def step(self, nstep: int = 1) -> None:
-        """mj_step2 then mj_step1, up to nstep times, the task recording each step: no step past the plan's last
-        sample; a step that fails ends the episode at the last sound state (Track.failure says why)."""
+        """Step the physics as simbench's closed loop does (mj_step2, then mj_step1), the task recording each step.
+
+        No step goes past the plan's last sample; a step that fails ends the episode at the last sound state
+        (`Track.failure` says why).
+
+        Args:
+            nstep: The most physics steps to take.
+        """
         model, data, track = self.model.ptr, self.data.ptr, self.track
         for _ in range(nstep):
             if track.k >= track.n - 1 or track.failure is not None:
@@ -68,7 +79,11 @@ class Physics(dm_mujoco.Physics):
             track.record(self)
 
     def time(self) -> float:
-        """The episode's time: 0 at the plan's start (the settle before it excluded), as the observation's."""
+        """The episode's time, as the observation's.
+
+        Returns:
+            The time (s): 0 at the plan's start, the settle before it excluded.
+        """
         return float(self.data.time - self.t0)
 
     def _when(self, cause: str) -> str:
@@ -78,9 +93,21 @@ class Physics(dm_mujoco.Physics):
 
 
 class Track(control.Task):
-    """The scenario's episode: settle at the plan's start, then follow it to its last sample. `random` (a seed or
-    a RandomState, dm_control's `base.Task` convention): each reset draws a new task for the robot from it
-    (simbench.env.random_task); `failure`: why the physics ended the episode, None while it is sound."""
+    """The scenario's episode: settle at the plan's start, then follow it to its last sample.
+
+    Subclass it for a reward or an observation of your own (`task_kwargs={"task": MyTrack}`).
+
+    Args:
+        scenario: The scenario.
+        plant: Its compiled robot.
+        plan: Its plan.
+        physics: The environment's physics.
+        random: A seed or a RandomState (dm_control's `base.Task` convention): each reset then draws a new task
+            for the robot from it. None: the scenario's own task every time.
+
+    Attributes:
+        failure: Why the physics ended the episode; None while it is sound.
+    """
 
     def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
                  random: int | np.random.RandomState | None = None):
@@ -155,8 +182,14 @@ class Track(control.Task):
     # --- control.Task -----------------------------------------------------------------------------------------
 
     def initialize_episode(self, physics: Physics) -> None:
-        """A new random task if `random` is set; the start pose and grips, settled for sim.settle (PhysicsError
-        if that fails)."""
+        """Start an episode: a new random task if `random` is set, then the start pose and grips, settled.
+
+        Args:
+            physics: The physics.
+
+        Raises:
+            PhysicsError: The settle at the start pose failed.
+        """
         model, data = physics.model.ptr, physics.data.ptr
         model.eq_data[:], model.eq_active0[:] = self._model0[:2]
         model.opt.disableactuator = self._model0[2]
@@ -184,8 +217,15 @@ class Track(control.Task):
         self._qpos[0], self._qvel[0], self._eq[0] = data.qpos, data.qvel, data.eq_active
 
     def before_step(self, action: Any, physics: Physics) -> None:
-        """The action to the joints' actuators, held for the control step; ValueError if it is not one finite
-        value per joint."""
+        """Give the action to the joints' actuators, held for the control step.
+
+        Args:
+            action: One finite value per joint.
+            physics: The physics.
+
+        Raises:
+            ValueError: The action is not one finite value per joint.
+        """
         action = np.asarray(action, dtype=float)
         if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
             raise ValueError(self._refusal(action))
@@ -203,7 +243,11 @@ class Track(control.Task):
         return f"the action for joint '{robot.joints[bad]}' is {action[bad]}"
 
     def record(self, physics: Physics) -> None:
-        """Record a physics step; at a planned switch's sample apply it, and the plan's feedback on it."""
+        """Record a physics step; at a planned switch's sample, apply it and the plan's feedback on it.
+
+        Args:
+            physics: The physics.
+        """
         model, data = physics.model.ptr, physics.data.ptr
         self._readings[self.k], self._ctrl[self.k] = physics.readings, self._command
         self.k = k = self.k + 1
@@ -219,7 +263,12 @@ class Track(control.Task):
         self._eq[k] = data.eq_active
 
     def fail(self, physics: Physics, why: str) -> None:
-        """End the episode: the physics back at the last sound sample, `failure` saying why."""
+        """End the episode: the physics back at the last sound sample, `failure` saying why.
+
+        Args:
+            physics: The physics.
+            why: Why, in words.
+        """
         model, data = physics.model.ptr, physics.data.ptr
         self.failure = why
         data.qpos[:], data.qvel[:] = self._qpos[self.k], self._qvel[self.k]
@@ -229,27 +278,57 @@ class Track(control.Task):
         clear_warnings(data)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
-        """One value per robot joint within `bounds` (simbench.env.episode.action_bounds)."""
+        """The actions: one value per joint, within `bounds`.
+
+        Args:
+            physics: The physics.
+
+        Returns:
+            The bounded spec: position targets within the joints' ranges, or torques within the force limits.
+        """
         return specs.BoundedArray(shape=(self.plant.robot.dof,), dtype=float, minimum=self.bounds[0],
                                   maximum=self.bounds[1], name="action")
 
     def get_observation(self, physics: Physics) -> OrderedDict:
-        """simbench.observation.observation at this sample, with the references as revised."""
+        """What the policy sees: `simbench.observation.observation` at this sample, the references as revised.
+
+        Args:
+            physics: The physics.
+
+        Returns:
+            The observation.
+        """
         data = physics.data.ptr
         state = State(k=self.k, t=float(self.plan.t[self.k]), q=data.qpos[self.plant.qpos_adr],
                       qd=data.qvel[self.plant.dof_adr], qpos=data.qpos, qvel=data.qvel, data=data)
         return observation(self.plant, state, self.q_ref, self.qd_ref, self.plan.tool_ref)
 
     def get_reward(self, physics: Physics) -> float:
-        """dm_control's gaussian rewards.tolerance of the tool's error (0.5 at analysis.path_tolerance), written
-        out as 0.5 ** ((error / path_tolerance) ** 2) for speed; 0 once the physics has failed."""
+        """The step's reward: dm_control's gaussian `rewards.tolerance` of the tool's tracking error.
+
+        Written out as `0.5 ** ((error / path_tolerance) ** 2)` for speed: 1 on the reference, 0.5 at
+        `analysis.path_tolerance`.
+
+        Args:
+            physics: The physics.
+
+        Returns:
+            The reward; 0 once the physics has failed.
+        """
         if self.failure is not None:
             return 0.0
         offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
         return _REWARD_AT_TOLERANCE ** (float(offset @ offset) / self._tolerance ** 2)
 
     def get_termination(self, physics: Physics) -> float | None:
-        """Discount 1 at the plan's last sample (the episode's end), 0 where the physics failed, None before."""
+        """Whether the episode ends here.
+
+        Args:
+            physics: The physics.
+
+        Returns:
+            The discount: 1 at the plan's last sample (the episode's end), 0 where the physics failed, else None.
+        """
         if self.failure is not None:
             return 0.0
         return 1.0 if self.k >= self.n - 1 else None
@@ -257,8 +336,16 @@ class Track(control.Task):
     # --- the episode as a run ---------------------------------------------------------------------------------
 
     def recording(self, physics: Physics) -> Recording:
-        """The episode so far as simulate records a closed-loop run (the last row's sensors from mj_forward at
-        the last state, its command the one before)."""
+        """The episode so far, as simbench records a closed-loop run.
+
+        The last row's sensors are from mj_forward at the last state, its command the one before.
+
+        Args:
+            physics: The physics.
+
+        Returns:
+            The recording.
+        """
         model, plant, rows = physics.model.ptr, self.plant, self.k + 1
         end = copy.copy(physics.data.ptr)
         mujoco.mj_forward(model, end)
@@ -271,7 +358,8 @@ class Track(control.Task):
                          self._qvel[:rows], self._eq[:rows].copy(), ctrl, self.warnings, **revised)
 
 
-CONTINUOUS_SPAN = {mujoco.mjtJoint.mjJNT_HINGE: np.pi, mujoco.mjtJoint.mjJNT_SLIDE: 0.1}  # rad, m
+CONTINUOUS_SPAN = {mujoco.mjtJoint.mjJNT_HINGE: np.pi, mujoco.mjtJoint.mjJNT_SLIDE: 0.1}
+"""How far (rad for a hinge, m for a slide) a joint without a range may be commanded beyond the plan's span."""
 
 
 def action_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:

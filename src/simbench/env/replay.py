@@ -22,7 +22,8 @@ _TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_act
 
 @dataclass(frozen=True)
 class Snapshot:
-    """An episode at a control step: the physics, the task's episode state and the environment's step count."""
+    """An episode at a control step, for `restore`: the physics, the task's episode state and the environment's
+    step count."""
 
     state: np.ndarray
     model: tuple
@@ -43,8 +44,14 @@ def _track(env: control.Environment) -> Track:
 
 
 def snapshot(env: control.Environment) -> Snapshot:
-    """The episode as it is now, for restore: replaying the same actions from it gives the same steps, bit for
-    bit."""
+    """The episode as it is now: replaying the same actions after `restore` gives the same steps, bit for bit.
+
+    Args:
+        env: An environment of `load`.
+
+    Returns:
+        The snapshot.
+    """
     task, physics = _track(env), env.physics
     model, data = physics.model.ptr, physics.data.ptr
     state = np.empty(mujoco.mj_stateSize(model, _STATE))
@@ -59,8 +66,12 @@ def snapshot(env: control.Environment) -> Snapshot:
 
 
 def restore(env: control.Environment, snap: Snapshot) -> None:
-    """Put the episode back as it was at `snapshot(env)`: the environment must be the same one (or one over the
-    same scenario and task)."""
+    """Put the episode back as it was at a snapshot.
+
+    Args:
+        env: The environment the snapshot was taken of (or one over the same scenario and task).
+        snap: The snapshot.
+    """
     task, physics = _track(env), env.physics
     model, data = physics.model.ptr, physics.data.ptr
     model.eq_data[:], model.eq_active0[:] = snap.model[:2]
@@ -83,10 +94,19 @@ def restore(env: control.Environment, snap: Snapshot) -> None:
 
 
 def servo_policy(env: control.Environment) -> Callable[[Any], np.ndarray]:
-    """simbench's servo as a policy, timestep (or observation) -> action: the position targets `simulate`
-    commands for the references the observation shows (as the plan's feedback revised them); with a flat
-    observation, the task's references at its sample. One physics step a control step, it reproduces
-    simulate()."""
+    """simbench's servo as a policy: at one physics step a control step, it reproduces `simbench.evaluate`'s run.
+
+    Args:
+        env: An environment of `load`, under position actuation.
+
+    Returns:
+        The policy, from a timestep (or an observation) to the position targets the servo commands for the
+        references the observation shows (as the plan's feedback revised them; with a flat observation, the
+        task's references at its sample).
+
+    Raises:
+        ValueError: The environment is under torque actuation.
+    """
     task = _track(env)
     if task.actuation != "position":
         raise ValueError("the servo's actions are position targets: load the environment with position actuation")

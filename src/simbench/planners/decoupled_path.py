@@ -1,8 +1,9 @@
 """Paper 002's joint time histories for lines, circle arcs and composite paths of a decoupled arm (PUMA 600).
 
 The tool follows lines and arcs (eqs. 23-37), its orientation held or slerped; the wrist centre is p - R TOOL.
-  - q3 from the wrist centre's distance (eq. 9 as corrected in NOTES.md), with v = tan(q3/2) the quadratic
-    v^2 (C - A - K) + 2 B v + (A + C - K) = 0 (eqs. 12-14), its two roots the elbow's two sides;
+  - q3 from the wrist centre's distance (eq. 9 as corrected: docs/papers/002-puma600.md, Errata), with
+    v = tan(q3/2) the quadratic v^2 (C - A - K) + 2 B v + (A + C - K) = 0 (eqs. 12-14), its two roots the
+    elbow's two sides;
   - q1 and q2 in closed form from eq. 1; q4, q5, q6 from the spherical wrist.
 
 The configuration (puma600's docstring) is the task's or, with `configuration: auto`, the one of the 8 that keeps
@@ -144,7 +145,8 @@ class Task(SimbenchModel):
 
 def q3_from_distance(k: np.ndarray, h_sign: np.ndarray) -> np.ndarray:
     """q3 from the squared wrist distance K (eqs. 12-19): the root of eq. 14 whose h has the sign h_sign; NaN where
-    it has none (NOTES.md: eq. 15 as printed is wrong). Roots as q / a and c / q, free of cancellation."""
+    it has none (eq. 15 as printed is wrong: docs/papers/002-puma600.md, Errata). Roots as q / a and c / q, free
+    of cancellation."""
     a = COEF_C - COEF_A - k
     c = COEF_A + COEF_C - k
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # far points overflow: out of reach

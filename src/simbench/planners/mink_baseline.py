@@ -103,7 +103,7 @@ class Task(SimbenchModel):
     @field_validator("solver")
     @classmethod
     def _installed(cls, name: str) -> str:
-        if name != "daqp":  # mink's own: always there (qpsolvers takes half a second to look for the others)
+        if name != "daqp":  # mink's own: always there (qpsolvers is slow to look for the others)
             import qpsolvers
 
             if name not in qpsolvers.available_solvers:
@@ -249,7 +249,7 @@ class MinkBaseline(Planner[Task]):
 
     name = NAME
     description = "baseline: differential IK with mink (QP per step) along another planner's path (serial arms)"
-    seconds_per_sample = 1e-3  # measured 0.5-1 ms a control step: mink's Python QP setup
+    seconds_per_sample = 1e-3  # planning time a control step: mink's Python QP setup (BENCHMARKS.md)
     task = Task
     needs = ("fk",)
 

@@ -4,7 +4,8 @@ Table 2 prints the method's nd = 11 points (x, y, z mm, q1 deg, q2 mm, q3 deg, q
 and 4 first the path that leaves the workspace (the `attempt` block), then the one from Fig. 8's new start.
 PRINTED holds them (data/paper000_table2.yaml); EXTRACTED the text extraction's characters where it reordered a
 number. A value agrees within half a unit of its last digit; one that differs must be explained by a CLASSIFIED
-difference (NOTES.md section 1), else it counts as `ours`. Case 1 row 5's z, a typo to NOTES.md, is the
+difference (docs/papers/000-spherical-arm.md, Errata), else it counts as `ours`. Case 1 row 5's z, a typo
+there, is the
 extraction's: its characters are 88.3700's with the first moved to the end.
 """
 
@@ -461,7 +462,7 @@ def reproduce(folder: Path) -> PaperSummary:
                          "extracted": len(EXTRACTED), "follow_rounded": follow_rounded, "follow_exact": follow_exact})
     notes = [f"{len(EXTRACTED)} printed values were read back from the text extraction's reordered characters "
              "(table2.csv, column `extracted text`); one of them, case 1 row 5's z (extracted `8.37008`), "
-             "NOTES.md lists as a typo: its characters are those of 88.3700, which the paper's own zt column "
+             "the paper's errata list as a typo: its characters are those of 88.3700, which the paper's own zt column "
              "prints and which simbench gives (88.370009), so it is counted as the extraction's, not the paper's.",
              "Tolerance: half a unit of each printed value's last digit (plus 1e-6 for the paper's arithmetic); "
              "q1 is compared modulo 360 deg.",

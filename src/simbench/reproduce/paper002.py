@@ -3,7 +3,8 @@
 The paper prints its method, no table: q3 from the wrist centre's distance (eqs. 9-19), q1 and q2 after, lines
 (eqs. 23-27) and circles (eqs. 28-37). simbench's planner runs it on scenarios/puma600/line.yaml and circle.yaml.
 Each equation is checked against an independent truth (Craig's modified DH chain, the quadratic's algebra, the
-cubic's end conditions, orthogonality); where one is wrong as printed (NOTES.md section 2) a number shows it.
+cubic's end conditions, orthogonality); where one is wrong as printed (docs/papers/002-puma600.md, Errata) a
+number shows it.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def printed_eq9(q3: np.ndarray) -> np.ndarray:
     return 2 * _P_A3 * _P_A4 * np.cos(q3) + 2 * _P_A3 * _P_B4 * np.sin(q3) + (_P_A4**2 + _P_A3**2 + _P_B4**2)
 
 
-# Eq. 12's A, B, C for the corrected eq. 9: |P|^2 = C + A cos q3 + B sin q3 (NOTES.md section 2).
+# Eq. 12's A, B, C for the corrected eq. 9: |P|^2 = C + A cos q3 + B sin q3 (docs/papers/002-puma600.md, Errata).
 _A, _B, _C = 2 * A2 * A3, -2 * A2 * D4, A2**2 + A3**2 + D4**2 + D3**2
 
 
@@ -268,5 +269,6 @@ def reproduce(folder: Path) -> PaperSummary:
     return finish(folder, part, files, "Paper 002: every difference, classified", notes=[
         "The paper's symbols for eq. 9 read with eq. 1's numbers: its a3 = 0.432 m (Craig's a2), a4 = 0.02 m "
         "(Craig's a3), b4 = 0.432 m (Craig's d4); d3 = 0.149 m is missing from it.",
-        "simbench solves q3 from the corrected eq. 9 (NOTES.md section 2), keeps the elbow's side the "
-        "configuration names, and times lines and circles by the scenario's law (not the printed cubic)."])
+        "simbench solves q3 from the corrected eq. 9 (paper 002's errata in simbench's docs), keeps the "
+        "elbow's side the configuration names, and times lines and circles by the scenario's law (not the "
+        "printed cubic)."])

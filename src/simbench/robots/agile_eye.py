@@ -1,6 +1,6 @@
 """Agile Eye (paper 003): the 3-RRR spherical parallel manipulator with orthogonal axes that orients a camera.
 
-Frame (NOTES.md section 4; the world frame is this base frame): base axes u1 = z, u2 = x, u3 = y; intermediate
+Frame (docs/papers/003-agile-eye.md; the world frame is this base frame): base axes u1 = z, u2 = x, u3 = y; intermediate
 axes w1 = [-s1, c1, 0], w2 = [0, -s2, c2], w3 = [c3, 0, -s3] (s_i = sin theta_i); platform axes v_i = the
 columns of the platform orientation R; every leg closes by w_i . v_i = 0 (eq. 3 with the 90 deg link arcs).
 
@@ -9,7 +9,8 @@ columns of the platform orientation R; every leg closes by w_i . v_i = 0 (eq. 3 
   FK   closed form: v1 = cos(a) u1 + sin(a) (w1 x u1) lies on the plane normal to w1; v2 is along w2 x v1 and
        v3 = v1 x v2, so v3 . w3 = 0 becomes (v1.w2)(v1.w3) = w2.w3, one trigonometric equation in 2a with two
        roots. Each root gives R and its three sign flips R diag(1,-1,-1), R diag(-1,1,-1), R diag(-1,-1,1):
-       8 solutions, two families of the 4 assembly modes NOTES.md lists. The working mode does not change them
+       8 solutions, two families of the 4 assembly modes (docs/papers/003-agile-eye.md). The working mode does
+       not change them
        (theta_i + pi turns w_i into -w_i).
   Jacobians  A omega = B theta_dot with A rows (w_i x v_i)^T and B = diag(u_i . (w_i x v_i)) (eqs. 4-7).
        det A and det B both vanish exactly where some v_i = +-u_i: six curves on which the Agile Eye's type 1

@@ -1,6 +1,6 @@
 """PUMA 600 (paper 002): Craig's modified DH kinematics, analytic IK in 8 configurations, singularity measures.
 
-Geometry (paper 002, eq. 1, verified in NOTES.md section 2 as Craig's modified DH): a2 = 0.432, a3 = 0.02,
+Geometry (paper 002, eq. 1, verified as Craig's modified DH: docs/papers/002-puma600.md, Errata): a2 = 0.432, a3 = 0.02,
 d3 = 0.149, d4 = 0.432 m, with
 
     i:        1    2     3     4     5     6
@@ -78,7 +78,7 @@ def link_frames(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def wrist_center(q: np.ndarray) -> np.ndarray:
-    """Wrist centre (N, 3): paper 002's eq. 1 (with NOTES.md's sign fix on the d3 term of Py)."""
+    """Wrist centre (N, 3): paper 002's eq. 1, the sign of Py's d3 term fixed (docs/papers/002-puma600.md, Errata)."""
     q = np.atleast_2d(q)
     c1, s1, c2, s2, c3, s3 = (f(q[:, i]) for i in (0, 1, 2) for f in (np.cos, np.sin))
     g = A3 * c3 - D4 * s3 + A2

@@ -1,7 +1,7 @@
 """The 4-DOF RPRP "spherical" arm of paper 000: analytic kinematics and singular sets.
 
-Joints (paper 000, Table 1; NOTES.md section 1): q1 turntable about z, q2 vertical lift, q3 elevation of the
-radial link, q4 radial extension. The tool point is (eq. 19)
+Joints (paper 000, Table 1; docs/papers/000-spherical-arm.md): q1 turntable about z, q2 vertical lift, q3
+elevation of the radial link, q4 radial extension. The tool point is (eq. 19)
 
     x = L cos q3 cos q1,   y = L cos q3 sin q1,   z = d1 + q2 + L sin q3,   L = q4 + d4.
 

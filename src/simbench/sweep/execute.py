@@ -230,7 +230,7 @@ def _join_ray(address: str, workers: int) -> bool:
     try:
         if address == "local":
             ray.init(num_cpus=workers, **options)
-        else:  # one attempt to join (about 40 s where a port answers that is not Ray's), not Ray's twenty
+        else:  # one attempt to join (long where a port answers that is not Ray's), not Ray's twenty
             os.environ.setdefault("RAY_gcs_server_port_wait_time_s", "1")
             ray.init(address=address, **options)
     except Exception as err:  # noqa: BLE001  Ray's refusal, whatever its type, in one line
