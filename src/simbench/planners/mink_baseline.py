@@ -249,7 +249,7 @@ class MinkBaseline(Planner[Task]):
 
     name = NAME
     description = "baseline: differential IK with mink (QP per step) along another planner's path (serial arms)"
-    seconds_per_sample = 1e-3  # planning time a control step: mink's Python QP setup (BENCHMARKS.md)
+    seconds_per_sample = 1e-3  # the cost estimate's planning time a control step: mink sets up a QP in Python each step
     task = Task
     needs = ("fk",)
 
