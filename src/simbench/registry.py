@@ -116,52 +116,112 @@ def load_shipped() -> None:
 
 
 def register_robot(robot: Robot, origin: str = "registered from Python") -> None:
-    """Make `robot` known to scenarios by its name."""
+    """Make `robot` known to scenarios by its name.
+
+    Args:
+        robot: the Robot instance; scenarios name it by `robot.name`.
+        origin: where it comes from, as `simbench list` shows it.
+
+    Raises:
+        RegistryError: it is not of the expected type, has no name, or its name is taken.
+    """
     _ROBOTS.register(robot, origin)
 
 
 def register_planner(planner: Planner, origin: str = "registered from Python") -> None:
-    """Make `planner` known to scenarios by its name."""
+    """Make `planner` known to scenarios by its name.
+
+    Args:
+        planner: the Planner instance; scenarios name it by `planner.name`.
+        origin: where it comes from, as `simbench list` shows it.
+
+    Raises:
+        RegistryError: it is not of the expected type, has no name, or its name is taken.
+    """
     _PLANNERS.register(planner, origin)
 
 
 def register_controller(controller: type[Controller], origin: str = "registered from Python") -> None:
-    """Make the Controller subclass `controller` known to scenarios by its name (a run makes its own instance)."""
+    """Make a Controller subclass known to scenarios by its name (a run makes its own instance).
+
+    Args:
+        controller: the Controller subclass; scenarios name it by its `name`.
+        origin: where it comes from, as `simbench list` shows it.
+
+    Raises:
+        RegistryError: it is not of the expected type, has no name, or its name is taken.
+    """
     _CONTROLLERS.register(controller, origin)
 
 
 def register_policy(policy: PolicyFactory, origin: str = "registered from Python") -> None:
-    """Make `policy` known to scenarios by its name (control.policy)."""
+    """Make `policy` known to scenarios by its name (`control.policy`).
+
+    Args:
+        policy: the PolicyFactory; a scenario's `control.policy` names it.
+        origin: where it comes from, as `simbench list` shows it.
+
+    Raises:
+        RegistryError: it is not of the expected type, has no name, or its name is taken.
+    """
     _POLICIES.register(policy, origin)
 
 
 def register_metric(metric: type[Metric], origin: str = "registered from Python") -> None:
-    """Make the Metric subclass `metric` measure every run from now on (each run makes its own: Metric.for_run)."""
+    """Make a Metric subclass measure every run from now on (each run makes its own: Metric.for_run).
+
+    Args:
+        metric: the Metric subclass; its figures appear under `metrics.<name>`.
+        origin: where it comes from, as `simbench list` shows it.
+
+    Raises:
+        RegistryError: it is not of the expected type, has no name, or its name is taken.
+    """
     _METRICS.register(metric, origin)
 
 
 def robots() -> dict[str, Robot]:
-    """Every robot by name: the shipped ones, those of installed packages' entry points, those registered."""
+    """Every robot: the shipped ones, those of installed packages' entry points, those registered.
+
+    Returns:
+        Each Robot by its name.
+    """
     return _ROBOTS.all()
 
 
 def planners() -> dict[str, Planner]:
-    """Every planner by name."""
+    """Every planner, from the same three sources.
+
+    Returns:
+        Each Planner by its name.
+    """
     return _PLANNERS.all()
 
 
 def controllers() -> dict[str, type[Controller]]:
-    """Every controller class by name."""
+    """Every controller class, from the same three sources.
+
+    Returns:
+        Each Controller subclass by its name.
+    """
     return _CONTROLLERS.all()
 
 
 def policies() -> dict[str, PolicyFactory]:
-    """Every registered policy by name (none ship with simbench)."""
+    """Every policy: those of installed packages' entry points and those registered (none ship with simbench).
+
+    Returns:
+        Each PolicyFactory by its name.
+    """
     return _POLICIES.all()
 
 
 def metrics() -> dict[str, type[Metric]]:
-    """Every metric class by name: the shipped `tracking`, installed packages' and those registered."""
+    """Every metric class: the shipped ones, installed packages' and those registered.
+
+    Returns:
+        Each Metric subclass by its name.
+    """
     return _METRICS.all()
 
 
