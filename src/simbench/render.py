@@ -181,15 +181,16 @@ def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length
 @contextmanager
 def _egl_unless_chosen() -> Iterator[None]:
     """MuJoCo's Renderers made within draw through EGL (offscreen, no display: on a CPU, Mesa's llvmpipe) unless
-    the user chose a GL backend with MUJOCO_GL, which MuJoCo reads when imported and which then wins. Nothing is
-    set process-wide. Linux only: elsewhere MuJoCo's default draws offscreen itself (CGL on macOS)."""
+    the user chose a GL backend with MUJOCO_GL, which MuJoCo reads when imported and which then wins: the context
+    class the Renderer makes its context from is EGL's while it is made, and no environment variable is set for
+    the process. Linux only: elsewhere MuJoCo's default draws offscreen itself (CGL on macOS)."""
     if os.environ.get("MUJOCO_GL") or sys.platform != "linux":
         yield
         return
     from mujoco import egl
 
     gl_context = sys.modules[mujoco.Renderer.__module__].gl_context  # where the Renderer finds its context class
-    chosen = gl_context.GLContext
+    chosen = getattr(gl_context, "GLContext", None)
     gl_context.GLContext = egl.GLContext
     try:
         yield
