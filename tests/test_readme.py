@@ -16,6 +16,13 @@ def test_readme_starts_with_the_two_setup_commands():
     assert "-m pytest" in test
 
 
+def test_the_readme_test_command_installs_the_pinned_test_environment():
+    """The tests (and CI) run on the exact versions constraints.txt pins."""
+    test = commands()[1]
+    assert "pip install -q -c constraints.txt -e '.[test]' -e examples/planar3r" in test
+    assert (ROOT / "constraints.txt").is_file()
+
+
 def test_ci_runs_the_readme_test_command_verbatim():
     assert commands()[1] in (ROOT / ".ci" / "run").read_text().splitlines()
 

@@ -26,17 +26,14 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import numpy as np
+from dm_control.rl.control import PhysicsError
 
-import numpy as np  # noqa: E402
-from dm_control.rl.control import PhysicsError  # noqa: E402
-
-from simbench import env as simbench_env  # noqa: E402
+from simbench import env as simbench_env
 
 FEATURES = ("q_ref - q", "qd_ref", "qd_ref - qd")
 INITIAL_STD = np.array([2.0, 0.02, 0.02])  # each feature's gain: its spread at the start (1, s, s)

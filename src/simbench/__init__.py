@@ -9,14 +9,9 @@ cleanly from its first moment.
 """
 
 import importlib
-import os
 
-# Headless rendering: EGL works without a display (Mesa's llvmpipe on a CPU). It must be chosen before MuJoCo
-# is first imported; a user's own MUJOCO_GL wins.
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-from simbench.errors import OutputError, PhysicsError, RunError, ScenarioError  # noqa: E402
-from simbench.version import __version__  # noqa: E402
+from simbench.errors import OutputError, PhysicsError, RunError, ScenarioError
+from simbench.version import __version__
 
 _LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "evaluate": "simbench.pipeline",
          "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario",

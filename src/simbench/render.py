@@ -1,4 +1,4 @@
-"""Headless video of a Recording: MuJoCo's offscreen renderer (EGL where there is no display) into H.264 MP4.
+"""Headless video of a Recording: MuJoCo's offscreen renderer (EGL unless MUJOCO_GL says otherwise) into H.264 MP4.
 
 Each frame poses the model at its recorded state and draws the planned tool path (blue lines, faint behind the
 reference) and the tool's trace (red capsules), both simplified first (Ramer-Douglas-Peucker, 1 mm: under a
@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import copy
 import errno
+import os
 import queue
 import shutil
+import sys
 import threading
 from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -175,6 +178,26 @@ def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length
         add_polyline(scene, np.array([np.zeros(3), point]), edge, 1.0)
 
 
+@contextmanager
+def _egl_unless_chosen() -> Iterator[None]:
+    """MuJoCo's Renderers made within draw through EGL (offscreen, no display: on a CPU, Mesa's llvmpipe) unless
+    the user chose a GL backend with MUJOCO_GL, which MuJoCo reads when imported and which then wins: the context
+    class the Renderer makes its context from is EGL's while it is made, and no environment variable is set for
+    the process. Linux only: elsewhere MuJoCo's default draws offscreen itself (CGL on macOS)."""
+    if os.environ.get("MUJOCO_GL") or sys.platform != "linux":
+        yield
+        return
+    from mujoco import egl
+
+    gl_context = sys.modules[mujoco.Renderer.__module__].gl_context  # where the Renderer finds its context class
+    chosen = getattr(gl_context, "GLContext", None)
+    gl_context.GLContext = egl.GLContext
+    try:
+        yield
+    finally:
+        gl_context.GLContext = chosen
+
+
 def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str) -> mujoco.Renderer:
     """An offscreen renderer of exactly this size (a larger buffer costs time on a CPU) and preset."""
     pretty = quality == "pretty"
@@ -183,12 +206,15 @@ def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str)
     if not pretty:
         model.vis.quality.shadowsize = 0  # no shadow map to allocate: a third of the renderer's start-up
     try:
-        with held_back():  # cut halfway, a Renderer has no GL context and its __del__ prints a traceback
+        # cut halfway, a Renderer has no GL context and its __del__ prints a traceback
+        with held_back(), _egl_unless_chosen():
             renderer = mujoco.Renderer(model, height=height, width=width, max_geom=4000)
     except Exception as err:  # the GL backend reports its own failure types
-        raise RunError(f"cannot open an offscreen renderer ({type(err).__name__}: {err}); set MUJOCO_GL=egl "
-                       "before simbench is imported and install EGL (Debian: libegl1 libgl1-mesa-dri), or pass "
-                       "--no-video") from None
+        chosen = os.environ.get("MUJOCO_GL")
+        backend = f"MUJOCO_GL={chosen}" if chosen else "EGL"
+        raise RunError(f"cannot open an offscreen renderer through {backend} ({type(err).__name__}: {err}); "
+                       "install EGL (Debian: libegl1 libgl1-mesa-dri) and leave MUJOCO_GL unset or set it to egl, "
+                       "or pass --no-video") from None
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = pretty
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = pretty
     return renderer

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from simbench import extras
 from simbench.errors import ScenarioError
 
 
@@ -47,3 +48,6 @@ def run(args: argparse.Namespace, say) -> None:
         resumed = f"; {summary['resumed']} from an earlier start" if summary["resumed"] else ""
         say(f"{suite.name}: {summary['runs']} runs ({counts}{resumed}) in {summary['wall_time']:.1f} s on "
             f"{summary['backend']} -> {result.out / 'leaderboard.csv'}")
+        no_parquet = extras.missing("pyarrow", "runs.parquet")
+        if no_parquet:
+            say(f"  note: {no_parquet}")

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simbench import extras
 from simbench.bench.robots import BenchRobot
 from simbench.bench.tasks import HOLD, Task
 
@@ -32,6 +33,7 @@ class Method:
     description: str
     fields: Callable[[Task, BenchRobot], dict | None]
     planner: Callable[[BenchRobot], str | None]
+    needs: str | None = None  # the optional module it plans with (simbench.extras), if any
 
     def document(self, task: Task, robot: BenchRobot) -> dict | None:
         """The scenario document (SI) of `task` by this method, or None where it does not apply."""
@@ -90,7 +92,7 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("time_scaling", "cartesian_path, the path kept and retimed under the limits", _with("time_scaling"),
            _cartesian),
     Method("mink", "mink_baseline: mink's QP under the speed limits", _mink,
-           lambda robot: "mink_baseline" if robot.hold or robot.paper else None),
+           lambda robot: "mink_baseline" if robot.hold or robot.paper else None, needs="mink"),
     Method("paper", "the paper's own planner for the robot", _paper, lambda robot: robot.paper),
 )}
 
@@ -98,3 +100,14 @@ METHODS: dict[str, Method] = {m.name: m for m in (
 def available() -> list[str]:
     """The methods, in the table's order."""
     return list(METHODS)
+
+
+def installed() -> list[str]:
+    """The methods whose optional package (if any) is installed, in the table's order: a suite's default."""
+    return [name for name, m in METHODS.items() if m.needs is None or extras.installed(m.needs)]
+
+
+def refusal(name: str) -> str | None:
+    """Why method `name` cannot run here (its optional package is not installed), or None."""
+    needs = METHODS[name].needs
+    return None if needs is None else extras.missing(needs, f"method {name}")

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from simbench import extras
 from simbench.atomic import staged_folder
 from simbench.page import table_page, write_page
 from simbench.report import write_report
@@ -26,13 +27,15 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
     store.claim(RESULTS)
     with store.writing():
         table.write_csv(runs, out / "runs.csv")
-        table.write_parquet(runs, out / "runs.parquet")
+        parquet = ["runs.parquet"] if extras.installed("pyarrow") else []  # else bench.command says why
+        if parquet:
+            table.write_parquet(runs, out / "runs.parquet")
         table.write_csv(boards[0], out / "leaderboard.csv")
         table.write_csv(boards[1], out / "leaderboard_by_kind.csv")
         with staged_folder(out / "plots") as tmp:
             plots = [f"plots/{name}" for name in draw(runs, tmp)]
         summary = {**summary, "workers": workers,
-                   "outputs": {"tables": ["runs.csv", "runs.parquet", "leaderboard.csv", "leaderboard_by_kind.csv"],
+                   "outputs": {"tables": ["runs.csv", *parquet, "leaderboard.csv", "leaderboard_by_kind.csv"],
                                "plots": plots,
                                "page": "index.html"}}
         write_report(summary, out / "summary.json")

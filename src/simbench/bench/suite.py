@@ -4,7 +4,7 @@ robot (`simbench bench puma600`, or `all` for every shipped robot); a suite file
     name: my_arms                       # optional: the file's stem; names the output folder
     tasks: 30                           # tasks per robot (--tasks overrides)
     seed: 0                             # (--seed overrides)
-    methods: [dls_adaptive, mink, paper]   # optional: every method that can run (--methods overrides)
+    methods: [dls_adaptive, mink, paper]   # optional: every method installed (--methods overrides)
     robots:
       - puma600                         # a shipped robot (simbench.bench.robots)
       - name: my_arm                    # an arm of your own: a robot mapping (README, "Your own arm"), its paths
@@ -69,12 +69,15 @@ class Suite:
 
 
 def check_methods(names: list[str], source: str, field: str | None) -> list[str]:
-    """`names` if each is a method simbench has; ScenarioError naming the first that is not."""
+    """`names` if each is a method simbench has and can run here; ScenarioError naming the first that is not."""
     known = methods_table.available()
     for i, name in enumerate(names):
+        where = f"{field}[{i}]" if field else None
         if name not in methods_table.METHODS:
-            where = f"{field}[{i}]" if field else None
             raise ScenarioError(source, where, f"unknown method {name!r} (expected one of: {', '.join(known)})")
+        refusal = methods_table.refusal(name)
+        if refusal:  # its optional package is not installed
+            raise ScenarioError(source, where, refusal)
     if len(set(names)) != len(names):
         raise ScenarioError(source, field, "a method is named twice")
     return list(names)
@@ -86,7 +89,7 @@ def load_suite(text: str | Path) -> Suite:
     if text == "all" or text in SHIPPED:
         names = list(SHIPPED) if text == "all" else [text]
         return Suite(text, f"{text} (shipped suite)", tuple(SHIPPED[n]() for n in names), DEFAULT_TASKS, 0,
-                     tuple(methods_table.available()))
+                     tuple(methods_table.installed()))
     path = Path(text)
     if not path.suffix and not path.exists():
         raise ScenarioError(text, None, f"no shipped suite or suite file called {text!r} (shipped suites: all, "
@@ -103,7 +106,7 @@ def _load_file(path: Path) -> Suite:
         if name in names[:i]:
             raise ScenarioError(source, f"robots[{i}]", f"robot {name!r} is listed twice")
     chosen = (check_methods(spec.methods, source, "methods") if spec.methods is not None
-              else methods_table.available())
+              else methods_table.installed())
     return Suite(spec.name or file_name(path.stem, source), source, tuple(robots), spec.tasks, spec.seed,
                  tuple(chosen), spec.description)
 

@@ -24,24 +24,33 @@ task at each reset (simbench.env.random_task); snapshot/restore replay an episod
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
-from dm_control.mujoco import wrapper
-from dm_control.rl import control
 
-from simbench import budget
-from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track
-from simbench.env.replay import Snapshot, restore, servo_policy, snapshot
-from simbench.errors import RunError
-from simbench.plant import Actuation, Plant
-from simbench.resources import scenarios_dir
-from simbench.scenario import Scenario, as_scenario
-from simbench.sim import Recording
-from simbench.switches import at_start
+if "MUJOCO_GL" in os.environ or sys.platform != "linux":  # the user's choice of GL backend, or the platform's
+    from dm_control.mujoco import wrapper
+else:  # dm_control picks its backend when first imported: EGL, offscreen without a display; nothing left set
+    os.environ["MUJOCO_GL"] = "egl"
+    try:
+        from dm_control.mujoco import wrapper
+    finally:
+        del os.environ["MUJOCO_GL"]
+from dm_control.rl import control  # noqa: E402
+
+from simbench import budget  # noqa: E402
+from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track  # noqa: E402
+from simbench.env.replay import Snapshot, restore, servo_policy, snapshot  # noqa: E402
+from simbench.errors import RunError  # noqa: E402
+from simbench.plant import Actuation, Plant  # noqa: E402
+from simbench.resources import scenarios_dir  # noqa: E402
+from simbench.scenario import Scenario, as_scenario  # noqa: E402
+from simbench.sim import Recording  # noqa: E402
+from simbench.switches import at_start  # noqa: E402
 
 if TYPE_CHECKING:
     from simbench.pipeline import Evaluation, Result

@@ -42,6 +42,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, field_validator
 
+from simbench import extras
 from simbench.analysis.path_distance import path_deviation
 from simbench.api import REVOLUTE, Planner, Violation
 from simbench.paths import Composite, Line
@@ -194,8 +195,11 @@ class CartesianPath(Planner):
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
         """Only the first line may leave out its start, a given start (a line's, an arc's first point) must be the
-        tool's point at `start`, and the segments must join."""
+        tool's point at `start`, and the segments must join; the `mink` method needs mink installed (extras)."""
         task = scenario.task
+        refusal = extras.missing("mink", "the mink method") if task.method == "mink" else None
+        if refusal:
+            return "task.method", refusal
         for i, seg in enumerate(task.path[1:], 1):
             if seg.line is not None and seg.line.start is None:
                 return f"task.path[{i}].line.start", "missing: only the first segment may leave out its start"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import RunError
+from simbench import extras
 from simbench.robots import agile_eye
 from simbench.rotations import axis_rotation, rotation_angle
 
@@ -185,7 +185,8 @@ def for_mode(base: Network, mode: int) -> Network:
 def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 0, out: Path = WEIGHTS,
           log=print) -> dict:
     """Fit mode 0's network on 75 % of the samples, derive the others, check each on held-out poses of its mode,
-    write them to `out`; the held-out errors (deg)."""
+    write them to `out`; the held-out errors (deg). Needs scikit-learn (the `train` extra)."""
+    extras.require("sklearn", "training the learnt FK", "train-fk")
     split = int(0.75 * samples)
     mode_0 = training_set(0, samples, seed)
     base = _fit(*mode_0, split, hidden, seed)
@@ -209,10 +210,7 @@ def train(samples: int = 20000, hidden: tuple[int, ...] = (64, 64), seed: int = 
 
 def _fit(theta: np.ndarray, rot: np.ndarray, split: int, hidden: tuple[int, ...], seed: int) -> Network:
     """Mode 0's network fitted by scikit-learn on the first `split` samples (tanh layers, L-BFGS)."""
-    try:
-        from sklearn.neural_network import MLPRegressor
-    except ImportError as err:
-        raise RunError("training needs scikit-learn: pip install -e '.[train]'") from err
+    from sklearn.neural_network import MLPRegressor
     model = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="lbfgs", max_iter=4000, tol=1e-10,
                          random_state=seed)
     model.fit(features(theta[:split]), targets(rot[:split]))

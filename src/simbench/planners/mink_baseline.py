@@ -38,7 +38,7 @@ import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from simbench import registry
+from simbench import extras, registry
 from simbench.api import Planner, Robot
 from simbench.errors import RunError
 from simbench.plant import compiled_scene
@@ -198,7 +198,7 @@ def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tup
 def solve(model: mujoco.MjModel, robot: Robot, dt: float, poses: np.ndarray, q_start: np.ndarray, damping: float,
           costs: tuple[float, float], posture_cost: float, solver: str) -> tuple[np.ndarray, np.ndarray, dict]:
     """follow's QPs along the poses (N, 7) from q_start, on scene_model's `model`."""
-    import mink  # imported here: `simbench list` and validation do not pay for it
+    mink = extras.require("mink", "mink_baseline")  # here: `simbench list` and validation do not pay for it
 
     qpos_adr = np.array([model.joint(name).qposadr[0] for name in robot.joints])
     dof_adr = np.array([model.joint(name).dofadr[0] for name in robot.joints])
@@ -331,8 +331,11 @@ class MinkBaseline(Planner[Task]):
                                series={"plan_tool_error": tool_error, "plan_orientation_error": orientation_error})
 
     def check(self, scenario, robot: Robot) -> tuple[str, str] | None:
-        """The followed planner's own check of its task, its field named inside `task.task` (in the direct form,
-        inside `task`)."""
+        """mink installed (extras), and the followed planner's own check of its task, its field named inside
+        `task.task` (in the direct form, inside `task`)."""
+        refusal = extras.missing("mink", self.name)
+        if refusal:
+            return "planner", refusal
         inner = followed(scenario)
         problem = inner.planner_def.check(inner, robot)
         if problem is None:

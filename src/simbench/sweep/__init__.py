@@ -10,7 +10,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from simbench import destination
+from simbench import destination, extras
 from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import cluster, execute, table
@@ -92,13 +92,16 @@ def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed
                    start: float, workers: int) -> dict:
     """Write the table, its plots (`workers` figures at once), summary.json and the page; the summary."""
     table.write_csv(columns, out / "results.csv")
-    table.write_parquet(columns, out / "results.parquet")
+    no_parquet = extras.missing("pyarrow", "results.parquet")
+    if no_parquet is None:
+        table.write_parquet(columns, out / "results.parquet")
     plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots",
                                      workers)
+    notes += [no_parquet] if no_parquet else []
     summary = {**table.summary(columns, sweep.spec.plots), "resumed": resumed, "backend": backend,
                "wall_time": round(time.perf_counter() - start, 3),
-               "outputs": {"table": ["results.csv", "results.parquet"], "plots": [f"plots/{p}" for p in plots],
-                           "page": "index.html"},
+               "outputs": {"table": ["results.csv"] + ([] if no_parquet else ["results.parquet"]),
+                           "plots": [f"plots/{p}" for p in plots], "page": "index.html"},
                "notes": notes}
     write_report(summary, out / "summary.json")
     counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)

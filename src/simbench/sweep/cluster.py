@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 import socket
 
+from simbench import extras
 from simbench.errors import ScenarioError, os_words
 
 CONNECT_TIMEOUT = 5.0  # s
@@ -32,10 +33,7 @@ def check_where(workers: int | None, address: str | None) -> None:
         raise ScenarioError("--workers", None, f"expected a number of processes >= 1, got {workers}")
     if address is not None:
         check_address(address)
-        try:
-            import ray  # noqa: F401
-        except ImportError:
-            raise ScenarioError("--ray", None, "Ray is not installed (pip install 'simbench[ray]')") from None
+        extras.require("ray", "running the runs on Ray", "--ray")
 
 
 def reach(address: str) -> None:

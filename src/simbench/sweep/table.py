@@ -1,6 +1,6 @@
-"""A sweep's results: one table (CSV and Parquet) with a row per run, a summary, and plots of metrics against
-parameters. Rows are in run order and `wall_time` (the only machine-dependent column) comes last, so that the
-same sweep gives the same table serially, in parallel or on a cluster.
+"""A sweep's results: one table (CSV, and Parquet where pyarrow is installed) with a row per run, a summary, and
+plots of metrics against parameters. Rows are in run order and `wall_time` (the only machine-dependent column)
+comes last, so that the same sweep gives the same table serially, in parallel or on a cluster.
 """
 
 from __future__ import annotations
@@ -12,11 +12,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 from matplotlib.figure import Figure
 
-from simbench import csv_cells
+from simbench import csv_cells, extras
 from simbench.atomic import staged_file, staged_folder, write_text
 from simbench.sweep.execute import as_worker
 
@@ -64,8 +62,11 @@ def write_csv(table: dict[str, list], path: Path) -> None:
     write_text(path, "".join(lines))
 
 
-def _arrow_column(values: list) -> pa.Array:
-    """A typed column where the values share a type; JSON text where they do not (lists, mixed kinds)."""
+def _arrow_column(values: list):
+    """A typed column (a pyarrow Array) where the values share a type; JSON text where they do not (lists, mixed
+    kinds)."""
+    import pyarrow as pa
+
     if not any(isinstance(v, (list, dict)) for v in values):
         try:
             return pa.array(values)
@@ -75,7 +76,10 @@ def _arrow_column(values: list) -> pa.Array:
 
 
 def write_parquet(table: dict[str, list], path: Path) -> None:
-    """results.parquet, the same table with typed columns."""
+    """results.parquet, the same table with typed columns; MissingExtra without pyarrow (the `pyarrow` extra)."""
+    pa = extras.require("pyarrow", "results.parquet")
+    import pyarrow.parquet as pq
+
     arrow = pa.table({name: _arrow_column(values) for name, values in table.items()})
     with staged_file(path) as tmp:
         pq.write_table(arrow, tmp)

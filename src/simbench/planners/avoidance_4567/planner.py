@@ -21,7 +21,8 @@ from simbench.timing import TimeLaw
 from simbench.trajectory import JointTrajectory, control_grid
 
 
-def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[Checked, Checked, list[dict], dict | None]:
+def _choose(task: Task, law: TimeLaw, t: np.ndarray,
+            source: str = "scenario") -> tuple[Checked, Checked, list[dict], dict | None]:
     """The path to hand over (plain, else bent by windows, else the global search's, each judged by the exact FK),
     the plain path, the windows and the search's info (None if it did not run). Windows get half the time
     budget, the search the rest. RunError if none keeps the margins, unless the task accepts that."""
@@ -34,7 +35,7 @@ def _choose(task: Task, law: TimeLaw, t: np.ndarray) -> tuple[Checked, Checked, 
                                             bent.theta(t, order=1))
     search = None
     if not chosen.ok and task.avoidance.enabled:
-        found, search = global_search(task, law, t, max(clock + budget, time.perf_counter() + budget / 2))
+        found, search = global_search(task, law, t, max(clock + budget, time.perf_counter() + budget / 2), source)
         if found is not None and found.ok:
             chosen = found
     if not chosen.ok and not task.accept_margin_violation:
@@ -89,7 +90,7 @@ class Avoidance4567(Planner):
         law = scenario.timing.law_fn()
         clock = time.perf_counter()
         t = control_grid(law.duration, scenario.timing.hold, dt)
-        chosen, plain, steps, search = _choose(task, law, t)
+        chosen, plain, steps, search = _choose(task, law, t, scenario.source or scenario.name or "scenario")
         theta, rot = chosen.theta, chosen.rot
         warnings, violations = accepted(task, chosen, float(t[-1]))
         info = _info(task, chosen, plain, steps, search, time.perf_counter() - clock)

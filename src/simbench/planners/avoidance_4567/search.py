@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from simbench import extras
 from simbench.planners.avoidance_4567.checks import Checked, check_path
 from simbench.planners.avoidance_4567.task import Task, clearances, margins
 from simbench.robots import agile_eye
@@ -23,9 +24,11 @@ def slack(task: Task, rot: np.ndarray, pad: float = 0.0) -> np.ndarray:
                    for name, c in clearances(task, theta, rot).items()], axis=0)
 
 
-def global_search(task: Task, law: TimeLaw, t: np.ndarray, deadline: float) -> tuple[Checked | None, dict]:
+def global_search(task: Task, law: TimeLaw, t: np.ndarray, deadline: float,
+                  source: str = "scenario") -> tuple[Checked | None, dict]:
     """The global search's path, timed as sigma = length S(t / T) (S the 4-5-6-7 law, eq. 8) and checked, or None;
-    and what the search did."""
+    and what the search did. Without OMPL, MissingExtra naming the scenario `source`."""
+    extras.require("ompl", "the global search in SO(3), where bending the path fails,", source, "task.avoidance")
     from simbench.planners import so3_search  # OMPL, imported when a search is planned
 
     start, goal = task.start.matrix(), task.goal.matrix()
