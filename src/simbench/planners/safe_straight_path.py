@@ -125,10 +125,17 @@ def evaluate(line: Line, s: np.ndarray) -> np.ndarray:
 
 
 def derivative(line: Line, s: np.ndarray) -> np.ndarray:
-    """dq/ds (N, 4), each sample differenced on its own branch."""
+    """dq/ds (N, 4), each sample differenced on its own branch; a difference that straddles the lift axis
+    crossing takes the other branch past it, as the plan does there, so that q1 stays continuous."""
     s = np.asarray(s, float)
     backward = line.backward(s)
-    return rate(lambda x: _solve(line, x, backward), s, np.array(KINDS) == REVOLUTE)
+
+    def solve(x: np.ndarray) -> np.ndarray:
+        if line.flip_at is None or line.forward_only:
+            return _solve(line, x, backward)
+        return _solve(line, x, backward ^ ((x >= line.flip_at) != (s >= line.flip_at)))
+
+    return rate(solve, s, np.array(KINDS) == REVOLUTE)
 
 
 def build(q_init: np.ndarray, q_goal: np.ndarray) -> Line:
