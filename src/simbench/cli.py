@@ -1,8 +1,8 @@
-"""Command line: `simbench run | sweep | validate | list | inspect | compare | reproduce | train-fk`.
+"""Command line: `simbench run | sweep | validate | list | inspect | compare | reproduce | bench | train-fk`.
 
 Exit codes: 0 done as the scenario expects; 3 done, but the run broke a promise (status `limits`); 2 bad input
 (a file system refusal before the run included); 1 the run failed (a full disk while writing included) or a bug
-(SIMBENCH_DEBUG=1 for the traceback); 130 interrupted.
+(SIMBENCH_DEBUG=1 for the traceback); 130 interrupted; 141 the output's reader went away (`| head`), silently.
 """
 
 from __future__ import annotations
@@ -351,6 +351,8 @@ def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) 
     """Print why the command failed; its exit code (130 where Ctrl-C came first and caused `err`)."""
     if ctrl_c.pressed:
         return _interrupted(args, ctrl_c)
+    if isinstance(err, BrokenPipeError):
+        return _reader_gone()
     for kind, prefix, code in ((ScenarioError, "error", 2), (OutputError, "error", 1), (RunError, "run failed", 1)):
         if isinstance(err, kind):  # OutputError before RunError, whose subclass it is
             _say(f"{prefix}: {err}", file=sys.stderr)
@@ -358,6 +360,14 @@ def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) 
     if isinstance(err, OSError) and err.filename is not None:
         return _refused(err)
     return _internal_error(err)  # not the file system's refusal either (a closed pipe, say)
+
+
+def _reader_gone() -> int:
+    """The pipe the output went to closed (`simbench list | head`): stop quietly, as a shell tool killed by SIGPIPE
+    does (128 + 13), with stdout sent nowhere so that the interpreter's last flush cannot fail too."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    return 141
 
 
 def _refused(err: OSError) -> int:

@@ -259,7 +259,7 @@ def _unknown_field(cls: type[BaseModel], parent: tuple, name: str) -> str:
     """The message for an unknown field `name` in the model at `parent`: the fields it has, and the nearest."""
     fields = _fields_at(cls, parent)
     if not fields:  # a mapping whose model the location does not lead to: no list to offer, rather than an empty one
-        return "unknown field (not one this mapping takes: see the README's scenario reference)"
+        return "unknown field (not one this mapping takes: see the docs' Scenarios page, docs/guide/scenarios.md)"
     hint = difflib.get_close_matches(name, fields, n=1)
     suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
     return f"unknown field (expected one of: {', '.join(fields)}){suggestion}"

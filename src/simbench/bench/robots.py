@@ -12,7 +12,7 @@ own singular measure (`gap`, rad) and a way to put a configuration on its singul
     panda          the Franka Panda of example-robot-data (URDF, 7 joints, its flange panda_link8); rank_loss;
                    not mink (mink_baseline refuses a model whose fingers are joints it does not drive)
 
-A suite file's own arm (a robot mapping: README, "Your own arm") is found the same way as the Jaco's.
+A suite file's own arm (a robot mapping: docs/guide/your-arm.md) is found the same way as the Jaco's.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ robot (`simbench bench puma600`, or `all` for every shipped robot); a suite file
     methods: [dls_adaptive, mink, paper]   # optional: every method installed (--methods overrides)
     robots:
       - puma600                         # a shipped robot (simbench.bench.robots)
-      - name: my_arm                    # an arm of your own: a robot mapping (README, "Your own arm"), its paths
+      - name: my_arm                    # an arm of your own: a robot mapping (docs/guide/your-arm.md), its paths
         model: arms/my_arm.urdf         #   relative to this file, SI units unless it states its own `units:`
         tool: {body: link7, offset: [0, 0, 0.1]}
         speed: 0.1                      # m/s: the tool's mean speed along its tasks (default 0.1)

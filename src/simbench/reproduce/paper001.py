@@ -99,7 +99,8 @@ def _choices(scenario) -> list[list[str]]:
         ["when to switch", "when gamma leaves the band (eq. 45) or |det A1|, |det A2| < 0.01 (eq. 46)",
          f"{np.rad2deg(task.gamma_margin):g} deg inside the band, |det A| >= {task.det_a_min:g} over the whole "
          "schedule, releases planned ahead, one arm at a time, a depth-first search over the choices",
-         "near |det A| = 0.03 the rotor, held that loosely, already drifted by 2 deg (README, RSMG section)"],
+         "near |det A| = 0.03 the rotor, held that loosely, already drifted by 2 deg "
+         "(docs/papers/001-rsmg.md, Errata)"],
         ["grip", "the EM switched on", "a MuJoCo weld switched on at the current relative pose (no snap); each "
          f"hold re-solved for the point really gripped (regrip_feedback: {str(task.regrip_feedback).lower()})",
          "open loop the grip offsets add up; in ten minutes the rotor was lost"],
