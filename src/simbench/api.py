@@ -90,8 +90,7 @@ class Summary(NamedTuple):
 
 class Summariser(ABC):
     """Robot.summary found a window of samples at a time (`add` each window, then `finish`), so that analysing a
-    long run holds a window, not the run. Read the plan `add` is given: rows of windows gone by may have been
-    handed back (pages.releasable) and read as zeros."""
+    long run holds a window, not the run."""
 
     @abstractmethod
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
@@ -347,10 +346,7 @@ class Controller(ABC):
 
     A controller whose commands do not depend on the measured state returns them from `open_loop` (an array, or
     Commands found a chunk at a time): the physics then runs in C through `mujoco.rollout`, without a Python call
-    per step. `reads_past`: whether the controller may read the plan's references of samples more than
-    windowed.NEAR_REFERENCE (2 s) before the step at hand; the run then keeps them. Where it does not, a long
-    strided run hands back the plan's rows it has passed where they are on pages of their own (pages.releasable).
-    `actuation` says what the commands are: position targets of the scene's position servos, or forces and
+    per step. `actuation` says what the commands are: position targets of the scene's position servos, or forces and
     torques ("torque": the plant's joint actuators are made motors, their force limits kept).
     """
 
@@ -358,7 +354,6 @@ class Controller(ABC):
     description: ClassVar[str]
     settings: ClassVar[type[ControlSettings]] = ControlSettings
     actuation: Literal["position", "torque"] = "position"
-    reads_past: ClassVar[bool] = True  # may read references more than 2 s behind the step (the plan is then kept)
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> Controller:
