@@ -9,7 +9,7 @@ from collections import OrderedDict
 import numpy as np
 
 CACHE_FLOATS = 1e7  # floats that a cache of arrays along the grid may hold (80 MB); the least recently read go first
-OWN_PAGES = 16384  # bytes from which a cached array is kept on pages of its own (BoundedCache.keep)
+OWN_PAGES = 65536  # bytes from which a cached array is kept on pages of its own (BoundedCache.keep)
 _LAZY_BLOCK = 1024  # schedule steps in a block of a Lazy array
 _PRIVATE = getattr(mmap, "MAP_PRIVATE", 0) | getattr(mmap, "MAP_ANONYMOUS", 0)  # none on Windows: mmap's own
 
