@@ -13,7 +13,7 @@ from test_sim import planned, shipped
 import simbench
 from simbench import analysis, sim, windowed
 from simbench.errors import RunError
-from simbench.planners.round_robin import paths
+from simbench.planners.round_robin import feedback, paths
 from simbench.planners.round_robin.paths import Orientations
 from simbench.plant import Plant
 from simbench.robots import rsmg as S
@@ -159,6 +159,26 @@ def test_the_grip_feedback_finds_the_rotors_orientations_block_by_block_as_the_p
         b = min(a + int(rng.integers(1, 4000)), len(s))
         assert np.array_equal(rot.rows(a, b), every[a:b])
         assert min(rot.blocks) == a // 1000  # the blocks behind are dropped
+
+
+def test_the_grip_feedbacks_ik_found_block_by_block_is_that_of_every_row_at_once(monkeypatch):
+    """The feedback solves a hold's IK a block of rows at a time (blocks of 1,000 here, from rows mid-block): the
+    same numbers, bit for bit, as rsmg.ik of all the rows' orientations of the motion at once, across blocks, for
+    random points (NaN where out of the arm's reach), and none for no rows."""
+    monkeypatch.setattr(feedback, "BLOCK", 1000)
+    scenario = simbench.load_scenario(scenario_file("rsmg", "tumble"))
+    dt = float(Plant.load(scenario.robot_def, scenario.sim.timestep).model.opt.timestep)
+    plan = scenario.planner_def.plan(scenario, scenario.robot_def, dt)
+    assert isinstance(plan.feedback, feedback.RegripFeedback)
+    motion, s = scenario.task.motion, plan.s
+    rng = np.random.default_rng(11)
+    for arm, a, length in [(0, 0, 1000), (1, 999, 2), (2, 1234, 3500), (3, 17, 4), (0, len(s) - 2500, 2500)]:
+        point = rng.normal(size=3)
+        point /= np.linalg.norm(point)
+        truth = S.ik(arm, motion.orientation(s[a:a + length]) @ point)
+        found = plan.feedback._ik(arm, point, a, a + length)
+        assert all(np.array_equal(f, t, equal_nan=True) for f, t in zip(found, truth)), (arm, a, length)
+    assert [len(x) for x in plan.feedback._ik(0, np.array([0.0, 0.0, 1.0]), 5, 5)] == [0, 0]
 
 
 def test_the_rotor_and_closure_errors_are_each_samples_own_however_the_samples_are_chunked(evaluated, monkeypatch):

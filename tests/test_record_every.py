@@ -2,7 +2,6 @@
 and events still come from every sample. The truth for each stride is the same run recorded whole (stride 1)."""
 
 import json
-import mmap
 import subprocess
 import sys
 
@@ -14,7 +13,7 @@ from test_sim import ClosedServo, Scripted, planned, shipped
 import simbench
 from simbench import registry
 from conftest import scenario_file
-from simbench import analysis, pages, pipeline, stepping, windowed
+from simbench import analysis, pipeline, stepping, windowed
 from simbench.robots import Tolerance
 from simbench.verdict import run_verdict
 from simbench.controllers import Servo
@@ -145,8 +144,7 @@ def _windows_of_a_block(monkeypatch, dt: float) -> int:
                                             ("spherical_arm", "case2", 7), ("puma600", "wrist_singularity", 4)])
 def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch, peak_speed, robot, name, k):
     """A strided run is analysed while it is simulated, a window at a time, and each window's every-step rows
-    are let go after it (Rows.drop: every sample once, in order), and the plan's rows it has passed handed back
-    (pages.release): its evaluation is the stride-1 run's
+    are let go after it (Rows.drop: every sample once, in order): its evaluation is the stride-1 run's
     (simulated whole and analysed after, in the same windows) at the kept rows, bit for bit, with the same
     figures, events (re-grips, reference jumps and their cost, spans cut by windows) and verdict; an outside
     metric's figures (conftest.PEAK_SPEED: the joints' speeds, recorded at the kept rows) are the stride-1
@@ -155,26 +153,22 @@ def test_a_strided_run_analysed_as_it_is_simulated_is_the_whole_runs(monkeypatch
     whole = simbench.evaluate(_strided(robot, name, 1))
     window = _windows_of_a_block(monkeypatch, whole.trajectory.dt)
     whole = simbench.evaluate(_strided(robot, name, 1))
-    dropped, released, windows = [], [], []
-    drop, release, add = stepping.Rows.drop, pages.release, analysis.Analyser.add
+    dropped, windows = [], []
+    drop, add = stepping.Rows.drop, analysis.Analyser.add
     monkeypatch.setattr(stepping.Rows, "drop", lambda self, samples: (dropped.append(samples), drop(self, samples)))
-    monkeypatch.setattr(pages, "release", lambda a, lo, hi: (released.append((a.shape, hi)), release(a, lo, hi)))
     monkeypatch.setattr(analysis.Analyser, "add", lambda self, rec: (windows.append(
         (self.samples, rec.kept, rec.ctrl.copy(), rec.qpos.copy())), add(self, rec)))
     thin = simbench.evaluate(_strided(robot, name, k))
     n = whole.recording.t.size
     assert n > window and thin.analysis.samples == n  # two windows at least
     assert dropped == [min(lo + window, n) for lo in range(0, n, window)]
-    # the plan's rows go from the first on, up to the block before the last window's (the path search's stretch)
-    plan = [hi for shape, hi in released if shape == whole.trajectory.q_ref.shape]
-    assert plan == sorted(plan) and plan[-1] >= n - 1 - (n - 1) % window - 3 * window
     for lo, kept, ctrl, qpos in windows:  # each window's commands and states at its kept rows, as Recording.rows
         assert np.array_equal(ctrl, whole.recording.ctrl[lo + kept])
         assert np.array_equal(qpos, whole.recording.qpos[lo + kept])
     _same_at_the_kept_rows(thin, whole, k)
     truth = np.abs(whole.recording.qd[_rows(n, k)]).max(axis=0)  # qd is recorded at the kept rows
     assert thin.analysis.metrics["peak_speed"] == {"qd0_max": truth[0], "qd_max": truth.tolist(), "samples": n}
-    # the shipped singularity_handling reads the plan of every sample, also of the rows handed back after
+    # the shipped singularity_handling reads the plan of every sample
     shares = np.abs(whole.trajectory.qd_ref) / _strided(robot, name, 1).robot_def.qd_max
     assert thin.analysis.metrics["singularity_handling"]["speed_share_max"] == shares.max()
     assert thin.analysis.metrics["singularity_handling"] == whole.analysis.metrics["singularity_handling"]
@@ -276,27 +270,22 @@ def test_a_run_analysed_as_it_is_simulated_fails_with_the_kept_rows_before_the_f
     assert np.array_equal(thin.trajectory.q_ref, traj.q_ref[rows])
 
 
-@pytest.mark.parametrize("reads_past", [False, True])
-def test_the_plan_is_handed_back_only_under_a_controller_that_does_not_read_it_late(monkeypatch, reads_past):
-    """A streamed RSMG run (stride 10, windows of a path-search block) under the servo hands back the plan's rows
-    it has passed: after the run its first rows read zeros (on a system with madvise), its last are the plan's; a
-    servo that says it reads references gone by (Controller.reads_past) keeps the plan whole, and the run's
-    recording is the same, bit for bit."""
+def test_a_streamed_run_keeps_its_plan_whole_as_its_feedback_revised_it(monkeypatch):
+    """A streamed RSMG run (stride 10, windows of a path-search block) revises its plan in place and lets none of it
+    go: after the run every row of it is the one a run recorded whole commanded (its copies of the revised
+    references), and the two runs' recordings are the same at the kept rows, bit for bit."""
     scenario = _strided("rsmg", "three_turns", 10)
     plant, traj = planned(scenario)
-    before = traj.q_ref.copy()
     _windows_of_a_block(monkeypatch, traj.dt)
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
-    controller = type("Looking", (Servo,), {"reads_past": True})() if reads_past else Servo()
-    rec = simulate(plant, traj, controller, record_every=10, revise_in_place=True,
+    rec = simulate(plant, traj, Servo(), record_every=10, revise_in_place=True,
                    analyser=analysis.Analyser(scenario.robot_def, traj, near, margin))
-    head, tail = traj.q_ref[:1000], traj.q_ref[-100:]
-    assert tail.any() and (head.any() if reads_past else not head.any() or not hasattr(mmap, "MADV_DONTNEED"))
-    if reads_past:  # the feedback revised some rows in place; the first hold's stay as planned
-        assert np.array_equal(head, before[:1000])
-    again = simulate(plant, planned(scenario)[1], Servo(), record_every=10)
-    assert np.array_equal(rec.qpos, again.qpos) and np.array_equal(rec.ctrl, again.ctrl)  # both at the kept rows
+    whole = simulate(plant, planned(scenario)[1], Servo())
+    assert whole.q_ref is not None  # the feedback revised the references
+    assert np.array_equal(traj.q_ref, whole.q_ref) and np.array_equal(traj.qd_ref, whole.qd_ref)
+    rows = _rows(len(whole.t), 10)
+    assert np.array_equal(rec.qpos, whole.qpos[rows]) and np.array_equal(rec.ctrl, whole.ctrl[rows])
 
 
 def test_a_streamed_run_steps_on_the_chunks_of_the_run_recorded_whole(monkeypatch):

@@ -4,7 +4,9 @@ paper's fixed three per arm kept as `contacts: fixed`; a motion that cannot be f
 naming the limit and a speed that works. Random motions come from rsmg_contacts.random_motions (fixed seed, the
 benchmark's); plans are checked with test_rsmg_schedule.check_plan (A rebuilt with SciPy's rotations)."""
 
+import mmap
 import re
+import weakref
 
 import numpy as np
 import pytest
@@ -169,3 +171,40 @@ def test_a_bounded_cache_once_cleared_holds_as_much_as_a_new_one():
     cache.keep("b", np.zeros(6))
     cache.keep("c", np.zeros(3))
     assert list(cache) == ["b", "c"] and cache.held == 9
+
+
+def _mapping(array: np.ndarray) -> mmap.mmap | None:
+    """The anonymous mapping an array's memory lies on, if any."""
+    base = array.base
+    while base is not None and not isinstance(base, mmap.mmap):
+        base = base.obj if isinstance(base, memoryview) else getattr(base, "base", None)
+    return base
+
+
+def test_a_bounded_caches_large_arrays_lie_on_pages_of_their_own_which_go_once_dropped():
+    """BoundedCache.keep keeps an array of rsmg_lazy.OWN_PAGES bytes or more as a copy on an anonymous mapping of
+    its own (its values, dtype and shape; writable), whose pages go back to the system once it is dropped (evicted
+    or cleared) and unread: the mapping is closed. A smaller array, or anything else, is kept as it is."""
+    from simbench.planners.rsmg_lazy import OWN_PAGES, BoundedCache
+
+    cache = BoundedCache(1e9)
+    big = np.arange(OWN_PAGES // 8 * 3, dtype=float).reshape(-1, 3)
+    mask = np.arange(OWN_PAGES) % 3 == 0
+    mappings = []
+    for key, value in (("big", big), ("mask", mask)):
+        kept = cache.keep(key, value)
+        assert np.array_equal(kept, value) and kept.dtype == value.dtype and not np.shares_memory(kept, value)
+        assert cache[key] is kept and kept.flags.writeable
+        base = _mapping(kept)
+        assert isinstance(base, mmap.mmap) and len(base) == value.nbytes
+        mappings.append(weakref.ref(base))
+        del kept, base
+    small, other = np.zeros(OWN_PAGES // 8 - 1), ("a", 1)
+    assert cache.keep("small", small) is small and cache.keep("other", other) is other
+    assert cache.fetch("big", lambda: None) is cache["big"] and np.array_equal(cache["big"], big)
+    cache.clear()
+    assert [m() for m in mappings] == [None, None]
+    bounded = BoundedCache(big.size)  # a second array of big's size evicts the first
+    first = weakref.ref(_mapping(bounded.keep("one", big)))
+    bounded.keep("two", big + 1)
+    assert list(bounded) == ["two"] and first() is None

@@ -2,7 +2,6 @@
 swings. Every accepted plan is checked against A rebuilt here from the planned joints and the switches; a run
 against A rebuilt from the recorded joints."""
 
-import mmap
 from itertools import combinations
 
 import numpy as np
@@ -162,20 +161,11 @@ def test_the_issues_motion_runs_without_a_type_a_event(motion, duration):
     assert ev.verdict.status == "ok", ev.verdict.violations
 
 
-def _on_own_pages(array: np.ndarray) -> bool:
-    """Whether an array lies on an anonymous mapping of its own (pages.releasable), whose rows can be handed back."""
-    base = array.base
-    while base is not None and not isinstance(base, mmap.mmap):
-        base = getattr(base, "obj", None) if isinstance(base, memoryview) else getattr(base, "base", None)
-    return base is not None
-
-
 def test_the_plans_rows_found_a_block_at_a_time_are_those_of_the_whole_arrays(monkeypatch):
     """The RSMG plan's per-sample arrays are found paths.BLOCK rows at a time (here 97, so that blocks end mid-hold and
     mid-swing), to the bit as from whole arrays at once: the joint rates np.gradient's of the whole q_ref (at the
     control period, as the grip feedback's revisions take them: trajectory.revise), the
-    marker's point and the rotor's quaternion those of every orientation of the motion at once; and they lie on
-    pages of their own (pages.releasable), which a run streamed with a stride hands back as it passes them."""
+    marker's point and the rotor's quaternion those of every orientation of the motion at once."""
     sc = scenario({"kind": "tumble", "spin_axis": [0.6, 0.0, 0.8], "spin_turns": 1.3, "precession_axis": [0, 1, 0],
                    "precession_turns": 0.4}, 9.0)
     whole = round_robin.PLANNER.plan(sc, S.ROBOT, DT)
@@ -190,4 +180,3 @@ def test_the_plans_rows_found_a_block_at_a_time_are_those_of_the_whole_arrays(mo
     rot = sc.task.motion.orientation(whole.s)
     assert np.array_equal(whole.series["rotor_quat_ref"], matrix_to_quat(rot))
     assert np.array_equal(whole.tool_ref, rot @ np.array([0.0, 0.0, 1.2 * S.RADIUS]))
-    assert all(_on_own_pages(a) for a in (whole.q_ref, whole.qd_ref, whole.tool_ref, *whole.series.values()))

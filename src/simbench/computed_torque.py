@@ -51,7 +51,6 @@ class ComputedTorque(Controller):
 
     name = "computed_torque"
     description = "torque actuation: inverse dynamics of the model at the plan (mj_inverse) plus joint PD"
-    reads_past = False  # the step at hand and ahead; a revision's acceleration two rows before it
     settings = ComputedTorqueSettings
     actuation = "torque"
 

@@ -31,7 +31,6 @@ class Servo(Controller):
 
     name = "servo"
     description = "position servo with velocity feed-forward (the MJCF's position actuators)"
-    reads_past = False  # the references of the steps at hand and ahead
 
     def __init__(self, feedforward: bool = True):
         self.feedforward = feedforward

@@ -156,7 +156,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
         result = analyser.finish() if analyser else analyse(robot, traj, rec, near, margin, scenario=scenario)
         found = run_verdict(robot, traj, result, a, scenario.expect)
     if sim.record_every > 1:  # the analysis has read every sample: what is kept of them is the outputs' rows
-        # (a streamed run's plan at them as its analyser kept them: its other rows may have been let go)
+        # (a streamed run's plan at them as its analyser kept them)
         traj = traj.rows(kept_rows(len(traj.t), sim.record_every)) if analyser is None else analyser.plan()
         rec = rec.thinned()  # as it is, where it was analysed as it was simulated
     return Evaluation(traj, rec, result, found, control)

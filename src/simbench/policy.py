@@ -70,7 +70,6 @@ class Policy(Controller):
 
     name = "policy"
     description = "a registered policy (or with --allow-code a package.module:factory), torques or position targets"
-    reads_past = False  # the observation's references are the step's and those ahead of it
     settings = PolicySettings
 
     def __init__(self, act: Callable[[dict], Any], action: Literal["torque", "position"] = "torque",

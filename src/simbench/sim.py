@@ -9,8 +9,7 @@ into segments and are applied between them; a plan with feedback (the RSMG's arm
 then revise the references still to come.
 
 With a recording stride, a run may be analysed as it is simulated (simulate's analyser): each window of samples
-is analysed once its readings are in, then let go but for its kept rows (simbench.buffers), and the plan's rows
-the run has passed are handed back where they are on pages of their own (simbench.pages).
+is analysed once its readings are in, then let go but for its kept rows (simbench.buffers).
 
 The physics is checked as it runs (simbench.faults): the run stops at the first step at fault with a
 PhysicsError that carries the recording up to the last sound state (ControlError for a controller's bad
@@ -28,7 +27,6 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from simbench import pages
 from simbench.api import Commands, Controller
 from simbench.controllers import Servo
 from simbench.errors import ControlError, PhysicsError, RunError
@@ -37,7 +35,7 @@ from simbench.plant import Plant
 from simbench.recording import Recording
 from simbench.stepping import CHUNK, ClosedLoop, CommandFault, OpenLoop, Rows, state_slices
 from simbench.switches import apply_switch, at_start
-from simbench.trajectory import PER_SAMPLE, JointTrajectory, joined, revise
+from simbench.trajectory import JointTrajectory, joined, revise
 
 if TYPE_CHECKING:
     from simbench.analysis import Analyser
@@ -59,8 +57,7 @@ def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None 
     analysed as it is simulated, and each window's samples are let go once its kept rows are copied out: a long
     strided run holds a window of every step's readings, not all of them. Its Recording, and a PhysicsError's,
     hold the kept rows only (Recording.thinned's); a feedback must revise in place, so that the analysis reads the
-    references as commanded. The plan is then the run's to use up: rows on pages of their own (pages.releasable)
-    are handed back once passed, and read as zeros; the plan at the kept rows is the analyser's (Analyser.plan)."""
+    references as commanded. The plan at the kept rows is the analyser's (Analyser.plan)."""
     if analyser is not None and not (record_every > 1 and analyser.streams):
         raise ValueError("a run is analysed as it is simulated with a recording stride (record_every > 1) and a "
                          "robot whose summary comes a window at a time (Robot.streams)")
@@ -278,17 +275,6 @@ class _Stream:
             self._copy(hi)
             self.run.rows.drop(hi)
             self.lo = hi
-            self._let_plan_go()
-
-    def _let_plan_go(self) -> None:
-        """Hand back the plan's rows that neither the analysis (Analyser.plan_from) nor the controller (unless
-        Controller.reads_past) reads again, where they are on pages of their own (pages.releasable); not its times,
-        which stamp the events. The analyser keeps the plan's kept rows."""
-        if self.run.controller.reads_past:  # it may read them: the plan stays whole
-            return
-        traj, upto = self.run.traj, min(self.analyser.plan_from(), self.lo)
-        for array in [getattr(traj, name) for name in PER_SAMPLE if name != "t"] + list(traj.series.values()):
-            pages.release(array, 0, upto)  # from the first row: the pages across the last window's edge too
 
     def plan(self, done: int) -> JointTrajectory:
         """The plan at the kept rows of the first `done` samples: the analysed windows' as the analyser kept them,

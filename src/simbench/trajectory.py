@@ -41,9 +41,6 @@ class JointTrajectory:
     joints from row k0 on (an RSMG arm re-solving its hold for the point it really gripped). `violations` are the
     promises the planner knows its plan breaks (it ends away from the task's goal, say), each a
     simbench.api.Violation (or the dict {"kind", "message", ...} it reads as): the run cannot end `ok`.
-
-    A planner of long runs may make the per-sample arrays with simbench.pages.releasable: a strided run analysed
-    as it is simulated then hands back the rows it has passed (all but t; sim.simulate).
     """
 
     t: np.ndarray

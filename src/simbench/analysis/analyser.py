@@ -11,7 +11,7 @@ import numpy as np
 
 from simbench import windowed
 from simbench.analysis.limit_events import Bounds, Jump, PlanLimits, event, jump_events, plan_jumps
-from simbench.analysis.path_distance import deviation_near_reference, path_from
+from simbench.analysis.path_distance import deviation_near_reference
 from simbench.analysis.tangents import Tangents
 from simbench.api import Event, Metric
 from simbench.recording import Recording
@@ -179,12 +179,6 @@ class Analyser:
             force = rec.force[:, j]
             self.saturated[j].add(np.abs(force) >= rec.force_limit[j] * (1 - 1e-6), lo,
                                   lambda a, b, force=force: float(force[a]))
-
-    def plan_from(self) -> int:
-        """The first row of the plan that the windows still to come read (the step into the next window and the
-        stretch of path its search takes, `path_from`): the rows before it may be let go, but for their times."""
-        lo = self.samples
-        return max(min(lo - 1, path_from(lo, windowed.near_reference(self.traj.dt))), 0)
 
     def plan(self) -> JointTrajectory:
         """The plan at the recording's kept rows analysed so far, without its (spent) feedback: what the outputs

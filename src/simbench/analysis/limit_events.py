@@ -101,7 +101,7 @@ class PlanLimits:
 @dataclass(frozen=True)
 class Jump:
     """A step k -> k + 1 of the plan that jumps (`plan_jumps`): the joints that jump, the step and the path parameters
-    at both ends, taken when it is found (a long run's plan rows are let go once they have been analysed)."""
+    at both ends, taken when it is found."""
 
     k: int
     joints: list[int]

@@ -110,16 +110,12 @@ class Controller(ABC):
         settings: The schema of its `control:` section.
         actuation: What the commands are: `"position"` targets of the scene's position servos, or `"torque"`
             (forces and torques: the plant's joint actuators are made motors, their force limits kept).
-        reads_past: Whether it may read the plan's references more than `windowed.NEAR_REFERENCE` (2 s) before
-            the step: the run then keeps them. Where not, a long strided run hands back the plan's rows it has
-            passed (`simbench.pages.releasable`).
     """
 
     name: ClassVar[str]
     description: ClassVar[str]
     settings: ClassVar[type[ControlSettings]] = ControlSettings
     actuation: Literal["position", "torque"] = "position"
-    reads_past: ClassVar[bool] = True
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> Controller:

@@ -97,8 +97,7 @@ class Summary(NamedTuple):
 class Summariser(ABC):
     """`Robot.summary` found a window of samples at a time: `add` each window, then `finish`.
 
-    Analysing a long run then holds a window, not the run. Read the plan `add` is given: rows of windows gone by
-    may have been handed back (`simbench.pages.releasable`) and read as zeros.
+    Analysing a long run then holds a window, not the run.
     """
 
     @abstractmethod

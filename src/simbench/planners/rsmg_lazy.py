@@ -3,12 +3,25 @@ their bounded cache, and first_false, the exits of a whole array."""
 
 from __future__ import annotations
 
+import mmap
 from collections import OrderedDict
 
 import numpy as np
 
 CACHE_FLOATS = 1e7  # floats that a cache of arrays along the grid may hold (80 MB); the least recently read go first
+OWN_PAGES = 65536  # bytes from which a cached array is kept on pages of its own (BoundedCache.keep)
 _LAZY_BLOCK = 1024  # schedule steps in a block of a Lazy array
+_PRIVATE = getattr(mmap, "MAP_PRIVATE", 0) | getattr(mmap, "MAP_ANONYMOUS", 0)  # none on Windows: mmap's own
+
+
+def on_own_pages(array: np.ndarray) -> np.ndarray:
+    """A copy of `array` on an anonymous mapping of its own, whose pages go back to the system as soon as the copy
+    is freed. The heap keeps the pages of the arrays freed on it (glibc's, whose mmap threshold rises to the largest
+    array freed so far, to 32 MiB), under whatever the process allocates next."""
+    buffer = mmap.mmap(-1, array.nbytes, flags=_PRIVATE) if _PRIVATE else mmap.mmap(-1, array.nbytes)
+    own = np.frombuffer(buffer, array.dtype, count=array.size).reshape(array.shape)
+    own[...] = array
+    return own
 
 
 def first_false(ok: np.ndarray) -> np.ndarray:
@@ -25,14 +38,20 @@ def first_out(ok: np.ndarray) -> np.ndarray:
 
 
 class BoundedCache(OrderedDict):
-    """A cache dropping its least recently read entries once they hold more than `floats` numbers."""
+    """A cache dropping its least recently read entries once they hold more than `floats` numbers. Its arrays of
+    OWN_PAGES bytes or more are kept on pages of their own (on_own_pages): the cache of a long schedule's search
+    holds up to 80 MB in thousands of blocks, which on the heap would stay resident under the plan and its run
+    once the search ends (the ten-minute soak's peak memory: BENCHMARKS.md)."""
 
     def __init__(self, floats: float):
         super().__init__()
         self.floats, self.held = floats, 0
 
     def keep(self, key, value):
-        """Keep value under key (an array counts its size, anything else 1); return it."""
+        """Keep value under key (an array counts its size, anything else 1); return it (an array on pages of its
+        own from OWN_PAGES bytes)."""
+        if isinstance(value, np.ndarray) and value.nbytes >= OWN_PAGES:
+            value = on_own_pages(value)
         self[key] = value
         self.held += _floats(value)
         while self.held > self.floats and len(self) > 1:

@@ -40,7 +40,6 @@ class JointPD(Controller):
     description = "joint PD on torques (simbench_planar3r example)"
     settings = JointPDSettings
     actuation = "torque"
-    reads_past = False  # the references of the step at hand only: a long strided run may let the plan's go
 
     def __init__(self, settings: JointPDSettings):
         self.scale = settings.scale

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.planners.round_robin.paths import Orientations
+from simbench.planners.round_robin.paths import BLOCK, Orientations
 from simbench.planners.round_robin.search import Hold
 from simbench.planners.round_robin.task import Motion
 from simbench.robots import rsmg
@@ -43,7 +43,7 @@ class RegripFeedback:
         k_release, k_next = self.release[arm, k]
         tip = data.site(f"em{arm + 1}_tip").xpos
         point = data.body("rotor").xmat.reshape(3, 3).T @ (tip / np.linalg.norm(tip))  # in the rotor's frame
-        theta, gamma = rsmg.ik(arm, self.rot.rows(k, k_release) @ point)
+        theta, gamma = self._ik(arm, point, k, k_release)
         if not (np.isfinite(theta).all() and np.isfinite(gamma).all()):
             return None  # the point leaves the arm's reach before its release: keep the plan
         columns = [arm, rsmg.ARMS + arm]
@@ -56,6 +56,13 @@ class RegripFeedback:
         out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
         q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
         return k, columns, q
+
+    def _ik(self, arm: int, point: np.ndarray, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """rsmg.ik of the arm holding `point` (rotor frame) at rows a..b-1, BLOCK rows at a time: the same numbers
+        (each row's own), without a long hold's orientations and the IK's temporaries for all its rows at once."""
+        parts = [rsmg.ik(arm, self.rot.rows(lo, min(lo + BLOCK, b)) @ point) for lo in range(a, b, BLOCK)]
+        parts = parts or [rsmg.ik(arm, np.zeros((0, 3)))]
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 def _smoothstep(u: np.ndarray) -> np.ndarray:

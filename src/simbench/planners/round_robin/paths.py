@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench import pages
 from simbench.planners.round_robin.schedule import ScheduleGrid
 from simbench.planners.round_robin.search import FIT, Hold
 from simbench.planners.round_robin.task import Motion
@@ -75,8 +74,7 @@ def _state(t: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
 
 def joint_paths(t: np.ndarray, sched: ScheduleGrid) -> np.ndarray:
     """q_ref (N, 8) on the control grid: every arm's theta, then every arm's gamma (_arm_path, into its columns)."""
-    q_ref = pages.releasable((t.size, 2 * rsmg.ARMS))
-    q_ref[:] = np.nan
+    q_ref = np.full((t.size, 2 * rsmg.ARMS), np.nan)
     for arm in range(rsmg.ARMS):
         _arm_path(t, arm, sched.holds, sched.contacts, sched.grid, sched.n_approach, q_ref[:, arm],
                   q_ref[:, rsmg.ARMS + arm])
@@ -103,8 +101,7 @@ def grip_switches(holds: list[Hold], grid: np.ndarray, contacts: FixedContacts |
 
 def engaged_arms(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarray:
     """Which arms grip (N, 4) at each control sample."""
-    engaged = pages.releasable((t.size, rsmg.ARMS), bool)
-    engaged[:] = False
+    engaged = np.zeros((t.size, rsmg.ARMS), bool)
     for h in holds:
         stop = grid[h.end] if h.end < grid.size else np.inf
         engaged[_span(t, grid[h.start], stop), h.arm] = True
@@ -115,7 +112,7 @@ def rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndar
     """The marker's planned point (N, 3) and the rotor's planned orientation as quaternions (N, 4) at path
     parameters s, from the rotor's orientations a BLOCK of samples at a time (each row's numbers those of the
     whole run's arrays), not all of a long run's at once."""
-    tool_ref, quat = pages.releasable((len(s), 3)), pages.releasable((len(s), 4))
+    tool_ref, quat = np.empty((len(s), 3)), np.empty((len(s), 4))
     for i in range(0, len(s), BLOCK):
         rot = motion.orientation(s[i:i + BLOCK])
         tool_ref[i:i + BLOCK] = rot @ (_MARKER * 1.2 * rsmg.RADIUS)
@@ -128,7 +125,7 @@ def joint_rates(q_ref: np.ndarray, dt: float) -> np.ndarray:
     a time (trajectory.gradient_rows): the same numbers, without temporaries of several times q_ref.
     The spacing is the control period, not the differences of t: np.gradient takes a block whose t steps happen to
     be equal for uniform, and rounds differently there."""
-    qd_ref = pages.releasable(q_ref.shape)
+    qd_ref = np.empty(q_ref.shape)
     for lo in range(0, len(q_ref), BLOCK):
         qd_ref[lo:lo + BLOCK] = gradient_rows(q_ref, lo, min(lo + BLOCK, len(q_ref)), dt)
     return qd_ref

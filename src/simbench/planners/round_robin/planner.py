@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench import heap
 from simbench.api import Planner
 from simbench.errors import RunError
 from simbench.planners.round_robin.checks import refusal
@@ -26,8 +25,7 @@ class RoundRobin(Planner):
     seconds_per_sample = 13e-6  # the search with general contacts, beyond budget.py's _SAMPLE_SECONDS
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
-        """Schedule the grips and solve every arm at every control sample. The per-sample arrays are on pages of their
-        own (pages.releasable): a long run with a recording stride hands their rows back as it passes them."""
+        """Schedule the grips and solve every arm at every control sample."""
         task = scenario.task
         law = scenario.timing.law_fn()
         try:
@@ -44,7 +42,6 @@ class RoundRobin(Planner):
         sched.contacts.forget()  # the paths' IK: its cached blocks refer back to the contacts, which then go at once
         holds, grid, count = sched.holds, sched.grid, sched.contacts.count
         del sched  # the contacts and the rotor's axes on the schedule grid go before the references that remain come
-        heap.give_back(len(t))
         engaged = engaged_arms(t, holds, grid)
         feedback = RegripFeedback(task.motion, s, q_ref, holds, grid, dt, round(task.swing_time / dt)) \
             if task.regrip_feedback else None
