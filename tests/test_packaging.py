@@ -1,6 +1,6 @@
 """What pyproject.toml declares against what simbench refuses and what constraints.txt pins: every extra a refusal
 names exists and installs the module it is named for; every declared dependency is a range that the pinned test
-environment satisfies."""
+environment satisfies, and whose lower bound is the version constraints-lowest.txt (the tested minimum) pins."""
 
 from __future__ import annotations
 
@@ -19,10 +19,10 @@ OPTIONAL = PROJECT["optional-dependencies"]
 DISTRIBUTION = {"sklearn": "scikit-learn"}
 
 
-def _pins() -> dict[str, str]:
-    lines = [line.strip() for line in (ROOT / "constraints.txt").read_text().splitlines()]
+def _pins(file: str = "constraints.txt") -> dict[str, str]:
+    lines = [line.strip() for line in (ROOT / file).read_text().splitlines()]
     pins = [line.split("==") for line in lines if line and not line.startswith("#")]
-    assert all(len(pin) == 2 for pin in pins), "constraints.txt: one name==version a line"
+    assert all(len(pin) == 2 for pin in pins), f"{file}: one name==version a line"
     return {canonicalize_name(name): version for name, version in pins}
 
 
@@ -54,3 +54,16 @@ def test_dependencies_are_ranges_that_the_pinned_environment_meets():
         pinned = pins.get(canonicalize_name(requirement.name))
         assert pinned is not None, f"{requirement.name} is not pinned in constraints.txt"
         assert requirement.specifier.contains(pinned), f"{requirement.name}=={pinned} outside {requirement}"
+
+
+def test_every_lower_bound_is_the_version_the_lowest_environment_pins():
+    """constraints-lowest.txt is the environment the tests passed in at the minimum: a lower bound raised or lowered
+    in pyproject.toml without it is a bound nobody tested."""
+    pins = _pins("constraints-lowest.txt")
+    assert not {"simbench", "simbench-planar3r"} & set(pins)
+    declared = _requirements(PROJECT["dependencies"]) + [
+        r for group in OPTIONAL.values() for r in _requirements(group) if r.name != "simbench"]
+    for requirement in declared:
+        (lower,) = [spec.version for spec in requirement.specifier if spec.operator == ">="]
+        pinned = pins.get(canonicalize_name(requirement.name))
+        assert pinned == lower, f"{requirement}: constraints-lowest.txt pins {requirement.name}=={pinned}"
