@@ -64,8 +64,24 @@ class ComparisonResult:
 def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: list[str] | None, out: Path,
             force: bool = False, progress: bool = False, allow_code: bool = False,
             plot_format: str = "png") -> ComparisonResult:
-    """Run the scenario's task with every pair of `planners` and `controllers` (None: the scenario's own) and write
-    the table and plots into `out`. ScenarioError for bad arguments, file or destination, before anything runs."""
+    """Run the scenario's task with every pair of planners and controllers, and write the table and plots.
+
+    Args:
+        scenario_path: The scenario whose task, robot and timing every method gets.
+        planners: Planner names; `mink_baseline` follows the scenario's own planner's path.
+        controllers: Controller names; None for the scenario's own.
+        out: The folder for comparison.csv/.md/.json, the overlaid plots and index.html.
+        force: Replace a folder that holds another comparison (only files simbench wrote).
+        progress: Show each run's progress.
+        allow_code: Let a policy name a module to import.
+        plot_format: `"png"`, `"svg"` or `"pdf"`.
+
+    Returns:
+        Where it was written, the methods in order with their runs, the table's rows (SI) and the files.
+
+    Raises:
+        ScenarioError: a bad argument, scenario file or destination, before anything runs.
+    """
     source = Path(scenario_path)
     check_format(plot_format, "simbench.compare")
     out = destination.followed(Path(out))

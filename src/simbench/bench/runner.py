@@ -90,8 +90,22 @@ def plan_bench(suite: Suite) -> Bench:
 
 def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
               force: bool = False, progress: bool = False) -> BenchResult:
-    """Run every run of `suite` that has no row yet in `out` (default renders/bench/<name>/), then write runs.csv,
-    leaderboard.csv, the plots, summary.json and index.html. `workers`, `ray` and `force` as simbench.run_sweep's."""
+    """Run every run of the suite that has no row yet in `out`, then write its tables, plots and page.
+
+    Args:
+        suite: The suite, from `load_suite` (`suite.with_options(tasks=..., methods=...)` to change it).
+        out: Its folder; default `renders/bench/<name>/`.
+        workers: Processes at once, as `simbench.sweep.run_sweep`'s.
+        ray: `"local"` or a Ray cluster's address (the `ray` extra).
+        force: Replace a folder that holds another bench's outputs (only files simbench wrote).
+        progress: Show a progress bar.
+
+    Returns:
+        Its folder, runs.csv and leaderboard.csv as columns, and summary.json's content.
+
+    Raises:
+        ScenarioError: a bad argument, destination or Ray address, before any run.
+    """
     bench = plan_bench(suite)
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
     if ray is not None:

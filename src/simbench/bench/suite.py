@@ -84,7 +84,17 @@ def check_methods(names: list[str], source: str, field: str | None) -> list[str]
 
 
 def load_suite(text: str | Path) -> Suite:
-    """A shipped suite by robot name (or `all`), or a suite file; ScenarioError naming the file and field."""
+    """A suite of random tasks and methods to bench.
+
+    Args:
+        text: A shipped suite by robot name (`puma600`, `jaco`, ..., or `all`), or a suite file's path.
+
+    Returns:
+        The suite: its robots, tasks per robot, seed and methods.
+
+    Raises:
+        ScenarioError: naming the file and the field at fault.
+    """
     text = str(text)
     if text == "all" or text in SHIPPED:
         names = list(SHIPPED) if text == "all" else [text]

@@ -70,9 +70,21 @@ def _inputs() -> list[Path]:
 
 
 def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], None] | None = None) -> Summary:
-    """Reproduce paper `paper` ('000' ... '003' or 'all') into out/<paper>/ for each; the Summary. A folder that
-    holds anything is refused (ScenarioError) unless `force`, and then replaced only if simbench wrote it all;
-    every folder is checked first. `log`, if given, gets a line as each paper starts and ends."""
+    """Regenerate a paper's printed results beside simbench's, every difference classified.
+
+    Args:
+        paper: `"000"` ... `"003"`, or `"all"`.
+        out: The folder; each paper is written into `out/<paper>/`.
+        force: Replace folders that hold something, but only where simbench wrote all of it (every folder is
+            checked before any is written).
+        log: Called with a line as each paper starts and ends.
+
+    Returns:
+        Each paper's part of the summary, where they were written and how long it took.
+
+    Raises:
+        ScenarioError: an unknown paper, or a folder that holds something without `force`.
+    """
     names = _papers(paper)
     out = destination.followed(Path(out))
     folders = {name: destination.followed(out / name) for name in names}

@@ -33,9 +33,25 @@ class SweepResult:
 
 def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
               force: bool = False, progress: bool = False, allow_code: bool = False) -> SweepResult:
-    """Run every variant that has no row yet in `out` (default renders/sweeps/<name>/), then write the table,
-    summary and plots. `workers`: processes at once (1 runs here; default and cap from sweep.workers); `ray`:
-    'local' or a cluster's address; `allow_code`: else a variant whose policy names a module is bad_input."""
+    """Run every variant that has no row yet in `out`, then write the table, summary and plots.
+
+    A sweep stopped part way resumes where it stopped: the rows already in `out` are kept.
+
+    Args:
+        sweep: The sweep, from `load_sweep`.
+        out: Its folder; default `renders/sweeps/<name>/`.
+        workers: Processes at once (1 runs here); default, and capped by, the sweep's `workers` and the machine.
+        ray: `"local"` or a Ray cluster's address, to run the variants there (the `ray` extra).
+        force: Replace a folder that holds another sweep's outputs (only files simbench wrote).
+        progress: Show a progress bar.
+        allow_code: Let a variant's policy name a module to import; without it such a variant is `bad_input`.
+
+    Returns:
+        Where the outputs are, the table as columns, the summary and how many rows were resumed.
+
+    Raises:
+        ScenarioError: a bad argument, destination or Ray address, before any run.
+    """
     out = destination.followed(Path(out) if out is not None else Path("renders") / "sweeps" / sweep.name)
     if ray is not None:
         cluster.reach(ray)  # before the folder is made: an address nobody answers at is one line, not a hang

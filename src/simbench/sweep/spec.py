@@ -201,7 +201,17 @@ def assign(document: dict, path: tuple[str | int, ...], value: Any) -> None:
 
 
 def load_sweep(path: str | Path) -> Sweep:
-    """Read and validate a sweep file and expand it into its runs; ScenarioError names the field at fault."""
+    """Read and validate a sweep file and expand it into its runs.
+
+    Args:
+        path: The sweep file (YAML): its base scenario, grid and random samples.
+
+    Returns:
+        The sweep, its variants expanded (each a scenario document and its parameters).
+
+    Raises:
+        ScenarioError: naming the file and the field at fault, or a sweep too large for the machine's memory.
+    """
     path = Path(path)
     source = str(path)
     spec = read_spec(path, SweepSpec, "sweep")
