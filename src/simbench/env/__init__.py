@@ -43,7 +43,7 @@ else:  # dm_control picks its backend when first imported: EGL, offscreen withou
 from dm_control.rl import control  # noqa: E402
 
 from simbench import budget  # noqa: E402
-from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track  # noqa: E402
+from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track, track_of  # noqa: E402
 from simbench.env.replay import Snapshot, restore, servo_policy, snapshot  # noqa: E402
 from simbench.errors import RunError  # noqa: E402
 from simbench.plant import Actuation, Plant  # noqa: E402
@@ -135,13 +135,6 @@ def load_task(robot: str, name: str, task_kwargs: dict | None = None, environmen
                 flat_observation=flat_observation)
 
 
-def _track(env: control.Environment) -> Track:
-    task = getattr(env, "task", None)
-    if not isinstance(task, Track):
-        raise TypeError(f"expected an environment of simbench.env.load, got {type(env).__name__}")
-    return task
-
-
 def recording(env: control.Environment) -> Recording:
     """The episode so far, from the last reset.
 
@@ -151,7 +144,7 @@ def recording(env: control.Environment) -> Recording:
     Returns:
         The recording, as `simbench.evaluate` records a run.
     """
-    return _track(env).recording(env.physics)
+    return track_of(env).recording(env.physics)
 
 
 def evaluation(env: control.Environment, control_info: dict | None = None) -> Evaluation:
@@ -176,7 +169,7 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
     from simbench.sim import commanded
     from simbench.verdict import FAILED, TRUNCATED, cut_short, run_verdict
 
-    task = _track(env)
+    task = track_of(env)
     if task.k == 0:
         raise RuntimeError("the episode has taken no step since its reset: nothing to evaluate")
     rec = recording(env)
@@ -214,7 +207,7 @@ def write_outputs(env: control.Environment, out: str | Path | None = None, video
     from simbench import destination
     from simbench.pipeline import write_outputs as write
 
-    task = _track(env)
+    task = track_of(env)
     scenario = task.scenario
     out = destination.followed(Path(out) if out is not None else Path("renders") / (scenario.name or "episode"))
     budget.check(scenario, video=video, outputs=True, out=out)

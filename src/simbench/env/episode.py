@@ -362,6 +362,14 @@ CONTINUOUS_SPAN = {mujoco.mjtJoint.mjJNT_HINGE: np.pi, mujoco.mjtJoint.mjJNT_SLI
 """How far (rad for a hinge, m for a slide) a joint without a range may be commanded beyond the plan's span."""
 
 
+def track_of(env: control.Environment) -> Track:
+    """The Track task of an environment of `simbench.env.load`; TypeError for any other environment."""
+    task = getattr(env, "task", None)
+    if not isinstance(task, Track):
+        raise TypeError(f"expected an environment of simbench.env.load, got {type(env).__name__}")
+    return task
+
+
 def action_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:
     """Each joint's action bounds: under position actuation its range (a joint with none: the plan's span
     widened by CONTINUOUS_SPAN either side), under torque +-its force limit; within the actuator's control range

@@ -12,7 +12,7 @@ import numpy as np
 from dm_control.rl import control
 
 from simbench.controllers import Servo
-from simbench.env.episode import Track
+from simbench.env.episode import track_of
 
 # Everything that decides the next steps: the integration state (warm start included), what switches edited
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -36,13 +36,6 @@ class Snapshot:
     environment: dict[str, Any]
 
 
-def _track(env: control.Environment) -> Track:
-    task = getattr(env, "task", None)
-    if not isinstance(task, Track):
-        raise TypeError(f"expected an environment of simbench.env.load, got {type(env).__name__}")
-    return task
-
-
 def snapshot(env: control.Environment) -> Snapshot:
     """The episode as it is now: replaying the same actions after `restore` gives the same steps, bit for bit.
 
@@ -52,7 +45,7 @@ def snapshot(env: control.Environment) -> Snapshot:
     Returns:
         The snapshot.
     """
-    task, physics = _track(env), env.physics
+    task, physics = track_of(env), env.physics
     model, data = physics.model.ptr, physics.data.ptr
     state = np.empty(mujoco.mj_stateSize(model, _STATE))
     mujoco.mj_getState(model, data, state, _STATE)
@@ -72,7 +65,7 @@ def restore(env: control.Environment, snap: Snapshot) -> None:
         env: The environment the snapshot was taken of (or one over the same scenario and task).
         snap: The snapshot.
     """
-    task, physics = _track(env), env.physics
+    task, physics = track_of(env), env.physics
     model, data = physics.model.ptr, physics.data.ptr
     model.eq_data[:], model.eq_active0[:] = snap.model[:2]
     model.opt.disableactuator = snap.model[2]
@@ -107,7 +100,7 @@ def servo_policy(env: control.Environment) -> Callable[[Any], np.ndarray]:
     Raises:
         ValueError: The environment is under torque actuation.
     """
-    task = _track(env)
+    task = track_of(env)
     if task.actuation != "position":
         raise ValueError("the servo's actions are position targets: load the environment with position actuation")
     servo = Servo.from_scenario(task.scenario)
