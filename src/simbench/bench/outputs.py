@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from simbench import extras
 from simbench.atomic import staged_folder
 from simbench.page import table_page, write_page
 from simbench.report import write_report
@@ -27,9 +26,8 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
     store.claim(RESULTS)
     with store.writing():
         table.write_csv(runs, out / "runs.csv")
-        parquet = ["runs.parquet"] if extras.installed("pyarrow") else []  # else bench.command says why
-        if parquet:
-            table.write_parquet(runs, out / "runs.parquet")
+        missing = table.write_parquet_where_installed(runs, out / "runs.parquet")  # bench.command says why
+        parquet = [] if missing else ["runs.parquet"]
         table.write_csv(boards[0], out / "leaderboard.csv")
         table.write_csv(boards[1], out / "leaderboard_by_kind.csv")
         with staged_folder(out / "plots") as tmp:

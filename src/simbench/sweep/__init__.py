@@ -10,7 +10,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from simbench import destination, extras
+from simbench import destination
 from simbench.page import table_page, write_page
 from simbench.report import write_report
 from simbench.sweep import cluster, execute, table
@@ -108,9 +108,7 @@ def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed
                    start: float, workers: int) -> dict:
     """Write the table, its plots (`workers` figures at once), summary.json and the page; the summary."""
     table.write_csv(columns, out / "results.csv")
-    no_parquet = extras.missing("pyarrow", "results.parquet")
-    if no_parquet is None:
-        table.write_parquet(columns, out / "results.parquet")
+    no_parquet = table.write_parquet_where_installed(columns, out / "results.parquet")
     plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots",
                                      workers)
     notes += [no_parquet] if no_parquet else []

@@ -85,6 +85,15 @@ def write_parquet(table: dict[str, list], path: Path) -> None:
         pq.write_table(arrow, tmp)
 
 
+def write_parquet_where_installed(table: dict[str, list], path: Path) -> str | None:
+    """The table's Parquet copy at `path` where pyarrow is installed (None); else the note saying why it was left
+    out (the CSV table holds the same rows)."""
+    missing = extras.missing("pyarrow", path.name)
+    if missing is None:
+        write_parquet(table, path)
+    return missing
+
+
 def summary(table: dict[str, list], metrics: list[str]) -> dict:
     """Counts by status, and for each plotted metric its range over the runs that finished, with their ids."""
     status = table["status"]
