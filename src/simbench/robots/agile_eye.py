@@ -10,8 +10,7 @@ columns of the platform orientation R; every leg closes by w_i . v_i = 0 (eq. 3 
        v3 = v1 x v2, so v3 . w3 = 0 becomes (v1.w2)(v1.w3) = w2.w3, one trigonometric equation in 2a with two
        roots. Each root gives R and its three sign flips R diag(1,-1,-1), R diag(-1,1,-1), R diag(-1,-1,1):
        8 solutions, two families of the 4 assembly modes (docs/papers/003-agile-eye.md). The working mode does
-       not change them
-       (theta_i + pi turns w_i into -w_i).
+       not change them (theta_i + pi turns w_i into -w_i).
   Jacobians  A omega = B theta_dot with A rows (w_i x v_i)^T and B = diag(u_i . (w_i x v_i)) (eqs. 4-7).
        det A and det B both vanish exactly where some v_i = +-u_i: six curves on which the Agile Eye's type 1
        and type 2 singularities coincide. KCI = 1 / cond(A^-1 B), 1 at the home pose, 0 on the curves.
@@ -145,8 +144,7 @@ def kci(theta: np.ndarray, rot: np.ndarray) -> np.ndarray:
 def axis_gaps(rot: np.ndarray) -> np.ndarray:
     """Angle (N, 3) between each platform axis v_i and its base axis u_i, folded to [0, pi/2]: zero on the
     singular curves v_i = +-u_i."""
-    v = np.reshape(rot, (-1, 3, 3)).transpose(0, 2, 1)
-    return np.arccos(np.clip(np.abs(np.einsum("ij,nij->ni", U, v)), 0.0, 1.0))
+    return axis_gap_partials(rot)[0]
 
 
 def _scaled_rows(theta: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -236,16 +234,11 @@ def assemble(theta: np.ndarray, rot: np.ndarray | None = None) -> dict[str, floa
     rot = fk_nearest(theta[None], np.eye(3))[0] if rot is None else rot
     home_axes = intermediate_axes(np.zeros(3))[0]
     out = {}
-    distal_1 = None
     for i in range(3):
-        proximal = axis_rotation(U[i][None], theta[i:i + 1])[0]
-        w0 = home_axes[i]
-        target = proximal.T @ rot[:, i]
+        target = axis_rotation(U[i][None], theta[i:i + 1])[0].T @ rot[:, i]
         e = np.eye(3)[i]
-        phi = np.arctan2(np.cross(e, target) @ w0, e @ target)
-        out[PASSIVE[i]] = float(phi)
-        if i == 0:
-            distal_1 = proximal @ axis_rotation(w0[None], np.array([phi]))[0]
+        out[PASSIVE[i]] = float(np.arctan2(np.cross(e, target) @ home_axes[i], e @ target))
+    distal_1 = axis_rotation(U[:1], theta[:1])[0] @ axis_rotation(home_axes[:1], np.array([out[PASSIVE[0]]]))[0]
     m = distal_1.T @ rot
     out[PASSIVE[3]] = float(np.arctan2(m[2, 1], m[1, 1]))
     return out
@@ -253,32 +246,6 @@ def assemble(theta: np.ndarray, rot: np.ndarray | None = None) -> dict[str, floa
 
 def _platform(rec) -> np.ndarray:
     return quat_to_matrix(rec.sensors["platform_quat"])
-
-
-def measures(rec) -> dict[str, np.ndarray]:
-    """KCI, the angle to the nearest singular curve, det A (the triple product of its rows) and the loop-closure
-    error along a recording."""
-    rot = _platform(rec)
-    terms = kci_terms(rec.q, rot)
-    a = terms.a
-    det_a = triple(a[:, 0], a[:, 1], a[:, 2])
-    closure = np.maximum(np.linalg.norm(rec.sensors["tip2"] - rec.sensors["mount2"], axis=1),
-                         np.linalg.norm(rec.sensors["tip3"] - rec.sensors["mount3"], axis=1))
-    return {"kci": terms.kci, "singular_gap": axis_gaps(rot).min(axis=1), "det_a": det_a, "closure_error": closure}
-
-
-def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
-    """The six curves v_i = +-u_i, where det A = 0 (type 2) and, on the Agile Eye, det B = 0 too (type 1)."""
-    gaps = axis_gaps(_platform(rec))
-    return [SingularSet("type2", "type 2 (det A = 0; on the Agile Eye also type 1, det B = 0)",
-                        "a platform axis along its base axis (v_i = +-u_i)", gaps.min(axis=1) / tol.angle,
-                        {f"v{i + 1}": gaps[:, i] for i in range(3)})]
-
-
-def summary(traj, rec, series: dict) -> tuple[dict, list[api.Event], dict]:
-    """Report entries (closure error, KCI, orientation error), assembly-mode changes as events, and the
-    platform orientation series: the Summariser's of the whole run as one window."""
-    return tuple(Summariser(traj).whole(traj, rec, series))
 
 
 class Summariser(api.Summariser):
@@ -348,16 +315,30 @@ class AgileEye(Robot):
         return fk(q)
 
     def measures(self, rec) -> dict[str, np.ndarray]:
-        return measures(rec)
+        """KCI, the angle to the nearest singular curve, det A (the triple product of its rows) and the
+        loop-closure error along a recording."""
+        rot = _platform(rec)
+        terms = kci_terms(rec.q, rot)
+        a = terms.a
+        closure = np.maximum(np.linalg.norm(rec.sensors["tip2"] - rec.sensors["mount2"], axis=1),
+                             np.linalg.norm(rec.sensors["tip3"] - rec.sensors["mount3"], axis=1))
+        return {"kci": terms.kci, "singular_gap": axis_gaps(rot).min(axis=1),
+                "det_a": triple(a[:, 0], a[:, 1], a[:, 2]), "closure_error": closure}
 
     def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
-        return singular_sets(rec, tol)
+        """The six curves v_i = +-u_i, where det A = 0 (type 2) and, on the Agile Eye, det B = 0 too (type 1)."""
+        gaps = axis_gaps(_platform(rec))
+        return [SingularSet("type2", "type 2 (det A = 0; on the Agile Eye also type 1, det B = 0)",
+                            "a platform axis along its base axis (v_i = +-u_i)", gaps.min(axis=1) / tol.angle,
+                            {f"v{i + 1}": gaps[:, i] for i in range(3)})]
 
     def assemble(self, q: np.ndarray) -> dict[str, float]:
         return assemble(q)
 
     def summary(self, traj, rec, series: dict) -> Summary:
-        return Summary(*summary(traj, rec, series))
+        """Report entries (closure error, KCI, orientation error), assembly-mode changes as events, and the
+        platform orientation series: the Summariser's of the whole run as one window."""
+        return Summariser(traj).whole(traj, rec, series)
 
     def summariser(self, traj) -> Summariser:
         return Summariser(traj)

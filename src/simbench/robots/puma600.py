@@ -79,8 +79,7 @@ def link_frames(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def wrist_center(q: np.ndarray) -> np.ndarray:
     """Wrist centre (N, 3): paper 002's eq. 1, the sign of Py's d3 term fixed (docs/papers/002-puma600.md, Errata)."""
-    q = np.atleast_2d(q)
-    c1, s1, c2, s2, c3, s3 = (f(q[:, i]) for i in (0, 1, 2) for f in (np.cos, np.sin))
+    c1, s1, c2, s2, c3, s3 = _trig(q, 0, 1, 2)
     g = A3 * c3 - D4 * s3 + A2
     h = A3 * s3 + D4 * c3
     r = c2 * g - s2 * h
@@ -177,22 +176,22 @@ def ik(position: np.ndarray, rotation: np.ndarray, config: np.ndarray) -> np.nda
     return np.concatenate([q123, wrist_angles(q123, rotation, config[:, 2])], axis=1)
 
 
-def _elbow_and_shoulder(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (c1 Px + s1 Py, eq. 1),
-    (N,) each; 0 where the elbow or shoulder is singular."""
+def _trig(q: np.ndarray, *joints: int) -> list[np.ndarray]:
+    """cos and sin (N,) of each joint `joints` of q (N, 6) in turn: c_a, s_a, c_b, s_b, ..."""
     q = np.atleast_2d(q)
-    return _elbow_and_shoulder_of(*(f(q[:, i]) for i in (1, 2) for f in (np.cos, np.sin)))
+    return [f(q[:, i]) for i in joints for f in (np.cos, np.sin)]
 
 
-def _elbow_and_shoulder_of(c2: np.ndarray, s2: np.ndarray, c3: np.ndarray, s3: np.ndarray) -> tuple:
-    """`_elbow_and_shoulder` from the cosines and sines of q2 and q3."""
+def _elbow_and_shoulder(c2: np.ndarray, s2: np.ndarray, c3: np.ndarray, s3: np.ndarray) -> tuple:
+    """The elbow's H = a3 s3 + d4 c3 and the shoulder's r = c2 (a2 + a3 c3 - d4 s3) - s2 H (c1 Px + s1 Py, eq. 1),
+    (N,) each, from the cosines and sines of q2 and q3; 0 where the elbow or shoulder is singular."""
     h = A3 * s3 + D4 * c3
     return h, c2 * (A2 + A3 * c3 - D4 * s3) - s2 * h
 
 
 def shoulder_gap(q: np.ndarray) -> np.ndarray:
     """|r| (m): the wrist centre's distance from the shoulder-singular plane (r = c1 Px + s1 Py = 0)."""
-    return np.abs(_elbow_and_shoulder(q)[1])
+    return np.abs(_elbow_and_shoulder(*_trig(q, 1, 2))[1])
 
 
 def elbow_gap(q: np.ndarray) -> np.ndarray:
@@ -210,17 +209,11 @@ def wrist_gap(q: np.ndarray) -> np.ndarray:
 _LENGTH = A2 + D4  # scales the Jacobian's linear rows so that its condition number has no units
 
 
-def _frame3_columns(q: np.ndarray) -> list[tuple]:
+def _frame3_columns(q: np.ndarray, c3: np.ndarray, s3: np.ndarray, c4: np.ndarray, s4: np.ndarray,
+                    c5: np.ndarray, s5: np.ndarray) -> list[tuple]:
     """The columns of the tool Jacobian in frame 3's coordinates, linear rows divided by a2 + d4, in closed form
-    (the same singular values as `jacobian`'s): column i is (z_i x (t - o_i) / (a2 + d4), z_i), six entries each,
-    arrays or the constants 0.0 and 1.0."""
-    q = np.atleast_2d(q)
-    return _frame3_columns_of(q, *(f(q[:, i]) for i in (2, 3, 4) for f in (np.cos, np.sin)))
-
-
-def _frame3_columns_of(q: np.ndarray, c3: np.ndarray, s3: np.ndarray, c4: np.ndarray, s4: np.ndarray,
-                       c5: np.ndarray, s5: np.ndarray) -> list[tuple]:
-    """`_frame3_columns` from q (N, 6) and the cosines and sines of q3, q4 and q5."""
+    (the same singular values as `jacobian`'s), from q (N, 6) and the cosines and sines of q3, q4 and q5: column i
+    is (z_i x (t - o_i) / (a2 + d4), z_i), six entries each, arrays or the constants 0.0 and 1.0."""
     c23, s23 = np.cos(q[:, 1] + q[:, 2]), np.sin(q[:, 1] + q[:, 2])
     tool = TOOL[2] / _LENGTH
     x6, y6, z6 = -c4 * s5, c5, s4 * s5
@@ -235,7 +228,8 @@ def _frame3_columns_of(q: np.ndarray, c3: np.ndarray, s3: np.ndarray, c4: np.nda
 
 def frame3_jacobian(q: np.ndarray) -> np.ndarray:
     """The tool Jacobian (N, 6, 6) in frame 3's coordinates with its linear rows divided by a2 + d4."""
-    return _matrices(_frame3_columns(q))
+    q = np.atleast_2d(q)
+    return _matrices(_frame3_columns(q, *_trig(q, 2, 3, 4)))
 
 
 def _matrices(columns: list[tuple]) -> np.ndarray:
@@ -247,8 +241,8 @@ def _matrices(columns: list[tuple]) -> np.ndarray:
 def manipulability(q: np.ndarray) -> np.ndarray:
     """|det J| of the tool Jacobian with its linear rows divided by a2 + d4: a2 |H r s5| / (a2 + d4)^3 (J is block
     triangular about the wrist centre)."""
-    q = np.atleast_2d(q)
-    return _manipulability(*_elbow_and_shoulder(q), np.sin(q[:, 4]))
+    c2, s2, c3, s3, _, s5 = _trig(q, 1, 2, 4)
+    return _manipulability(*_elbow_and_shoulder(c2, s2, c3, s3), s5)
 
 
 def _manipulability(h: np.ndarray, r: np.ndarray, s5: np.ndarray) -> np.ndarray:
@@ -257,13 +251,11 @@ def _manipulability(h: np.ndarray, r: np.ndarray, s5: np.ndarray) -> np.ndarray:
 
 def condition(q: np.ndarray) -> np.ndarray:
     """Condition number of the tool Jacobian with its linear rows divided by a2 + d4."""
-    q = np.atleast_2d(q)
-    return _condition(_frame3_columns(q))
+    return _condition(frame3_jacobian(q))
 
 
-def _condition(columns: list[tuple]) -> np.ndarray:
-    """`condition` of the samples whose `_frame3_columns` are given."""
-    sv = np.linalg.svd(_matrices(columns), compute_uv=False)
+def _condition(jac: np.ndarray) -> np.ndarray:
+    sv = np.linalg.svd(jac, compute_uv=False)
     return sv[:, 0] / np.maximum(sv[:, -1], 1e-300)
 
 
@@ -271,25 +263,22 @@ def measures(q: np.ndarray) -> dict[str, np.ndarray]:
     """Manipulability, condition number and the three singularity gaps, each joint's cos and sin taken once (they
     cost as much as the rest), the same numbers the measures' own functions take."""
     q = np.atleast_2d(q)
-    c2, s2, c3, s3, c4, s4, c5, s5 = (f(q[:, i]) for i in (1, 2, 3, 4) for f in (np.cos, np.sin))
-    h, r = _elbow_and_shoulder_of(c2, s2, c3, s3)
+    c2, s2, c3, s3, c4, s4, c5, s5 = _trig(q, 1, 2, 3, 4)
+    h, r = _elbow_and_shoulder(c2, s2, c3, s3)
     return {"manipulability": _manipulability(h, r, s5),
-            "condition": _condition(_frame3_columns_of(q, c3, s3, c4, s4, c5, s5)),
+            "condition": _condition(_matrices(_frame3_columns(q, c3, s3, c4, s4, c5, s5))),
             "shoulder_gap": np.abs(r), "elbow_gap": elbow_gap(q), "wrist_gap": np.abs(np.arcsin(s5))}
 
 
 def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
     """Shoulder (r = 0), elbow (arm stretched or folded) and wrist (q5 = 0) singularities."""
-    return _sets(shoulder_gap(q), elbow_gap(q), wrist_gap(q), tol)
+    return sets_of_measures({"shoulder_gap": shoulder_gap(q), "elbow_gap": elbow_gap(q), "wrist_gap": wrist_gap(q)},
+                            tol)
 
 
 def sets_of_measures(found: dict[str, np.ndarray], tol: Tolerance) -> list[SingularSet]:
     """`singular_sets` from the gaps `measures` found (the same numbers, not computed again)."""
-    return _sets(found["shoulder_gap"], found["elbow_gap"], found["wrist_gap"], tol)
-
-
-def _sets(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, tol: Tolerance) -> list[SingularSet]:
-    """The three sets of the three gaps."""
+    shoulder, elbow, wrist = found["shoulder_gap"], found["elbow_gap"], found["wrist_gap"]
     return [
         SingularSet("shoulder", "PUMA", "wrist centre on the shoulder-singular plane (r = c1 Px + s1 Py = 0)",
                     shoulder / tol.length, {"r": shoulder}),

@@ -139,33 +139,12 @@ def _type_b_gap(gamma: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     return np.where(engaged, gap, np.pi / 2).min(axis=1)
 
 
-def measures(rec) -> dict[str, np.ndarray]:
-    """The type A measure (largest 3 x 3 minor of A over the gripping arms) and the type B gap."""
-    engaged = gripping(rec)
-    return {"type_a": _type_a(rec.q, engaged), "type_b_gap": _type_b_gap(rec.q[:, ARMS:], engaged)}
-
-
 def _type_a(q: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     """type_a_measure of the recorded joints (N,), CHUNK samples at a time to bound the temporaries."""
     out = np.empty(len(q))
     for a in range(0, len(q), CHUNK):
         out[a:a + CHUNK] = type_a_measure(_rows(q[a:a + CHUNK]), engaged[a:a + CHUNK])
     return out
-
-
-def singular_sets(rec, tol: Tolerance) -> list[SingularSet]:
-    """Type A: |det A1| and |det A2| (every 3 x 3 minor over the gripping arms) under 0.01 (eq. 46). Type B: a
-    gripping arm's gamma within 10 deg of 0 or 180 deg (eq. 45). The paper's own thresholds, not `tol`."""
-    return sets_of_measures(measures(rec))
-
-
-def sets_of_measures(found: dict[str, np.ndarray]) -> list[SingularSet]:
-    """`singular_sets` from what `measures` found."""
-    type_a, type_b = found["type_a"], found["type_b_gap"]
-    return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01", type_a / DET_A_MIN,
-                        {"det": type_a}),
-            SingularSet("typeB", "type B (boundary, det B = 0)", "a gripping arm's gamma within 10 deg of 0 or 180",
-                        type_b / GAMMA_BAND[0], {"gamma": type_b})]
 
 
 class RSMG(Robot):
@@ -182,16 +161,25 @@ class RSMG(Robot):
         )
 
     def measures(self, rec) -> dict[str, np.ndarray]:
-        return measures(rec)
+        """The type A measure (largest 3 x 3 minor of A over the gripping arms) and the type B gap."""
+        engaged = gripping(rec)
+        return {"type_a": _type_a(rec.q, engaged), "type_b_gap": _type_b_gap(rec.q[:, ARMS:], engaged)}
 
     def singular_sets(self, rec, tol: Tolerance) -> list[SingularSet]:
-        return singular_sets(rec, tol)
+        return self.singular_sets_from(rec, tol, self.measures(rec))
 
     def singular_sets_from(self, rec, tol: Tolerance, measures: dict[str, np.ndarray]) -> list[SingularSet]:
-        return sets_of_measures(measures)
+        """Type A: |det A1| and |det A2| (every 3 x 3 minor over the gripping arms) under 0.01 (eq. 46). Type B: a
+        gripping arm's gamma within 10 deg of 0 or 180 deg (eq. 45). The paper's own thresholds, not `tol`."""
+        type_a, type_b = measures["type_a"], measures["type_b_gap"]
+        return [SingularSet("typeA", "type A (interior, rank A < 3)", "|det A1|, |det A2| < 0.01",
+                            type_a / DET_A_MIN, {"det": type_a}),
+                SingularSet("typeB", "type B (boundary, det B = 0)", "a gripping arm's gamma within 10 deg of 0 or "
+                            "180", type_b / GAMMA_BAND[0], {"gamma": type_b})]
 
     def summary(self, traj, rec, series: dict) -> Summary:
-        return rsmg_outputs.summary(traj, rec, series)
+        """Rotor tracking, gripping counts and gammas, and the switch events: the Summariser's over one window."""
+        return rsmg_outputs.Summariser(traj).whole(traj, rec, series)
 
     def summariser(self, traj):
         return rsmg_outputs.Summariser(traj)

@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simbench import api
-from simbench.api import Summary
 from simbench.robots.rsmg_geometry import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.rotations import quat_to_matrix, rotation_angle
 
@@ -17,11 +16,6 @@ if TYPE_CHECKING:
 
 _GRIPPING_RGBA = [0.2, 0.85, 0.3, 1.0]  # an EM that grips: green
 _FREE_RGBA = [0.55, 0.55, 0.58, 1.0]  # an EM that is free: grey
-
-
-def summary(traj, rec, series: dict) -> Summary:
-    """Rotor tracking, gripping counts and gammas, and the switch events: the Summariser's over one window."""
-    return Summariser(traj).whole(traj, rec, series)
 
 
 class Summariser(api.Summariser):
