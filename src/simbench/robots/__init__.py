@@ -4,7 +4,6 @@ subclass Robot themselves)."""
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +30,5 @@ def joint_set(name: str, family: str, condition: str, q: np.ndarray, values: dic
         if (j, v) not in shared:
             gap = np.abs(q[:, j] - v)
             shared[j, v] = gap, gap / tol.of(kinds[j])
-    scaled = [shared[j, v][1] for j, v in values.items()]
-    distance = scaled[0].copy() if len(scaled) == 1 else functools.reduce(np.maximum, scaled[1:], scaled[0])
+    distance = np.maximum.reduce([shared[j, v][1] for j, v in values.items()])
     return SingularSet(name, family, condition, distance, {joints[j]: shared[j, v][0] for j, v in values.items()})

@@ -88,14 +88,11 @@ class ModelArm(Robot):
             out.append(np.vstack([jacp[:, dofs], jacr[:, dofs]]))
         return np.array(out)
 
-    def _singular_values(self, q: Array) -> tuple[Array, Array]:
-        """The singular values (N, min(6, dof)) of J and of the unit-consistent Ju, largest first."""
-        jac = self.jacobian(q)
-        return np.linalg.svd(jac, compute_uv=False), np.linalg.svd(unit_jacobian(jac, self.reach), compute_uv=False)
-
     def measures(self, rec: Recording) -> dict[str, Array]:
         """sigma_min (SI), manipulability and inverse_condition along the run (the module's docstring)."""
-        raw, unit = self._singular_values(rec.q)
+        jac = self.jacobian(rec.q)
+        raw = np.linalg.svd(jac, compute_uv=False)
+        unit = np.linalg.svd(unit_jacobian(jac, self.reach), compute_uv=False)
         return {"sigma_min": raw[:, -1], "manipulability": raw.prod(axis=1),
                 "inverse_condition": unit[:, -1] / unit[:, 0], "sigma_min_unit": unit[:, -1]}
 

@@ -201,17 +201,12 @@ def _scene(arm: DerivedArm) -> mujoco.MjSpec:
         spec.body(arm.chain.tool.body).add_site(name=site, pos=list(arm.chain.tool.offset))
     spec.add_sensor(name=TOOL_SENSOR, type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE,
                     objname=site)
-    if arm.options.gravity_compensation:
-        _compensate(spec.body(model.body(model.jnt_bodyid[model.joint(arm.chain.joints[0]).id]).name))
+    if arm.options.gravity_compensation:  # on the first joint's body and every body below it
+        moved = spec.body(model.body(model.jnt_bodyid[model.joint(arm.chain.joints[0]).id]).name)
+        for body in [moved, *moved.find_all(mujoco.mjtObj.mjOBJ_BODY)]:
+            body.gravcomp = 1.0
     _stage(spec, model, arm)
     return spec
-
-
-def _compensate(body: mujoco.MjsBody) -> None:
-    """Gravity compensation (`gravcomp` 1) on `body` and every body below it."""
-    body.gravcomp = 1.0
-    for child in body.bodies:
-        _compensate(child)
 
 
 def _stage(spec: mujoco.MjSpec, model: mujoco.MjModel, arm: DerivedArm) -> None:
