@@ -23,7 +23,6 @@ from simbench.resources import scenarios_dir
 __all__ = ["CLASSES", "ERROR", "OURS", "PAPERS", "TYPO", "Difference", "PaperSummary", "Summary", "reproduce"]
 
 PAPERS = ("000", "001", "002", "003")
-_MODULES = {"000": "paper000", "001": "paper001", "002": "paper002", "003": "paper003"}
 
 
 @dataclass(frozen=True)
@@ -64,11 +63,6 @@ def _papers(paper: str) -> tuple[str, ...]:
     raise ValueError(f"paper must be one of {', '.join(PAPERS)} or all, not {paper!r}")
 
 
-def _inputs() -> list[Path]:
-    """The files the reproductions read, which an output folder must not be or hold."""
-    return sorted(scenarios_dir().glob("*/*.yaml"))
-
-
 def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], None] | None = None) -> Summary:
     """Regenerate a paper's printed results beside simbench's, every difference classified.
 
@@ -93,10 +87,11 @@ def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], N
     with ExitStack() as stack:
         for name in names:
             stack.enter_context(destination.locked(folders[name]))
+        inputs = sorted(scenarios_dir().glob("*/*.yaml"))  # what the reproductions read: no folder may hold them
         for name in names:
-            destination.check(folders[name], _inputs(), force)
+            destination.check(folders[name], inputs, force)
         for name in names:
-            module = importlib.import_module(f"simbench.reproduce.{_MODULES[name]}")
+            module = importlib.import_module(f"simbench.reproduce.paper{name}")
             if log:
                 log(f"paper {name}: {module.TITLE} ...")
             began = time.perf_counter()

@@ -90,10 +90,6 @@ def write_table(folder: Path, name: str, header: Sequence[str], rows: Sequence[S
     return [f"{name}.csv", f"{name}.md"]
 
 
-def _differences_rows(differences: Sequence[Difference]) -> list[list[str]]:
-    return [[d.kind, d.where, d.printed, d.simbench, d.shown] for d in differences]
-
-
 DIFFERENCES_HEADER = ("class", "where", "printed", "simbench", "shown by")
 CHECKS_HEADER = ("where", "the paper", "status", "simbench")
 
@@ -111,31 +107,25 @@ def save(fig: Figure, path: Path) -> str:
     return path.name
 
 
-def write_summary_page(folder: Path, part: PaperSummary, notes: Sequence[str] = ()) -> str:
-    """summary.md and index.html: the paper's headline, counts, differences, notes, tables and figures."""
+def finish(folder: Path, part: PaperSummary, files: Sequence[str], title: str,
+           notes: Sequence[str] = ()) -> PaperSummary:
+    """Write differences.csv and .md (under `title`) and the summary page (summary.md and index.html: the paper's
+    headline, counts, differences, notes, tables and figures); `part` with every file it wrote."""
+    differences = [[d.kind, d.where, d.printed, d.simbench, d.shown] for d in part.differences]
+    files = [*files, *write_table(folder, "differences", DIFFERENCES_HEADER, differences, title)]
+    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
     counts = ", ".join(f"{k} {part.count(k)}" for k in CLASSES)
-    text = [f"# Paper {part.paper}: {part.title}", "",
-            f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}.", ""]
+    found = f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}."
+    text = [f"# Paper {part.paper}: {part.title}", "", found, ""]
     text += [f"- {line}" for line in part.headline]
-    text += ["", "## Differences", "", markdown_table(DIFFERENCES_HEADER, _differences_rows(part.differences))]
+    text += ["", "## Differences", "", markdown_table(DIFFERENCES_HEADER, differences)]
     if notes:
         text += ["## Notes", ""] + [f"- {n}" for n in notes] + [""]
     text += ["## Files", ""] + [f"- `{name}`" for name in sorted(part.files)] + [""]
     (folder / "summary.md").write_text("\n".join(text), encoding="utf-8")
     write_page(folder, table_page(
         folder, f"Paper {part.paper}: {part.title}",
-        f"{part.reproduced} of {part.compared} printed values and claims reproduced; differences: {counts}.\n\n"
-        + "\n".join(part.headline) + ("\n\n" + "\n".join(notes) if notes else ""),
+        f"{found}\n\n" + "\n".join(part.headline) + ("\n\n" + "\n".join(notes) if notes else ""),
         [(name, Path(name)) for name in sorted(part.files) if name.endswith(".csv")],
         [name for name in sorted(part.files) if name.endswith(".png")], digits=None))
-    return "summary.md"
-
-
-def finish(folder: Path, part: PaperSummary, files: Sequence[str], title: str,
-           notes: Sequence[str] = ()) -> PaperSummary:
-    """Write differences.csv and .md (under `title`) and the summary page; `part` with every file it wrote."""
-    files = [*files, *write_table(folder, "differences", DIFFERENCES_HEADER, _differences_rows(part.differences),
-                                  title)]
-    part = replace(part, files=tuple(files) + ("summary.md", "index.html"))
-    write_summary_page(folder, part, notes)
     return part

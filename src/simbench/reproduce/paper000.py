@@ -4,9 +4,8 @@ Table 2 prints the method's nd = 11 points (x, y, z mm, q1 deg, q2 mm, q3 deg, q
 and 4 first the path that leaves the workspace (the `attempt` block), then the one from Fig. 8's new start.
 PRINTED holds them (data/paper000_table2.yaml); EXTRACTED the text extraction's characters where it reordered a
 number. A value agrees within half a unit of its last digit; one that differs must be explained by a CLASSIFIED
-difference (docs/papers/000-spherical-arm.md, Errata), else it counts as `ours`. Case 1 row 5's z, a typo
-there, is the
-extraction's: its characters are 88.3700's with the first moved to the end.
+difference (docs/papers/000-spherical-arm.md, Errata), else it counts as `ours`. Case 1 row 5's z, a typo there,
+is the extraction's: its characters are 88.3700's with the first moved to the end.
 """
 
 from __future__ import annotations
@@ -102,15 +101,14 @@ def simbench_rows(q_init, q_goal) -> np.ndarray:
     return np.column_stack([x, _table_units(np.array([p["q"] for p in pts]))])
 
 
-def attempt_rows(q_init, q_goal) -> np.ndarray:
-    """The joints (11, 4) of the straight path that leaves the workspace, as the table prints them."""
-    line = method.build(_si(q_init), _si(q_goal))
-    return _table_units(method.evaluate(line, np.linspace(0.0, 1.0, ND)))
-
-
 def _run_configuration(case: Case, q: tuple[float, ...]) -> tuple[float, ...]:
     """A printed configuration as simbench runs it: case 3's q1 as its x, y columns say (classified `c3_q1`)."""
     return (120.0, *q[1:]) if case.name == "case 3" else q
+
+
+def _printed_line(case: Case):
+    """The method's straight line between the case's printed configurations, as simbench runs them."""
+    return method.build(_si(_run_configuration(case, case.q_init)), _si(_run_configuration(case, case.q_goal)))
 
 
 def corrected_rows(case: Case) -> np.ndarray:
@@ -129,12 +127,9 @@ def run_inputs(case: Case) -> tuple[tuple[float, ...], tuple[float, ...]]:
     return _run_configuration(case, start), _run_configuration(case, case.q_goal)
 
 
-def _decimals(text: str) -> int:
-    return len(text.split(".")[1]) if "." in text else 0
-
-
 def _tolerance(text: str) -> float:
-    return 0.5 * 10.0 ** -_decimals(text) + _SLACK
+    """Half a unit of the printed value's last digit, and _SLACK."""
+    return 0.5 * 10.0 ** -(len(text.split(".")[1]) if "." in text else 0) + _SLACK
 
 
 @dataclass(frozen=True)
@@ -164,26 +159,19 @@ def _differ(column: str, printed: float, ours: float) -> float:
     return (d + 180.0) % 360.0 - 180.0 if column == "q1" else d  # q1 is printed modulo one turn
 
 
+def _matches(column: str, text: str, ours: float) -> bool:
+    """Whether simbench's value is the printed `text`, within its tolerance ('none': neither has a value)."""
+    if text == "none" or ours != ours:
+        return text == "none" and ours != ours
+    return abs(_differ(column, float(text), ours)) <= _tolerance(text)
+
+
 def _cell(case: str, block: str, row: int, column: str, printed: str, ours: float) -> Cell:
     key = (case, block, row, column)
-    if printed == "none" or ours != ours:
-        agrees = printed == "none" and ours != ours
-        diff = float("nan")
-    else:
-        diff = _differ(column, float(printed), ours)
-        agrees = abs(diff) <= _tolerance(printed)
-    by = None
-    if not agrees:
-        for c in CLASSIFIED:
-            meant = c.meant.get(key)
-            if meant is None:
-                continue
-            if meant == "none":
-                explained = ours != ours
-            else:
-                explained = abs(_differ(column, float(meant), ours)) <= _tolerance(meant)
-            if explained:
-                by = c.key
+    agrees = _matches(column, printed, ours)
+    diff = float("nan") if printed == "none" or ours != ours else _differ(column, float(printed), ours)
+    by = None if agrees else next((c.key for c in reversed(CLASSIFIED)  # the last that explains it
+                                   if key in c.meant and _matches(column, c.meant[key], ours)), None)
     return Cell(case, block, row, column, printed, ours, diff, agrees, by)
 
 
@@ -200,7 +188,7 @@ class NewQ3:
 
 def new_q3(case: Case) -> NewQ3:
     """The workspace test and Fig. 8's tangent construction on the printed configurations."""
-    line = method.build(_si(_run_configuration(case, case.q_init)), _si(_run_configuration(case, case.q_goal)))
+    line = _printed_line(case)
     if not method.exit_reasons(line):
         return NewQ3(False, 0.0, 0.0, float("nan"), case.q_init[2])
     offsets = method.tangent_q3(line)
@@ -225,7 +213,7 @@ def compare() -> list[Cell]:
             for j, text in enumerate(row):
                 cells.append(_cell(case.name, "path", r + 1, COLUMNS[j], text, float(ours[r, j])))
         if case.attempt:
-            ours_a = attempt_rows(_run_configuration(case, case.q_init), _run_configuration(case, case.q_goal))
+            ours_a = _table_units(method.evaluate(_printed_line(case), np.linspace(0.0, 1.0, ND)))
             for r, row in enumerate(case.attempt):
                 for j, text in enumerate(row):
                     cells.append(_cell(case.name, "attempt", r + 1, COLUMNS[3 + j], text, float(ours_a[r, j])))
@@ -250,11 +238,6 @@ def rows_reproduced(cells: list[Cell]) -> dict[str, int]:
 def _fk_offset(q_deg_mm, point_mm) -> float:
     """Distance (mm) of the tool point of a printed configuration from a point."""
     return float(np.linalg.norm(fk(_si(q_deg_mm))[0] * 1e3 - np.asarray(point_mm, float)))
-
-
-def _line_point(case: Case, row: int) -> np.ndarray:
-    line = method.build(_si(_run_configuration(case, case.q_init)), _si(_run_configuration(case, case.q_goal)))
-    return line.points(np.array([(row - 1) / (ND - 1)]))[0][0] * 1e3
 
 
 def _case(name: str) -> Case:
@@ -302,10 +285,8 @@ def _differences(cells: list[Cell], physics: dict) -> list[Difference]:
     out.append(Difference(ERROR, _where("c3_q1"), "350", "120",
                           f"the printed x, y are those of q1 = 120 deg: from q1 = 350 deg as printed, x and y "
                           f"differ by up to {xy:.2f} mm; from 120 deg, by {ok:.5f} mm at most"))
-    offs = []
-    for r in (2, 3):
-        q = [120.0, *map(float, c3.attempt[r - 1][1:])]
-        offs.append(_fk_offset(q, _line_point(c3, r)))
+    points = _printed_line(c3).points(np.array([1, 2]) / (ND - 1))[0] * 1e3  # the line's points 2 and 3
+    offs = [_fk_offset([120.0, *map(float, c3.attempt[r - 1][1:])], points[r - 2]) for r in (2, 3)]
     out.append(Difference(ERROR, _where("c3_attempt_branch"), "62.7204, 80.4059", "117.2796, 99.5941",
                           f"the printed q3 is 180 deg less simbench's (the forward branch's) while q1 stays on the "
                           f"backward branch: the printed configurations put the tool {offs[0]:.1f} and {offs[1]:.1f} "
@@ -425,7 +406,7 @@ def reproduce(folder: Path) -> PaperSummary:
     differences = _differences(cells, physics)
     rows = rows_reproduced(cells)
     files = _table2_files(folder, cells)
-    c3 = new_q3(_case("case 3"))
+    c3, c4 = new_q3(_case("case 3")), new_q3(_case("case 4"))
     rounded = simbench_rows(*run_inputs(_case("case 3")))
     exact = simbench_rows((120.0, 5.0, c3.q3_init_new, 15.0), (120.0, 70.0, -60.0, 100.0))
     printed3 = corrected_rows(_case("case 3"))
@@ -453,12 +434,12 @@ def reproduce(folder: Path) -> PaperSummary:
         f"differ by up to {follow_exact:.4f})",
         f"case 2 in physics: the tool leaves the line by {jump['tool_off_path_max'] * 1e3:.1f} mm after the jump; from "
         f"the forward twin it stays within {twin['tool_rms_mm']:.3f} mm RMS",
-        f"case 4: Fig. 8's triangle infeasible (cos alpha2 = {new_q3(_case('case 4')).cos_a2:.3f}); its row 10 at "
+        f"case 4: Fig. 8's triangle infeasible (cos alpha2 = {c4.cos_a2:.3f}); its row 10 at "
         f"q3 = -75.0405 deg breaks the -75 deg limit",
     )
     part = PaperSummary("000", TITLE, compared, reproduced, tuple(differences), headline, (), 0.0,
                         {"rows": rows, "q3_init_new_case3": c3.q3_init_new,
-                         "cos_a2_case4": new_q3(_case("case 4")).cos_a2,
+                         "cos_a2_case4": c4.cos_a2,
                          "extracted": len(EXTRACTED), "follow_rounded": follow_rounded, "follow_exact": follow_exact})
     notes = [f"{len(EXTRACTED)} printed values were read back from the text extraction's reordered characters "
              "(table2.csv, column `extracted text`); one of them, case 1 row 5's z (extracted `8.37008`), "

@@ -76,21 +76,11 @@ def measures(q: np.ndarray) -> dict[str, np.ndarray]:
 
 
 # Paper 000's S(3) = {p3..p14}: every pair of joints at a limit, in the paper's order (q1 has no limit).
-# Each row: (joint index, value), (joint index, value), the paper's wording.
-_S3 = (
-    ((1, 0.0), (2, _Q3_MIN), "q2 = 0, q3 = -75 deg"),
-    ((1, 0.0), (2, _Q3_MAX), "q2 = 0, q3 = 180 deg"),
-    ((1, 0.0), (3, 0.0), "q2 = 0, q4 = 0"),
-    ((1, 0.0), (3, _Q4_MAX), "q2 = 0, q4 = 400 mm"),
-    ((1, _Q2_MAX), (2, _Q3_MIN), "q2 = 400 mm, q3 = -75 deg"),
-    ((1, _Q2_MAX), (2, _Q3_MAX), "q2 = 400 mm, q3 = 180 deg"),
-    ((1, _Q2_MAX), (3, 0.0), "q2 = 400 mm, q4 = 0"),
-    ((1, _Q2_MAX), (3, _Q4_MAX), "q2 = 400 mm, q4 = 400 mm"),
-    ((2, _Q3_MIN), (3, 0.0), "q3 = -75 deg, q4 = 0"),
-    ((2, _Q3_MIN), (3, _Q4_MAX), "q3 = -75 deg, q4 = 400 mm"),
-    ((2, _Q3_MAX), (3, 0.0), "q3 = 180 deg, q4 = 0"),
-    ((2, _Q3_MAX), (3, _Q4_MAX), "q3 = 180 deg, q4 = 400 mm"),
-)
+# _LIMITS: each limited joint's limits, worded as the paper; _S3's rows: (joint, value), (joint, value), wording.
+_LIMITS = {1: ((0.0, "0"), (_Q2_MAX, "400 mm")), 2: ((_Q3_MIN, "-75 deg"), (_Q3_MAX, "180 deg")),
+           3: ((0.0, "0"), (_Q4_MAX, "400 mm"))}
+_S3 = tuple(((ja, va), (jb, vb), f"q{ja + 1} = {wa}, q{jb + 1} = {wb}")
+            for ja in (1, 2) for va, wa in _LIMITS[ja] for jb in range(ja + 1, 4) for vb, wb in _LIMITS[jb])
 
 
 def singular_sets(q: np.ndarray, tol: Tolerance) -> list[SingularSet]:
