@@ -56,11 +56,9 @@ class Summary:
 
 
 def _papers(paper: str) -> tuple[str, ...]:
-    if paper == "all":
-        return PAPERS
-    if paper in PAPERS:
-        return (paper,)
-    raise ValueError(f"paper must be one of {', '.join(PAPERS)} or all, not {paper!r}")
+    if paper != "all" and paper not in PAPERS:
+        raise ValueError(f"paper must be one of {', '.join(PAPERS)} or all, not {paper!r}")
+    return PAPERS if paper == "all" else (paper,)
 
 
 def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], None] | None = None) -> Summary:

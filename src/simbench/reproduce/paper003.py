@@ -136,10 +136,9 @@ def _kci_figure(folder: Path, paths: dict) -> str:
 
 
 def _clearance_figure(folder: Path, paths: dict) -> str:
-    fig, axes = figure(1, len(paths["margins"]) - ("kci" in paths["margins"]), sharex=True)
-    axes = np.atleast_1d(axes)
     names = [n for n in paths["margins"] if n != "kci"]
-    for ax, name in zip(axes, names):
+    fig, axes = figure(1, len(names), sharex=True)
+    for ax, name in zip(np.atleast_1d(axes), names):
         for which, color in (("plain", "tab:gray"), ("optimised", "tab:blue")):
             ax.plot(paths["t"], np.rad2deg(paths[which]["clearance"][name]), color=color, label=which)
         ax.axhline(np.rad2deg(paths["margins"][name]), color="tab:red", ls="--", lw=0.8, label="margin")

@@ -46,18 +46,14 @@ ELBOW = {"up": 1.0, "down": -1.0}
 WRIST = {"noflip": 1.0, "flip": -1.0}
 
 
-def _rot_x(a: np.ndarray) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    one, zero = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([one, zero, zero], -1), np.stack([zero, c, -s], -1),
-                     np.stack([zero, s, c], -1)], -2)
-
-
 def _rot_z(a: np.ndarray) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
     one, zero = np.ones_like(a), np.zeros_like(a)
     return np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1),
                      np.stack([zero, zero, one], -1)], -2)
+
+
+_RX = _rot_z(_ALPHA)[:, [2, 0, 1]][:, :, [2, 0, 1]]  # Rx(alpha_{i-1}): Rz's entries with the axes turned z -> x
 
 
 def link_frames(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -68,9 +64,8 @@ def link_frames(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     pos = np.zeros((n, 3))
     origins, rotations = [], []
     for i in range(6):
-        rx = _rot_x(np.full(n, _ALPHA[i]))
         pos = pos + rot[:, :, 0] * _A[i]
-        rot = rot @ rx @ _rot_z(q[:, i])
+        rot = rot @ _RX[i] @ _rot_z(q[:, i])
         pos = pos + rot[:, :, 2] * _D[i]
         origins.append(pos)
         rotations.append(rot)
