@@ -26,7 +26,7 @@ def inspect(path: Path) -> str:
             raise ScenarioError(source, err.field, str(err)) from None
     raw = read_yaml(path)
     value = raw.get("robot", raw) if isinstance(raw, dict) and "model" not in raw else raw
-    if not robot_mapping.is_mapping(value) and not (isinstance(value, dict) and "model" in value):
+    if not robot_mapping.is_mapping(value):
         raise ScenarioError(source, "robot", "expected a robot mapping (model, tool, speed_limits), an MJCF or a URDF "
                                              "file: a registered robot is described by `simbench list`")
     units = Units.model_validate(raw.get("units", {})) if isinstance(raw.get("units"), dict) else Units()
