@@ -273,12 +273,8 @@ class Scheduler:
             if not ks:
                 raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
         first = {a: max(ks, key=lambda k: self.contacts.next_bad(a, k)[0]) for a, ks in enumerate(inside)}
-        if isinstance(self.contacts, FixedContacts):
-            starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if self.next_weak(s)[0] > 0]
-            lasting = {tuple(s.values()): self.lasting(s) for s in starts}
-        else:
-            lasting = {ks: self.lasting(dict(enumerate(ks))) for ks in product(*inside)}
-            starts = [dict(enumerate(ks)) for ks, steps in lasting.items() if steps > 0]
+        lasting = {ks: self.lasting(dict(enumerate(ks))) for ks in product(*inside)}
+        starts = [dict(enumerate(ks)) for ks, steps in lasting.items() if steps > 0]
         if not starts:
             raise RunError(f"round robin: at t = 0 no set of contact points inside the gamma band holds the rotor "
                            f"firmly; {limits}")
