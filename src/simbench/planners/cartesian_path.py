@@ -9,22 +9,17 @@ x = [v / L; w], L the reach):
     qd_k = Ju# (x_d + K e_k) + (I - Ju+ Ju) K_N (q_start - q_k)        q_{k+1} = q_k + dt qd_k
 
   - x_d the path's twist (its tangent times ds/dt; the slerp's axis times its angle times ds/dt), e_k the tool's
-    error at q_k: the point's, and the orientation's 1/2 (n x n_d + s x s_d + a x a_d) (Siciliano et al.,
-    Robotics: Modelling, Planning and Control, 2009, eq. 3.85), the position part divided by L;
-  - closed-loop inverse kinematics with gain K = CLIK_SHARE / dt (ibid., sec. 3.7, eq. 3.70 with the damped
-    inverse): each sample removes CLIK_SHARE of the error left, so Euler's error does not accumulate, the gain
-    under the 1 / dt at which explicit Euler would overshoot;
-  - Ju# = Ju^T (Ju Ju^T + lambda^2 I)^-1, the damped least-squares inverse (ibid., eq. 3.59; Nakamura and
-    Hanafusa, J. Dyn. Sys. Meas. Control 108, 1986, eq. 15), lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2)
-    below EPSILON, else 0 (Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2), 1994,
-    sec. III): exact away from a singularity, bounded rates near one, where the tool lags along the lost direction;
+    error at q_k: the point's / L, and the orientation's 1/2 (n x n_d + s x s_d + a x a_d) (Siciliano et al.,
+    Robotics: Modelling, Planning and Control, 2009, eq. 3.85);
+  - K = CLIK_SHARE / dt, closed-loop inverse kinematics (ibid., sec. 3.7, eq. 3.70): Euler's error does not
+    accumulate, the gain under the 1 / dt at which explicit Euler would overshoot;
+  - Ju# the method's damped least-squares inverse (ibid., eq. 3.59; path_methods);
   - a redundant arm (more than 6 joints) is pulled back to its start posture at rate K_N = NULL_GAIN in the null
     space of Ju (ibid., eq. 3.54; Ju+ the pseudo-inverse);
-  - every joint kept inside its range: a joint the rates would take past a limit within the sample is held to
-    reach it exactly, its column taken out of Ju, and the others solved again for the twist it leaves (until none
-    passes): Flacco, De Luca and Khatib (IEEE Trans. Robot. 31(3), 2015, Alg. 1, without its task scaling);
-  - where a joint's rate would pass its speed limit, all the rates are scaled down together (ours): the tool keeps
-    its direction and falls behind the time law, which the closed loop makes up where it can.
+  - a joint the rates would take past a limit within the sample is held to reach it exactly and the others solved
+    again (Flacco, De Luca and Khatib, IEEE Trans. Robot. 31(3), 2015, Alg. 1, without its task scaling);
+  - rates over a speed limit are all scaled down together (ours): the tool falls behind the time law, which the
+    closed loop makes up where it can.
 
 `task.method` picks the rate rule (path_methods, with references): the above is `dls_adaptive`; `dls` has a fixed
 lambda (`task.damping`); `pinv` is never scaled down (the verdict reports `velocity_limit`); `time_scaling` retimes
@@ -132,18 +127,10 @@ class Task(SimbenchModel):
         return si
 
 
-def _segments(task: Task, robot) -> list:
-    """The path's segments, the first line from the tool's point at `start` where it names no start."""
-    tool = robot.fk(np.array([task.start]))[0]
-    return [seg.build_from(tool) for seg in task.path]
-
-
 def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
                    dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """The rates of one sample with every joint kept inside its range (the module's docstring): the rule's rates
-    of the joints not held (with a redundant arm's null-space return to q0), each joint they would take past a
-    limit within dt held to reach it exactly, the rest solved again for what the held ones leave of the twist.
-    Returns the rates, the whole arm's sigma_min and lambda^2, and which joints are held (dof,)."""
+    """One sample's rates by the rule with every joint kept inside its range (the module's docstring): the rates,
+    the whole arm's sigma_min and lambda^2, and which joints are held (dof,)."""
     held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     sigma = lam2 = 0.0
     while not held.all():
@@ -203,9 +190,9 @@ class CartesianPath(Planner):
         for i, seg in enumerate(task.path[1:], 1):
             if seg.line is not None and seg.line.start is None:
                 return f"task.path[{i}].line.start", "missing: only the first segment may leave out its start"
-        segments = _segments(task, robot)
-        first = task.path[0].line
         tool = robot.fk(np.array([task.start]))[0]
+        segments = [seg.build_from(tool) for seg in task.path]
+        first = task.path[0].line
         if first is not None and first.start is not None and np.linalg.norm(tool - first.start) > START_TOL:
             gap = np.linalg.norm(tool - first.start) * 1e3
             return ("task.path[0].line.start", f"lies {gap:.3f} mm from the tool's point at task.start: leave it "
@@ -224,8 +211,9 @@ class CartesianPath(Planner):
         law = scenario.timing.law_fn()
         t = control_grid(law.duration, scenario.timing.hold, dt)
         s, ds = law(t, order=1)
-        path = Composite(tuple(_segments(task, robot)))
         q0 = np.array(task.start)
+        tool0 = robot.fk(q0[None])[0]  # where a first line without a start begins
+        path = Composite(tuple(seg.build_from(tool0) for seg in task.path))
         r0 = robot.tool_rotation(q0[None])[0]
         turn = _turn(r0, r0 if task.orientation == "hold" else task.orientation.matrix())
         angle = np.linalg.norm(turn)
@@ -302,7 +290,7 @@ class CartesianPath(Planner):
         q, _ = exact_ik(robot, q, points, rotations, _pose_error(robot))
         qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
                    else robot.qd_max / ACCEL_TIME)
-        t, s, _, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
+        t, s, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
         points, rotations = pose(s)
         q_plan, residual = exact_ik(robot, q_spline, points, rotations, _pose_error(robot))
         sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q_plan), robot.reach), compute_uv=False)[:, -1]

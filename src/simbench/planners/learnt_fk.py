@@ -105,12 +105,10 @@ class Network:
     biases: tuple[np.ndarray, ...]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        for w, b in zip(self.weights[:-1], self.biases[:-1]):
-            x = np.tanh(x @ w + b)
-        return x @ self.weights[-1] + self.biases[-1]
+        return self.layers(x)[-1]
 
     def layers(self, x: np.ndarray) -> list[np.ndarray]:
-        """The input, every hidden layer's output and the output (as __call__ gives it), for vjp."""
+        """The input, every hidden layer's output and the output, for vjp."""
         out = [x]
         for w, b in zip(self.weights[:-1], self.biases[:-1]):
             x = np.tanh(x @ w + b)
@@ -142,14 +140,12 @@ class LearntFK:
         layers = self.networks[mode].layers(features(np.atleast_2d(theta)))
         return to_rotation(layers[-1]), layers
 
-    def rates_vjp(self, theta: np.ndarray, mode: int, torque: np.ndarray, layers: list[np.ndarray] | None = None,
+    def rates_vjp(self, theta: np.ndarray, mode: int, torque: np.ndarray, layers: list[np.ndarray],
                   rot: np.ndarray | None = None) -> np.ndarray:
         """The gradient (N, 3) in the base angles of anything whose derivative in the platform's rotation (base
-        frame) is `torque` (N, 3), by reverse mode (`layers` and `rot` from forward, if at hand)."""
+        frame) is `torque` (N, 3), by reverse mode (`layers` and `rot`, if at hand, from forward)."""
         theta = np.atleast_2d(theta)
-        net = self.networks[mode]
-        layers = net.layers(features(theta)) if layers is None else layers
-        g_x = net.vjp(layers, _rotation_vjp(layers[-1], torque, rot))
+        g_x = self.networks[mode].vjp(layers, _rotation_vjp(layers[-1], torque, rot))
         return g_x[:, :3] * np.cos(theta) - g_x[:, 3:] * np.sin(theta)  # d sin = cos, d cos = -sin
 
 

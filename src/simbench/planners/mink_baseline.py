@@ -71,12 +71,7 @@ class Task(SimbenchModel):
         if not isinstance(value, dict) or "follow" in value or "task" in value:
             return handler(value)
         own, path = _split(value)
-        schema = registry.planners()[DIRECT].task
-        try:
-            inner = schema.model_validate(path, context=info.context)
-        except ValidationError as err:
-            raise _nested(err, schema, path) from None
-        task = handler({**own, "follow": DIRECT, "task": inner})
+        task = handler({**own, "follow": DIRECT, "task": _validated(DIRECT, path, info.context)})
         task._direct = True
         return task
 
@@ -119,11 +114,7 @@ class Task(SimbenchModel):
             return value
         if not isinstance(value, dict):
             raise ValueError(f"expected a mapping: the task of '{follow}', as its own scenarios write it")
-        schema = registry.planners()[follow].task
-        try:
-            return schema.model_validate(value, context=info.context)
-        except ValidationError as err:
-            raise _nested(err, schema, value) from None
+        return _validated(follow, value, info.context)
 
     def cost(self, robot: Robot) -> tuple[float, float]:
         """(position, orientation) costs of the FrameTask for `robot`."""
@@ -137,14 +128,18 @@ def _split(task: dict) -> tuple[dict, dict]:
     return ({key: v for key, v in task.items() if key in own}, {key: v for key, v in task.items() if key not in own})
 
 
-def _nested(err: ValidationError, schema: type, value: dict) -> ValidationError:
-    """The followed task's first error, worded against its own schema, located inside `task.task` (pydantic
-    prefixes the outer path)."""
-    where, message = describe(err, schema, value)
+def _validated(planner: str, value: dict, context: dict | None) -> SimbenchModel:
+    """`value` as the planner's task; its first error worded against that task's schema, located inside `task.task`
+    (pydantic prefixes the outer path)."""
+    schema = registry.planners()[planner].task
+    try:
+        return schema.model_validate(value, context=context)
+    except ValidationError as err:
+        where, message = describe(err, schema, value)
     loc = tuple(int(index) if index else key for key, index in re.findall(r"([^.\[\]]+)|\[(\d+)\]", where))
-    return ValidationError.from_exception_data("Task", [InitErrorDetails(
+    raise ValidationError.from_exception_data("Task", [InitErrorDetails(
         type=PydanticCustomError("value_error", "Value error, {message}", {"message": message}),
-        loc=loc, input=value)])
+        loc=loc, input=value)]) from None
 
 
 def followed(scenario) -> Any:
@@ -185,19 +180,10 @@ def _orientation_gap(quat: np.ndarray, quat_ref: np.ndarray) -> np.ndarray:
     return 2 * np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", quat, quat_ref)), 0.0, 1.0))
 
 
-def follow(scenario, robot: Robot, dt: float, reference: JointTrajectory) -> tuple[np.ndarray, np.ndarray, dict]:
-    """q (N, dof), qd (N, dof) by mink along the reference's poses from its first configuration, and what the
-    solve met: the tool's position and orientation (N, 3), (N, 4) at each q, and the steps whose QP failed."""
-    task: Task = scenario.task
-    model = scene_model(robot)
-    poses = reference_poses(model, robot, reference.q_ref, reference.tool_ref)
-    return solve(model, robot, dt, poses, reference.q_ref[0], task.damping, task.cost(robot), task.posture_cost,
-                 task.solver)
-
-
 def solve(model: mujoco.MjModel, robot: Robot, dt: float, poses: np.ndarray, q_start: np.ndarray, damping: float,
           costs: tuple[float, float], posture_cost: float, solver: str) -> tuple[np.ndarray, np.ndarray, dict]:
-    """follow's QPs along the poses (N, 7) from q_start, on scene_model's `model`."""
+    """q (N, dof), qd (N, dof) by mink's QPs along the poses (N, 7) from q_start, on scene_model's `model`, and what
+    the solve met: the tool's position and orientation (N, 3), (N, 4) at each q, and the steps whose QP failed."""
     mink = extras.require("mink", "mink_baseline")  # here: `simbench list` and validation do not pay for it
 
     qpos_adr = np.array([model.joint(name).qposadr[0] for name in robot.joints])
@@ -240,8 +226,7 @@ def solve(model: mujoco.MjModel, robot: Robot, dt: float, poses: np.ndarray, q_s
         qd[k] = v[dof_adr]
         if k + 1 < n:
             configuration.integrate_inplace(v, dt)
-    return q, qd, {"tool": tool, "quat": quat, "poses": poses, "failed": failed,
-                   "costs": (position_cost, orientation_cost)}
+    return q, qd, {"tool": tool, "quat": quat, "failed": failed}
 
 
 class MinkBaseline(Planner[Task]):
@@ -285,10 +270,13 @@ class MinkBaseline(Planner[Task]):
         if reference.switches or reference.initial or reference.feedback is not None:
             raise RunError(f"'{task.follow}' switches, assembles or re-plans during its run; '{NAME}' follows only a "
                            "plan of joint references")
-        q, qd, met = follow(scenario, robot, dt, reference)
+        model, costs = scene_model(robot), task.cost(robot)
+        poses = reference_poses(model, robot, reference.q_ref, reference.tool_ref)
+        q, qd, met = solve(model, robot, dt, poses, reference.q_ref[0], task.damping, costs, task.posture_cost,
+                           task.solver)
         t, tool_ref = reference.t, reference.tool_ref
         tool_error = np.linalg.norm(met["tool"] - tool_ref, axis=1)
-        orientation_error = _orientation_gap(met["quat"], met["poses"][:, :4])
+        orientation_error = _orientation_gap(met["quat"], poses[:, :4])
         deviation = path_deviation(tool_ref, met["tool"])
         held = np.abs(qd) >= _SPEED_SHARE * robot.qd_max
         k_dev = int(np.argmax(deviation))
@@ -298,11 +286,11 @@ class MinkBaseline(Planner[Task]):
             "follows": {"planner": task.follow, "plan": reference.info, "warnings": list(reference.warnings)},
             "solver": task.solver,
             "damping": task.damping,
-            "costs": {"position": met["costs"][0], "orientation": met["costs"][1], "posture": task.posture_cost},
+            "costs": {"position": costs[0], "orientation": costs[1], "posture": task.posture_cost},
             "qp_failures": len(met["failed"]),
             "plan_path_deviation_max": float(deviation[k_dev]),
             "plan_tool_error_max": float(tool_error.max()),
-            "plan_orientation_error_max": float(orientation_error.max()) if met["costs"][1] > 0 else None,
+            "plan_orientation_error_max": float(orientation_error.max()) if costs[1] > 0 else None,
             "speed_limited_time": {name: float(held[:, j].sum() * dt) for j, name in enumerate(robot.joints)},
         }
         warnings, violations = [], []

@@ -46,12 +46,6 @@ def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, 
     return _damped(ju, twist, lambda sigma: LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0)
 
 
-def fixed_damping(damping: float) -> Rule:
-    """dls: lambda = `damping`."""
-    lam2 = float(damping) ** 2
-    return lambda ju, twist: _damped(ju, twist, lambda sigma: lam2)
-
-
 def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
     """pinv: Ju+ twist, sigma_min, 0 and I - Ju+ Ju."""
     u, sv, vt = np.linalg.svd(ju, full_matrices=False)
@@ -65,6 +59,7 @@ def rule_of(method: str, damping: float | None) -> Rule:
     """The rate rule of a resolved-rate method (time_scaling's joint path is pinv's)."""
     if method == "dls_adaptive":
         return damped_rates
-    if method == "dls":
-        return fixed_damping(DAMPING if damping is None else damping)
+    if method == "dls":  # lambda fixed
+        lam2 = float(DAMPING if damping is None else damping) ** 2
+        return lambda ju, twist: _damped(ju, twist, lambda sigma: lam2)
     return pinv_rates

@@ -35,11 +35,10 @@ IK_STEP = 0.1  # rad (or m): the most a Newton step, and the whole solution, may
 
 def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
              error_of) -> tuple[np.ndarray, np.ndarray]:
-    """Joints (N, dof) at which the tool's pose is points, rotations (N, 3), (N, 3, 3): Newton's iterations
-    q <- q + Ju+ e from q, e the unit-consistent pose error (error_of(points, rotations, q) -> (N, 6)), each step at
-    most IK_STEP rad, kept inside the joint ranges. A sample that does not converge to IK_ACCEPT within IK_STEP of
-    where it started (near a singularity Newton may wander to another branch) keeps its start. Returns the joints
-    and the last |e| (N,)."""
+    """Joints (N, dof) at which the tool's pose is points, rotations: Newton's q <- q + Ju+ e from q, e =
+    error_of(points, rotations, q) (N, 6), steps of at most IK_STEP, inside the joint ranges. A sample that does not
+    converge to IK_ACCEPT within IK_STEP of its start (another branch, near a singularity) keeps it. Returns the
+    joints and the last |e| (N,)."""
     start = np.array(q, float)
     q = start.copy()
     for _ in range(IK_ITERATIONS):
@@ -59,8 +58,8 @@ def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
 
 def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_max: np.ndarray, dt: float,
            hold: float) -> tuple[np.ndarray, ...]:
-    """TOPP-RA's timing of the joint path q_grid (M, dof) at s_grid (M,): the control times t, s(t), ds/dt (N,),
-    the spline's q(s(t)) and dq/dt (N, dof), and the planned duration. RunError where no timing exists."""
+    """TOPP-RA's timing of the joint path q_grid (M, dof) at s_grid (M,): the control times t, s(t) (N,), the
+    spline's q(s(t)) and dq/dt (N, dof), and the planned duration. RunError where no timing exists."""
     import toppra  # imported here: validation and `simbench list` do not pay for it
     import toppra.algorithm
     import toppra.constraint
@@ -97,8 +96,7 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
     s[t >= duration] = 1.0
     rates = yd[:, :dof]
     rates[t >= duration] = 0.0
-    sd = np.where(t >= duration, 0.0, yd[:, -1])
-    return t, s, sd, path(s)[:, :dof], rates, duration
+    return t, s, path(s)[:, :dof], rates, duration
 
 
 def _refuse_longer(duration: float, asked: float) -> None:

@@ -134,9 +134,6 @@ class GeneralContacts:
         """Steps of the grid."""
         return len(self.rot)
 
-    def _cached(self, key, make):
-        return self._cache.fetch(key, make)
-
     def forget(self) -> None:
         """Drop every cached array once the plan is found: the Lazy blocks refer back to this object, so the cache
         would otherwise live on as cyclic garbage."""
@@ -154,7 +151,7 @@ class GeneralContacts:
         """theta and gamma (N, 2) of the arm holding point k along the grid, computed as read."""
         def make(first: int, stop: int) -> np.ndarray:
             return self._ik(arm, k, slice(first, stop))
-        return self._cached(("angles", arm, k), lambda: self.lazy(make))
+        return self._cache.fetch(("angles", arm, k), lambda: self.lazy(make))
 
     def _around(self, arm: int, k: int, first: int, stop: int) -> np.ndarray:
         """angles(arm, k) at steps first - 1 to stop + 1 within the grid; the two edge steps are solved together,
@@ -174,7 +171,7 @@ class GeneralContacts:
         def make(first: int, stop: int) -> np.ndarray:
             both = self.angles(arm, k)[first:stop]
             return rsmg.a_row(arm, both[:, 0], both[:, 1])
-        return self._cached(("rows", arm, k), lambda: self.lazy(make))
+        return self._cache.fetch(("rows", arm, k), lambda: self.lazy(make))
 
     def next_bad(self, arm: int, k: int) -> LazyExit:
         """For each step, the first at or after it where holding point k puts gamma outside the band (eq. 45) or
@@ -189,7 +186,7 @@ class GeneralContacts:
                                    np.abs(np.gradient(np.nan_to_num(gamma), self.step)))
                 ok &= speed < self.qd_limit
             return ok[first - lo:first - lo + stop - first]
-        return self._cached(("next_bad", arm, k), lambda: LazyExit(self.lazy(make)))
+        return self._cache.fetch(("next_bad", arm, k), lambda: LazyExit(self.lazy(make)))
 
     def point(self, arm: int, k: int) -> np.ndarray:
         return self.dense[k]
@@ -207,7 +204,7 @@ class GeneralContacts:
     def _blocks(self, name: str, arm: int, lo: int, hi: int, size: int, make, points=slice(None)) -> np.ndarray:
         """Items lo to hi along axis 1 of a per-arm array over the dense set's `points`, from cached blocks of `size`
         items that make(arm, first, stop) computes."""
-        parts = [self._cached((name, arm, b), lambda b=b: make(arm, b * size, (b + 1) * size))[points]
+        parts = [self._cache.fetch((name, arm, b), lambda b=b: make(arm, b * size, (b + 1) * size))[points]
                  for b in range(lo // size, (hi - 1) // size + 1)]
         whole = np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0]
         return whole[:, lo - (lo // size) * size:hi - (lo // size) * size]
@@ -228,7 +225,7 @@ class GeneralContacts:
         def make():
             stop = min(start + self.horizon, self.n)
             return start + first_out(self._blocks("dense_inside", arm, start, stop, _BLOCK_STEPS, self._inside))
-        return self._cached(("dwell", arm, start), make)
+        return self._cache.fetch(("dwell", arm, start), make)
 
     def initial_points(self, arm: int) -> list[int]:
         """The points to try at t = 0: the longest inside the band, a shortlist far apart."""
@@ -316,12 +313,18 @@ def _rates(y: np.ndarray, step: float, angle: bool) -> tuple[np.ndarray, np.ndar
     return (after - before) / (2 * step), (after - 2 * here + before) / step**2
 
 
-def _quintic_peak(start: np.ndarray, end: np.ndarray, h: float) -> np.ndarray:
-    """The largest |rate| (M,) of quintics over [0, h] from (value, rate, acceleration) start (M, 3) to end."""
+def quintic(h: float, ends: np.ndarray) -> np.ndarray:
+    """Coefficients (6, ...) of the quintics over [0, h] meeting (value, rate, acceleration) ends[:3] at 0 and
+    ends[3:] at h."""
     a = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 2, 0, 0, 0],
                   [1, h, h**2, h**3, h**4, h**5], [0, 1, 2 * h, 3 * h**2, 4 * h**3, 5 * h**4],
                   [0, 0, 2, 6 * h, 12 * h**2, 20 * h**3]], float)
-    coef = np.linalg.solve(a, np.concatenate([start, end], axis=1).T)  # (6, M)
+    return np.linalg.solve(a, ends)
+
+
+def _quintic_peak(start: np.ndarray, end: np.ndarray, h: float) -> np.ndarray:
+    """The largest |rate| (M,) of quintics over [0, h] from (value, rate, acceleration) start (M, 3) to end."""
+    coef = quintic(h, np.concatenate([start, end], axis=1).T)  # (6, M)
     t = np.linspace(0.0, h, _QUINTIC_SAMPLES)
     powers = np.stack([np.zeros_like(t)] + [(i + 1) * t**i for i in range(5)])  # d/dt of t^0..t^5
     return np.abs(coef.T @ powers).max(axis=1)

@@ -112,16 +112,12 @@ def _pinned(line: Line, s: np.ndarray, q: np.ndarray) -> np.ndarray:
     return q
 
 
-def _unwrap_q1(q: np.ndarray, q1_init: float) -> np.ndarray:
-    """q with q1 made continuous along the samples from q1_init (in place)."""
-    q[:, 0] = np.unwrap(np.concatenate([[q1_init], q[:, 0]]))[1:]
-    return q
-
-
 def evaluate(line: Line, s: np.ndarray) -> np.ndarray:
     """Configurations (N, 4) at path parameters s; s = 0 is the initial configuration itself."""
     s = np.asarray(s, float)
-    return _unwrap_q1(_pinned(line, s, _solve(line, s, line.backward(s))), line.q_init[0])
+    q = _pinned(line, s, _solve(line, s, line.backward(s)))
+    q[:, 0] = np.unwrap(np.concatenate([[line.q_init[0]], q[:, 0]]))[1:]  # q1 continuous from q1_init
+    return q
 
 
 def derivative(line: Line, s: np.ndarray) -> np.ndarray:

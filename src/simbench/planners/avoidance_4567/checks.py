@@ -16,9 +16,8 @@ ENDS = 1e-6  # rad: how near the exact FK of the last joint sample must come to 
 _ON_CURVE = 1e-6  # rad: a platform axis this near its base axis is on a singular curve
 
 
-def summary(task: Task, theta: np.ndarray, rot: np.ndarray, kci: np.ndarray | None = None) -> dict:
-    """KCI and clearances of a path, exact orientations given (and its KCI, if at hand)."""
-    kci = agile_eye.kci(theta, rot) if kci is None else kci
+def summary(task: Task, theta: np.ndarray, rot: np.ndarray, kci: np.ndarray) -> dict:
+    """KCI and clearances of a path, its exact orientations and KCI given."""
     clear = {name: float(c.min()) for name, c in clearances(task, theta, rot, kci).items()}
     gaps = agile_eye.axis_gaps(rot).min(axis=0)
     return {"kci": {"mean": float(kci.mean()), "min": float(kci.min())}, "clearance": clear,
@@ -40,11 +39,9 @@ class Checked:
     ok: bool
 
 
-def _crossings(t: np.ndarray, theta: np.ndarray, rot: np.ndarray, undetermined: np.ndarray,
-               det_a: np.ndarray | None = None) -> np.ndarray:
+def _crossings(t: np.ndarray, rot: np.ndarray, undetermined: np.ndarray, det_a: np.ndarray) -> np.ndarray:
     """Times where a path passes the type 2 singular surface: det A changes sign, or the platform comes onto a
-    singular curve (where either assembly mode may follow) or is undetermined. `det_a`: det A, if at hand."""
-    det_a = np.linalg.det(agile_eye.jacobians(theta, rot)[0]) if det_a is None else det_a
+    singular curve (where either assembly mode may follow) or is undetermined."""
     on = (agile_eye.axis_gaps(rot).min(axis=1) < _ON_CURVE) | undetermined
     arrives = np.flatnonzero(on & ~np.concatenate([[False], on[:-1]]))
     flips = 1 + np.flatnonzero(np.sign(det_a[1:]) * np.sign(det_a[:-1]) < 0)
@@ -56,7 +53,7 @@ def check_path(task: Task, name: str, t: np.ndarray, theta: np.ndarray, theta_do
     rot, undetermined = platform(theta, task.start.matrix())
     terms = agile_eye.kci_terms(theta, rot)  # its rows a_i are A's (agile_eye.jacobians)
     exact = summary(task, theta, rot, terms.kci)
-    crossings = _crossings(t, theta, rot, undetermined, np.linalg.det(terms.a))
+    crossings = _crossings(t, rot, undetermined, np.linalg.det(terms.a))
     goal_error = float(rotation_angle(rot[-1:], task.goal.matrix()[None])[0])
     keeps = not shortfalls(task, exact["clearance"])
     return Checked(name, theta, theta_dot, rot, exact, crossings, goal_error,

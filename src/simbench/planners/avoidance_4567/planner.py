@@ -72,12 +72,6 @@ def _info(task: Task, chosen: Checked, plain: Checked, steps: list[dict], search
     return info
 
 
-def start_assembly(theta: np.ndarray, start: np.ndarray) -> dict[str, list[float]]:
-    """JointTrajectory.initial: every joint of the closed chain at base angles theta (3,) and the start orientation
-    (the robot's own assembly would often pick another assembly mode)."""
-    return {joint: [value] for joint, value in agile_eye.assemble(theta, start).items()}
-
-
 class Avoidance4567(Planner):
     name = "avoidance_4567"
     description = "paper 003: 4-5-6-7 orientation path bent around obstacles and singularities (SLSQP)"
@@ -101,7 +95,8 @@ class Avoidance4567(Planner):
         return JointTrajectory(t=t, s=law(t, order=0)[0], q_ref=theta, qd_ref=chosen.theta_dot, tool_ref=aim,
                                waypoints=waypoints, info=info, warnings=tuple(warnings),
                                violations=tuple(violations), series={"platform_quat_ref": quat},
-                               initial=start_assembly(theta[0], task.start.matrix()))
+                               initial={joint: [value] for joint, value in  # the robot's own may pick another mode
+                                        agile_eye.assemble(theta[0], task.start.matrix()).items()})
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
         """T* must fit in T, and the start and goal must not lie on a singular curve (no IK there)."""

@@ -13,7 +13,7 @@ from simbench.timing import TimeLaw
 from simbench.trajectory import Switch
 
 EASE = 0.1  # s: a grip's revised hold blends in from the old one over this time
-_QUINTIC = TimeLaw("quintic", 1.0)
+_QUINTIC = TimeLaw("quintic", 1.0)  # a 0-to-1 blend: 0 before 0, 1 after 1, zero rate and acceleration at both
 
 
 class RegripFeedback:
@@ -51,9 +51,9 @@ class RegripFeedback:
         theta = np.unwrap(theta)
         theta += 2 * np.pi * np.round((old[0, 0] - theta[0]) / (2 * np.pi))
         change = np.stack([theta, gamma], axis=1) - old
-        ease = _smoothstep(np.arange(k_release - k) * self.dt / EASE)
+        ease = _QUINTIC(np.arange(k_release - k) * self.dt / EASE, order=0)[0]
         swing = self.q_ref[k_release:min(k_release + self.n_swing, k_next)][:, columns]
-        out = _smoothstep(1 - np.arange(len(swing)) / max(self.n_swing, 1))
+        out = _QUINTIC(1 - np.arange(len(swing)) / max(self.n_swing, 1), order=0)[0]
         q = np.concatenate([old + ease[:, None] * change, swing + out[:, None] * change[-1:]])
         return k, columns, q
 
@@ -63,8 +63,3 @@ class RegripFeedback:
         parts = [rsmg.ik(arm, self.rot.rows(lo, min(lo + BLOCK, b)) @ point) for lo in range(a, b, BLOCK)]
         parts = parts or [rsmg.ik(arm, np.zeros((0, 3)))]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-
-
-def _smoothstep(u: np.ndarray) -> np.ndarray:
-    """0 before u = 0, 1 after u = 1, the quintic time law between (zero rate and acceleration at both ends)."""
-    return _QUINTIC(u, order=0)[0]

@@ -9,7 +9,7 @@ import numpy as np
 from simbench.planners.round_robin.schedule import ScheduleGrid
 from simbench.planners.round_robin.search import FIT, Hold
 from simbench.planners.round_robin.task import Motion
-from simbench.planners.rsmg_contacts import FixedContacts, GeneralContacts
+from simbench.planners.rsmg_contacts import FixedContacts, GeneralContacts, quintic
 from simbench.robots import rsmg
 from simbench.rotations import matrix_to_quat
 from simbench.trajectory import Switch, gradient_rows
@@ -18,16 +18,6 @@ from simbench.trajectory import Switch, gradient_rows
 # and during the run (Orientations), so that their temporaries stay small
 BLOCK = 8192
 _MARKER = np.array([0.0, 0.0, 1.0])  # the rotor point whose path the report tracks (scaled to 1.2 x radius)
-
-
-def _quintic(t: np.ndarray, t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> np.ndarray:
-    """Quintic in t on [t0, t1] meeting (value, rate, acceleration) `start` at t0 and `end` at t1."""
-    h = t1 - t0
-    a = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 2, 0, 0, 0],
-                  [1, h, h**2, h**3, h**4, h**5], [0, 1, 2 * h, 3 * h**2, 4 * h**3, 5 * h**4],
-                  [0, 0, 2, 6 * h, 12 * h**2, 20 * h**3]], float)
-    coef = np.linalg.solve(a, np.concatenate([start, end]))
-    return np.polynomial.polynomial.polyval(t - t0, coef)
 
 
 def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContacts | GeneralContacts,
@@ -43,11 +33,10 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
         # a hold never released lasts to the reference's end, which may pass the schedule's by up to half a control
         # step (control_grid rounds the samples' count): there it keeps its last value (np.interp's)
         inside = _span(t, span[0], np.inf) if h.end >= grid.size else _span(t, span[0], grid[h.end])
-        theta, gamma = contacts.path(arm, h.point, start, stop + 1)
+        theta, ga = contacts.path(arm, h.point, start, stop + 1)
         th = np.unwrap(theta)
         if held:  # keep theta on the turn nearest where the swing began
             th += 2 * np.pi * np.round((held[-1][1][-1] - th[0]) / (2 * np.pi))
-        ga = gamma
         out_theta[inside] = np.interp(t[inside], span, th)
         out_gamma[inside] = np.interp(t[inside], span, ga)
         held.append((span, th, ga))
@@ -57,12 +46,12 @@ def _arm_path(t: np.ndarray, arm: int, holds: list[Hold], contacts: FixedContact
         for series, before, after in ((out_theta, th_a, th_b), (out_gamma, ga_a, ga_b)):
             start = _state(span_a[-FIT - 1:], before[-FIT - 1:], t0)
             end = _state(span_b[:FIT + 1], after[:FIT + 1], t1)
-            series[swing] = _quintic(t[swing], t0, t1, start, end)
+            coef = quintic(t1 - t0, np.concatenate([start, end]))
+            series[swing] = np.polynomial.polynomial.polyval(t[swing] - t0, coef)
 
 
 def _span(t: np.ndarray, start: float, stop: float) -> slice:
-    """The samples of increasing times t from `start` to before `stop` as a slice: the mask
-    (t >= start) & (t < stop), found by bisection, not by a pass over all samples for every hold."""
+    """The samples of increasing times t from `start` to before `stop`, as a slice found by bisection."""
     return slice(int(np.searchsorted(t, start)), int(np.searchsorted(t, stop)))
 
 
@@ -110,8 +99,7 @@ def engaged_arms(t: np.ndarray, holds: list[Hold], grid: np.ndarray) -> np.ndarr
 
 def rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The marker's planned point (N, 3) and the rotor's planned orientation as quaternions (N, 4) at path
-    parameters s, from the rotor's orientations a BLOCK of samples at a time (each row's numbers those of the
-    whole run's arrays), not all of a long run's at once."""
+    parameters s, a BLOCK of samples at a time (each row's numbers those of the whole run's arrays)."""
     tool_ref, quat = np.empty((len(s), 3)), np.empty((len(s), 4))
     for i in range(0, len(s), BLOCK):
         rot = motion.orientation(s[i:i + BLOCK])
@@ -121,10 +109,8 @@ def rotor_references(motion: Motion, s: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def joint_rates(q_ref: np.ndarray, dt: float) -> np.ndarray:
-    """np.gradient(q_ref, dt, axis=0), as the grip feedback's revisions take it (trajectory.revise), BLOCK rows at
-    a time (trajectory.gradient_rows): the same numbers, without temporaries of several times q_ref.
-    The spacing is the control period, not the differences of t: np.gradient takes a block whose t steps happen to
-    be equal for uniform, and rounds differently there."""
+    """np.gradient(q_ref, dt, axis=0) BLOCK rows at a time (trajectory.gradient_rows, as trajectory.revise takes
+    it): the same numbers without temporaries of several times q_ref. dt, not t: np.gradient rounds differently."""
     qd_ref = np.empty(q_ref.shape)
     for lo in range(0, len(q_ref), BLOCK):
         qd_ref[lo:lo + BLOCK] = gradient_rows(q_ref, lo, min(lo + BLOCK, len(q_ref)), dt)

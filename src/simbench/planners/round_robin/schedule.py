@@ -41,12 +41,9 @@ def rising(task: Task) -> str:
 
 
 def schedule(gamma: np.ndarray, rows: np.ndarray, task: Task, n_swing: int, n_approach: int = 0) -> list[Hold]:
-    """Which point each arm holds when (section 4.1-4.3), with the paper's candidates' gammas (4, 3, N) and rows of
-    A (4, 3, N, 3); RunError where no round-robin choice keeps three arms gripping inside eq. 45's band with the type
-    A measure (eqs. 36-39) >= task.det_a_min (eq. 46). A depth-first search (search.Scheduler): at each deadline
-    the next candidates in the paper's order of trial, let go as late as each allows. A swing takes n_swing steps,
-    the last n_approach following the next point.
-    """
+    """Which point each arm holds when (section 4.1-4.3), from the paper's candidates' gammas (4, 3, N) and rows of
+    A (4, 3, N, 3), by search.Scheduler; RunError where no round-robin choice keeps three arms gripping inside
+    eq. 45's band with the type A measure (eqs. 36-39) >= task.det_a_min (eq. 46)."""
     return search_holds(FixedContacts(gamma, rows, band(task)), task, n_swing, n_approach)
 
 

@@ -100,10 +100,6 @@ class Scheduler:
         """Steps of the grid."""
         return self.contacts.n
 
-    def next_bad(self, arm: int, k: int) -> np.ndarray:
-        """For each step, the first at or after it where `arm` on point k is outside the band."""
-        return self.contacts.next_bad(arm, k)
-
     def measure(self, points: dict[int, int], free: int | None = None) -> np.ndarray:
         """The type A measure (N,) of the arms on `points` but `free`: the largest |3 x 3 minor| of their rows of A
         (eqs. 36-39); NaN where an arm is out of reach."""
@@ -174,7 +170,7 @@ class Scheduler:
         the first step from the grip where k leaves it or A falls under det_a_min (at most `limit`: no further
         blocks are computed)."""
         weak = exit_upto(self.next_weak(_held(current) | {arm: k}), grip, limit)
-        bad = self.next_bad(arm, k)
+        bad = self.contacts.next_bad(arm, k)
         ready = exit_upto(bad, grip - self.n_approach, limit) > grip
         return ready, np.minimum(exit_upto(bad, grip, limit), weak)
 
@@ -195,7 +191,7 @@ class Scheduler:
         points = _held(current)
         while True:
             weak = int(self.next_weak(points)[step])
-            exits = sorted((int(self.next_bad(a, p)[step]), a) for a, p in points.items())
+            exits = sorted((int(self.contacts.next_bad(a, p)[step]), a) for a, p in points.items())
             if exits[0][0] >= n and weak >= n:
                 return [Hold(a, p, since, n) for a, (p, since) in current.items()]
             band = min([e - (rank + 1) * n_swing for rank, (e, _) in enumerate(exits) if e < n], default=n)
@@ -264,11 +260,11 @@ class Scheduler:
     def lasting(self, start: dict[int, int]) -> int:
         """Steps until an arm leaves the band or A falls under det_a_min (general contacts: up to their horizon)."""
         if isinstance(self.contacts, FixedContacts):
-            return min(int(self.next_weak(start)[0]), *(int(self.next_bad(a, p)[0]) for a, p in start.items()))
+            return min(int(self.next_weak(start)[0]), *(int(self.contacts.next_bad(a, p)[0]) for a, p in start.items()))
         stop = min(self.contacts.horizon, self.n)
         floor = np.broadcast_to(self.det_a_min, (self.n,))[:stop]
         weak = int(first_out(self.measure(start)[:stop] >= floor))
-        return min(weak, *(exit_upto(self.next_bad(a, p), 0, stop) for a, p in start.items()))
+        return min(weak, *(exit_upto(self.contacts.next_bad(a, p), 0, stop) for a, p in start.items()))
 
     def starts(self, limits: str) -> list[dict[int, int]]:
         """The initial grips to try, firm at t = 0: each arm's longest-lasting point first, then the others."""
@@ -276,13 +272,9 @@ class Scheduler:
         for arm, ks in enumerate(inside):
             if not ks:
                 raise RunError(f"arm {arm + 1} can grip none of its contact points inside the gamma band at t = 0")
-        first = {a: max(ks, key=lambda k: self.next_bad(a, k)[0]) for a, ks in enumerate(inside)}
-        if isinstance(self.contacts, FixedContacts):
-            starts = [s for s in (dict(enumerate(ks)) for ks in product(*inside)) if self.next_weak(s)[0] > 0]
-            lasting = {tuple(s.values()): self.lasting(s) for s in starts}
-        else:
-            lasting = {ks: self.lasting(dict(enumerate(ks))) for ks in product(*inside)}
-            starts = [dict(enumerate(ks)) for ks, steps in lasting.items() if steps > 0]
+        first = {a: max(ks, key=lambda k: self.contacts.next_bad(a, k)[0]) for a, ks in enumerate(inside)}
+        lasting = {ks: self.lasting(dict(enumerate(ks))) for ks in product(*inside)}
+        starts = [dict(enumerate(ks)) for ks, steps in lasting.items() if steps > 0]
         if not starts:
             raise RunError(f"round robin: at t = 0 no set of contact points inside the gamma band holds the rotor "
                            f"firmly; {limits}")
