@@ -1,7 +1,9 @@
 """The documentation site: it builds with warnings as errors, its API reference lists every public name of
 simbench.api, and nothing the repository holds points at a file outside it."""
 
+import html
 import importlib.util
+import inspect
 import re
 import subprocess
 import sys
@@ -9,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+import simbench
 import simbench.api
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,6 +44,20 @@ def test_the_api_reference_lists_every_public_name_of_simbench_api(site):
     page = (out / "reference" / "api" / "index.html").read_text(encoding="utf-8")
     missing = [name for name in simbench.api.__all__ if f'id="simbench.api.{name}"' not in page]
     assert not missing, f"simbench.api names without an entry in the reference: {missing}"
+
+
+def test_a_long_signature_is_shown_a_parameter_a_line(site):
+    """mkdocstrings formats signatures with ruff (the docs extra): simbench.run's seven parameters each on a line of
+    its own, as `inspect.signature` names them, not one line too long to read."""
+    out, done = site
+    assert done.returncode == 0, done.stdout + done.stderr
+    page = (out / "reference" / "simbench" / "index.html").read_text(encoding="utf-8")
+    signatures = [html.unescape(re.sub(r"<[^>]+>", "", block))
+                  for block in re.findall(r'<div class="doc-signature[^>]*>(.*?)</div>', page, re.S)]
+    run = next(text for text in signatures if text.startswith("run("))
+    names = list(inspect.signature(simbench.run).parameters)
+    lines = run.strip().splitlines()
+    assert [line.strip().split(":")[0] for line in lines[1:-1]] == names, run
 
 
 def _tracked_text_files() -> list[tuple[Path, str]]:
