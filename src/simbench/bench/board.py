@@ -1,17 +1,7 @@
-"""A bench's tables: runs.csv, a row per task and method, and leaderboard.csv, a row per robot and method. What a
-method's row says is simbench.scoring's, shared with `compare`.
-
-runs.csv columns: the run's parameters (robot, task, kind, shape, method, planner, anchor_gap: the robot's own gap
-at the task's anchor, rad; length_mm, duration), then simbench.scoring's status, error, deviation_max_mm,
-speed_share_max, slowdown and closest_approach, and wall_time (s), the only column that depends on the machine. A
-run that did not finish has empty figures.
-
-leaderboard.csv: robot, method, planner, tasks, ok (runs whose status is `ok`), ok_share, deviation_p95_mm (the 95th
-percentile over the tasks that finished), speed_share_max (the largest), slowdown_median, and for ok_share,
-deviation_p95_mm and slowdown_median a percentile bootstrap 95 % interval (`_lo`, `_hi`: BOOTSTRAP resamples of the
-tasks, drawn at the suite's seed, the robot's and the method's name), each figure to FIGURES significant digits, so
-that the same suite at the same seed writes the same bytes. leaderboard_by_kind.csv: the same, a row per robot,
-method and kind of task (through, near, far).
+"""A bench's tables (columns: docs/guide/bench.md): runs.csv, a row per task and method, as simbench.scoring
+scores it (shared with `compare`); leaderboard.csv, a row per robot and method, and leaderboard_by_kind.csv, per
+kind of task too, with percentile bootstrap intervals drawn at the suite's seed, the robot's and the method's name,
+each figure to FIGURES significant digits: the same suite at the same seed writes the same bytes.
 """
 
 from __future__ import annotations
@@ -28,13 +18,12 @@ PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "
 FIGURES = 6
 BOOTSTRAP = 2000
 LEVEL = 95.0
-STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
 COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_max",  # runs.csv's: scoring's
            "speed_share_max": "speed_share_max", "slowdown": "slowdown", "closest_approach": "closest_approach"}
 
 
 def runs_table(rows: list[dict]) -> dict[str, list]:
-    """runs.csv as columns, in run order (the module's docstring)."""
+    """runs.csv as columns, in run order."""
     rows = sorted(rows, key=lambda r: r["run"])
     table: dict[str, list] = {name: [r["params"].get(name) for r in rows] for name in PARAMS}
     scores = [score_flat(r["status"], r["error"], r["metrics"]) for r in rows]
@@ -43,11 +32,6 @@ def runs_table(rows: list[dict]) -> dict[str, list]:
     table["deviation_max_mm"] = [None if d is None else float(d) * 1e3 for d in table["deviation_max_mm"]]
     table["wall_time"] = [r["wall_time"] for r in rows]
     return table
-
-
-def status_counts(runs: dict[str, list]) -> dict[str, int]:
-    """Runs by status."""
-    return {s: runs["status"].count(s) for s in STATUSES}
 
 
 def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot", "method")) -> dict[str, list]:

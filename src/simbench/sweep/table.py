@@ -94,10 +94,15 @@ def write_parquet_where_installed(table: dict[str, list], path: Path) -> str | N
     return missing
 
 
+def status_counts(status: list[str]) -> dict[str, int]:
+    """Runs by status, every status named."""
+    return {s: status.count(s) for s in STATUSES}
+
+
 def summary(table: dict[str, list], metrics: list[str]) -> dict:
     """Counts by status, and for each plotted metric its range over the runs that finished, with their ids."""
     status = table["status"]
-    out: dict[str, Any] = {"runs": len(status), "status": {s: status.count(s) for s in STATUSES}, "metrics": {}}
+    out: dict[str, Any] = {"runs": len(status), "status": status_counts(status), "metrics": {}}
     for name in metrics:
         values = [(v, i) for v, i, s in zip(table.get(name, []), table["id"], status)
                   if s in FINISHED and isinstance(v, (int, float)) and math.isfinite(v)]
@@ -190,10 +195,7 @@ def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], 
         panels[0][0].set_yscale("log")
     panels[0][0].set_ylabel(metric)
     panels[0][0].legend(fontsize=8)
-    fig.tight_layout()
-    name = f"{_safe(metric)}.png"
-    fig.savefig(folder / name, dpi=100)
-    return name
+    return _save(fig, folder, f"{_safe(metric)}.png")
 
 
 def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table: dict, folder: Path) -> str:
@@ -214,8 +216,11 @@ def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table:
     ax.set_xlabel(pair[0])
     ax.set_ylabel(pair[1])
     fig.colorbar(image, ax=ax, label=f"{metric} (median)")
+    return _save(fig, folder, f"{_safe(metric)}_grid.png")
+
+
+def _save(fig: Figure, folder: Path, name: str) -> str:
     fig.tight_layout()
-    name = f"{_safe(metric)}_grid.png"
     fig.savefig(folder / name, dpi=100)
     return name
 
