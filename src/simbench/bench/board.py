@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "
 FIGURES = 6
 BOOTSTRAP = 2000
 LEVEL = 95.0
+_P95 = partial(np.percentile, q=95.0)
 COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_max",  # runs.csv's: scoring's
            "speed_share_max": "speed_share_max", "slowdown": "slowdown", "closest_approach": "closest_approach"}
 
@@ -52,7 +54,7 @@ def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int
     shares = _finite(runs["speed_share_max"], index)
     row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum())}
     row.update(_estimate("ok_share", ok, np.mean, rng))
-    row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _p95, rng))
+    row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _P95, rng))
     row["speed_share_max"] = _round(shares.max()) if len(shares) else None
     row.update(_estimate("slowdown_median", _finite(runs["slowdown"], index), np.median, rng))
     return row
@@ -66,20 +68,15 @@ def _estimate(name: str, values: np.ndarray, statistic, rng: np.random.Generator
     return {name: _round(statistic(values)), f"{name}_lo": _round(lo), f"{name}_hi": _round(hi)}
 
 
-def _p95(values: np.ndarray, axis: int | None = None) -> np.ndarray:
-    return np.percentile(values, 95.0, axis=axis)
-
-
 def _finite(column: list, index: list[int]) -> np.ndarray:
     values = np.array([column[i] if column[i] is not None else np.nan for i in index], float)
     return values[np.isfinite(values)]
 
 
-def bootstrap(values: np.ndarray, statistic, rng: np.random.Generator,
-              resamples: int = BOOTSTRAP) -> tuple[float, float]:
+def bootstrap(values: np.ndarray, statistic, rng: np.random.Generator) -> tuple[float, float]:
     """The percentile bootstrap interval at LEVEL of `statistic` (a function of an array and `axis`) over
-    `values`: `resamples` resamples with replacement, each of len(values)."""
-    draws = values[rng.integers(0, len(values), (resamples, len(values)))]
+    `values`: BOOTSTRAP resamples with replacement, each of len(values)."""
+    draws = values[rng.integers(0, len(values), (BOOTSTRAP, len(values)))]
     stats = statistic(draws, axis=1)
     tail = (100.0 - LEVEL) / 2
     lo, hi = np.percentile(stats, [tail, 100.0 - tail])

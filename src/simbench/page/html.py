@@ -106,8 +106,6 @@ def cell(value: object, digits: int | None = 6) -> str:
         return f'<td class="n"{title}>{esc(shown)}</td>'
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return f'<td class="n">{esc(repr(value))}</td>'
-    if isinstance(value, (dict, list)):
-        return f"<td>{esc(json.dumps(value))}</td>"
     return "<td></td>" if value is None else f"<td>{esc(number(value))}</td>"
 
 

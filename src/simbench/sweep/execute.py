@@ -29,10 +29,8 @@ _WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
                 video: bool = False, allow_code: bool = False) -> dict:
-    """Plan, simulate and analyse one scenario document; its outcome: `status` (ok | limits | bad_input |
-    run_failed | crashed), `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`. The
-    budget holds each variant to the whole machine's memory, not a share. With outputs='full' every output of
-    `simbench run` is written into `out`."""
+    """Plan, simulate and analyse one scenario document (with outputs='full' writing every output into `out`);
+    its outcome: `status`, `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`."""
     start = time.perf_counter()
     report, status, error = _attempt(document, source, outputs, out, video, allow_code)
     return {"status": status, "error": error, "metrics": metrics(report) if report else {},

@@ -80,12 +80,10 @@ class Distribution(SimbenchModel):
             return int(rng.integers(self.integers[0], self.integers[1] + 1))
         a_raw, b_raw = getattr(self, kind)
         a, b = np.asarray(a_raw, float), np.asarray(b_raw, float)
-        if kind == "uniform":
-            value = rng.uniform(a, b)
-        elif kind == "loguniform":
+        if kind == "loguniform":
             value = np.exp(rng.uniform(np.log(a), np.log(b)))
-        else:
-            value = rng.normal(a, b)
+        else:  # uniform, normal: the Generator's method of that name
+            value = getattr(rng, kind)(a, b)
         return value.tolist() if isinstance(a_raw, list) else float(value)
 
 
