@@ -204,12 +204,21 @@ def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[
     """Every run as a Ray task; 'local' starts (and stops) a cluster here with `workers` CPUs. Every node needs
     simbench, and with outputs: full a filesystem it shares."""
     import ray
+    import ray.exceptions
 
     started = _join_ray(address, workers)
     remote = ray.remote(num_cpus=1, max_retries=0)(run_variant)
     pending = {remote.remote(**kwargs): index for index, kwargs in tasks}
     try:
-        yield from _ray_outcomes(pending)
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                index = pending.pop(ref)
+                try:
+                    outcome = ray.get(ref)
+                except ray.exceptions.RayError as err:  # a failed worker's run is `crashed`
+                    outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
+                yield index, outcome
     finally:
         for ref in pending:
             ray.cancel(ref, force=True)
@@ -237,22 +246,6 @@ def _join_ray(address: str, workers: int) -> bool:
             raise RunError(f"could not start a Ray cluster here: {reason}") from None
         raise ScenarioError("--ray", None, f"could not join the Ray cluster at {address}: {reason}") from None
     return True
-
-
-def _ray_outcomes(pending: dict) -> Iterator[tuple[int, dict]]:
-    """The outcomes of the pending Ray tasks (task: run index) as they finish; a failed worker's is `crashed`."""
-    import ray
-    import ray.exceptions
-
-    while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        for ref in done:
-            index = pending.pop(ref)
-            try:
-                outcome = ray.get(ref)
-            except ray.exceptions.RayError as err:
-                outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
-            yield index, outcome
 
 
 def cpu_count() -> int:

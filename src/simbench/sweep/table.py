@@ -75,22 +75,17 @@ def _arrow_column(values: list):
     return pa.array([None if v is None else json.dumps(v) for v in values], pa.string())
 
 
-def write_parquet(table: dict[str, list], path: Path) -> None:
-    """results.parquet, the same table with typed columns; MissingExtra without pyarrow (the `pyarrow` extra)."""
-    pa = extras.require("pyarrow", "results.parquet")
-    import pyarrow.parquet as pq
-
-    arrow = pa.table({name: _arrow_column(values) for name, values in table.items()})
-    with staged_file(path) as tmp:
-        pq.write_table(arrow, tmp)
-
-
 def write_parquet_where_installed(table: dict[str, list], path: Path) -> str | None:
-    """The table's Parquet copy at `path` where pyarrow is installed (None); else the note saying why it was left
-    out (the CSV table holds the same rows)."""
+    """The table's Parquet copy at `path`, typed columns, where pyarrow is installed (None); else the note saying
+    why it was left out (the CSV table holds the same rows)."""
     missing = extras.missing("pyarrow", path.name)
     if missing is None:
-        write_parquet(table, path)
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        arrow = pa.table({name: _arrow_column(values) for name, values in table.items()})
+        with staged_file(path) as tmp:
+            pq.write_table(arrow, tmp)
     return missing
 
 
