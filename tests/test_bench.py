@@ -18,7 +18,7 @@ import pytest
 from conftest import interrupt
 from simbench import pipeline
 from simbench.bench import board, load_suite, run_bench
-from simbench.bench.methods import METHODS, available
+from simbench.bench.methods import METHODS
 from simbench.bench.robots import SHIPPED
 from simbench.bench.tasks import bands, draw
 from simbench.cli import main
@@ -26,6 +26,7 @@ from simbench.errors import ScenarioError
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
 from simbench.scenario import parse_scenario
+from simbench.sweep import table
 
 METHODS_2 = ["dls_adaptive", "mink"]
 
@@ -86,11 +87,11 @@ def test_every_methods_document_is_a_valid_scenario():
     for name in ("puma600", "spherical_arm", "planar3r"):
         robot = SHIPPED[name]()
         task = draw(robot, 1, 0)[0]
-        for method in available():
+        for method in METHODS:
             doc = METHODS[method].document(task, robot)
             if doc is not None:
                 parse_scenario(doc, f"{name} {method}")
-    assert set(available()) == {"dls_adaptive", "pinv", "dls", "time_scaling", "mink", "paper"}
+    assert set(METHODS) == {"dls_adaptive", "pinv", "dls", "time_scaling", "mink", "paper"}
 
 
 # --- tasks: through, near, far ------------------------------------------------------------------------------------
@@ -157,7 +158,7 @@ def test_runs_csv_has_a_row_per_task_and_method(planar):
         (f"planar3r-t{i:04d}", m) for i in range(2) for m in METHODS_2)
     assert {r["kind"] for r in rows} == {"through", "near"}
     for r in rows:
-        assert r["status"] in board.STATUSES
+        assert r["status"] in table.STATUSES
         if r["status"] in ("ok", "limits"):
             assert float(r["deviation_max_mm"]) >= 0 and float(r["speed_share_max"]) > 0
             assert float(r["slowdown"]) == 1.0 and float(r["closest_approach"]) >= 0

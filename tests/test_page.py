@@ -357,22 +357,18 @@ def sweep_folder(out: Path) -> tuple[dict, list[str]]:
 def test_a_sweep_page_shows_its_tables_and_figures(tmp_path, open_page):
     out = tmp_path / "sweep"
     out.mkdir()
-    summary, plots = sweep_folder(out)
-    metric = summary["metrics"]["tool_rms"]
+    _, plots = sweep_folder(out)
     html = table_page(out, "spherical_arm_timestep <sweep>", "Case 1 over the timestep.\n\nSecond paragraph.",
-                      [("Runs by status", [["status", "runs"], *summary["status"].items()]),
-                       ("tool_rms (m)", [{"min": metric["min"], "median": metric["median"], "max": metric["max"]}]),
-                       ("Results", Path("results.csv"))],
-                      plots, {"base": "spherical_arm/case1", "grid": {"sim.timestep": [0.001, 0.002]}},
-                      headline={"runs": summary["runs"], "ok": summary["status"]["ok"]})
+                      [("Results", Path("results.csv"))],
+                      plots, {"base": "spherical_arm/case1", "grid": {"sim.timestep": [0.001, 0.002]}})
     write_page(out, html)
     page = open_page(out / "index.html")
     assert page.evaluate("document.querySelector('h1').textContent") == "spherical_arm_timestep <sweep>"
     assert page.evaluate("document.querySelectorAll('body > p').length") == 2
     tables = page.evaluate("[...document.querySelectorAll('h3 + .scroll table')].map(t => [...t.rows].map(r => "
                            "[...r.cells].map(c => c.textContent)))")
-    assert [len(t) - 1 for t in tables] == [5, 1, 6]
-    results = tables[2]
+    assert [len(t) - 1 for t in tables] == [6]
+    results = tables[0]
     assert results[0] == ["run", "id", *["sim.timestep", "timing.duration"], "status", "error", "tool_rms", "events",
                           "wall_time"]
     assert results[5][5] == "<b>off_path</b> & more" and results[6][4] == "bad_input" and results[6][6] == ""

@@ -1,10 +1,8 @@
 """Methods side by side: one scenario's task planned and run by several planners (and controllers), into one
 table (comparison.csv in SI units, comparison.md, comparison.json) and overlaid plots.
 
-Each pair of a planner and a controller is one method, evaluated as a separate run of the scenario would be.
-`mink_baseline` gets `{follow: <the scenario's planner>, task: <its task>}` so that it follows the same reference;
-another planner gets the task as written, another controller its default fields. Only the scenario's own pair
-keeps its `expect:`.
+Each pair of a planner and a controller is one method, evaluated as a separate run of the scenario would be; only
+the scenario's own pair keeps its `expect:`.
 """
 
 from __future__ import annotations
@@ -177,11 +175,8 @@ def singular_sets(run: MethodRun) -> list[api.SingularSet]:
 
 
 def row(run: MethodRun) -> dict:
-    """The table's row of a method, SI units: status, tracking, speed peaks and shares of the limit, slowdown,
-    least distances to singular sets, metrics' figures and event counts; status, error, path_deviation_max_m,
-    qd_share_max, slowdown and closest_approach as simbench.scoring decides them for `simbench bench` too. Peaks
-    and least distances are of every sample (with a recording stride too); the plan's own path deviation is of the
-    kept rows."""
+    """The table's row of a method, SI units (docs/guide/compare.md); the figures a bench shares, as
+    simbench.scoring decides them."""
     ev = run.evaluation
     shared = score(run.status, run.error, None if ev is None else ev.analysis.tracking,
                    None if ev is None else ev.analysis.metrics)

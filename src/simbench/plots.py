@@ -76,17 +76,7 @@ def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: floa
 
 
 def save(fig: Figure, folder: Path, stem: str, plot_format: str = "png") -> str:
-    """Write the figure as `folder/<stem>.<plot_format>`.
-
-    Args:
-        fig: The figure.
-        folder: Where to write it.
-        stem: The file's name without its suffix.
-        plot_format: `png`, `svg` or `pdf`.
-
-    Returns:
-        The file's name.
-    """
+    """Write the figure as `folder/<stem>.<plot_format>`; the file's name."""
     name = f"{stem}.{plot_format}"
     fig.savefig(folder / name, format=plot_format)
     return name

@@ -1,23 +1,14 @@
-"""A bench's tables: runs.csv, a row per task and method, and leaderboard.csv, a row per robot and method. What a
-method's row says is simbench.scoring's, shared with `compare`.
-
-runs.csv columns: the run's parameters (robot, task, kind, shape, method, planner, anchor_gap: the robot's own gap
-at the task's anchor, rad; length_mm, duration), then simbench.scoring's status, error, deviation_max_mm,
-speed_share_max, slowdown and closest_approach, and wall_time (s), the only column that depends on the machine. A
-run that did not finish has empty figures.
-
-leaderboard.csv: robot, method, planner, tasks, ok (runs whose status is `ok`), ok_share, deviation_p95_mm (the 95th
-percentile over the tasks that finished), speed_share_max (the largest), slowdown_median, and for ok_share,
-deviation_p95_mm and slowdown_median a percentile bootstrap 95 % interval (`_lo`, `_hi`: BOOTSTRAP resamples of the
-tasks, drawn at the suite's seed, the robot's and the method's name), each figure to FIGURES significant digits, so
-that the same suite at the same seed writes the same bytes. leaderboard_by_kind.csv: the same, a row per robot,
-method and kind of task (through, near, far).
+"""A bench's tables (columns: docs/guide/bench.md): runs.csv, a row per task and method, as simbench.scoring
+scores it (shared with `compare`); leaderboard.csv, a row per robot and method, and leaderboard_by_kind.csv, per
+kind of task too, with percentile bootstrap intervals drawn at the suite's seed, the robot's and the method's name,
+each figure to FIGURES significant digits: the same suite at the same seed writes the same bytes.
 """
 
 from __future__ import annotations
 
 import math
 import zlib
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -28,13 +19,13 @@ PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "
 FIGURES = 6
 BOOTSTRAP = 2000
 LEVEL = 95.0
-STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
+_P95 = partial(np.percentile, q=95.0)
 COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_max",  # runs.csv's: scoring's
            "speed_share_max": "speed_share_max", "slowdown": "slowdown", "closest_approach": "closest_approach"}
 
 
 def runs_table(rows: list[dict]) -> dict[str, list]:
-    """runs.csv as columns, in run order (the module's docstring)."""
+    """runs.csv as columns, in run order."""
     rows = sorted(rows, key=lambda r: r["run"])
     table: dict[str, list] = {name: [r["params"].get(name) for r in rows] for name in PARAMS}
     scores = [score_flat(r["status"], r["error"], r["metrics"]) for r in rows]
@@ -43,11 +34,6 @@ def runs_table(rows: list[dict]) -> dict[str, list]:
     table["deviation_max_mm"] = [None if d is None else float(d) * 1e3 for d in table["deviation_max_mm"]]
     table["wall_time"] = [r["wall_time"] for r in rows]
     return table
-
-
-def status_counts(runs: dict[str, list]) -> dict[str, int]:
-    """Runs by status."""
-    return {s: runs["status"].count(s) for s in STATUSES}
 
 
 def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot", "method")) -> dict[str, list]:
@@ -68,7 +54,7 @@ def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int
     shares = _finite(runs["speed_share_max"], index)
     row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum())}
     row.update(_estimate("ok_share", ok, np.mean, rng))
-    row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _p95, rng))
+    row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _P95, rng))
     row["speed_share_max"] = _round(shares.max()) if len(shares) else None
     row.update(_estimate("slowdown_median", _finite(runs["slowdown"], index), np.median, rng))
     return row
@@ -82,20 +68,15 @@ def _estimate(name: str, values: np.ndarray, statistic, rng: np.random.Generator
     return {name: _round(statistic(values)), f"{name}_lo": _round(lo), f"{name}_hi": _round(hi)}
 
 
-def _p95(values: np.ndarray, axis: int | None = None) -> np.ndarray:
-    return np.percentile(values, 95.0, axis=axis)
-
-
 def _finite(column: list, index: list[int]) -> np.ndarray:
     values = np.array([column[i] if column[i] is not None else np.nan for i in index], float)
     return values[np.isfinite(values)]
 
 
-def bootstrap(values: np.ndarray, statistic, rng: np.random.Generator,
-              resamples: int = BOOTSTRAP) -> tuple[float, float]:
+def bootstrap(values: np.ndarray, statistic, rng: np.random.Generator) -> tuple[float, float]:
     """The percentile bootstrap interval at LEVEL of `statistic` (a function of an array and `axis`) over
-    `values`: `resamples` resamples with replacement, each of len(values)."""
-    draws = values[rng.integers(0, len(values), (resamples, len(values)))]
+    `values`: BOOTSTRAP resamples with replacement, each of len(values)."""
+    draws = values[rng.integers(0, len(values), (BOOTSTRAP, len(values)))]
     stats = statistic(draws, axis=1)
     tail = (100.0 - LEVEL) / 2
     lo, hi = np.percentile(stats, [tail, 100.0 - tail])

@@ -1,15 +1,5 @@
 """A bench's methods: each a named way to plan a common task (bench.tasks.Task), as a scenario's planner and the
-task fields it takes. One place decides what a method runs; a method that does not apply to a robot has no row
-there.
-
-    dls_adaptive   cartesian_path: damped least squares, its damping grown near a rank loss (Chiaverini 1994)
-    pinv, dls, time_scaling
-                   cartesian_path with `task.method` set to the name (planners/path_methods.py, path_retiming.py)
-    mink           mink_baseline: mink's QP with the speed limits, on cartesian_path's path (or, for a robot that
-                   holds no orientation, on the paper planner's line)
-    paper          the paper's own planner for the robot: decoupled_path (paper 002, the PUMA: the path, the
-                   orientation held and the start's configuration flags), safe_straight_path (paper 000, the
-                   spherical arm: its start and goal joints; the line between their tool points)
+task fields it takes (docs/guide/bench.md). A method that does not apply to a robot has no row there.
 """
 
 from __future__ import annotations
@@ -95,11 +85,6 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            lambda robot: "mink_baseline" if robot.hold or robot.paper else None, needs="mink"),
     Method("paper", "the paper's own planner for the robot", _paper, lambda robot: robot.paper),
 )}
-
-
-def available() -> list[str]:
-    """The methods, in the table's order."""
-    return list(METHODS)
 
 
 def installed() -> list[str]:

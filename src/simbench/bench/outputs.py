@@ -1,7 +1,5 @@
 """A bench's files beside its rows: the tables (simbench.bench.board), plots/, summary.json and index.html, each
-claimed in the folder's marker before it is written (simbench.destination). Plots, per robot: the path deviation
-against the closest approach (<robot>_deviation.png), the plan's joint-speed share (<robot>_speed_share.png) and the
-slowdown (<robot>_slowdown.png), per method.
+claimed in the folder's marker before it is written (simbench.destination).
 """
 
 from __future__ import annotations
@@ -21,8 +19,8 @@ RESULTS = ("runs.csv", "runs.parquet", "leaderboard.csv", "leaderboard_by_kind.c
 
 def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list], dict[str, list]], summary: dict,
           workers: int) -> None:
-    """Every file of the bench's results into `out` (the module's docstring); `boards`: the leaderboard by robot
-    and method, and by robot, method and kind of task."""
+    """Every file of the bench's results into `out`; `boards`: the leaderboard by robot and method, and by robot,
+    method and kind of task."""
     store.claim(RESULTS)
     with store.writing():
         table.write_csv(runs, out / "runs.csv")
@@ -49,7 +47,8 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
 
 
 def draw(runs: dict[str, list], folder: Path) -> list[str]:
-    """The plots of every robot into `folder`; their file names."""
+    """Per robot, by method: the path deviation against the closest approach, the plan's joint-speed share and the
+    slowdown, into `folder`; their file names."""
     names = []
     for robot in dict.fromkeys(runs["robot"]):
         rows = [i for i, r in enumerate(runs["robot"]) if r == robot]

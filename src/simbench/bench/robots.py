@@ -1,18 +1,6 @@
-"""The robots a bench runs: each an arm derived from its model (robots.model_arm), so that every method drives the
-same MuJoCo arm and every run measures the same singular gap (rank_loss); and, for the task generator, the robot's
-own singular measure (`gap`, rad) and a way to put a configuration on its singular set (`singular`).
-
-    puma600        paper 002's PUMA 600 from its MJCF; the wrist set q5 = 0 (gap |q5|, puma600.wrist_gap)
-    spherical_arm  paper 000's RPRP arm; the lift axis cos q3 = 0 (gap |90 deg - q3|); its tool has no
-                   orientation to hold: its tasks are lines between two configurations' tool points
-    planar3r       the planar 3R of examples/planar3r (installed as simbench-planar3r); the stretched elbow q2 = 0,
-                   on the reach's boundary: a task meets it at its path's end
-    jaco           dm-control's Kinova Jaco (jaco_arm.xml); rank_loss, its singular configurations found by
-                   minimising it
-    panda          the Franka Panda of example-robot-data (URDF, 7 joints, its flange panda_link8); rank_loss;
-                   not mink (mink_baseline refuses a model whose fingers are joints it does not drive)
-
-A suite file's own arm (a robot mapping: docs/guide/your-arm.md) is found the same way as the Jaco's.
+"""The robots a bench runs, each as the arm derived from its model (robots.model_arm), so that every method drives
+the same MuJoCo arm and every run measures the same singular gap (rank_loss); and, for the task generator, the
+robot's own singular measure (`gap`, rad) and a way to put a configuration on its singular set (`singular`).
 """
 
 from __future__ import annotations

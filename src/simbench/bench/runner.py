@@ -5,12 +5,10 @@ pipeline (simbench.sweep.execute.run_variant), the bench's results beside (simbe
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar, cast
+from typing import ClassVar
 
 from simbench import destination
 from simbench.bench import board, outputs
@@ -18,7 +16,7 @@ from simbench.bench.methods import METHODS
 from simbench.bench.suite import Suite
 from simbench.bench.tasks import draw
 from simbench.schema import SimbenchModel
-from simbench.sweep import cluster, run_remaining
+from simbench.sweep import cluster, run_remaining, table
 from simbench.sweep.spec import Sweep, Variant
 from simbench.sweep.store import Store
 
@@ -37,26 +35,15 @@ class BenchSpec(SimbenchModel):
 
 
 @dataclass(frozen=True)
-class Bench:
-    """A suite drawn into runs: what simbench.sweep.store.Store and simbench.sweep.workers read of a Sweep."""
+class Bench(Sweep):
+    """A suite drawn into runs, which simbench.sweep stores and runs as a sweep's."""
 
-    name: str
-    source: str
-    spec: BenchSpec
-    base: Path
-    variants: tuple[Variant, ...]
+    spec: BenchSpec  # type: ignore[assignment]
+    _SPEC_KEY: ClassVar[str] = "bench"
 
     @property
     def params(self) -> list[str]:
         return list(board.PARAMS)
-
-    def fingerprint(self) -> str:
-        """A hash of everything that decides the results: a bench resumes only into a folder with the same one."""
-        from simbench import __version__
-
-        blob = json.dumps({"simbench": __version__, "bench": self.spec.model_dump(mode="json"),
-                           "runs": [v.document for v in self.variants]}, sort_keys=True)
-        return hashlib.sha256(blob.encode()).hexdigest()
 
 
 @dataclass(frozen=True)
@@ -110,8 +97,7 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
     if ray is not None:
         cluster.reach(ray)
-    as_sweep = cast(Sweep, bench)  # what Store and run_remaining read of a Sweep, a Bench has
-    with Store(out, as_sweep, force=force) as store:
+    with Store(out, bench, force=force) as store:
         ran = run_remaining(store, workers, ray, progress, lambda v: {
             "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
         runs = board.runs_table(list(ran.rows.values()))
@@ -119,7 +105,7 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
         by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
         summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
                    "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
-                   "runs": len(bench.variants), "status": board.status_counts(runs), "resumed": ran.resumed,
+                   "runs": len(bench.variants), "status": table.status_counts(runs["status"]), "resumed": ran.resumed,
                    "backend": ran.backend, "wall_time": round(time.perf_counter() - ran.start, 3)}
         outputs.write(store, out, runs, (leaderboard, by_kind), summary, ran.workers)
     return BenchResult(out, runs, leaderboard, summary)

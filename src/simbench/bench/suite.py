@@ -1,18 +1,5 @@
-"""Bench suites: the robots, how many tasks each and at what seed, and the methods. A shipped suite is named by a
-robot (`simbench bench puma600`, or `all` for every shipped robot); a suite file says it all:
-
-    name: my_arms                       # optional: the file's stem; names the output folder
-    tasks: 30                           # tasks per robot (--tasks overrides)
-    seed: 0                             # (--seed overrides)
-    methods: [dls_adaptive, mink, paper]   # optional: every method installed (--methods overrides)
-    robots:
-      - puma600                         # a shipped robot (simbench.bench.robots)
-      - name: my_arm                    # an arm of your own: a robot mapping (docs/guide/your-arm.md), its paths
-        model: arms/my_arm.urdf         #   relative to this file, SI units unless it states its own `units:`
-        tool: {body: link7, offset: [0, 0, 0.1]}
-        speed: 0.1                      # m/s: the tool's mean speed along its tasks (default 0.1)
-
-Errors name the file and the field (exit 2), as a scenario's do.
+"""Bench suites (docs/guide/bench.md): the robots, how many tasks each and at what seed, and the methods. A shipped
+suite is named by a robot (or `all`); a suite file's errors name the file and the field, as a scenario's do.
 """
 
 from __future__ import annotations
@@ -70,11 +57,11 @@ class Suite:
 
 def check_methods(names: list[str], source: str, field: str | None) -> list[str]:
     """`names` if each is a method simbench has and can run here; ScenarioError naming the first that is not."""
-    known = methods_table.available()
     for i, name in enumerate(names):
         where = f"{field}[{i}]" if field else None
         if name not in methods_table.METHODS:
-            raise ScenarioError(source, where, f"unknown method {name!r} (expected one of: {', '.join(known)})")
+            raise ScenarioError(source, where, f"unknown method {name!r} (expected one of: "
+                                               f"{', '.join(methods_table.METHODS)})")
         refusal = methods_table.refusal(name)
         if refusal:  # its optional package is not installed
             raise ScenarioError(source, where, refusal)

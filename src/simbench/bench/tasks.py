@@ -1,26 +1,10 @@
-"""A bench's tasks: random lines and arcs for a robot, drawn at a fixed seed to pass through, near and far from its
-singular set, each as the joints at its start (and end) and its path, in SI.
+"""A bench's tasks: random lines and arcs for a robot, through, near and far from its singular set (i mod 3), each
+drawn by its own generator (the suite's seed, the robot's name, i), so that more tasks keep the first ones.
 
-Task i of a robot is `through`, `near` or `far` in turn (i mod 3), a line or an arc in turn, drawn by its own
-generator (seeded by the suite's seed, the robot's name and i), so that more tasks keep the first ones. Each is
-anchored at a configuration q_a:
-
-    through   q_a on the singular set: a configuration drawn uniformly within the joint ranges (10 % of each
-              width clear of its ends; a joint without a range within +-180 deg), put on the set by the robot
-              (puma600: q5 = 0) or, lacking that, by minimising its rank_loss gap from there (Nelder-Mead), kept
-              if the gap ends below robots.SINGULAR_TOL;
-    near      q_a = q_s + e v, q_s as for `through`, v a random unit joint direction, e found by bisection so that
-              the robot's gap at q_a is a value drawn between the NEAR percentiles of the gap;
-    far       a drawn configuration whose gap is at least its FAR percentile.
-
-The percentiles are of the robot's gap over BAND_SAMPLES configurations drawn as above at seed 0: a rank_loss gap
-(a singular value) runs smaller than an angle's, so each robot's bands are its own.
-
-The path passes through the tool's point at q_a (its end, on a robot whose set bounds its reach) in a random
-direction (an arc: in a random plane, of radius RADIUS times the reach), LENGTH times the reach on either side, the
-orientation at q_a held. The joints at its start and end follow from q_a by damped Newton steps along the path. A
-draw whose ends are not reached within TOLERANCE, whose path dips under the floor, or whose anchor is not found is
-drawn again (at most TRIES times).
+Each passes through the tool's point at an anchor q_a (its end, where the set bounds the reach), LENGTH times the
+reach on either side, the orientation at q_a held; the joints at its ends follow from q_a by damped Newton steps.
+`through`: q_a on the set; `near`: q_a off it, its gap between the NEAR percentiles of the robot's gap; `far`: gap
+at least the FAR percentile. A failed draw is drawn again, at most TRIES times.
 """
 
 from __future__ import annotations
@@ -73,7 +57,7 @@ class Task:
 
 
 def draw(robot: BenchRobot, count: int, seed: int) -> list[Task]:
-    """The robot's first `count` tasks at `seed` (the module's docstring)."""
+    """The robot's first `count` tasks at `seed`."""
     return [draw_one(robot, i, seed) for i in range(count)]
 
 
@@ -153,7 +137,8 @@ def _anchor(robot: BenchRobot, kind: str, rng: np.random.Generator) -> np.ndarra
 
 
 def bands(robot: BenchRobot) -> tuple[tuple[float, float], float]:
-    """The robot's near band and far threshold (rad): percentiles NEAR and FAR of its gap."""
+    """The robot's near band and far threshold (rad): percentiles NEAR and FAR of its gap over BAND_SAMPLES
+    configurations drawn at seed 0 (each robot's own: a rank_loss gap runs smaller than an angle's)."""
     if "bands" not in robot.cache:
         low, high = _ranges(robot.model_arm())
         gaps = robot.gap_of(np.random.default_rng(0).uniform(low, high, (BAND_SAMPLES, len(low))))

@@ -106,8 +106,6 @@ def cell(value: object, digits: int | None = 6) -> str:
         return f'<td class="n"{title}>{esc(shown)}</td>'
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return f'<td class="n">{esc(repr(value))}</td>'
-    if isinstance(value, (dict, list)):
-        return f"<td>{esc(json.dumps(value))}</td>"
     return "<td></td>" if value is None else f"<td>{esc(number(value))}</td>"
 
 
@@ -154,12 +152,12 @@ def inside(out: Path, rel: str | os.PathLike) -> None:
                          "its folder")
 
 
-def figure_grid(out: Path, items: Iterable[str | os.PathLike | tuple[str | os.PathLike, str]]) -> str:
-    """Images by their paths relative to `out`, each a <figure> with a caption (a PDF as a link); a missing one
-    is named rather than shown broken."""
+def figure_grid(out: Path, items: Iterable[str | os.PathLike]) -> str:
+    """Images by their paths relative to `out`, each a <figure> captioned by its stem (a PDF as a link); a missing
+    one is named rather than shown broken."""
     shown, missing = [], []
-    for item in items:
-        rel, caption = item if isinstance(item, tuple) else (item, Path(item).stem.replace("_", " "))
+    for rel in items:
+        caption = Path(rel).stem.replace("_", " ")
         inside(out, rel)
         if not (Path(out) / rel).is_file():
             missing.append(str(rel))

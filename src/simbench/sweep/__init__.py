@@ -64,15 +64,14 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, workers: int | Non
         columns = table.columns(list(ran.rows.values()), sweep.params)
         store.claim(RESULTS)
         with store.writing():  # a full disk here keeps the rows: the same command writes the table again
-            summary = _write_results(sweep, columns, out, resumed=ran.resumed, backend=ran.backend, start=ran.start,
-                                     workers=ran.workers)
+            summary = _write_results(sweep, columns, out, ran)
     return SweepResult(out, columns, summary, summary["resumed"])
 
 
 @dataclass(frozen=True)
 class Ran:
-    """The runs of a store's sweep, those of an earlier start and those run now: every row by run index, how many
-    were there before, where the rest ran (`backend`, on `workers` at once) and when they started."""
+    """A store's rows by run index, how many an earlier start left, and where (`backend`, `workers`) and when the
+    rest started."""
 
     rows: dict[int, dict]
     resumed: int
@@ -83,9 +82,8 @@ class Ran:
 
 def run_remaining(store: Store, workers: int | None, ray: str | None, progress: bool,
                   arguments: Callable[[Variant], dict]) -> Ran:
-    """Run every variant of store.sweep that has no row yet, each by run_variant(**arguments(variant)), here, on
-    worker processes (their number as sweep.workers.count decides) or on Ray, recording each row as it finishes,
-    with a progress bar. A sweep and a bench (simbench.bench.runner) both run so."""
+    """Run every variant of store.sweep (a sweep's or a bench's) that has no row yet, by
+    run_variant(**arguments(variant)), recording each row as it finishes."""
     sweep = store.sweep
     rows = store.finished()
     todo = [v for v in sweep.variants if v.index not in rows]
@@ -104,23 +102,22 @@ def run_remaining(store: Store, workers: int | None, ray: str | None, progress: 
     return Ran(rows, len(sweep.variants) - len(todo), backend, workers, start)
 
 
-def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, *, resumed: int, backend: str,
-                   start: float, workers: int) -> dict:
-    """Write the table, its plots (`workers` figures at once), summary.json and the page; the summary."""
+def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, ran: Ran) -> dict:
+    """Write the table, its plots (`ran.workers` figures at once), summary.json and the page; the summary."""
     table.write_csv(columns, out / "results.csv")
     no_parquet = table.write_parquet_where_installed(columns, out / "results.parquet")
     plots, notes = table.write_plots(columns, sweep.params, list(sweep.spec.grid), sweep.spec.plots, out / "plots",
-                                     workers)
+                                     ran.workers)
     notes += [no_parquet] if no_parquet else []
-    summary = {**table.summary(columns, sweep.spec.plots), "resumed": resumed, "backend": backend,
-               "wall_time": round(time.perf_counter() - start, 3),
+    summary = {**table.summary(columns, sweep.spec.plots), "resumed": ran.resumed, "backend": ran.backend,
+               "wall_time": round(time.perf_counter() - ran.start, 3),
                "outputs": {"table": ["results.csv"] + ([] if no_parquet else ["results.parquet"]),
                            "plots": [f"plots/{p}" for p in plots], "page": "index.html"},
                "notes": notes}
     write_report(summary, out / "summary.json")
     counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)
     write_page(out, table_page(out, f"Sweep: {sweep.name}", f"{summary['runs']} runs of {sweep.base} ({counts}) on "
-                                                             f"{backend}.\n\n" + "\n".join(notes),
+                                                             f"{ran.backend}.\n\n" + "\n".join(notes),
                                [("Every run (results.csv)", Path("results.csv"))], [f"plots/{p}" for p in plots],
                                summary))
     return summary

@@ -43,12 +43,11 @@ def reach(address: str) -> None:
         return
     try:
         socket.create_connection(where, timeout=CONNECT_TIMEOUT).close()
+        return
     except socket.gaierror as err:
-        raise ScenarioError("--ray", None, f"no Ray cluster at {address}: no such host ({err.strerror}); "
-                                           f"{_EXPECTED}") from None
+        problem = f"no Ray cluster at {address}: no such host ({err.strerror})"
     except TimeoutError:
-        raise ScenarioError("--ray", None, f"no Ray cluster answers at {address} within {CONNECT_TIMEOUT:g} s; "
-                                           f"{_EXPECTED}") from None
+        problem = f"no Ray cluster answers at {address} within {CONNECT_TIMEOUT:g} s"
     except OSError as err:
-        raise ScenarioError("--ray", None, f"no Ray cluster answers at {address}: {os_words(err)}; "
-                                           f"{_EXPECTED}") from None
+        problem = f"no Ray cluster answers at {address}: {os_words(err)}"
+    raise ScenarioError("--ray", None, f"{problem}; {_EXPECTED}")

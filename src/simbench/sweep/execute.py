@@ -29,10 +29,8 @@ _WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
                 video: bool = False, allow_code: bool = False) -> dict:
-    """Plan, simulate and analyse one scenario document; its outcome: `status` (ok | limits | bad_input |
-    run_failed | crashed), `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`. The
-    budget holds each variant to the whole machine's memory, not a share. With outputs='full' every output of
-    `simbench run` is written into `out`."""
+    """Plan, simulate and analyse one scenario document (with outputs='full' writing every output into `out`);
+    its outcome: `status`, `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`."""
     start = time.perf_counter()
     report, status, error = _attempt(document, source, outputs, out, video, allow_code)
     return {"status": status, "error": error, "metrics": metrics(report) if report else {},
@@ -206,12 +204,21 @@ def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[
     """Every run as a Ray task; 'local' starts (and stops) a cluster here with `workers` CPUs. Every node needs
     simbench, and with outputs: full a filesystem it shares."""
     import ray
+    import ray.exceptions
 
     started = _join_ray(address, workers)
     remote = ray.remote(num_cpus=1, max_retries=0)(run_variant)
     pending = {remote.remote(**kwargs): index for index, kwargs in tasks}
     try:
-        yield from _ray_outcomes(pending)
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                index = pending.pop(ref)
+                try:
+                    outcome = ray.get(ref)
+                except ray.exceptions.RayError as err:  # a failed worker's run is `crashed`
+                    outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
+                yield index, outcome
     finally:
         for ref in pending:
             ray.cancel(ref, force=True)
@@ -239,22 +246,6 @@ def _join_ray(address: str, workers: int) -> bool:
             raise RunError(f"could not start a Ray cluster here: {reason}") from None
         raise ScenarioError("--ray", None, f"could not join the Ray cluster at {address}: {reason}") from None
     return True
-
-
-def _ray_outcomes(pending: dict) -> Iterator[tuple[int, dict]]:
-    """The outcomes of the pending Ray tasks (task: run index) as they finish; a failed worker's is `crashed`."""
-    import ray
-    import ray.exceptions
-
-    while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        for ref in done:
-            index = pending.pop(ref)
-            try:
-                outcome = ray.get(ref)
-            except ray.exceptions.RayError as err:
-                outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
-            yield index, outcome
 
 
 def cpu_count() -> int:

@@ -1,25 +1,6 @@
-"""Sweep files: a base scenario and the parameters to vary, expanded into one scenario document per run.
-
-    name: case1_gains                  # optional: the file's stem; names the output folder
-    base: ../scenarios/spherical_arm/case1.yaml   # relative to this file, or a shipped one: spherical_arm/case1
-    grid:                              # every combination of these values (the last one varies fastest)
-      sim.timestep: [0.0005, 0.001, 0.002]
-      timing.law: [cubic, quintic]
-    random:                            # seeded samples, drawn once and crossed with every grid point
-      samples: 20
-      seed: 0
-      params:
-        task.goal[1]: {uniform: [30, 80]}          # values in the base file's units
-        task.start: {uniform: [[100, 5, 100, 0], [140, 20, 140, 10]]}   # a vector: one draw per item
-        timing.duration: {loguniform: [1, 8]}
-        timing.law: {choice: [cubic, quintic]}
-    outputs: report                    # kept per run: none | report (report.json) | full (every output)
-    video: false                       # with outputs: full
-    plots: [tool_rms, tool_max]        # metrics plotted against each parameter
-
-A parameter is a field path into the scenario: names joined by '.', list items as [i] (`task.goal[1]`). The
-values are set in the base's YAML document before it is validated, so they take the base file's units and a
-value the scenario schema refuses makes that run a `bad_input` row, not a failed sweep.
+"""Sweep files (docs/guide/sweeps.md): a base scenario and the parameters to vary, expanded into one scenario
+document per run. A parameter is a field path (`task.goal[1]`) set in the base's YAML document before it is
+validated, so it takes the base file's units and a value the schema refuses makes that run a `bad_input` row.
 """
 
 from __future__ import annotations
@@ -32,7 +13,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -99,12 +80,10 @@ class Distribution(SimbenchModel):
             return int(rng.integers(self.integers[0], self.integers[1] + 1))
         a_raw, b_raw = getattr(self, kind)
         a, b = np.asarray(a_raw, float), np.asarray(b_raw, float)
-        if kind == "uniform":
-            value = rng.uniform(a, b)
-        elif kind == "loguniform":
+        if kind == "loguniform":
             value = np.exp(rng.uniform(np.log(a), np.log(b)))
-        else:
-            value = rng.normal(a, b)
+        else:  # uniform, normal: the Generator's method of that name
+            value = getattr(rng, kind)(a, b)
         return value.tolist() if isinstance(a_raw, list) else float(value)
 
 
@@ -156,6 +135,7 @@ class Sweep:
     spec: SweepSpec
     base: Path
     variants: tuple[Variant, ...]
+    _SPEC_KEY: ClassVar[str] = "spec"  # the spec's key in the fingerprint's document
 
     @property
     def params(self) -> list[str]:
@@ -166,7 +146,7 @@ class Sweep:
         """A hash of everything that decides the results: a sweep resumes only into a folder with the same one."""
         from simbench import __version__
 
-        blob = json.dumps({"simbench": __version__, "spec": self.spec.model_dump(mode="json"),
+        blob = json.dumps({"simbench": __version__, self._SPEC_KEY: self.spec.model_dump(mode="json"),
                            "runs": [v.document for v in self.variants]}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()
 

@@ -75,29 +75,29 @@ def _arrow_column(values: list):
     return pa.array([None if v is None else json.dumps(v) for v in values], pa.string())
 
 
-def write_parquet(table: dict[str, list], path: Path) -> None:
-    """results.parquet, the same table with typed columns; MissingExtra without pyarrow (the `pyarrow` extra)."""
-    pa = extras.require("pyarrow", "results.parquet")
-    import pyarrow.parquet as pq
-
-    arrow = pa.table({name: _arrow_column(values) for name, values in table.items()})
-    with staged_file(path) as tmp:
-        pq.write_table(arrow, tmp)
-
-
 def write_parquet_where_installed(table: dict[str, list], path: Path) -> str | None:
-    """The table's Parquet copy at `path` where pyarrow is installed (None); else the note saying why it was left
-    out (the CSV table holds the same rows)."""
+    """The table's Parquet copy at `path`, typed columns, where pyarrow is installed (None); else the note saying
+    why it was left out (the CSV table holds the same rows)."""
     missing = extras.missing("pyarrow", path.name)
     if missing is None:
-        write_parquet(table, path)
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        arrow = pa.table({name: _arrow_column(values) for name, values in table.items()})
+        with staged_file(path) as tmp:
+            pq.write_table(arrow, tmp)
     return missing
+
+
+def status_counts(status: list[str]) -> dict[str, int]:
+    """Runs by status, every status named."""
+    return {s: status.count(s) for s in STATUSES}
 
 
 def summary(table: dict[str, list], metrics: list[str]) -> dict:
     """Counts by status, and for each plotted metric its range over the runs that finished, with their ids."""
     status = table["status"]
-    out: dict[str, Any] = {"runs": len(status), "status": {s: status.count(s) for s in STATUSES}, "metrics": {}}
+    out: dict[str, Any] = {"runs": len(status), "status": status_counts(status), "metrics": {}}
     for name in metrics:
         values = [(v, i) for v, i, s in zip(table.get(name, []), table["id"], status)
                   if s in FINISHED and isinstance(v, (int, float)) and math.isfinite(v)]
@@ -190,10 +190,7 @@ def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], 
         panels[0][0].set_yscale("log")
     panels[0][0].set_ylabel(metric)
     panels[0][0].legend(fontsize=8)
-    fig.tight_layout()
-    name = f"{_safe(metric)}.png"
-    fig.savefig(folder / name, dpi=100)
-    return name
+    return _save(fig, folder, f"{_safe(metric)}.png")
 
 
 def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table: dict, folder: Path) -> str:
@@ -214,8 +211,11 @@ def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table:
     ax.set_xlabel(pair[0])
     ax.set_ylabel(pair[1])
     fig.colorbar(image, ax=ax, label=f"{metric} (median)")
+    return _save(fig, folder, f"{_safe(metric)}_grid.png")
+
+
+def _save(fig: Figure, folder: Path, name: str) -> str:
     fig.tight_layout()
-    name = f"{_safe(metric)}_grid.png"
     fig.savefig(folder / name, dpi=100)
     return name
 
