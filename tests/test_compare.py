@@ -320,3 +320,14 @@ def test_compare_of_a_strided_scenario_takes_peaks_and_singular_minima_from_ever
     for j, name in enumerate(P.ROBOT.joints):
         assert float(row[f"qd_peak_{name}"]) == pytest.approx(float(peak[j]), rel=1e-12)
     assert (np.abs(whole.trajectory.qd_ref[kept]).max(axis=0) < 0.99 * peak).any()  # and the peaks
+
+
+def test_compare_exits_0_once_written_even_where_every_method_ends_limits(tmp_path):
+    """A method that ends `limits` is the comparison's finding, in its row, not a failure of the command (the
+    outputs page's exit codes)."""
+    from simbench.cli import main
+
+    out = tmp_path / "cmp"
+    assert main(["compare", str(WRIST), "--planners", "decoupled_path", "--quiet", "--out", str(out)]) == 0
+    with open(out / "comparison.csv") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["limits"]
