@@ -144,17 +144,12 @@ class Track(control.Task):
 
     def _settling_controller(self) -> Servo | ComputedTorque:
         """What holds the start while the robot settles: the servo (position) or computed torque (torque)."""
-        if self.actuation == "torque":
-            settings = self.scenario.control
-            settler: Servo | ComputedTorque = ComputedTorque(settings if isinstance(settings, ComputedTorqueSettings)
-                                                             else None)
-            settler.bind(self.plant, self.plan)
-            return settler
-        settler = Servo(self.scenario.sim.velocity_feedforward)
+        settings = self.scenario.control
+        settler = (ComputedTorque(settings if isinstance(settings, ComputedTorqueSettings) else None)
+                   if self.actuation == "torque" else Servo(self.scenario.sim.velocity_feedforward))
         settler.bind(self.plant, self.plan)
-        ctrl = settler.open_loop()
-        assert ctrl is not None, "the servo's commands follow from the plan alone"
-        self._hold = ctrl[0].copy()  # simulate's first command, held while settling
+        if isinstance(settler, Servo):
+            self._hold = settler.open_loop()[0].copy()  # simulate's first command, held while settling
         return settler
 
     def _rows(self, model: mujoco.MjModel) -> None:
