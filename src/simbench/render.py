@@ -14,7 +14,7 @@ import shutil
 import sys
 import threading
 from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -67,17 +67,13 @@ class _Encoder:
     def abort(self) -> None:
         """Stop at once after a failure elsewhere: drop the queued frames and end ffmpeg, its complaints (a broken
         pipe, say) kept from masking the failure."""
-        try:
+        with suppress(queue.Empty):
             while True:
                 self._frames.get_nowait()
-        except queue.Empty:
-            pass
         self._frames.put(None)
         self._thread.join()
-        try:
+        with suppress(OSError, RuntimeError):  # ffmpeg already gone: nothing left to save
             self._writer.close()
-        except (OSError, RuntimeError):  # ffmpeg already gone: nothing left to save
-            pass
 
     def close(self) -> None:
         """Encode what is queued and finish the file; raises the encoder's error if it had one."""
