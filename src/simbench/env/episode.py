@@ -145,8 +145,11 @@ class Track(control.Task):
     def _settling_controller(self) -> Servo | ComputedTorque:
         """What holds the start while the robot settles: the servo (position) or computed torque (torque)."""
         settings = self.scenario.control
-        settler = (ComputedTorque(settings if isinstance(settings, ComputedTorqueSettings) else None)
-                   if self.actuation == "torque" else Servo(self.scenario.sim.velocity_feedforward))
+        if self.actuation == "torque":
+            settler: Servo | ComputedTorque = ComputedTorque(settings if isinstance(settings, ComputedTorqueSettings)
+                                                             else None)
+        else:
+            settler = Servo(self.scenario.sim.velocity_feedforward)
         settler.bind(self.plant, self.plan)
         if isinstance(settler, Servo):
             self._hold = settler.open_loop()[0].copy()  # simulate's first command, held while settling
