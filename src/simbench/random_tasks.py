@@ -143,12 +143,10 @@ def agile_eye_task(rng: Random, count: int) -> dict | None:
 
 
 def agile_eye_tasks(n: int, seed: int) -> list[dict]:
-    """n `avoidance_4567` task sections (orientations as quaternions, angles in radians) within the learnt FK's
-    workspace whose plain path runs into 1 or 2 obstacles (task k: 1 + k mod 2) and does not cross the type 2
-    surface; each obstacle a ball of radius 4-10 deg centred within half its radius of the plain path's platform
-    at a time drawn from its own part of [0.2 T, 0.8 T], at least 5 deg beyond its radius and the margin from both
-    ends. Margins as the shipped scenario: 10 deg from the singular curves, 1 deg outside the obstacles, KCI at
-    least 0.1."""
+    """n `avoidance_4567` task sections (SI) within the learnt FK's workspace whose plain path runs into 1 or 2
+    obstacles (task k: 1 + k mod 2) and does not cross the type 2 surface: each obstacle a ball (AGILE_EYE_RADII)
+    near the plain path's platform in its own part of [0.2 T, 0.8 T], clear of both ends; margins as the shipped
+    scenario's."""
     rng = np.random.default_rng(seed)
     out: list[dict] = []
     while len(out) < n:
