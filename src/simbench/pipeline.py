@@ -15,7 +15,7 @@ from pathlib import Path
 from simbench import budget, destination
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
-from simbench.errors import PhysicsError, ScenarioError
+from simbench.errors import PhysicsError
 from simbench.forked import forked
 from simbench.page import run_page, write_page
 from simbench.plot_formats import check_format

@@ -19,7 +19,7 @@ from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
 from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
 from simbench.observation import observation
-from simbench.plant import Actuation, Plant
+from simbench.plant import Plant
 from simbench.scenario import Scenario
 from simbench.sim import Recording, Revisions, recording
 from simbench.stepping import ClosedLoop, OpenLoop, Rows, warning_rows
