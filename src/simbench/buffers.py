@@ -1,10 +1,5 @@
-"""A long run's every-step rows held a window at a time (simbench.sim's run analysed as it is simulated).
-
-Such a run reads each step's sensors, commands, joint positions and constraints once, for the analysis' window
-they belong to, and keeps only the recording's kept rows. A `WindowBuffer` is indexed as the whole run's array
-would be, but holds a fixed number of consecutive rows: the steppers write a chunk of steps into it, the analysis
-reads a window of them, and `drop` lets the rows before a step go. The run then holds a window and a chunk of
-every step's rows, however long it is.
+"""A long run's every-step rows held a window at a time (simbench.sim's run analysed as it is simulated): the run
+then holds a window and a chunk of every step's rows, however long it is.
 """
 
 from __future__ import annotations
@@ -36,8 +31,7 @@ class WindowBuffer:
         self.held[self._local(index)] = value
 
     def drop(self, upto: int) -> None:
-        """Let the rows before `upto` go: those held after it move to the front, and rows up to `upto` + capacity
-        can be written."""
+        """Let the rows before `upto` go: rows up to `upto` + capacity can then be written."""
         shift = upto - self.start
         if shift <= 0:
             return

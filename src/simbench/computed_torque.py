@@ -1,24 +1,13 @@
-"""The computed-torque controller: the joints' actuators as motors, commanded the torque the model's own inverse
-dynamics needs for the plan, plus PD on the joint errors.
+"""The computed-torque controller: the joints' actuators as motors, commanded the model's inverse dynamics at the
+plan plus PD on the joint errors,
 
     tau = tau_ff + Kp (q_ref - q) + Kd (qd_ref - qd)
 
-For a serial arm (no equality constraint in the scene) tau_ff is MuJoCo's inverse dynamics (`mj_inverse`) at
-the planned state q_ref, qd_ref, qdd_ref (qdd_ref the plan's rate differentiated): inertia, Coriolis and
-centrifugal terms, gravity (less what the bodies' `gravcomp` already cancels), the joints' damping and armature.
-It depends on the plan alone and is computed once, before the run.
-
-For a closed chain or a gripped part (an equality constraint in the scene: the Agile Eye's loops, the RSMG's
-welds) the plan fixes only the actuated joints: the passive joints' and the rotor's accelerations, and the
-constraint forces that carry the load, follow from the mechanism. There tau_ff is the effective inertia
-(`effective_inertia`, a diagonal approximation) times qdd_ref plus the bias force at the measured state
-(qfrc_bias - qfrc_passive on the actuated joints: gravity, Coriolis, damping), and the PD does the rest.
-
-Gains are per joint, SI (N m/rad or N/m, and N m s/rad or N s/m); by default each joint gets
-Kp = I_i w^2 and Kd = 2 zeta I_i w, where I_i is the joint's effective inertia at the plan's start with the
-mechanism's constraints included (`effective_inertia`): a second-order error response of natural frequency w
-(`bandwidth`, rad/s) and damping ratio zeta. Commands are
-clamped by MuJoCo to the actuators' force ranges, as the servos' forces were.
+For a serial arm tau_ff is `mj_inverse` at the planned q_ref, qd_ref, qdd_ref, computed once before the run. With
+an equality constraint in the scene (a closed chain, a gripped part) the plan fixes only the actuated joints, so
+tau_ff is the effective inertia (a diagonal approximation) times qdd_ref plus the bias force at the measured state.
+Default gains per joint: Kp = I w^2, Kd = 2 zeta I w (I the effective inertia at the plan's start, w `bandwidth`
+in rad/s, zeta `damping_ratio`). MuJoCo clamps the commands to the actuators' force ranges.
 """
 
 from __future__ import annotations
@@ -28,7 +17,6 @@ from typing import Annotated, Any
 import mujoco
 import numpy as np
 from pydantic import Field
-
 
 from simbench.api import Array, Controller, ControlSettings, State
 from simbench.plant import Plant
@@ -64,17 +52,14 @@ class ComputedTorque(Controller):
         self.q_ref, self.qd_ref = trajectory.q_ref, trajectory.qd_ref
         self.constrained = plant.model.neq > 0
         self.inertia = effective_inertia(plant, trajectory)
-        self.kp, self.kd = self._gains()
+        c = self.config
+        kp, kd = pd_gains(self.inertia, c.bandwidth, c.damping_ratio)
+        self.kp = np.array(c.kp) if c.kp is not None else kp
+        self.kd = np.array(c.kd) if c.kd is not None else kd
         self.qdd_ref = np.gradient(trajectory.qd_ref, float(plant.model.opt.timestep), axis=0)
         self.tau_ff = None if self.constrained else self._inverse_dynamics(trajectory.q_ref, trajectory.qd_ref,
                                                                            self.qdd_ref)
         self.ctrl = np.zeros(plant.model.nu)
-
-    def _gains(self) -> tuple[Array, Array]:
-        """The scenario's gains, or those of the bandwidth for the effective inertia at the start."""
-        c = self.config
-        kp, kd = pd_gains(self.inertia, c.bandwidth, c.damping_ratio)
-        return (np.array(c.kp) if c.kp is not None else kp), (np.array(c.kd) if c.kd is not None else kd)
 
     def _inverse_dynamics(self, q_ref: Array, qd_ref: Array, qdd_ref: Array) -> Array:
         """tau_ff (N, dof): mj_inverse at every planned sample, the other DOFs at rest."""
@@ -107,8 +92,7 @@ class ComputedTorque(Controller):
 
     def revise_rows(self, k0: int, k1: int, q_ref: Array, qd_ref: Array) -> None:
         """The planned acceleration, and a serial arm's inverse dynamics, redone only at the rows k0 - 1 to k1 that
-        np.gradient's differences of the changed rows reach: the same numbers as binding to the revised references,
-        without redoing every row to the end at each of a long run's re-grips."""
+        np.gradient's differences reach: the numbers of binding afresh, without redoing every row at each re-grip."""
         self.q_ref, self.qd_ref = q_ref, qd_ref
         a, b = max(k0 - 1, 0), min(k1 + 1, len(qd_ref))  # the differences at rows k0 - 1 .. k1
         self.qdd_ref[a:b] = gradient_rows(qd_ref, a, b, float(self.plant.model.opt.timestep))

@@ -1,14 +1,10 @@
-"""The shipped controllers (simbench.api.Controller): the position servo, computed torque, and a user's policy.
+"""The shipped position servo (simbench.api.Controller); computed torque is simbench.computed_torque, a user's
+policy simbench.policy.
 
-- `servo`: each actuator is a position servo, force = kp (ctrl - q) - kv qd. With velocity feed-forward the
-  command is ctrl = q_ref + ((kv + b) / kp) qd_ref, which makes the same servo a PD on both errors that also
-  cancels the joint's viscous friction b on the plan: kp (q_ref - q) + kv (qd_ref - qd) + b qd_ref, as an
-  industrial joint controller with friction compensation is. Commands are clamped to the actuators' control
-  ranges (the joint ranges), as the servo's own limits would. The commands depend on the plan alone, so the
-  servo is open-loop to simbench: the physics runs through `mujoco.rollout`, fed the commands of a chunk of
-  steps at a time (api.Commands).
-- `computed_torque` (simbench.computed_torque): torques from the model's inverse dynamics plus PD.
-- `policy` (simbench.policy): a Python object named in the scenario, called every step with an observation.
+`servo`: each actuator a position servo, force = kp (ctrl - q) - kv qd. With velocity feed-forward the command
+ctrl = q_ref + ((kv + b) / kp) qd_ref makes it a PD on both errors that also cancels the joint's viscous friction b
+on the plan, as an industrial joint controller does. Commands are clamped to the control ranges and depend on the
+plan alone: the servo is open-loop, stepped through `mujoco.rollout` a chunk of commands at a time (api.Commands).
 """
 
 from __future__ import annotations
@@ -26,8 +22,8 @@ if TYPE_CHECKING:
 
 
 class Servo(Controller):
-    """The MJCF's position servos with velocity feed-forward (the scenario's `sim.velocity_feedforward`). Its
-    commands are found from the references as the run asks for them (_Targets), not held for every step."""
+    """The MJCF's position servos with velocity feed-forward (`sim.velocity_feedforward`); commands found as the
+    run asks for them (_Targets), not held for every step."""
 
     name = "servo"
     description = "position servo with velocity feed-forward (the MJCF's position actuators)"
@@ -81,9 +77,8 @@ class Servo(Controller):
 
 
 class _Targets(Commands):
-    """The servo's commands, Servo.targets of its references (as revised so far) at the rows asked for. The last
-    stretch of rows asked for by a slice is kept and read from while the references are the same: a run checks,
-    steps and records the same chunk of commands in turn."""
+    """Servo.targets of the references (as revised so far) at the rows asked for; the last slice asked for is kept
+    while the references are the same (a run checks, steps and records the same chunk in turn)."""
 
     def __init__(self, servo: Servo):
         self.servo = servo

@@ -15,7 +15,7 @@ from pathlib import Path
 from simbench import budget, destination
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
-from simbench.errors import PhysicsError, ScenarioError
+from simbench.errors import PhysicsError
 from simbench.forked import forked
 from simbench.page import run_page, write_page
 from simbench.plot_formats import check_format
@@ -51,7 +51,7 @@ class Evaluation:
     recording: Recording
     analysis: Analysis
     verdict: Verdict
-    control: dict  # the controller, its actuation and its gains, as report.json gives them
+    control: dict
 
 
 @dataclass(frozen=True)
@@ -139,8 +139,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
-    # A run with a recording stride is analysed as it is simulated, where the robot's summary comes a window at a
-    # time (Robot.streams): every step's readings are then let go a window at a time (sim.simulate's analyser).
+    # a strided run is analysed as it is simulated where the robot's summary comes a window at a time
     streamed = sim.record_every > 1 and robot.streams
     analyser = Analyser(robot, traj, near, margin, scenario=scenario) if streamed else None
     with watch.stage("simulate"):
@@ -155,8 +154,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
     with watch.stage("analyse"):
         result = analyser.finish() if analyser else analyse(robot, traj, rec, near, margin, scenario=scenario)
         found = run_verdict(robot, traj, result, a, scenario.expect)
-    if sim.record_every > 1:  # the analysis has read every sample: what is kept of them is the outputs' rows
-        # (a streamed run's plan at them as its analyser kept them)
+    if sim.record_every > 1:  # the analysis has read every sample: the outputs show the kept ones
         traj = traj.rows(kept_rows(len(traj.t), sim.record_every)) if analyser is None else analyser.plan()
         rec = rec.thinned()  # as it is, where it was analysed as it was simulated
     return Evaluation(traj, rec, result, found, control)

@@ -1,22 +1,10 @@
-"""A user's policy as a controller: a factory of callables a scenario names, asked for an action every step.
+"""A user's policy as a controller: a factory of callables a scenario names (`control.policy`: a registered name,
+or `package.module:factory`), asked every step for one action per joint (torques, or position targets) from the
+observation (simbench.observation).
 
-    control:
-      controller: policy
-      policy: my_policy                       # registered: simbench.registry.register_policy, or the entry-point
-                                              # group simbench.policies
-      action: torque                          # or position: targets for the scene's position servos
-
-The factory is called with the loaded Scenario and returns a callable; every control step it gets the observation
-(simbench.observation: the measured joints and tool, the plan's references now and ahead) and returns one action
-per robot joint: torques or forces on the joints' actuators made motors, or position targets of the scene's
-servos.
-
-A scenario is data: one that names a module instead (`package.module:factory`) asks to import and run that
-module's code, which a run does only when allowed (`--allow-code`, `allow_code=True`); the check comes before
-anything is imported (`refuse_code`). A factory that cannot be made (a module that does not import, a factory
-that raises, SystemExit included, or returns no callable) is refused before the run (ScenarioError naming
-control.policy); an action that is not a finite vector of the robot's joint count stops the run with the time
-(ControlError).
+A scenario is data: one that names a module is run only when allowed (`--allow-code`, `allow_code=True`), checked
+before anything is imported (`refuse_code`). A factory that cannot be made is refused before the run
+(ScenarioError); a bad action stops the run at its time (ControlError).
 """
 
 from __future__ import annotations

@@ -58,9 +58,8 @@ def puma_line(rng: Random, cone: float | None = None) -> dict | None:
     length = float(np.linalg.norm(b - a))
     if length < 0.05 or not _puma_reaches(a + np.linspace(0, 1, 101)[:, None] * (b - a), rot.as_matrix()):
         return None
-    w, x, y, z = np.roll(rot.as_quat(), 1)
     return {"task": {"path": [{"line": {"start": a.tolist(), "end": b.tolist()}}],
-                     "orientation": {"convention": "quat", "value": [float(w), float(x), float(y), float(z)]}},
+                     "orientation": {"convention": "quat", "value": rot.as_quat(scalar_first=True).tolist()}},
             "timing": {"law": "quintic", "duration": round(max(1.0, length / _PUMA_SPEED), 3), "hold": 0.3}}
 
 
@@ -90,26 +89,27 @@ def first(draw, what: str) -> dict:
 
 def orientation_doc(rot: np.ndarray) -> dict:
     """A rotation matrix as a scenario's orientation (a scalar-first quaternion)."""
-    x, y, z, w = Rotation.from_matrix(rot).as_quat()
-    return {"convention": "quat", "value": [float(w), float(x), float(y), float(z)]}
+    return {"convention": "quat", "value": Rotation.from_matrix(rot).as_quat(scalar_first=True).tolist()}
+
+
+def _plain_joints(start: np.ndarray, goal: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """The Agile Eye's plain joint path (working mode 0) from start to goal, at path fractions s."""
+    theta0 = agile_eye.ik(start, 0)[0]
+    theta1 = theta0 + np.angle(np.exp(1j * (agile_eye.ik(goal, 0)[0] - theta0)))
+    return theta0 + s[:, None] * (theta1 - theta0)
 
 
 def plain_path_crosses(start: np.ndarray, goal: np.ndarray, samples: int = 2000) -> bool:
-    """Whether det A changes sign along the Agile Eye's plain joint path from start to goal (working mode 0)."""
-    theta0 = agile_eye.ik(start, 0)[0]
-    theta1 = theta0 + np.angle(np.exp(1j * (agile_eye.ik(goal, 0)[0] - theta0)))
-    theta = theta0 + np.linspace(0.0, 1.0, samples)[:, None] * (theta1 - theta0)
+    """Whether det A changes sign along the Agile Eye's plain joint path from start to goal."""
+    theta = _plain_joints(start, goal, np.linspace(0.0, 1.0, samples))
     det = np.linalg.det(agile_eye.jacobians(theta, agile_eye.fk_track(theta, start))[0])
     return bool(np.any(np.sign(det[1:]) * np.sign(det[:-1]) < 0))
 
 
 def _plain_platform(start: np.ndarray, goal: np.ndarray, samples: int = 1001) -> np.ndarray:
-    """The exact FK of the Agile Eye's plain 4-5-6-7 joint path (working mode 0) followed from the start, at
-    `samples` evenly spaced times."""
-    theta0 = agile_eye.ik(start, 0)[0]
-    theta1 = theta0 + np.angle(np.exp(1j * (agile_eye.ik(goal, 0)[0] - theta0)))
+    """The exact FK of the plain joint path on the 4-5-6-7 time law, followed from the start, at `samples` times."""
     s = TimeLaw("4567", 1.0)(np.linspace(0.0, 1.0, samples), order=0)[0]
-    return agile_eye.fk_track(theta0 + s[:, None] * (theta1 - theta0), start)
+    return agile_eye.fk_track(_plain_joints(start, goal, s), start)
 
 
 def agile_eye_task(rng: Random, count: int) -> dict | None:
@@ -143,12 +143,10 @@ def agile_eye_task(rng: Random, count: int) -> dict | None:
 
 
 def agile_eye_tasks(n: int, seed: int) -> list[dict]:
-    """n `avoidance_4567` task sections (orientations as quaternions, angles in radians) within the learnt FK's
-    workspace whose plain path runs into 1 or 2 obstacles (task k: 1 + k mod 2) and does not cross the type 2
-    surface; each obstacle a ball of radius 4-10 deg centred within half its radius of the plain path's platform
-    at a time drawn from its own part of [0.2 T, 0.8 T], at least 5 deg beyond its radius and the margin from both
-    ends. Margins as the shipped scenario: 10 deg from the singular curves, 1 deg outside the obstacles, KCI at
-    least 0.1."""
+    """n `avoidance_4567` task sections (SI) within the learnt FK's workspace whose plain path runs into 1 or 2
+    obstacles (task k: 1 + k mod 2) and does not cross the type 2 surface: each obstacle a ball (AGILE_EYE_RADII)
+    near the plain path's platform in its own part of [0.2 T, 0.8 T], clear of both ends; margins as the shipped
+    scenario's."""
     rng = np.random.default_rng(seed)
     out: list[dict] = []
     while len(out) < n:

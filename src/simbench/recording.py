@@ -66,12 +66,8 @@ class Recording:
         else:
             stored = slice(*np.searchsorted(self.kept, [lo, hi]))
             kept = self.kept[stored] - lo
-        return replace(self, t=self.t[whole], qpos=self.qpos[stored], q=self.q[whole], qd=self.qd[stored],
-                       ctrl=self.ctrl[stored], tool=self.tool[whole], force=self.force[whole],
-                       sensors={name: v[whole] for name, v in self.sensors.items()},
-                       eq_active={name: v[whole] for name, v in self.eq_active.items()},
-                       q_ref=None if self.q_ref is None else self.q_ref[whole],
-                       qd_ref=None if self.qd_ref is None else self.qd_ref[whole], kept=kept, qd_peak=None)
+        return replace(self, **self._every_row(whole), qpos=self.qpos[stored], qd=self.qd[stored],
+                       ctrl=self.ctrl[stored], kept=kept, qd_peak=None)
 
     def thinned(self) -> Recording:
         """The recording at its kept rows only, every column: what the outputs of a strided run show.
@@ -79,11 +75,12 @@ class Recording:
         Returns:
             The thinned recording (itself where every row is kept).
         """
-        if self.kept is None:
-            return self
-        k = self.kept
-        return replace(self, t=self.t[k], q=self.q[k], tool=self.tool[k], force=self.force[k],
-                       sensors={name: v[k] for name, v in self.sensors.items()},
-                       eq_active={name: v[k] for name, v in self.eq_active.items()},
-                       q_ref=None if self.q_ref is None else self.q_ref[k],
-                       qd_ref=None if self.qd_ref is None else self.qd_ref[k], kept=None)
+        return self if self.kept is None else replace(self, **self._every_row(self.kept), kept=None)
+
+    def _every_row(self, index: slice | np.ndarray) -> dict:
+        """The fields held at every row, whatever the stride, at rows `index`."""
+        return {"t": self.t[index], "q": self.q[index], "tool": self.tool[index], "force": self.force[index],
+                "sensors": {name: v[index] for name, v in self.sensors.items()},
+                "eq_active": {name: v[index] for name, v in self.eq_active.items()},
+                "q_ref": None if self.q_ref is None else self.q_ref[index],
+                "qd_ref": None if self.qd_ref is None else self.qd_ref[index]}

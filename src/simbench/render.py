@@ -1,9 +1,7 @@
 """Headless video of a Recording: MuJoCo's offscreen renderer (EGL unless MUJOCO_GL says otherwise) into H.264 MP4.
 
-Each frame poses the model at its recorded state and draws the planned tool path (blue lines, faint behind the
-reference) and the tool's trace (red capsules), both simplified first (Ramer-Douglas-Peucker, 1 mm: under a
-pixel) since on a CPU a capsule costs about as much as a robot link. Presets: `fast` (no shadows, reflections or
-multisampling) and `pretty`. A thread feeds ffmpeg (x264 `veryfast`, CRF 23) while the next frames render.
+Each frame draws the planned tool path (blue) and the tool's trace (red), simplified first (Ramer-Douglas-Peucker,
+1 mm), since on a CPU a capsule costs about as much as a robot link. A thread feeds ffmpeg as frames render.
 """
 
 from __future__ import annotations
@@ -16,7 +14,7 @@ import shutil
 import sys
 import threading
 from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -35,7 +33,6 @@ _TRACE_RGBA = np.array([1.0, 0.15, 0.1, 1.0], np.float32)
 _PLAN_WIDTH = 3.0  # pixels
 _TRACE_RADIUS = 0.0035  # m
 _SIMPLIFY_TOL = 1e-3
-QUALITY = ("fast", "pretty")
 _QUEUED_FRAMES = 4
 FREE_CAMERA = "free"  # the name a video of a scene without cameras gives the free camera it is seen from
 
@@ -70,17 +67,13 @@ class _Encoder:
     def abort(self) -> None:
         """Stop at once after a failure elsewhere: drop the queued frames and end ffmpeg, its complaints (a broken
         pipe, say) kept from masking the failure."""
-        try:
+        with suppress(queue.Empty):
             while True:
                 self._frames.get_nowait()
-        except queue.Empty:
-            pass
         self._frames.put(None)
         self._thread.join()
-        try:
+        with suppress(OSError, RuntimeError):  # ffmpeg already gone: nothing left to save
             self._writer.close()
-        except (OSError, RuntimeError):  # ffmpeg already gone: nothing left to save
-            pass
 
     def close(self) -> None:
         """Encode what is queued and finish the file; raises the encoder's error if it had one."""
@@ -180,10 +173,8 @@ def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length
 
 @contextmanager
 def _egl_unless_chosen() -> Iterator[None]:
-    """MuJoCo's Renderers made within draw through EGL (offscreen, no display: on a CPU, Mesa's llvmpipe) unless
-    the user chose a GL backend with MUJOCO_GL, which MuJoCo reads when imported and which then wins: the context
-    class the Renderer makes its context from is EGL's while it is made, and no environment variable is set for
-    the process. Linux only: elsewhere MuJoCo's default draws offscreen itself (CGL on macOS)."""
+    """MuJoCo's Renderers made within draw through EGL (offscreen, no display) unless the user chose MUJOCO_GL;
+    nothing is set for the process. Linux only: elsewhere MuJoCo's default draws offscreen itself."""
     if os.environ.get("MUJOCO_GL") or sys.platform != "linux":
         yield
         return

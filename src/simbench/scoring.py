@@ -1,7 +1,6 @@
-"""What a method's row says, decided in one place for `compare` (comparison.csv) and `simbench bench` (runs.csv),
-each table naming the figures in its own columns and units: the run's status and error, deviation_max (m: the
-tool's largest distance from the planned path, report.json's tracking.tool_max), and speed_share_max, slowdown and
-closest_approach (simbench.singularity_handling). A run that got no figures has None for each.
+"""What a method's row says, decided in one place for `compare` (comparison.csv) and `simbench bench` (runs.csv):
+status, error, deviation_max (report.json's tracking.tool_max, m) and simbench.singularity_handling's figures;
+None for each where a run got none.
 """
 
 from __future__ import annotations

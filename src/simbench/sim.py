@@ -1,20 +1,10 @@
 """Physics: a controller drives the robot along a JointTrajectory in MuJoCo, and every step is recorded.
 
-The robot starts at rest at the first reference, holds it while it settles, then tracks. The controller
-(simbench.api.Controller; by default the position servo with velocity feed-forward, simbench.controllers.Servo)
-turns the plan, and for a closed-loop controller the measured state, into actuator commands. An open-loop
-controller's commands are stepped in C through `mujoco.rollout`; a closed-loop one is asked every step
-(simbench.stepping). Planned switches (an electromagnet's weld going on or off, simbench.switches) split the run
-into segments and are applied between them; a plan with feedback (the RSMG's arms re-solving their hold) may
-then revise the references still to come.
-
-With a recording stride, a run may be analysed as it is simulated (simulate's analyser): each window of samples
-is analysed once its readings are in, then let go but for its kept rows (simbench.buffers).
-
-The physics is checked as it runs (simbench.faults): the run stops at the first step at fault with a
-PhysicsError that carries the recording up to the last sound state (ControlError for a controller's bad
-command). MuJoCo's own printing of warnings is silenced while simbench steps: they are read from the data and
-reported.
+The robot settles at the first reference, then tracks; open-loop commands step in C through `mujoco.rollout`,
+closed-loop ones every step in Python (simbench.stepping). Planned switches split the run into segments, after
+which a plan's feedback may revise the references to come. A strided run may be analysed as it is simulated, a
+window at a time (simbench.buffers). The first step at fault stops the run with a PhysicsError (ControlError for
+a controller's bad command) carrying the recording up to the last sound state (simbench.faults).
 """
 
 from __future__ import annotations
@@ -44,20 +34,14 @@ if TYPE_CHECKING:
 def simulate(plant: Plant, traj: JointTrajectory, controller: Controller | None = None, settle: float = 0.2,
              progress: bool = False, record_every: int = 1, revise_in_place: bool = False,
              analyser: Analyser | None = None) -> Recording:
-    """Settle at traj's first reference, then track it with `controller` (default: the servo with velocity
-    feed-forward), applying the planned switches at their steps; one recorded row per control sample, whole at
-    every `record_every`-th and the last (Recording.kept). Where the plan switches, the plant's model is copied,
-    since switching edits it. PhysicsError if the physics fails on the way, ControlError if the controller does.
+    """Settle at traj's first reference, then track it with `controller` (default: Servo), applying the planned
+    switches (on a copy of the model, which switching edits); one row per control sample, whole at every
+    `record_every`-th and the last (Recording.kept). PhysicsError or ControlError where the run fails.
 
-    A plan with feedback has its references revised in copies (Recording.q_ref), or with `revise_in_place` in
-    traj's own arrays, for a caller with no further use for the plan as planned (the pipeline): two (N, dof)
-    arrays fewer. The feedback then reads the references as revised so far.
-
-    With an `analyser` (simbench.analysis.Analyser, whose robot's summary comes a window at a time), the run is
-    analysed as it is simulated, and each window's samples are let go once its kept rows are copied out: a long
-    strided run holds a window of every step's readings, not all of them. Its Recording, and a PhysicsError's,
-    hold the kept rows only (Recording.thinned's); a feedback must revise in place, so that the analysis reads the
-    references as commanded. The plan at the kept rows is the analyser's (Analyser.plan)."""
+    A plan's feedback revises copies of its references (Recording.q_ref), or with `revise_in_place` traj's own
+    arrays: two (N, dof) arrays fewer. With an `analyser` the run is analysed a window at a time as it is
+    simulated, each window's rows let go once its kept rows are copied out; its Recording holds the kept rows only,
+    and the plan at them is the analyser's (Analyser.plan)."""
     if analyser is not None and not (record_every > 1 and analyser.streams):
         raise ValueError("a run is analysed as it is simulated with a recording stride (record_every > 1) and a "
                          "robot whose summary comes a window at a time (Robot.streams)")
@@ -82,8 +66,8 @@ def commanded(traj: JointTrajectory, rec: Recording) -> JointTrajectory:
 
 
 class Revisions:
-    """A plan's references as its feedback revises them during a run (trajectory.revise): the plan's own until the
-    first change, then copies of them, or with `in_place` the plan's own arrays, changed (simulate's docstring)."""
+    """A plan's references as its feedback revises them (trajectory.revise): the plan's own until the first change,
+    then copies, or with `in_place` the plan's own arrays."""
 
     def __init__(self, traj: JointTrajectory, in_place: bool = False):
         self.traj, self.in_place = traj, in_place
@@ -107,9 +91,8 @@ class Revisions:
 def recording(plant: Plant, model: mujoco.MjModel, t: np.ndarray, readings: np.ndarray, q: np.ndarray,
               qpos: np.ndarray, qvel: np.ndarray, eq_active: np.ndarray, ctrl: np.ndarray, warnings: list[dict],
               **more) -> Recording:
-    """A Recording of the run of `model` (the plant's, or its copy that switches edit): sensor readings, joint
-    positions q and the constraints in force (a column per equality) at the times t, full states (qpos, qvel) and
-    commands ctrl; `more`: Recording's other fields."""
+    """A Recording of the run of `model` (the plant's, or the copy switches edit); `more`: Recording's other
+    fields."""
     recorded = {name: readings[:, where] for name, where in plant.sensors.items()}
     return Recording(t=t, qpos=qpos, q=q, qd=qvel[:, plant.dof_adr], ctrl=ctrl,
                      tool=recorded.pop(plant.robot.tool_sensor), timestep=float(model.opt.timestep),
@@ -131,16 +114,12 @@ class _Run:
         self.first_state = np.empty(mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
         mujoco.mj_getState(self.model, self.data, self.first_state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         n_settle = int(round(settle / self.model.opt.timestep))
-        slices = state_slices(self.model)
-        q_columns = slices["mjSTATE_QPOS"].start + plant.qpos_adr
-        self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, q_columns, self.first_state,
-                               controls=self.ctrl is None, window=None if analyser is None else analyser.window,
-                               qd_columns=slices["mjSTATE_QVEL"].start + plant.dof_adr)
-        self.stepper: OpenLoop | ClosedLoop
-        if self.ctrl is not None:
-            self.stepper = OpenLoop(self.model, self.ctrl)
-        else:
-            self.stepper = ClosedLoop(plant, controller)
+        qpos, qvel = state_slices(self.model)
+        self.rows = Rows.empty(self.model, n_settle, traj.t.size - 1, every, qpos.start + plant.qpos_adr,
+                               self.first_state, controls=self.ctrl is None,
+                               window=None if analyser is None else analyser.window,
+                               qd_columns=qvel.start + plant.dof_adr)
+        self.stepper = OpenLoop(self.model, self.ctrl) if self.ctrl is not None else ClosedLoop(plant, controller)
         self.warnings: list[dict] = []
         self.references = Revisions(traj, in_place)
         self.stream = None if analyser is None else _Stream(self, analyser)
@@ -189,8 +168,7 @@ class _Run:
                 self._revise(self.traj.feedback(switch, self.model, self.data, k))
 
     def _revise(self, change: tuple | None) -> None:
-        """Apply a feedback change (k0, columns, q) to the references (Revisions) and to the controller, whose
-        open-loop commands the steps to come then take."""
+        """Apply a feedback change (k0, columns, q) to the references and to the controller's commands to come."""
         rows = self.references.apply(change)
         if rows is None:
             return
@@ -199,8 +177,8 @@ class _Run:
             self.ctrl = self.stepper.planned = self.controller.open_loop()
 
     def _failure(self, fault: Fault) -> PhysicsError:
-        """The error for a fault at a step, with the recording of every sound row before it: a step whose result
-        is unsound fails at the time after it, a command that cannot be applied at the time it was asked."""
+        """The error for a fault, with the recording of every sound row before it: an unsound step fails at the
+        time after it, a bad command at the time it was asked."""
         command = isinstance(fault, CommandFault)
         error = ControlError if command else PhysicsError
         rows = fault.step + (0 if command else 1) - self.rows.n_settle  # the rows recorded soundly
@@ -213,9 +191,8 @@ class _Run:
         return error(when, fault.cause, commanded(self.traj, partial), partial)
 
     def _record(self, readings: np.ndarray) -> Recording:
-        """The Recording of the first len(readings) samples. Row 0 is the state at the end of settling (the
-        start state itself when there is no settling); row r > 0 is the state after step r - 1. MuJoCo computes
-        sensors before it integrates, so readings[r] is the sensor row of step r, taken at row r's state."""
+        """The Recording of the first len(readings) samples: row 0 the state at the end of settling, row r the
+        state after step r - 1, whose sensors MuJoCo computed before integrating (readings[r])."""
         rows = len(readings)
         kept = self.rows.kept[self.rows.kept < rows]
         ctrl = self._commands(slice(0, rows) if self.every == 1 else kept)
@@ -224,8 +201,7 @@ class _Run:
                                qd_peak=self.rows.qd_peak.copy(), **self.references.recorded())
 
     def _window(self, lo: int, hi: int) -> Recording:
-        """The Recording of samples lo..hi-1 as Recording.rows gives it (views of the rows held, the kept rows'
-        states and commands, `kept` counted from lo): what a run analysed as it is simulated hands its analyser."""
+        """Samples lo..hi-1 as Recording.rows gives them (views of the rows held): a streamed run's window."""
         rows = self.rows
         stored = slice(*np.searchsorted(rows.kept, [lo, hi]))
         kept = rows.kept[stored]
@@ -234,18 +210,15 @@ class _Run:
 
     def _recording(self, t: np.ndarray, readings: np.ndarray, q: np.ndarray, eq_active: np.ndarray,
                    ctrl: np.ndarray, stored: slice, **more) -> Recording:
-        """A Recording of readings, joint positions and constraints in force at the times t, the full states
-        (qpos, qd) of the kept rows `stored` (a slice of Rows.states) and their commands ctrl; `more`: Recording's
-        other fields."""
+        """recording() with the full states of the kept rows `stored` (a slice of Rows.states)."""
         states = self.rows.states[stored]
-        sl = state_slices(self.model)
-        return recording(self.plant, self.model, t, readings, q, states[:, sl["mjSTATE_QPOS"]],
-                         states[:, sl["mjSTATE_QVEL"]], eq_active, ctrl, self.warnings, **more)
+        qpos, qvel = state_slices(self.model)
+        return recording(self.plant, self.model, t, readings, q, states[:, qpos], states[:, qvel], eq_active, ctrl,
+                         self.warnings, **more)
 
     def _commands(self, k: slice | np.ndarray) -> np.ndarray:
-        """The commands of samples k (a slice from sample 0, or sample numbers): an open-loop controller's own; a
-        closed-loop one's as it was given (a sample's command drove the step after it; the run's last sample, whose
-        command no step used, repeats the one before)."""
+        """The commands of samples k (a slice from 0, or sample numbers); a closed loop's last sample, which no step
+        follows, repeats the one before."""
         if self.ctrl is not None:
             return self.ctrl[k]
         controls, settle = self.rows.controls, self.rows.n_settle
@@ -254,9 +227,8 @@ class _Run:
 
 
 class _Stream:
-    """A run's samples handed to an Analyser a window of samples at a time as they are simulated: each window's
-    kept rows copied out (the rows of every step's sensors, joint positions, constraints in force and a closed
-    loop's commands), then its rows let go (Rows.drop)."""
+    """A run's samples handed to an Analyser a window at a time as they are simulated: each window's kept rows
+    copied out, then its rows let go (Rows.drop)."""
 
     def __init__(self, run: _Run, analyser: Analyser):
         self.run, self.analyser, self.window = run, analyser, analyser.window
@@ -277,8 +249,7 @@ class _Stream:
             self.lo = hi
 
     def plan(self, done: int) -> JointTrajectory:
-        """The plan at the kept rows of the first `done` samples: the analysed windows' as the analyser kept them,
-        then the rows not analysed yet."""
+        """The plan at the kept rows of the first `done` samples."""
         kept = self.run.rows.kept
         rest = self.run.traj.rows(kept[(kept >= self.lo) & (kept < done)])
         return joined([*self.analyser.plan_kept, rest])
@@ -303,16 +274,14 @@ class _Stream:
 
 
 def _columns(index: np.ndarray) -> slice | np.ndarray:
-    """Columns `index` as a slice where they are consecutive, so that a recording's column is a view of the sensor
-    rows, not an (N, dof) copy; else the index itself."""
+    """Columns `index` as a slice where they are consecutive (a view of the sensor rows, not an (N, dof) copy)."""
     if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
         return slice(int(index[0]), int(index[0]) + len(index))
     return index
 
 
 def _check_finite(ctrl: np.ndarray | Commands, traj: JointTrajectory) -> None:
-    """RunError at the first sample without a finite command (the plan has no finite reference there), reading the
-    commands a chunk at a time."""
+    """RunError at the first sample without a finite command, reading the commands a chunk at a time."""
     for lo in range(0, len(ctrl), CHUNK):
         bad = ~np.isfinite(ctrl[lo:lo + CHUNK]).all(axis=1)
         if bad.any():

@@ -1,16 +1,7 @@
-"""The shipped metric `singularity_handling`: how a run's plan meets the singular sets and the speed limits, the
-figures that set the methods of a path near a singularity apart (`compare`, `simbench bench`). In report.json:
-
-    speed_share_max     max over joints and samples of |qd_ref| / qd_max: the plan's joint rates against the
-                        robot's speed limits (above 1 the plan asks more than a drive gives); None for a robot
-                        without one positive speed limit per joint
-    closest_approach    the least of the robot's `sigma_min_unit` measure over the run (an arm derived from its
-                        model: the rank_loss gap, about the angle from the set in rad). None for the papers' robots,
-                        whose gaps are in units of their own (`compare`'s singular_min_<set> columns)
-    slowdown            the plan's own `slowdown` (planned duration over asked: a planner that retimes the path,
-                        cartesian_path's time_scaling), else 1
-
-A figure it cannot find is None: the metric never fails a run.
+"""The shipped metric `singularity_handling`: the figures that set a path's methods near a singularity apart
+(`compare`, `simbench bench`): speed_share_max (max |qd_ref| / qd_max; None without a positive speed limit per
+joint), closest_approach (the least `sigma_min_unit` gap; None for a robot without it) and slowdown (the plan's
+own, else 1). A figure it cannot find is None: the metric never fails a run.
 """
 
 from __future__ import annotations
@@ -29,7 +20,7 @@ GAP = "sigma_min_unit"  # the measure closest_approach reads (robots.model_arm)
 
 
 class SingularityHandling(Metric):
-    """speed_share_max, closest_approach and slowdown of one run (the module's docstring)."""
+    """speed_share_max, closest_approach and slowdown of one run."""
 
     name = "singularity_handling"
     description = "the plan's joint-speed share of the limits, the closest approach to rank loss, the slowdown"

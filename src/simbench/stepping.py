@@ -1,19 +1,11 @@
 """The stepping loops: from the current state through a stretch of control steps, recording every state.
 
-Both fill the same rows (`Rows`): the sensors MuJoCo computed during each step (before integrating, so at the
-state the step started from) and the command that drove it; the joint positions after each step, and the full
-physics state after the steps whose rows the recording keeps (all, or every k-th with a recording stride).
+- `OpenLoop`: commands known beforehand, stepped in C through `mujoco.rollout` a chunk at a time; a chunk that
+  went wrong (simbench.faults) is replayed step by step to find the first step at fault.
+- `ClosedLoop`: the controller asked every step, between `mj_step1` (what it reads) and `mj_step2`, as MuJoCo's
+  manual advises for control.
 
-- `OpenLoop`: the commands are known beforehand (a controller's `open_loop`); the steps run in C through
-  `mujoco.rollout`, in chunks. After each chunk the run is checked (simbench.faults); a chunk that went wrong is
-  replayed step by step to find the first step at fault.
-- `ClosedLoop`: the controller is asked for each step's command from the measured state, and MuJoCo steps in
-  Python, each step checked as it is taken. The step is split as MuJoCo's manual advises for control:
-  `mj_step1` computes what depends on positions and velocities (the controller reads it), the command is set,
-  `mj_step2` finishes the step; together they are `mj_step` (the scenes use the implicitfast integrator).
-
-Step i of a run is control sample k = max(i - n_settle, 0) at time t = (i - n_settle) dt: the first n_settle
-steps hold the first sample while the robot settles.
+Step i of a run is control sample k = max(i - n_settle, 0) at time t = (i - n_settle) dt.
 """
 
 from __future__ import annotations
@@ -38,17 +30,12 @@ FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
 @dataclass(frozen=True)
 class Rows:
-    """A run's steps as recorded: the sensors MuJoCo computed during each step (n + 1, nsensordata; the last row
-    is the final state's) and the command that drove it (n, nu; none where an open-loop controller's own array
-    holds them), n_settle of them settling before the plan's first sample; and for each recorded row (row r is
-    the state after step n_settle + r - 1, row 0 the state at the end of settling) its joint positions q, the
-    constraints in force from it on (during step n_settle + r), and its full physics state where the row is one
-    of `kept`.
-    The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a strided run never holds
-    every step's state; a run analysed as it is simulated holds the other rows a window at a time too (`drop`).
-    `qd_peak`: each joint's largest speed |qd| (at `qd_columns` of the state) over every recorded row so far."""
+    """A run's steps as recorded: each step's sensors (n + 1 rows, the last the final state's) and command, and
+    for each recorded row (row r: the state after step n_settle + r - 1) its joint positions, the constraints in
+    force from it on, and its full state where the row is `kept`. The steppers write up to CHUNK states into
+    `scratch` and then `keep` them, so that a strided run never holds every step's state."""
 
-    sensors: np.ndarray | WindowBuffer
+    sensors: np.ndarray | WindowBuffer  # (n + 1, nsensordata)
     controls: np.ndarray | WindowBuffer  # (n, nu), or (0, nu) where the commands are not kept here
     q: np.ndarray | WindowBuffer  # (rows, dof): every recorded row's joint positions
     eq_active: np.ndarray | WindowBuffer  # (rows, neq): the constraints in force from each row on
@@ -56,7 +43,7 @@ class Rows:
     kept: np.ndarray  # the recorded rows whose full state is kept, ascending
     q_columns: np.ndarray  # where the joint positions sit in a full state vector
     qd_columns: np.ndarray  # and their speeds
-    qd_peak: np.ndarray  # (dof,)
+    qd_peak: np.ndarray  # (dof,): each joint's largest |qd| over the rows recorded so far
     scratch: np.ndarray  # (CHUNK, nstate): the states of the steps not yet kept
     n_settle: int
     t0: float  # the simulated time of the plan's first sample
@@ -65,12 +52,9 @@ class Rows:
     def empty(cls, model: mujoco.MjModel, n_settle: int, n_track: int, every: int = 1,
               q_columns: np.ndarray | None = None, start: np.ndarray | None = None, controls: bool = True,
               window: int | None = None, qd_columns: np.ndarray | None = None) -> "Rows":
-        """The rows of a run of n_settle + n_track steps whose recording keeps every `every`-th row whole
-        (kept_rows), the joint positions at `q_columns` of the state and their speeds at `qd_columns` (none by
-        default); `start`: row 0's state when there is no settling. `controls`: whether the rows keep every
-        step's command (not where an open-loop controller has them all: that would be a second copy).
-        `window`: every step's other rows held for a window of this many samples and a chunk of steps only
-        (WindowBuffer, for a run analysed as it is simulated, which `drop`s them); None: for every step."""
+        """The rows of a run of n_settle + n_track steps keeping every `every`-th row whole (kept_rows); `start`:
+        row 0's state when there is no settling; `controls`: whether to keep the commands (not an open loop's, a
+        second copy); `window`: hold a window of this many samples and a chunk of steps only (WindowBuffer)."""
         n, nstate = n_settle + n_track, mujoco.mj_stateSize(model, FULL)
         q_columns = np.zeros(0, int) if q_columns is None else q_columns
         qd_columns = np.zeros(0, int) if qd_columns is None else qd_columns
@@ -95,9 +79,7 @@ class Rows:
 
     def keep(self, first: int, stop: int, eq_active: np.ndarray) -> None:
         """Record steps first..stop-1, whose states are scratch[:stop - first], taken with the constraints
-        `eq_active` in force: every row's q and its speeds' peak, the kept rows' state, and the constraints in
-        force from each row on (those of the steps, and of the next step for the row they end at: a switch
-        there, applied between the steppers' calls, rewrites that row's as it steps on)."""
+        `eq_active` in force (a switch at the last row, applied between the steppers' calls, rewrites its)."""
         skip = max(self.n_settle - 1 - first, 0)  # settling steps: no row
         lo, hi = first + skip - self.n_settle + 1, stop - self.n_settle + 1  # their rows, lo..hi-1
         self.eq_active[max(first - self.n_settle, 0):hi] = eq_active
@@ -114,9 +96,8 @@ class Rows:
         self.states[slot[hit]] = chunk[hit]
 
     def drop(self, samples: int) -> None:
-        """Let every step's rows of the first `samples` samples go (rows made with a `window`), the settling
-        steps' with them, but for the last command: a closed loop's last sample, which no step follows, repeats
-        it (sim._Run._commands)."""
+        """Let the rows of the first `samples` samples go (rows made with a `window`), but for the last command,
+        which a closed loop's last sample repeats (sim._Run._commands)."""
         for rows, upto in ((self.sensors, self.n_settle + samples), (self.controls, self.n_settle + samples - 1),
                            (self.q, samples), (self.eq_active, samples)):
             rows.drop(upto)
@@ -128,16 +109,10 @@ def kept_rows(n: int, every: int) -> np.ndarray:
     return rows if rows.size == 0 or rows[-1] == n - 1 else np.append(rows, n - 1)
 
 
-def state_slices(model: mujoco.MjModel) -> dict[str, slice]:
-    """Where time, qpos and qvel sit in a full physics state vector."""
-    slices, start = {}, 0
-    for bit in range(int(mujoco.mjtState.mjNSTATE)):
-        part = 1 << bit
-        if FULL & part:
-            size = mujoco.mj_stateSize(model, part)
-            slices[mujoco.mjtState(part).name] = slice(start, start + size)
-            start += size
-    return slices
+def state_slices(model: mujoco.MjModel) -> tuple[slice, slice]:
+    """Where qpos and qvel sit in a full physics state vector: after the time, in mjtState's order."""
+    qpos = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME)
+    return slice(qpos, qpos + model.nq), slice(qpos + model.nq, qpos + model.nq + model.nv)
 
 
 def warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
@@ -149,9 +124,8 @@ def warning_rows(data: mujoco.MjData, t0: float) -> list[dict]:
 
 
 class OpenLoop:
-    """Commands known beforehand stepped through `mujoco.rollout`, chunk by chunk: rows.controls, or where
-    `planned` is given, an open-loop controller's commands per sample (N, nu: an array, or api.Commands found a
-    chunk at a time), read from it without a copy in the rows."""
+    """Commands known beforehand stepped through `mujoco.rollout`, chunk by chunk: rows.controls, or `planned`, an
+    open-loop controller's per sample (an array or api.Commands), read without a copy in the rows."""
 
     def __init__(self, model: mujoco.MjModel, planned: np.ndarray | Commands | None = None):
         self.slices = state_slices(model)
@@ -159,8 +133,7 @@ class OpenLoop:
         self.planned = planned
 
     def commands(self, rows: Rows, first: int, stop: int) -> np.ndarray:
-        """The commands of steps first..stop-1: rows.controls', or step i's is sample i - n_settle's of
-        `planned`, the first sample's while settling."""
+        """The commands of steps first..stop-1 (a settling step's: the first sample's)."""
         if self.planned is None:
             return rows.controls[first:stop]
         samples = np.maximum(np.arange(first, stop) - rows.n_settle, 0)
@@ -168,9 +141,8 @@ class OpenLoop:
 
     def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
             progress=None, after=None) -> list[dict]:
-        """Steps first..stop-1 with their commands, from data's current state; the warnings met (each stamped at
-        the end of its chunk). Data is left at the last state. Fault at the first step at fault. `after(end)`, if
-        given, is called once the steps before `end` are kept, chunk by chunk."""
+        """Steps first..stop-1 from data's current state; the warnings met (stamped at the end of their chunk).
+        Fault at the first step at fault. `after(end)` is called once the steps before `end` are kept."""
         found, k = [], first
         ctrl_spec = int(mujoco.mjtState.mjSTATE_CTRL)
         while k < stop:
@@ -199,13 +171,12 @@ class OpenLoop:
         return found
 
     def _went_wrong(self, model: mujoco.MjModel, data: mujoco.MjData, chunk: np.ndarray) -> bool:
-        return bool(set(warnings_raised(data)) & FATAL) or unsound(
-            model, chunk[:, self.slices["mjSTATE_QPOS"]], chunk[:, self.slices["mjSTATE_QVEL"]]) is not None
+        qpos, qvel = self.slices
+        return bool(set(warnings_raised(data)) & FATAL) or unsound(model, chunk[:, qpos], chunk[:, qvel]) is not None
 
 
 def _locate(model, data, state: np.ndarray, warmstart: np.ndarray, controls: np.ndarray) -> tuple[int, str]:
-    """Replay a chunk that went wrong one step at a time, from its first state; the first step at fault and why.
-    Leaves data where that step left it."""
+    """Replay a chunk that went wrong one step at a time; the first step at fault and why (data left there)."""
     mujoco.mj_setState(model, data, state, FULL)
     data.qacc_warmstart[:] = warmstart
     clear_warnings(data)
@@ -235,8 +206,7 @@ class ClosedLoop:
 
     def run(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
             progress=None, after=None) -> list[dict]:
-        """Steps first..stop-1, each commanded by the controller, from data's current state; the warnings met.
-        Fault at the first step at fault, CommandFault at the first bad command. `after(end)`, as OpenLoop's."""
+        """As OpenLoop.run, each step commanded by the controller; CommandFault at the first bad command."""
         found, size, base = [], len(rows.scratch), first
         try:
             for base in range(first, stop, size):  # a scratch's worth of steps at a time
@@ -252,8 +222,7 @@ class ClosedLoop:
 
     def _steps(self, model: mujoco.MjModel, data: mujoco.MjData, rows: Rows, first: int, stop: int,
                progress) -> list[dict]:
-        """Steps first..stop-1 (at most a scratch's worth): their states into rows.scratch, their sensors and
-        commands into rows; the warnings met."""
+        """Steps first..stop-1 (at most a scratch's worth) into rows; the warnings met."""
         found = []
         qpos_adr, dof_adr, dt, n_settle = self.plant.qpos_adr, self.plant.dof_adr, model.opt.timestep, rows.n_settle
         qpos, qvel, warned = data.qpos, data.qvel, data.warning.number  # views, read after every step
@@ -269,7 +238,10 @@ class ClosedLoop:
             mujoco.mj_getState(model, data, rows.scratch[i - first], FULL)
             rows.sensors[i] = data.sensordata
             if warned.any() or not np.abs(qvel).max() <= MAX_SPEED:  # NaN fails the comparison too
-                found += self._check(model, data, i, rows.t0)
+                cause = step_fault(model, data)
+                if cause:
+                    raise Fault(i, cause)
+                found += warning_rows(data, rows.t0)
             if progress is not None and i % 1000 == 999:
                 progress.update(1000)
         return found
@@ -291,14 +263,6 @@ class ClosedLoop:
             raise CommandFault(step, f"controller '{name}' commanded {u[bad]} to actuator "
                                      f"'{self.plant.model.actuator(bad).name}'")
         return u
-
-    @staticmethod
-    def _check(model: mujoco.MjModel, data: mujoco.MjData, step: int, t0: float) -> list[dict]:
-        """Fault if the step just taken went wrong; else the warnings it raised (cleared)."""
-        cause = step_fault(model, data)
-        if cause:
-            raise Fault(step, cause)
-        return warning_rows(data, t0)
 
 
 class CommandFault(Fault):

@@ -86,10 +86,8 @@ def gradient_rows(x: np.ndarray, lo: int, hi: int, spacing: float = 1.0) -> np.n
 
 
 def revise(q_ref: np.ndarray, qd_ref: np.ndarray, change: tuple, dt: float) -> tuple[int, int]:
-    """Apply a plan feedback's change (k0, columns, q) to references in place (JointTrajectory.feedback): new
-    values q for those columns of q_ref from row k0 on, and their rates from np.gradient of the new values, up to
-    and including the row just after them, whose rate moves too (the rows before k0 have been used). Returns the
-    rows [k0, hi) whose references changed."""
+    """Apply a plan feedback's change (k0, columns, q) to references in place: q from row k0 on, and the rates
+    np.gradient gives up to the row after them, whose rate moves too. Returns the rows [k0, hi) changed."""
     k0, columns, q = change
     k1 = k0 + len(q)
     q_ref[k0:k1, columns] = q

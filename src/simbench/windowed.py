@@ -1,20 +1,7 @@
 """What the analysis reduces a run's per-sample arrays to, found a window of samples at a time, so that analysing
-a long run holds one window's arrays and what it keeps of them, not every sample's (simbench.analysis).
-
-- `Spans`: the runs of True in a mask (a joint at its limit, the tool near a singular set), each reduced as it
-  grows; a run that reaches a window's last sample goes on in the next window if that one's first sample
-  continues it.
-- `Rises`: where a series rose above every sample before it: the first sample beyond any level is among them (the
-  verdict's "off the path from t = ...").
-- `Departure`: how far and for how long the tool left the path after a step of the plan (a reference jump), from
-  the path deviation after it.
-- `Sums`: sums of squares, maxima and the last value of series, for their RMS, maximum and final value.
-- `BlockSum`: a series' sum that is the same float however the run is cut into windows.
-- `norms`: the Euclidean norm of each row of (N, 3) points, a column at a time.
-
-And how many samples a window has (`window_size`): a run as short as every shipped scenario is one window; a longer
-one is cut into groups of the path search near each reference (simbench.analysis.deviation_near_reference), so
-that its deviations found a window at a time are those of the search over the whole run.
+a long run holds one window's arrays, not every sample's (simbench.analysis); and how many samples a window has
+(`window_size`: a run of up to WINDOW samples is one window, a longer one is cut into groups of the path search near
+each reference, so that its deviations are those of the search over the whole run).
 """
 
 from __future__ import annotations
@@ -57,9 +44,8 @@ def spans(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 class Spans:
-    """The runs of True in a mask seen a window at a time, as (first, last, state) in the run's sample indices:
-    `state` is what `add`'s reduce made of the run's samples, and `merge` joins the states of a run's pieces in two
-    windows (earlier first)."""
+    """The runs of True in a mask (a joint at its limit, the tool near a singular set) seen a window at a time, as
+    (first, last, state): `state` is what `add`'s reduce made of the run, `merge` joins two windows' pieces."""
 
     def __init__(self, merge: Callable[[Any, Any], Any]):
         self.merge = merge
@@ -92,7 +78,8 @@ class Spans:
 
 
 class Rises:
-    """The samples where a series rose above every sample before it, and its values there, in order."""
+    """The samples where a series rose above every sample before it, and its values there, in order: the first
+    sample beyond any level is among them."""
 
     def __init__(self):
         self.at: list[np.ndarray] = []
@@ -119,9 +106,8 @@ class Rises:
 
 
 class Departure:
-    """The tool's departure from the path after a jump in the plan, from the path deviation at samples `start`
-    on: its largest deviation (the first sample of it), and the first sample from there on within `back` of the
-    path."""
+    """The tool's departure from the path after a jump in the plan (from sample `start`): its largest deviation,
+    where, and the first sample from there on within `back` of the path."""
 
     def __init__(self, start: int, back: float):
         self.start, self.back = start, back
@@ -144,9 +130,8 @@ class Departure:
 
 
 class Sums:
-    """For named series (a column each, or (N, k) columns) seen a window at a time: the sum of their squares,
-    their largest absolute value, the largest of a column (`highest`: a distance's, an error angle's), their last
-    row and their number of rows."""
+    """For named series (N,) or (N, k) seen a window at a time: sums of squares, largest |value|, largest value of
+    a column (`highest`), last row and row count."""
 
     def __init__(self):
         self.squares: dict[str, Any] = {}
@@ -176,10 +161,8 @@ class Sums:
 
 
 class BlockSum:
-    """The sum of a series seen a window at a time, the same float however the windows are cut: the samples are
-    summed in fixed blocks of BLOCK counted from the run's first (NumPy's sum of each, the last part of a window
-    carried into the next), and the blocks' sums added in order. Summing each window whole and adding the windows'
-    sums would round differently for every cut (a whole run as one window against the same run streamed)."""
+    """The sum of a series seen a window at a time, the same float however the windows are cut: summed in fixed
+    blocks of BLOCK from the run's first sample, the blocks' sums added in order."""
 
     BLOCK = 4096
 
@@ -201,7 +184,7 @@ class BlockSum:
 
 
 def norms(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of v (N, 3): the numbers np.linalg.norm(v, axis=1) gives (the squares added in the
-    same order), a column at a time, since NumPy reduces across short rows slowly."""
+    """np.linalg.norm(v, axis=1) of v (N, 3), the same numbers, a column at a time: NumPy reduces short rows
+    slowly."""
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     return np.sqrt(x * x + y * y + z * z)

@@ -218,7 +218,8 @@ class Robot(ABC):
         Returns:
             Their names.
         """
-        return _camera_names(str(self.scene))
+        model = compiled_scene(str(self.scene))
+        return tuple(model.camera(i).name for i in range(model.ncam))
 
     def fk(self, q: Array) -> Array:
         """The tool point of joint values: override it where the joints alone set it.
@@ -345,8 +346,3 @@ def _check_robot(robot: Robot) -> None:
         raise RegistryError(f"robot '{robot.name}': kinds must be '{REVOLUTE}' or '{PRISMATIC}', got {robot.kinds}")
     if not (robot.lower < robot.upper).all() or not (robot.qd_max > 0).all():
         raise RegistryError(f"robot '{robot.name}': expected lower < upper and qd_max > 0 for every joint")
-
-
-def _camera_names(scene: str) -> tuple[str, ...]:
-    model = compiled_scene(scene)
-    return tuple(model.camera(i).name for i in range(model.ncam))

@@ -19,7 +19,7 @@ from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
 from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
 from simbench.observation import observation
-from simbench.plant import Actuation, Plant
+from simbench.plant import Plant
 from simbench.scenario import Scenario
 from simbench.sim import Recording, Revisions, recording
 from simbench.stepping import ClosedLoop, OpenLoop, Rows, warning_rows
@@ -144,17 +144,15 @@ class Track(control.Task):
 
     def _settling_controller(self) -> Servo | ComputedTorque:
         """What holds the start while the robot settles: the servo (position) or computed torque (torque)."""
+        settings = self.scenario.control
         if self.actuation == "torque":
-            settings = self.scenario.control
             settler: Servo | ComputedTorque = ComputedTorque(settings if isinstance(settings, ComputedTorqueSettings)
                                                              else None)
-            settler.bind(self.plant, self.plan)
-            return settler
-        settler = Servo(self.scenario.sim.velocity_feedforward)
+        else:
+            settler = Servo(self.scenario.sim.velocity_feedforward)
         settler.bind(self.plant, self.plan)
-        ctrl = settler.open_loop()
-        assert ctrl is not None, "the servo's commands follow from the plan alone"
-        self._hold = ctrl[0].copy()  # simulate's first command, held while settling
+        if isinstance(settler, Servo):
+            self._hold = settler.open_loop()[0].copy()  # simulate's first command, held while settling
         return settler
 
     def _rows(self, model: mujoco.MjModel) -> None:

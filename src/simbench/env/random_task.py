@@ -1,8 +1,6 @@
 """Random tasks for an environment's resets (task_kwargs={'random': seed}): the scenario planner's own where it
-draws them (api.Planner.random_task: start and goal, obstacles, motions), the rest of the scenario kept; else a
-joint move of the scenario's robot, on its timing, from a random start to a random goal, both drawn uniformly
-within the action bounds (the joint ranges; a joint with none: the plan's span widened by episode.CONTINUOUS_SPAN)
-shrunk by MARGIN at either end. A draw the planner refuses is drawn again, up to TRIES times."""
+draws them (api.Planner.random_task), else a joint move between two points drawn uniformly within the action
+bounds shrunk by MARGIN. A draw the planner refuses is drawn again, up to TRIES times."""
 
 from __future__ import annotations
 
