@@ -22,7 +22,6 @@ Everything is converted to SI (radians, metres) while it is validated.
 
 from __future__ import annotations
 
-import difflib
 import os
 from functools import cache
 from pathlib import Path
@@ -37,7 +36,7 @@ from simbench.errors import ScenarioError
 from simbench.robots import robot_mapping
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
 from simbench.timing import TimeLaw
-from simbench.validation import describe, kind_of, read_yaml
+from simbench.validation import describe, did_you_mean, kind_of, read_yaml
 
 
 class Timing(SimbenchModel):
@@ -111,9 +110,8 @@ class Expect(SimbenchModel):
         known = list(verdict.KINDS) + list(robot.breaking if robot is not None else ())
         for kind in kinds:
             if kind not in known:
-                hint = difflib.get_close_matches(kind, known, n=1)
                 raise ValueError(f"unknown violation {kind!r} (expected one of: {', '.join(known)})"
-                                 f"{f'; did you mean {hint[0]!r}?' if hint else ''}")
+                                 f"{did_you_mean(kind, known)}")
         return kinds
 
     @model_validator(mode="after")
@@ -271,7 +269,6 @@ def _name_field(raw: dict, field: str, known: dict, source: str, path: str | Non
     if isinstance(value, str) and value in registry.broken(field):
         raise ScenarioError(source, path, registry.broken(field)[value])
     if not isinstance(value, str) or value not in known:
-        hint = difflib.get_close_matches(str(value), known, n=1)
-        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
-        raise ScenarioError(source, path, f"unknown {field} {value!r} (expected one of: {options}){suggestion}")
+        raise ScenarioError(source, path, f"unknown {field} {value!r} (expected one of: {options})"
+                                          f"{did_you_mean(str(value), known)}")
     return value
