@@ -246,31 +246,25 @@ def _list() -> str:
     """The registered plugins with their origins and broken entry points, then the shipped scenarios and sweeps."""
     from simbench import registry
 
-    lines = ["robots:"]
-    lines += [f"  {r.name:16s} {r.description} ({registry.origin('robot', r.name)})"
-              for r in registry.robots().values()]
-    lines += _broken("robot")
-    lines.append("planners:")
-    for p in registry.planners().values():
-        works = ", ".join(p.robots) if p.robots else "any robot" + (f" with {', '.join(p.needs)}" if p.needs else "")
-        lines.append(f"  {p.name:20s} {p.description} [{works}] ({registry.origin('planner', p.name)})")
-    lines += _broken("planner")
-    for kind, title, found in (("controller", "controllers", registry.controllers()),
-                               ("policy", "policies", registry.policies()), ("metric", "metrics", registry.metrics())):
-        lines.append(f"{title}:")
-        lines += [f"  {c.name:20s} {c.description} ({registry.origin(kind, c.name)})" for c in found.values()]
-        lines += _broken(kind)
+    lines = []
+    for kind, found, width in (("robot", registry.robots, 16), ("planner", registry.planners, 20),
+                               ("controller", registry.controllers, 20), ("policy", registry.policies, 20),
+                               ("metric", registry.metrics, 20)):
+        lines.append(f"{found.__name__}:")
+        for x in found().values():
+            works = f" [{_works(x)}]" if kind == "planner" else ""
+            lines.append(f"  {x.name:{width}s} {x.description}{works} ({registry.origin(kind, x.name)})")
+        lines += [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(registry.broken(kind).items())]
     for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):
         lines.append(f"{title}:")
         lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]
     return "\n".join(lines)
 
 
-def _broken(kind) -> list[str]:
-    """One line for each entry point of this kind that failed to load: its name and why."""
-    from simbench import registry
-
-    return [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(registry.broken(kind).items())]
+def _works(planner) -> str:
+    """The robots a planner works with, in words."""
+    return ", ".join(planner.robots) if planner.robots else "any robot" + (
+        f" with {', '.join(planner.needs)}" if planner.needs else "")
 
 
 def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:

@@ -62,7 +62,7 @@ def shown(value: Any, limit: int = 200) -> str:
 
 
 # The most digits Python writes an integer out in (sys.get_int_max_str_digits; 0 means no limit).
-MAX_INT_DIGITS = (sys.get_int_max_str_digits() if hasattr(sys, "get_int_max_str_digits") else 0) or 4300
+MAX_INT_DIGITS = sys.get_int_max_str_digits() or 4300
 
 
 class RunError(Exception):

@@ -1,23 +1,7 @@
 """Scenario files: the schema, loading, and validation whose errors name the file, the field and what is expected.
 
-A scenario is a YAML mapping:
-
-    name: case1                      # optional: the file's stem; names the output folder
-    description: ...
-    robot: spherical_arm             # a registered robot, or an arm from its MJCF or URDF (robots.robot_mapping)
-    planner: safe_straight_path
-    units: {angle: deg, length: mm}  # how this file writes angles and lengths (default rad, m)
-    task:                            # the planner's own fields
-      start: [120, 10, 120, 5]       # joint values, one per joint
-      goal: [120, 75, 5, 90]
-    timing: {law: quintic, duration: 4.0, hold: 0.5}
-    sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}   # also kp, kv: servo gains (SI)
-    control: {controller: computed_torque, kp: [...], kd: [...]}     # default servo: the MJCF's servos
-    analysis: {near_angle: 2, near_length: 2}
-    render: {width: 640, height: 480, fps: 30, camera: front, quality: fast, trace: true}
-    expect: {status: limits, violations: [joint_limit], reason: ...}   # only where the run is meant to fail
-
-Everything is converted to SI (radians, metres) while it is validated.
+A scenario is a YAML mapping (docs/guide/scenarios.md, field by field): a robot, a planner and its `task:`, and how
+to time, simulate, analyse and render it. Everything is converted to SI (radians, metres) while it is validated.
 """
 
 from __future__ import annotations
