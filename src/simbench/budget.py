@@ -252,10 +252,10 @@ def _beyond(ask: Ask, knob: _Knob, value: float) -> bool:
     return value > current if knob.relation == "at least" else value < current
 
 
-def _blame(ask: Ask, cost, applies) -> list[_Knob]:
+def _blame(ask: Ask, cost) -> list[_Knob]:
     """The knobs that matter, most to blame first: by how much the cost falls with the knob at its ordinary value
     (a field far out of the ordinary), then by how much it falls with the knob as far as it goes."""
-    knobs = [k for k in _KNOBS if applies(k)]
+    knobs = [k for k in _KNOBS if ask.video or k.attribute not in ("fps", "width")]  # the video's if there is one
     base = cost(ask)
 
     def fall(knob: _Knob, value: float) -> float:
@@ -300,9 +300,9 @@ def _rounded(value: float, up: bool) -> str:
     return f"{r:,.0f}" if r >= 100 else f"{r:.2g}"
 
 
-def _refusal(ask: Ask, cost, limit: float, applies) -> tuple[str, str]:
+def _refusal(ask: Ask, cost, limit: float) -> tuple[str, str]:
     """The field to name and the way out, for a cost over its limit."""
-    knobs = _blame(ask, cost, applies)
+    knobs = _blame(ask, cost)
     first = knobs[0]
     value = _way_out(ask, first, cost, limit)
     advice = _advice(ask, first, value)
@@ -334,24 +334,21 @@ def machine_limits(out: str | Path | None = None) -> Limits:
 
 def over_limits(ask: Ask, est: Estimate, limits: Limits) -> tuple[str, str] | None:
     """(field, message) for the first limit the estimate exceeds, or None."""
-    def any_knob(k: _Knob) -> bool:  # the video's knobs where there is a video
-        return ask.video or k.attribute not in ("fps", "width")
-
     how = f"{est.samples:,} samples: {ask.duration + ask.hold:g} s at a {ask.timestep:g} s timestep"
     if est.memory > limits.memory:
-        field, advice = _refusal(ask, lambda a: estimate(a).memory, limits.memory, any_knob)
+        field, advice = _refusal(ask, lambda a: estimate(a).memory, limits.memory)
         basis = f" ({limits.memory_basis})" if limits.memory_basis else ""
         return field, (f"the run would need about {size(est.memory)} of memory ({how}), more than the "
                        f"{size(limits.memory)} this machine allows{basis}; {advice}")
     if limits.disk is not None and est.disk > limits.disk:
-        field, advice = _refusal(ask, lambda a: estimate(a).disk, limits.disk, any_knob)
+        field, advice = _refusal(ask, lambda a: estimate(a).disk, limits.disk)
         if ask.video and est.video_bytes > 0.5 * est.disk:
             advice += ", or run with --no-video"
         basis = f" {limits.disk_basis}" if limits.disk_basis else ""
         return field, (f"the outputs would take about {size(est.disk)} on disk ({how}), more than the "
                        f"{size(limits.disk)}{basis}; {advice}")
     if est.seconds > limits.seconds:
-        field, advice = _refusal(ask, lambda a: estimate(a).seconds, limits.seconds, any_knob)
+        field, advice = _refusal(ask, lambda a: estimate(a).seconds, limits.seconds)
         if ask.video and estimate(replace(ask, video=False)).seconds < 0.5 * est.seconds:
             advice += ", or run with --no-video"
         what = f"{est.samples:,} samples" + (f" and {est.frames:,} video frames of {ask.width}x{ask.height}"
@@ -361,11 +358,11 @@ def over_limits(ask: Ask, est: Estimate, limits: Limits) -> tuple[str, str] | No
     return None
 
 
-def announce(est: Estimate, stream=None) -> None:
-    """Print the estimate's note, if any, as one line on `stream` (stderr)."""
+def announce(est: Estimate) -> None:
+    """Print the estimate's note, if any, as one line on stderr."""
     note = est.note()
     if note:
-        print(f"note: {note}", file=stream or sys.stderr)
+        print(f"note: {note}", file=sys.stderr)
 
 
 def size(n: float) -> str:

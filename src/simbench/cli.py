@@ -197,18 +197,18 @@ def _validate(paths: list[Path], plan: bool) -> int:
     code = 0
     for path in paths:
         sc = scenario.load_scenario(path)
-        if not plan:
-            _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
-            _note_code(sc)
-            continue
-        traj, verdict = pipeline.check_plan(sc)
-        _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
-        if verdict.violations or verdict.expected is not None:
-            _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
-        for warning in traj.warnings:
-            _say(f"  plan warning: {warning}")
+        valid = f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)"
+        if plan:
+            traj, verdict = pipeline.check_plan(sc)
+            _say(f"{valid}; plan: {verdict.status}")
+            if verdict.violations or verdict.expected is not None:
+                _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
+            for warning in traj.warnings:
+                _say(f"  plan warning: {warning}")
+            code = max(code, 0 if verdict.as_expected else EXIT_LIMITS)
+        else:
+            _say(valid)
         _note_code(sc)
-        code = max(code, 0 if verdict.as_expected else EXIT_LIMITS)
     return code
 
 
