@@ -177,8 +177,7 @@ class Limits:
 
     @classmethod
     def of_machine(cls, out: str | Path | None = None) -> Limits:
-        """This machine's limits now: MEMORY_FRACTION of the memory available, at most MEMORY_CAP; TIME_LIMIT;
-        the free space on the file system of `out` (its nearest existing folder), if given."""
+        """This machine's limits now (the module's constants); disk: the free space where `out` goes, if given."""
         available = available_memory()
         memory = int(min(MEMORY_FRACTION * available, MEMORY_CAP))
         basis = f"{MEMORY_FRACTION:.0%} of the {size(available)} available"
@@ -195,9 +194,8 @@ class Limits:
 
 
 def available_memory() -> int:
-    """Bytes of memory available to this process now: psutil's available memory (the kernel's MemAvailable), and
-    the memory cgroup's limit less its usage where that is lower (psutil reads the whole machine's figures, not a
-    container's limit)."""
+    """Bytes of memory available to this process now: psutil's, or the memory cgroup's limit less its usage where
+    lower (psutil reads the whole machine's figures, not a container's limit)."""
     found = psutil.virtual_memory().available
     for limit_file, usage_file in _CGROUP_FILES:
         try:

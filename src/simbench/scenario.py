@@ -37,11 +37,7 @@ class Timing(SimbenchModel):
 
 
 class Sim(SimbenchModel):
-    """Physics settings; the timestep is also the control period. `kp`, `kv` replace the model's servo gains (one
-    for all or one per joint; SI whatever the file's units). `force_limits: false` lifts the servos' force limits,
-    to tell what the plan asks from what the motors give. `gravity_compensation: false` removes the bodies'
-    `gravcomp`, so that the servos carry the arm's weight. `record_every: k` keeps every k-th sample (and the last)
-    of the timeseries; the report is still found from every sample."""
+    """Physics settings (the guide's Scenarios page, `sim`); the timestep is also the control period."""
 
     timestep: seconds(1e-5, 0.01) | None = None
     settle: seconds(0.0, 10.0) = 0.2
@@ -54,9 +50,8 @@ class Sim(SimbenchModel):
 
 
 class Thresholds(SimbenchModel):
-    """The `analysis:` section: how near a singular set or a joint limit counts as near (angles for revolute,
-    lengths for prismatic joints), and the tolerances a run must keep to end `ok`: the tool's distance from the
-    planned path and from the plan's end, and for an orientation task, the same for the orientation."""
+    """The `analysis:` section: what counts as near a singular set or a joint limit, and the tolerances a run must
+    keep to end `ok` (the guide's Scenarios page, `analysis`)."""
 
     near_angle: PositiveAngle = float(np.deg2rad(2.0))
     near_length: PositiveLength = 0.002
@@ -244,8 +239,7 @@ def _controller_name(raw: dict, source: str) -> str:
 
 
 def _name_field(raw: dict, field: str, known: dict, source: str, path: str | None = None) -> str:
-    """raw[field], a registered robot's, planner's or controller's name; ScenarioError naming `path` (default the
-    field) if it is missing, unknown or broken."""
+    """raw[field], a registered name; ScenarioError naming `path` (default the field) if missing, unknown or broken."""
     value, path = raw.get(field), path or field
     options = ", ".join(sorted(known))
     if value is None:
