@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import shutil
 import sys
+from contextlib import suppress
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
@@ -128,7 +129,7 @@ class Estimate:
 
 
 def estimate(ask: Ask) -> Estimate:
-    """The cost of a run (the model: the module's docstring)."""
+    """The cost of a run (the model and its calibration: BENCHMARKS.md, "The run's cost estimate")."""
     dt = ask.timestep
     n = int(round((ask.duration + ask.hold) / dt)) + 1
     n_settle = int(round(ask.settle / dt))
@@ -186,10 +187,8 @@ class Limits:
         disk, disk_basis = None, ""
         if out is not None:
             folder = nearest_folder(out)
-            try:
+            with suppress(OSError):
                 disk, disk_basis = shutil.disk_usage(folder).free, f"free at {folder}"
-            except OSError:
-                pass
         return cls(memory=memory, memory_basis=basis, disk=disk, disk_basis=disk_basis)
 
 
