@@ -151,15 +151,20 @@ def _breaking_violations(robot: Robot, events: list[Event]) -> list[Violation]:
     return out
 
 
+def _planner_violations(traj: JointTrajectory) -> list[Violation]:
+    """What the planner reports its plan breaks, as Violations (a planner's dicts read as one)."""
+    return [Violation.of(v) for v in traj.violations]
+
+
 def plan_verdict(robot: Robot, traj: JointTrajectory, limit_events: list[Event], expect=None) -> Verdict:
     """What can be known before simulating: the limits the plan breaks and what its planner reported."""
-    found = _limit_violations(robot, limit_events) + [Violation.of(v) for v in traj.violations]  # a planner's dicts too
+    found = _limit_violations(robot, limit_events) + _planner_violations(traj)
     return _verdict(found, expect, complete=False)
 
 
 def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expect=None) -> Verdict:
     """The verdict on a simulated run: limits, breaking events and tracking against the scenario's tolerances."""
-    found = (_limit_violations(robot, analysis.limit_events) + [Violation.of(v) for v in traj.violations]
+    found = (_limit_violations(robot, analysis.limit_events) + _planner_violations(traj)
              + _breaking_violations(robot, analysis.singularity_events)
              + _tolerance_violations(analysis, traj.t, robot, tolerances))
     return _verdict(found, expect)
