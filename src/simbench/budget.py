@@ -3,29 +3,18 @@
 A run's memory grows with its samples and its video with its frames, and nothing bounds their product but this
 module: a scenario whose estimate exceeds the machine is refused (ScenarioError, exit 2) before the model is
 loaded, naming the field most to blame, the estimate, the limit and the way out; one that is large but possible
-gets a one-line note of its cost. The model, calibrated on the shipped scenarios (BENCHMARKS.md, "The run's cost
-estimate"):
-
-- Memory. A sample keeps `columns` float64 numbers (the trajectory and the Recording; _model), R = 8 columns
-  bytes. Planning, simulating and analysing peak at _RUN_FACTOR R a sample, writing the outputs at
-  _OUTPUT_FACTOR R. A recording stride k keeps the full state and qd of every k-th sample only: the run holds R_k
-  = 8 (columns - nstate - dof + (nstate + dof) / k) a sample. A strided run analysed as it is simulated
-  (api.Robot.streams) holds every step's readings for a window of samples (windowed.window_size) at _RUN_FACTOR
-  R, and through the run the plan, the commands and the kept rows (_STREAM_FACTOR of them). The process's
-  libraries and its allocator's slack come on top: hence the limit is half of what the machine has.
-- Time: stepping per column and step, planning and analysing per sample (and the planner's seconds_per_sample),
-  the path search per searched pair, the outputs per written row, a video frame per pixel.
-- Disk: the compressed timeseries per sample, the plots, the MP4 per frame and pixel.
-
-Limits (Limits.of_machine): memory half of what the machine has available now (psutil's, and the cgroup's limit
-less its usage where lower), at most 64 GiB; time 24 h; disk the free space where the outputs go.
+gets a one-line note of its cost. The model (memory: the float64 columns kept a sample, _model, times the factors
+below; time: per step, sample, searched pair, written row and pixel; disk: per sample, plot and pixel) and its
+calibration on the shipped scenarios: BENCHMARKS.md, "The run's cost estimate". Limits (Limits.of_machine): half
+the memory available now (the libraries and the allocator's slack come on top), at most 64 GiB; 24 h; the free
+space where the outputs go.
 """
 from __future__ import annotations
 
 import math
-import os
 import shutil
 import sys
+from contextlib import suppress
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
@@ -33,7 +22,7 @@ from pathlib import Path
 import psutil
 
 from simbench import windowed
-from simbench.errors import ScenarioError
+from simbench.errors import ScenarioError, nearest_folder
 
 MEMORY_FRACTION = 0.5  # of the memory available now
 MEMORY_CAP = 64 * 2**30  # bytes, whatever the machine has
@@ -128,13 +117,9 @@ class Estimate:
 
     def summary(self) -> str:
         """The estimate in words, one line."""
-        parts = [f"about {size(self.memory)} of memory and {span(self.seconds)}"]
-        if self.disk:
-            parts.append(f"{size(self.disk)} on disk")
-        what = f"{self.samples:,} samples"
-        if self.frames:
-            what += f", {self.frames:,} video frames"
-        return f"{', '.join(parts)} ({what})"
+        disk = f", {size(self.disk)} on disk" if self.disk else ""
+        frames = f", {self.frames:,} video frames" if self.frames else ""
+        return f"about {size(self.memory)} of memory and {span(self.seconds)}{disk} ({self.samples:,} samples{frames})"
 
     def note(self) -> str | None:
         """A line on the cost of a large run (above NOTE_MEMORY or NOTE_SECONDS), or None."""
@@ -144,7 +129,7 @@ class Estimate:
 
 
 def estimate(ask: Ask) -> Estimate:
-    """The cost of a run (see the module's docstring for the model and its calibration)."""
+    """The cost of a run (the model and its calibration: BENCHMARKS.md, "The run's cost estimate")."""
     dt = ask.timestep
     n = int(round((ask.duration + ask.hold) / dt)) + 1
     n_settle = int(round(ask.settle / dt))
@@ -193,8 +178,7 @@ class Limits:
 
     @classmethod
     def of_machine(cls, out: str | Path | None = None) -> Limits:
-        """This machine's limits now: MEMORY_FRACTION of the memory available, at most MEMORY_CAP; TIME_LIMIT;
-        the free space on the file system of `out` (its nearest existing folder), if given."""
+        """This machine's limits now (the module's constants); disk: the free space where `out` goes, if given."""
         available = available_memory()
         memory = int(min(MEMORY_FRACTION * available, MEMORY_CAP))
         basis = f"{MEMORY_FRACTION:.0%} of the {size(available)} available"
@@ -202,18 +186,15 @@ class Limits:
             basis = f"at most {MEMORY_CAP / 2**30:g} GiB on any machine"
         disk, disk_basis = None, ""
         if out is not None:
-            folder = _existing(Path(out))
-            try:
+            folder = nearest_folder(out)
+            with suppress(OSError):
                 disk, disk_basis = shutil.disk_usage(folder).free, f"free at {folder}"
-            except OSError:
-                pass
         return cls(memory=memory, memory_basis=basis, disk=disk, disk_basis=disk_basis)
 
 
 def available_memory() -> int:
-    """Bytes of memory available to this process now: psutil's available memory (the kernel's MemAvailable), and
-    the memory cgroup's limit less its usage where that is lower (psutil reads the whole machine's figures, not a
-    container's limit)."""
+    """Bytes of memory available to this process now: psutil's, or the memory cgroup's limit less its usage where
+    lower (psutil reads the whole machine's figures, not a container's limit)."""
     found = psutil.virtual_memory().available
     for limit_file, usage_file in _CGROUP_FILES:
         try:
@@ -224,12 +205,6 @@ def available_memory() -> int:
         if limit < 2**60:
             found = min(found, max(limit - usage, 0))
     return found
-
-
-def _existing(path: Path) -> Path:
-    """The nearest folder that exists at or above `path`."""
-    path = Path(os.path.abspath(path))
-    return next((p for p in (path, *path.parents) if p.is_dir()), Path(path.anchor))
 
 
 # --- refusals -----------------------------------------------------------------------------------------------------
@@ -263,16 +238,9 @@ def _set(ask: Ask, knob: _Knob, value: float) -> Ask:
         return replace(ask, fps=max(1, int(math.floor(value))))
     if knob.attribute == "width":  # the size, keeping its shape
         scale = value / ask.width
-        return replace(ask, width=_even(ask.width * scale), height=_even(ask.height * scale))
+        width, height = (max(64, 2 * int(x * scale // 2)) for x in (ask.width, ask.height))  # even, as Render's
+        return replace(ask, width=width, height=height)
     return replace(ask, **{knob.attribute: value})
-
-
-def _even(x: float) -> int:
-    return max(64, 2 * int(x // 2))
-
-
-def _ordinary(ask: Ask, knob: _Knob) -> float:
-    return ask.model_timestep if knob.ordinary is None else knob.ordinary
 
 
 def _beyond(ask: Ask, knob: _Knob, value: float) -> bool:
@@ -281,16 +249,17 @@ def _beyond(ask: Ask, knob: _Knob, value: float) -> bool:
     return value > current if knob.relation == "at least" else value < current
 
 
-def _blame(ask: Ask, cost, applies) -> list[_Knob]:
+def _blame(ask: Ask, cost) -> list[_Knob]:
     """The knobs that matter, most to blame first: by how much the cost falls with the knob at its ordinary value
     (a field far out of the ordinary), then by how much it falls with the knob as far as it goes."""
-    knobs = [k for k in _KNOBS if applies(k)]
+    knobs = [k for k in _KNOBS if ask.video or k.attribute not in ("fps", "width")]  # the video's if there is one
     base = cost(ask)
 
     def fall(knob: _Knob, value: float) -> float:
         return base / max(cost(_set(ask, knob, value)), 1e-300) if _beyond(ask, knob, value) else 1.0
 
-    return sorted(knobs, key=lambda k: (-fall(k, _ordinary(ask, k)), -fall(k, k.bound)))
+    ordinary = {k: ask.model_timestep if k.ordinary is None else k.ordinary for k in knobs}
+    return sorted(knobs, key=lambda k: (-fall(k, ordinary[k]), -fall(k, k.bound)))
 
 
 def _way_out(ask: Ask, knob: _Knob, cost, limit: float) -> float | None:
@@ -328,21 +297,17 @@ def _rounded(value: float, up: bool) -> str:
     return f"{r:,.0f}" if r >= 100 else f"{r:.2g}"
 
 
-def _refusal(ask: Ask, cost, limit: float, applies) -> tuple[str, str]:
+def _refusal(ask: Ask, cost, limit: float) -> tuple[str, str]:
     """The field to name and the way out, for a cost over its limit."""
-    knobs = _blame(ask, cost, applies)
+    knobs = _blame(ask, cost)
     first = knobs[0]
     value = _way_out(ask, first, cost, limit)
     advice = _advice(ask, first, value)
+    other = next((k for k in knobs[1:] if _way_out(ask, k, cost, limit) is not None), None)
     if value is None:  # that field alone will not do: name the next one too
-        second = next((k for k in knobs[1:] if _way_out(ask, k, cost, limit) is not None), None)
-        second = second or (knobs[1] if len(knobs) > 1 else None)
-        if second is not None:
-            advice += f" and {_advice(ask, second, None)}"
-    else:
-        other = next((k for k in knobs[1:] if _way_out(ask, k, cost, limit) is not None), None)
-        if other is not None:
-            advice += f", or {_advice(ask, other, None)}"
+        other = other or next(iter(knobs[1:]), None)
+    if other is not None:
+        advice += f"{' and' if value is None else ', or'} {_advice(ask, other, None)}"
     return first.field, advice
 
 
@@ -366,27 +331,21 @@ def machine_limits(out: str | Path | None = None) -> Limits:
 
 def over_limits(ask: Ask, est: Estimate, limits: Limits) -> tuple[str, str] | None:
     """(field, message) for the first limit the estimate exceeds, or None."""
-    def physics(k: _Knob) -> bool:
-        return k.attribute not in ("fps", "width")
-
-    def any_knob(k: _Knob) -> bool:
-        return ask.video or physics(k)
-
     how = f"{est.samples:,} samples: {ask.duration + ask.hold:g} s at a {ask.timestep:g} s timestep"
     if est.memory > limits.memory:
-        field, advice = _refusal(ask, lambda a: estimate(a).memory, limits.memory, any_knob)
+        field, advice = _refusal(ask, lambda a: estimate(a).memory, limits.memory)
         basis = f" ({limits.memory_basis})" if limits.memory_basis else ""
         return field, (f"the run would need about {size(est.memory)} of memory ({how}), more than the "
                        f"{size(limits.memory)} this machine allows{basis}; {advice}")
     if limits.disk is not None and est.disk > limits.disk:
-        field, advice = _refusal(ask, lambda a: estimate(a).disk, limits.disk, any_knob)
+        field, advice = _refusal(ask, lambda a: estimate(a).disk, limits.disk)
         if ask.video and est.video_bytes > 0.5 * est.disk:
             advice += ", or run with --no-video"
         basis = f" {limits.disk_basis}" if limits.disk_basis else ""
         return field, (f"the outputs would take about {size(est.disk)} on disk ({how}), more than the "
                        f"{size(limits.disk)}{basis}; {advice}")
     if est.seconds > limits.seconds:
-        field, advice = _refusal(ask, lambda a: estimate(a).seconds, limits.seconds, any_knob)
+        field, advice = _refusal(ask, lambda a: estimate(a).seconds, limits.seconds)
         if ask.video and estimate(replace(ask, video=False)).seconds < 0.5 * est.seconds:
             advice += ", or run with --no-video"
         what = f"{est.samples:,} samples" + (f" and {est.frames:,} video frames of {ask.width}x{ask.height}"
@@ -396,11 +355,11 @@ def over_limits(ask: Ask, est: Estimate, limits: Limits) -> tuple[str, str] | No
     return None
 
 
-def announce(est: Estimate, stream=None) -> None:
-    """Print the estimate's note, if any, as one line on `stream` (stderr)."""
+def announce(est: Estimate) -> None:
+    """Print the estimate's note, if any, as one line on stderr."""
     note = est.note()
     if note:
-        print(f"note: {note}", file=stream or sys.stderr)
+        print(f"note: {note}", file=sys.stderr)
 
 
 def size(n: float) -> str:

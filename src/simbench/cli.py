@@ -128,11 +128,6 @@ def _status_lines(status: str, violations: list[dict], expected: dict | None) ->
     return lines
 
 
-def _exit_code(verdict) -> int:
-    """0 when the run ended as its scenario expects (ok, unless it expects a failure), else EXIT_LIMITS."""
-    return 0 if verdict.as_expected else EXIT_LIMITS
-
-
 def _sweep(args) -> None:
     """The sweep command: run (or with --dry-run, list) the sweep's runs."""
     from simbench.sweep import cluster, load_sweep, run_sweep
@@ -164,13 +159,6 @@ def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
         run_id, detail = refused[0]
         raise ScenarioError(sweep.source, None, f"every one of its {len(refused)} runs is bad input (the first, "
                                                 f"{run_id}: {detail})")
-
-
-def _reproduce(args) -> None:
-    """The reproduce command: each paper's tables and figures, and a one-screen summary."""
-    from simbench.reproduce import reproduce
-
-    _say("\n".join(reproduce(args.paper, args.out, force=args.force).lines()))
 
 
 def _compare(args) -> None:
@@ -209,18 +197,18 @@ def _validate(paths: list[Path], plan: bool) -> int:
     code = 0
     for path in paths:
         sc = scenario.load_scenario(path)
-        if not plan:
-            _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)")
-            _note_code(sc)
-            continue
-        traj, verdict = pipeline.check_plan(sc)
-        _say(f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s); plan: {verdict.status}")
-        if verdict.violations or verdict.expected is not None:
-            _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
-        for warning in traj.warnings:
-            _say(f"  plan warning: {warning}")
+        valid = f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)"
+        if plan:
+            traj, verdict = pipeline.check_plan(sc)
+            _say(f"{valid}; plan: {verdict.status}")
+            if verdict.violations or verdict.expected is not None:
+                _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
+            for warning in traj.warnings:
+                _say(f"  plan warning: {warning}")
+            code = max(code, 0 if verdict.as_expected else EXIT_LIMITS)
+        else:
+            _say(valid)
         _note_code(sc)
-        code = max(code, _exit_code(verdict))
     return code
 
 
@@ -251,38 +239,32 @@ def _run(args) -> int:
     elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
         _say("\n".join(_status_lines(result.report["status"], result.report["violations"],
                                      result.report.get("expected"))), file=sys.stderr)
-    return _exit_code(result.evaluation.verdict)
+    return 0 if result.evaluation.verdict.as_expected else EXIT_LIMITS
 
 
 def _list() -> str:
     """The registered plugins with their origins and broken entry points, then the shipped scenarios and sweeps."""
     from simbench import registry
 
-    lines = ["robots:"]
-    lines += [f"  {r.name:16s} {r.description} ({registry.origin('robot', r.name)})"
-              for r in registry.robots().values()]
-    lines += _broken("robot")
-    lines.append("planners:")
-    for p in registry.planners().values():
-        works = ", ".join(p.robots) if p.robots else "any robot" + (f" with {', '.join(p.needs)}" if p.needs else "")
-        lines.append(f"  {p.name:20s} {p.description} [{works}] ({registry.origin('planner', p.name)})")
-    lines += _broken("planner")
-    for kind, title, found in (("controller", "controllers", registry.controllers()),
-                               ("policy", "policies", registry.policies()), ("metric", "metrics", registry.metrics())):
-        lines.append(f"{title}:")
-        lines += [f"  {c.name:20s} {c.description} ({registry.origin(kind, c.name)})" for c in found.values()]
-        lines += _broken(kind)
+    lines = []
+    for kind, found, width in (("robot", registry.robots, 16), ("planner", registry.planners, 20),
+                               ("controller", registry.controllers, 20), ("policy", registry.policies, 20),
+                               ("metric", registry.metrics, 20)):
+        lines.append(f"{found.__name__}:")
+        for x in found().values():
+            works = f" [{_works(x)}]" if kind == "planner" else ""
+            lines.append(f"  {x.name:{width}s} {x.description}{works} ({registry.origin(kind, x.name)})")
+        lines += [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(registry.broken(kind).items())]
     for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):
         lines.append(f"{title}:")
         lines += [f"  {path.relative_to(root.parent)}" for path in sorted(root.rglob("*.yaml"))]
     return "\n".join(lines)
 
 
-def _broken(kind) -> list[str]:
-    """One line for each entry point of this kind that failed to load: its name and why."""
-    from simbench import registry
-
-    return [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(registry.broken(kind).items())]
+def _works(planner) -> str:
+    """The robots a planner works with, in words."""
+    return ", ".join(planner.robots) if planner.robots else "any robot" + (
+        f" with {', '.join(planner.needs)}" if planner.needs else "")
 
 
 def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
@@ -318,7 +300,9 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         elif args.command == "bench":
             bench_command.run(args, _say)
         elif args.command == "reproduce":
-            _reproduce(args)
+            from simbench.reproduce import reproduce
+
+            _say("\n".join(reproduce(args.paper, args.out, force=args.force).lines()))
         elif args.command == "compare":
             _compare(args)
         elif args.command == "validate":
@@ -351,35 +335,18 @@ def _failed(args: argparse.Namespace, ctrl_c: interrupts.CtrlC, err: Exception) 
     """Print why the command failed; its exit code (130 where Ctrl-C came first and caused `err`)."""
     if ctrl_c.pressed:
         return _interrupted(args, ctrl_c)
-    if isinstance(err, BrokenPipeError):
-        return _reader_gone()
+    if isinstance(err, BrokenPipeError):  # `simbench list | head`: quiet, as SIGPIPE ends a shell tool (128 + 13)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so that the last flush cannot fail too
+        return 141
     for kind, prefix, code in ((ScenarioError, "error", 2), (OutputError, "error", 1), (RunError, "run failed", 1)):
         if isinstance(err, kind):  # OutputError before RunError, whose subclass it is
             _say(f"{prefix}: {err}", file=sys.stderr)
             return code
-    if isinstance(err, OSError) and err.filename is not None:
-        return _refused(err)
-    return _internal_error(err)  # not the file system's refusal either (a closed pipe, say)
-
-
-def _reader_gone() -> int:
-    """The pipe the output went to closed (`simbench list | head`): stop quietly, as a shell tool killed by SIGPIPE
-    does (128 + 13), with stdout sent nowhere so that the interpreter's last flush cannot fail too."""
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, sys.stdout.fileno())
-    return 141
-
-
-def _refused(err: OSError) -> int:
-    """A file system refusal no module wrapped: bad input (2), unless out of space (1)."""
-    path, words = os_error_line(err)
-    _say(f"error: {path}: {words}", file=sys.stderr)
-    return 1 if err.errno in NO_SPACE else 2
-
-
-def _internal_error(err: Exception) -> int:
-    """A bug: one line, unless asked for the traceback (SIMBENCH_DEBUG=1)."""
-    if os.environ.get("SIMBENCH_DEBUG"):
+    if isinstance(err, OSError) and err.filename is not None:  # a file system refusal no module wrapped
+        path, words = os_error_line(err)
+        _say(f"error: {path}: {words}", file=sys.stderr)
+        return 1 if err.errno in NO_SPACE else 2  # bad input, unless out of space
+    if os.environ.get("SIMBENCH_DEBUG"):  # a bug: one line, unless asked for the traceback
         raise err
     _say(f"internal error: {type(err).__name__}: {printable(str(err))} (a bug in simbench: please report it with "
          "the input; SIMBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)

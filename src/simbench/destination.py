@@ -18,9 +18,10 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import psutil
 from filelock import FileLock, Timeout
 
-from simbench.errors import ScenarioError, destination_error, name_max
+from simbench.errors import STAGED, ScenarioError, destination_error, name_max
 
 MARKER = ".simbench"
 # The longest suffix this process writes under beside a destination: `.<name>.partial-<pid>` (simbench.atomic).
@@ -28,12 +29,12 @@ _HIDDEN = len(".") + len(".partial-") + len(str(2**22))
 
 
 @contextmanager
-def refused(out: Path, what: str = "the output folder") -> Iterator[None]:
+def refused(out: Path) -> Iterator[None]:
     """An OSError met while looking at or preparing `out` as errors.destination_error."""
     try:
         yield
     except OSError as err:
-        raise destination_error(out, err, what) from None
+        raise destination_error(out, err) from None
 
 
 def mark(folder: Path, names: Iterable[str] | None = None) -> None:
@@ -80,9 +81,7 @@ def foreign(folder: Path) -> list[Path]:
     listed: dict[Path, set[str]] = {}
     out = []
     for path in sorted(folder.rglob("*")):
-        if path.is_dir() and not path.is_symlink():
-            continue
-        if path.name == MARKER or _staging_pid(path.name) is not None:
+        if path.is_dir() and not path.is_symlink() or path.name == MARKER or _staging_pid(path.name) is not None:
             continue
         owners = [path.parent, *(p for p in path.parent.parents if folder in p.parents or p == folder)]
         if not any(path.relative_to(owner).as_posix() in listed.setdefault(owner, _listed(owner))
@@ -93,8 +92,8 @@ def foreign(folder: Path) -> list[Path]:
 
 def _staging_pid(name: str) -> int | None:
     """The writer's process id if `name` is a staging name, `.<name>.partial-PID` or `.<name>.old-PID`."""
-    tag, _, pid = name.rpartition("-")
-    return int(pid) if name.startswith(".") and tag.endswith((".partial", ".old")) and pid.isdigit() else None
+    m = STAGED.match(name)
+    return int(m["pid"]) if m else None
 
 
 def followed(out: Path) -> Path:
@@ -216,21 +215,11 @@ def check_name(out: Path) -> None:
                                             "another --out")
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # someone else's process
-        return True
-    return True
-
-
 def sweep_leftovers(path: Path) -> None:
     """Remove the staging names beside `path` whose writer is dead (killed by SIGKILL, say)."""
     for leftover in path.parent.glob(f".{glob.escape(path.name)}.*-*"):
         pid = _staging_pid(leftover.name)
-        if pid is not None and not _alive(pid):
+        if pid is not None and not psutil.pid_exists(pid):
             if leftover.is_dir() and not leftover.is_symlink():
                 shutil.rmtree(leftover, ignore_errors=True)
             else:

@@ -62,7 +62,7 @@ def shown(value: Any, limit: int = 200) -> str:
 
 
 # The most digits Python writes an integer out in (sys.get_int_max_str_digits; 0 means no limit).
-MAX_INT_DIGITS = (sys.get_int_max_str_digits() if hasattr(sys, "get_int_max_str_digits") else 0) or 4300
+MAX_INT_DIGITS = sys.get_int_max_str_digits() or 4300
 
 
 class RunError(Exception):
@@ -127,7 +127,7 @@ _WORDS = {
 }
 
 # The hidden names simbench writes under beside a destination (simbench.atomic, simbench.destination).
-_STAGED = re.compile(r"^\.(?P<name>.+)\.(?:partial|old)-\d+$")
+STAGED = re.compile(r"^\.(?P<name>.+)\.(?:partial|old)-(?P<pid>\d+)$")
 _LOCK = re.compile(r"^\.(?P<name>.+)\.lock$")
 _ERRNO_IN_TEXT = re.compile(r"^\[Errno (\d+)\] ([^\n]*)")
 
@@ -139,19 +139,22 @@ def shown_path(filename: str | os.PathLike | bytes | None) -> str | None:
     path = Path(os.fsdecode(filename))
     if _LOCK.match(path.name):
         return str(path.parent)
-    parts = [(m.group("name") if (m := _STAGED.match(part)) else part) for part in path.parts]
+    parts = [(m.group("name") if (m := STAGED.match(part)) else part) for part in path.parts]
     return str(Path(*parts)) if parts else str(path)
+
+
+def nearest_folder(path: str | os.PathLike) -> Path:
+    """The nearest folder that exists at or above `path`."""
+    path = Path(os.path.abspath(path))
+    return next((p for p in (path, *path.parents) if os.path.isdir(p)), Path(path.anchor))
 
 
 def name_max(folder: str | os.PathLike) -> int:
     """The longest file name (bytes) the file system holding `folder` (or its nearest ancestor) takes."""
-    path = Path(os.path.abspath(folder))
-    for candidate in (path, *path.parents):
-        try:
-            return os.pathconf(candidate, "PC_NAME_MAX")
-        except (OSError, ValueError):
-            continue
-    return 255
+    try:
+        return os.pathconf(nearest_folder(folder), "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
 
 
 def _too_long(filename: str) -> str:
@@ -210,13 +213,13 @@ def os_error_line(err: OSError) -> tuple[str | None, str]:
     return printable(shown_path(err.filename)) if err.filename is not None else None, os_words(err)
 
 
-def destination_error(out: Path, err: OSError, what: str = "the output folder") -> Exception:
+def destination_error(out: Path, err: OSError) -> Exception:
     """A destination refused before anything ran: ScenarioError naming `out`, or OutputError if out of space."""
     path, words = os_error_line(err)
     if err.errno in NO_SPACE:
         return OutputError(path or str(out), words, f"{out} was left as it was")
     where = f" ({path})" if path and path != str(out) and err.errno not in (errno.ENOTDIR, errno.EEXIST) else ""
-    return ScenarioError(str(out), None, f"cannot write {what}: {words}{where}; pick another --out")
+    return ScenarioError(str(out), None, f"cannot write the output folder: {words}{where}; pick another --out")
 
 
 def output_error(err: OSError, path: Path, kept: str) -> OutputError:
@@ -229,12 +232,10 @@ def output_error(err: OSError, path: Path, kept: str) -> OutputError:
 
 def _device_full(path: Path) -> bool:
     """Whether the file system holding `path` (or its nearest ancestor) has no block left."""
-    for candidate in (Path(path), *Path(path).parents):
-        try:
-            return os.statvfs(candidate).f_bavail == 0
-        except OSError:
-            continue
-    return False
+    try:
+        return os.statvfs(nearest_folder(path)).f_bavail == 0
+    except OSError:
+        return False
 
 
 class RegistryError(Exception):

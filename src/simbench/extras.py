@@ -24,8 +24,7 @@ EXTRAS: dict[str, tuple[str, str]] = {
 
 
 class MissingExtra(ScenarioError):
-    """An optional package that is not installed (or fails to import): what needs it, and the extra that installs
-    it."""
+    """An optional package not installed (or failing to import): what needs it, and the extra that installs it."""
 
     def __init__(self, source: str, field: str | None, module: str, needs: str, problem: str = "is not installed"):
         self.module = module

@@ -1,28 +1,11 @@
 """Scenario files: the schema, loading, and validation whose errors name the file, the field and what is expected.
 
-A scenario is a YAML mapping:
-
-    name: case1                      # optional: the file's stem; names the output folder
-    description: ...
-    robot: spherical_arm             # a registered robot, or an arm from its MJCF or URDF (robots.robot_mapping)
-    planner: safe_straight_path
-    units: {angle: deg, length: mm}  # how this file writes angles and lengths (default rad, m)
-    task:                            # the planner's own fields
-      start: [120, 10, 120, 5]       # joint values, one per joint
-      goal: [120, 75, 5, 90]
-    timing: {law: quintic, duration: 4.0, hold: 0.5}
-    sim: {timestep: 0.001, settle: 0.2, velocity_feedforward: true}   # also kp, kv: servo gains (SI)
-    control: {controller: computed_torque, kp: [...], kd: [...]}     # default servo: the MJCF's servos
-    analysis: {near_angle: 2, near_length: 2}
-    render: {width: 640, height: 480, fps: 30, camera: front, quality: fast, trace: true}
-    expect: {status: limits, violations: [joint_limit], reason: ...}   # only where the run is meant to fail
-
-Everything is converted to SI (radians, metres) while it is validated.
+A scenario is a YAML mapping (docs/guide/scenarios.md, field by field): a robot, a planner and its `task:`, and how
+to time, simulate, analyse and render it. Everything is converted to SI (radians, metres) while it is validated.
 """
 
 from __future__ import annotations
 
-import difflib
 import os
 from functools import cache
 from pathlib import Path
@@ -37,7 +20,7 @@ from simbench.errors import ScenarioError
 from simbench.robots import robot_mapping
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
 from simbench.timing import TimeLaw
-from simbench.validation import describe, kind_of, read_yaml
+from simbench.validation import describe, did_you_mean, kind_of, read_yaml
 
 
 class Timing(SimbenchModel):
@@ -54,11 +37,7 @@ class Timing(SimbenchModel):
 
 
 class Sim(SimbenchModel):
-    """Physics settings; the timestep is also the control period. `kp`, `kv` replace the model's servo gains (one
-    for all or one per joint; SI whatever the file's units). `force_limits: false` lifts the servos' force limits,
-    to tell what the plan asks from what the motors give. `gravity_compensation: false` removes the bodies'
-    `gravcomp`, so that the servos carry the arm's weight. `record_every: k` keeps every k-th sample (and the last)
-    of the timeseries; the report is still found from every sample."""
+    """Physics settings (the guide's Scenarios page, `sim`); the timestep is also the control period."""
 
     timestep: seconds(1e-5, 0.01) | None = None
     settle: seconds(0.0, 10.0) = 0.2
@@ -71,9 +50,8 @@ class Sim(SimbenchModel):
 
 
 class Thresholds(SimbenchModel):
-    """The `analysis:` section: how near a singular set or a joint limit counts as near (angles for revolute,
-    lengths for prismatic joints), and the tolerances a run must keep to end `ok`: the tool's distance from the
-    planned path and from the plan's end, and for an orientation task, the same for the orientation."""
+    """The `analysis:` section: what counts as near a singular set or a joint limit, and the tolerances a run must
+    keep to end `ok` (the guide's Scenarios page, `analysis`)."""
 
     near_angle: PositiveAngle = float(np.deg2rad(2.0))
     near_length: PositiveLength = 0.002
@@ -111,9 +89,8 @@ class Expect(SimbenchModel):
         known = list(verdict.KINDS) + list(robot.breaking if robot is not None else ())
         for kind in kinds:
             if kind not in known:
-                hint = difflib.get_close_matches(kind, known, n=1)
                 raise ValueError(f"unknown violation {kind!r} (expected one of: {', '.join(known)})"
-                                 f"{f'; did you mean {hint[0]!r}?' if hint else ''}")
+                                 f"{did_you_mean(kind, known)}")
         return kinds
 
     @model_validator(mode="after")
@@ -262,8 +239,7 @@ def _controller_name(raw: dict, source: str) -> str:
 
 
 def _name_field(raw: dict, field: str, known: dict, source: str, path: str | None = None) -> str:
-    """raw[field], a registered robot's, planner's or controller's name; ScenarioError naming `path` (default the
-    field) if it is missing, unknown or broken."""
+    """raw[field], a registered name; ScenarioError naming `path` (default the field) if missing, unknown or broken."""
     value, path = raw.get(field), path or field
     options = ", ".join(sorted(known))
     if value is None:
@@ -271,7 +247,6 @@ def _name_field(raw: dict, field: str, known: dict, source: str, path: str | Non
     if isinstance(value, str) and value in registry.broken(field):
         raise ScenarioError(source, path, registry.broken(field)[value])
     if not isinstance(value, str) or value not in known:
-        hint = difflib.get_close_matches(str(value), known, n=1)
-        suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
-        raise ScenarioError(source, path, f"unknown {field} {value!r} (expected one of: {options}){suggestion}")
+        raise ScenarioError(source, path, f"unknown {field} {value!r} (expected one of: {options})"
+                                          f"{did_you_mean(str(value), known)}")
     return value

@@ -12,7 +12,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AfterValidator, Field, ValidationInfo, model_validator
 
-from simbench.api import REVOLUTE, Robot
+from simbench.api import PRISMATIC, REVOLUTE, Robot
 from simbench.errors import ScenarioError
 from simbench.frozen import SimbenchModel
 
@@ -87,19 +87,12 @@ def _bounded(value: float, factor: float, lo: float, hi: float, unit: str, what:
     return si
 
 
-def _angle(lo: float, hi: float, low_open: bool = False):
-    """An angle in the file's unit, converted to radians and kept within [lo, hi] rad."""
+def _quantity(kind: str, lo: float, hi: float, low_open: bool = False):
+    """An angle (REVOLUTE) or a length in the file's unit, converted to SI and kept within [lo, hi]."""
     def convert(value: float, info: ValidationInfo) -> float:
         units = _units(info)
-        return _bounded(value, units.angle_factor, lo, hi, units.angle, "an angle", low_open)
-    return AfterValidator(convert)
-
-
-def _length(lo: float, hi: float):
-    """A length in the file's unit, converted to metres and kept within [lo, hi] m."""
-    def convert(value: float, info: ValidationInfo) -> float:
-        units = _units(info)
-        return _bounded(value, units.length_factor, lo, hi, units.length, "a length")
+        what = "an angle" if kind == REVOLUTE else "a length"
+        return _bounded(value, units.factor(kind), lo, hi, units.name(kind), what, low_open)
     return AfterValidator(convert)
 
 
@@ -214,13 +207,13 @@ def seconds(lo: float, hi: float, low_open: bool = False) -> Any:
     return Annotated[float, AfterValidator(lambda value: _bounded(value, 1.0, lo, hi, "s", "a time", low_open))]
 
 
-Angle = Annotated[float, _angle(-MAX_ANGLE, MAX_ANGLE)]
+Angle = Annotated[float, _quantity(REVOLUTE, -MAX_ANGLE, MAX_ANGLE)]
 """A joint or path angle in the file's angle unit, in radians once loaded: a few turns either way."""
-PositiveAngle = Annotated[float, _angle(0.0, np.pi, low_open=True)]
+PositiveAngle = Annotated[float, _quantity(REVOLUTE, 0.0, np.pi, low_open=True)]
 """An angle in (0, pi] rad (a radius, clearance or tolerance on a sphere), in the file's angle unit."""
-NonNegativeAngle = Annotated[float, _angle(0.0, np.pi)]
+NonNegativeAngle = Annotated[float, _quantity(REVOLUTE, 0.0, np.pi)]
 """An angle in [0, pi] rad, in the file's angle unit."""
-PositiveLength = Annotated[float, _length(MIN_LENGTH, MAX_LENGTH)]
+PositiveLength = Annotated[float, _quantity(PRISMATIC, MIN_LENGTH, MAX_LENGTH)]
 """A length in the file's length unit, in metres once loaded, from a micrometre to the workspace's scale."""
 Position = Annotated[list[float], AfterValidator(_to_position)]
 """A point [x, y, z] in the file's length unit, in metres once loaded."""
@@ -277,6 +270,5 @@ class Orientation(SimbenchModel):
         if self.convention == "zyx":
             return Rotation.from_euler("ZYX", self.value).as_matrix()
         if self.convention == "quat":
-            w, x, y, z = self.value
-            return Rotation.from_quat([x, y, z, w]).as_matrix()
+            return Rotation.from_quat(self.value, scalar_first=True).as_matrix()
         return Rotation.from_rotvec(self.value).as_matrix()

@@ -48,8 +48,7 @@ class TimeLaw:
             rows = self._trapezoid(tau, order)
         else:
             coef = _POLYNOMIALS[self.name]
-            rows = [P.polyval(tau, P.polyder(coef, k)) if k else P.polyval(tau, coef) for k in range(order + 1)]
-            rows = np.array(rows)
+            rows = np.array([P.polyval(tau, P.polyder(coef, k)) for k in range(order + 1)])
         scale = self.duration ** -np.arange(order + 1.0)
         out = rows * scale[:, None]
         out[1:, ~inside] = 0.0

@@ -260,9 +260,13 @@ def _unknown_field(cls: type[BaseModel], parent: tuple, name: str) -> str:
     fields = _fields_at(cls, parent)
     if not fields:  # a mapping whose model the location does not lead to: no list to offer, rather than an empty one
         return "unknown field (not one this mapping takes: see the docs' Scenarios page, docs/guide/scenarios.md)"
-    hint = difflib.get_close_matches(name, fields, n=1)
-    suggestion = f"; did you mean '{hint[0]}'?" if hint else ""
-    return f"unknown field (expected one of: {', '.join(fields)}){suggestion}"
+    return f"unknown field (expected one of: {', '.join(fields)}){did_you_mean(name, fields)}"
+
+
+def did_you_mean(name: str, options) -> str:
+    """The "; did you mean 'x'?" naming the option nearest `name`, or "" where none is near."""
+    hint = difflib.get_close_matches(name, options, n=1)
+    return f"; did you mean '{hint[0]}'?" if hint else ""
 
 
 def _union_message(first: ErrorDetails, same_field: list[ErrorDetails]) -> str:

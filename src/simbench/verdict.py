@@ -55,20 +55,16 @@ def _violation(kind: str, message: str, events: list[Event], **detail) -> Violat
     return Violation(kind, message, events[0].t_start if events else detail.pop("t", None), len(events), detail)
 
 
-def _by_joint(events: list[Event]) -> dict[str, list[Event]]:
-    out: dict[str, list[Event]] = {}
-    for e in events:
-        out.setdefault(e.detail["joint"], []).append(e)
-    return out
-
-
 def _limit_violations(robot: Robot, limit_events: list[Event]) -> list[Violation]:
     """One violation per kind and joint of the limit events that break a promise (not `at_limit`)."""
     kind_of = dict(zip(robot.joints, robot.kinds))
 
     def each_joint(kind: str) -> list[tuple[str, list[Event], str]]:  # (joint, its events of this kind, its kind)
-        events = [e for e in limit_events if e.kind == kind]
-        return [(name, found, kind_of[name]) for name, found in _by_joint(events).items()]
+        by_joint: dict[str, list[Event]] = {}
+        for e in limit_events:
+            if e.kind == kind:
+                by_joint.setdefault(e.detail["joint"], []).append(e)
+        return [(name, found, kind_of[name]) for name, found in by_joint.items()]
 
     out = [_joint_limit(*found) for found in each_joint("joint_limit")]
     out += [_velocity_limit(*found) for found in each_joint("velocity_limit")]
