@@ -276,8 +276,12 @@ def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
-    args = _parser().parse_args(argv)
     with interrupts.raising_interrupted() as ctrl_c:
+        try:
+            args = _parser().parse_args(argv)
+        except interrupts.Interrupted:  # pressed while the command line was read
+            _say("interrupted", file=sys.stderr)
+            return ctrl_c.exit_code
         return _command(args, ctrl_c)
 
 
