@@ -317,3 +317,19 @@ def planar3r_scenarios():
 
     from simbench_planar3r import control as planar3r_control
     return Path(planar3r_control.__file__).parent / "scenarios"
+
+
+def test_random_joint_moves_under_torque_actuation_stay_within_the_joints_ranges():
+    """Under torque actuation the action bounds are force limits: the random joint moves are still drawn within
+    the joints' positions (MuJoCo's jnt_range of a limited joint), the same moves as under position actuation."""
+    envs = {act: simbench_env.load_task("spherical_arm", "case1", task_kwargs={"random": 1}, actuation=act)
+            for act in ("position", "torque")}
+    model, plant = envs["torque"].physics.model.ptr, envs["torque"].task.plant
+    jnt = model.actuator_trnid[plant.actuators, 0]
+    limited = model.jnt_limited[jnt].astype(bool)
+    lo, hi = model.jnt_range[jnt[limited]].T
+    for _ in range(3):
+        plans = {act: (env.reset(), env.task.plan.q_ref)[1] for act, env in envs.items()}
+        q = plans["torque"][:, limited]
+        assert (q >= lo).all() and (q <= hi).all(), (q.min(axis=0), q.max(axis=0), lo, hi)
+        assert np.array_equal(plans["torque"], plans["position"])

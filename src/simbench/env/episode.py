@@ -123,6 +123,8 @@ class Track(control.Task):
         self._tool = plant.sensors[plant.robot.tool_sensor]
         self._tolerance = scenario.analysis.path_tolerance
         self.bounds = action_bounds(model, plant, plan)
+        # What random joint moves are drawn within: position targets, under torque actuation too
+        self.target_bounds = self.bounds if plant.actuation == "position" else joint_bounds(model, plant, plan)
         self.failure: str | None = None
         self._use(plan, data)
         self._rows(model)
@@ -377,14 +379,20 @@ def action_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) ->
         limit = plant.force_limit()
         lo, hi = -limit, limit
     else:
-        jnt = model.actuator_trnid[act, 0]
-        span = np.array([CONTINUOUS_SPAN[mujoco.mjtJoint(t)] for t in model.jnt_type[jnt]])
-        limited = model.jnt_limited[jnt].astype(bool)
-        lo = np.where(limited, model.jnt_range[jnt, 0], plan.q_ref.min(axis=0) - span)
-        hi = np.where(limited, model.jnt_range[jnt, 1], plan.q_ref.max(axis=0) + span)
+        lo, hi = joint_bounds(model, plant, plan)
     ctrl = model.actuator_ctrllimited[act].astype(bool)
     lo = np.where(ctrl, np.maximum(lo, model.actuator_ctrlrange[act, 0]), lo)
     hi = np.where(ctrl, np.minimum(hi, model.actuator_ctrlrange[act, 1]), hi)
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
         raise ValueError(f"the {plant.robot.name}'s actuators have no force limits: a torque action needs them")
     return lo.astype(float), hi.astype(float)
+
+
+def joint_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:
+    """Each joint's range; a joint with none: the plan's span widened by CONTINUOUS_SPAN either side."""
+    jnt = model.actuator_trnid[plant.actuators, 0]
+    span = np.array([CONTINUOUS_SPAN[mujoco.mjtJoint(t)] for t in model.jnt_type[jnt]])
+    limited = model.jnt_limited[jnt].astype(bool)
+    lo = np.where(limited, model.jnt_range[jnt, 0], plan.q_ref.min(axis=0) - span)
+    hi = np.where(limited, model.jnt_range[jnt, 1], plan.q_ref.max(axis=0) + span)
+    return lo, hi
