@@ -170,6 +170,16 @@ class Track(control.Task):
         self._command = np.zeros(model.nu)
 
     @property
+    def _random(self) -> np.random.RandomState | None:
+        """`random` under dm_control's name, which shimmy's reset(seed=...) sets."""
+        return self.random
+
+    @_random.setter
+    def _random(self, value: np.random.RandomState) -> None:
+        if self.random is not None:  # a seed reseeds random tasks; without them, the scenario's task stays
+            self.random = value
+
+    @property
     def q_ref(self) -> Array:
         """The joint references (N, dof) as the plan's feedback has revised them so far."""
         return self.references.q_ref
