@@ -128,24 +128,22 @@ def test_all_tasks_are_the_shipped_scenarios():
 
 @pytest.mark.parametrize("robot, name", SERIAL, ids=[f"{r}/{n}" for r, n in SERIAL])
 def test_the_servo_as_a_policy_reproduces_simulate(robot, name):
-    """The servo's commands as actions give simulate's run of the same plan: every joint within 1e-9 (rad or
-    m), the tool and the actuator forces too, in an episode of exactly len(t) - 1 steps."""
+    """The servo's commands as actions give simulate's run of the same plan bit for bit (every joint, the tool
+    and the actuator forces; the first step after reset too), in an episode of exactly len(t) - 1 steps."""
     env = environment(robot, name)
     task = env.task
     steps, _ = episode(env, servo_policy(env))
     rec = simbench_env.recording(env)
     expected = simulate(task.plant, task.plan, Servo.from_scenario(task.scenario), settle=task.scenario.sim.settle)
     assert steps == task.plan.t.size - 1 == rec.t.size - 1
-    assert np.abs(rec.q - expected.q).max() <= 1e-9
-    assert np.abs(rec.qd - expected.qd).max() <= 1e-9
-    assert np.abs(rec.tool - expected.tool).max() <= 1e-9
-    assert np.allclose(rec.force, expected.force, rtol=0, atol=1e-6)
+    for key in ("q", "qd", "tool", "force"):
+        assert np.array_equal(getattr(rec, key), getattr(expected, key)), key
 
 
 @pytest.mark.parametrize("name", [n for _, n in RSMG])
 def test_the_servo_as_a_policy_reproduces_simulate_on_the_rsmg(name):
     """On the RSMG the welds switch at the same steps, the grip feedback revises the references the same way,
-    and the rotor stays within 1e-6 rad of simulate's."""
+    and the joints and the rotor are simulate's bit for bit."""
     env = environment("rsmg", name)
     task = env.task
     steps, _ = episode(env, servo_policy(env))
@@ -155,10 +153,9 @@ def test_the_servo_as_a_policy_reproduces_simulate_on_the_rsmg(name):
     assert len(task.plan.switches) > 10 and rec.eq_active.keys() == expected.eq_active.keys()
     for grip, active in rec.eq_active.items():
         assert np.array_equal(active, expected.eq_active[grip]), grip
-    assert rec.q_ref is not None and np.abs(rec.q_ref - expected.q_ref).max() <= 1e-6
-    overlap = np.abs(np.sum(rec.sensors["rotor_quat"] * expected.sensors["rotor_quat"], axis=1)).clip(max=1)
-    assert 2 * np.arccos(overlap).max() <= 1e-6
-    assert np.abs(rec.q - expected.q).max() <= 1e-6
+    assert rec.q_ref is not None and np.array_equal(rec.q_ref, expected.q_ref)
+    assert np.array_equal(rec.sensors["rotor_quat"], expected.sensors["rotor_quat"])
+    assert np.array_equal(rec.q, expected.q)
 
 
 def test_torque_actuation_settles_and_steps_as_simulate_does_with_computed_torque():

@@ -333,3 +333,22 @@ def test_random_joint_moves_under_torque_actuation_stay_within_the_joints_ranges
         q = plans["torque"][:, limited]
         assert (q >= lo).all() and (q <= hi).all(), (q.min(axis=0), q.max(axis=0), lo, hi)
         assert np.array_equal(plans["torque"], plans["position"])
+
+
+@pytest.mark.parametrize("robot, name", [("puma600", "line"), ("agile_eye", "through_singularity")])
+def test_a_reset_leaves_the_data_as_mj_step1_leaves_it(robot, name):
+    """After reset (dm_control's after_reset runs mj_forward with the actuators off), the data's position- and
+    velocity-dependent quantities are MuJoCo's mj_step1 of the settled state: the actuators' velocities, which the
+    servos' damping uses in the first step, included."""
+    import copy
+
+    import mujoco
+
+    env = simbench_env.load_task(robot, name)
+    env.reset()
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    fresh = copy.copy(data)
+    mujoco.mj_step1(model, fresh)
+    assert np.abs(fresh.actuator_velocity).max() > 0
+    for field in ("actuator_velocity", "actuator_length", "qfrc_bias", "sensordata", "xpos"):
+        assert np.array_equal(getattr(data, field), getattr(fresh, field)), field

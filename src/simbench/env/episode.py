@@ -49,6 +49,13 @@ class Physics(dm_mujoco.Physics):
         self.counts = data.ptr.warning.number  # a view of MuJoCo's warning counters
         self.readings = data.ptr.sensordata.copy()
 
+    def after_reset(self) -> None:
+        """dm_control's mj_forward with the actuators off (after a reset or a copy), then mj_step1: the next step
+        starts from the position- and velocity-dependent quantities of the actual state, as simbench's closed loop
+        leaves them (the actuators' velocities included, which the servos' damping uses)."""
+        super().after_reset()
+        mujoco.mj_step1(self.model.ptr, self.data.ptr)
+
     def step(self, nstep: int = 1) -> None:
         """Step the physics as simbench's closed loop does (mj_step2, then mj_step1), the task recording each step.
 
