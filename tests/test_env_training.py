@@ -352,3 +352,22 @@ def test_a_reset_leaves_the_data_as_mj_step1_leaves_it(robot, name):
     assert np.abs(fresh.actuator_velocity).max() > 0
     for field in ("actuator_velocity", "actuator_length", "qfrc_bias", "sensordata", "xpos"):
         assert np.array_equal(getattr(data, field), getattr(fresh, field)), field
+
+
+@pytest.mark.parametrize("share_model", [False, True])
+def test_a_physics_copy_keeps_the_time_and_steps_as_the_environment(share_model):
+    """dm_control's physics.copy() mid-episode: the copy's time is the episode's (the plan's sample time), and a
+    step of it (the same control) lands where the environment's own step lands, leaving the episode unrecorded."""
+    env = simbench_env.load_task("puma600", "line")
+    policy, step = simbench_env.servo_policy(env), env.reset()
+    for _ in range(5):
+        step = env.step(policy(step))
+    ahead = env.physics.copy(share_model=share_model)
+    assert ahead.time() == env.physics.time() == pytest.approx(env.task.plan.t[5], abs=1e-12)
+    action = policy(step)
+    ahead.data.ptr.ctrl[env.task.plant.actuators] = action
+    ahead.step()
+    assert env.task.k == 5
+    env.step(action)
+    assert np.array_equal(ahead.data.ptr.qpos, env.physics.data.ptr.qpos)
+    assert ahead.time() == pytest.approx(env.physics.time(), abs=1e-12)

@@ -56,15 +56,32 @@ class Physics(dm_mujoco.Physics):
         super().after_reset()
         mujoco.mj_step1(self.model.ptr, self.data.ptr)
 
+    def copy(self, share_model: bool = False) -> Physics:
+        """A copy at the episode's time, for looking ahead: it steps as dm_control's Physics does, unrecorded and
+        without the plan's switches.
+
+        Args:
+            share_model: Whether the copy shares the model.
+
+        Returns:
+            The copy.
+        """
+        new = super().copy(share_model)
+        new.t0 = self.t0
+        return new
+
     def step(self, nstep: int = 1) -> None:
         """Step the physics as simbench's closed loop does (mj_step2, then mj_step1), the task recording each step.
 
         No step goes past the plan's last sample; a step that fails ends the episode at the last sound state
-        (`Track.failure` says why).
+        (`Track.failure` says why). A copy (no task) steps as dm_control's Physics.
 
         Args:
             nstep: The most physics steps to take.
         """
+        if not hasattr(self, "track"):
+            super().step(nstep)
+            return
         model, data, track = self.model.ptr, self.data.ptr, self.track
         for _ in range(nstep):
             if track.k >= track.n - 1 or track.failure is not None:
