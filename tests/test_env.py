@@ -266,6 +266,14 @@ def test_wrong_actions_and_calls_are_refused_in_one_line():
         simbench_env.load(env.task.scenario, actuation="velocity")
 
 
+@pytest.mark.parametrize("kwargs", [{"n_sub_steps": 0}, {"n_sub_steps": -2}])
+def test_a_control_step_of_no_physics_step_is_refused(kwargs):
+    """A control step of no physics steps would never reach the episode's end (a policy loop until LAST hangs):
+    refused in one line when the environment is made (dm_control refuses a control_timestep of 0 itself)."""
+    with pytest.raises(ValueError, match="a control step must be at least one physics step"):
+        simbench_env.load_task("spherical_arm", "case1", environment_kwargs=kwargs)
+
+
 def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
     """Torques far beyond what the arm takes, its force limits lifted (the spec then bounds nothing: refused):
     the first step ends the episode (LAST, discount 0, reward 0), saying when and which joint, as simbench says

@@ -84,6 +84,7 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     Raises:
         ScenarioError: The scenario is bad input, or beyond what the machine can give.
         RunError: The scenario cannot be planned, or its scene cannot be stepped as an environment steps.
+        ValueError: A control step of no physics step (n_sub_steps < 1).
     """
     scenario = as_scenario(scenario, "simbench.env.load")
     task_kwargs = dict(task_kwargs or {})
@@ -106,8 +107,12 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     plan = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     _, data, _ = at_start(plant, plan)  # the environment's own model copy: switching edits it
     physics = Physics(wrapper.MjData(data))
-    return control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),
-                               **environment_kwargs)
+    env = control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),
+                              **environment_kwargs)
+    if not env.control_timestep() > 0:  # dm_control takes 0: its episodes would never end
+        raise ValueError("a control step must be at least one physics step: environment_kwargs' n_sub_steps is "
+                         f"{environment_kwargs.get('n_sub_steps')}")
+    return env
 
 
 def load_task(robot: str, name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
