@@ -274,6 +274,15 @@ def test_a_control_step_of_no_physics_step_is_refused(kwargs):
         simbench_env.load_task("spherical_arm", "case1", environment_kwargs=kwargs)
 
 
+@pytest.mark.parametrize("random", [np.random.default_rng(0), "7", 2.5, True])
+def test_a_random_that_is_neither_a_seed_nor_a_randomstate_is_refused_in_one_line(random):
+    """task_kwargs' random is dm_control's: an int seed or a numpy.random.RandomState; a Generator (Gymnasium's
+    kind), a string, a float or a bool is refused naming what it got, not deep in NumPy."""
+    with pytest.raises(TypeError, match=rf"random must be a seed \(an int\) or a numpy.random.RandomState, got "
+                                        rf"{type(random).__name__}"):
+        simbench_env.load_task("spherical_arm", "case1", task_kwargs={"random": random})
+
+
 def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
     """Torques far beyond what the arm takes, its force limits lifted (the spec then bounds nothing: refused):
     the first step ends the episode (LAST, discount 0, reward 0), saying when and which joint, as simbench says

@@ -131,11 +131,17 @@ class Track(control.Task):
 
     Attributes:
         failure: Why the physics ended the episode; None while it is sound.
+
+    Raises:
+        TypeError: `random` is neither a seed nor a RandomState.
     """
 
     def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
                  random: int | np.random.RandomState | None = None):
         super().__init__()
+        if isinstance(random, bool) or not isinstance(random, (type(None), int, np.integer, np.random.RandomState)):
+            raise TypeError("random must be a seed (an int) or a numpy.random.RandomState, got "
+                            f"{type(random).__name__}")
         self.scenario, self.plant, self.actuation = scenario, plant, plant.actuation
         self.random = random if random is None or isinstance(random, np.random.RandomState) \
             else np.random.RandomState(random)
