@@ -286,8 +286,8 @@ def test_a_random_that_is_neither_a_seed_nor_a_randomstate_is_refused_in_one_lin
 def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
     """Torques far beyond what the arm takes, its force limits lifted (the spec then bounds nothing: refused):
     the first step ends the episode (LAST, discount 0, reward 0), saying when and which joint, as simbench says
-    it of a run; the recording holds the sound rows, the observation the last sound state, and the evaluation of
-    what ran is `failed`."""
+    it of a run; the recording holds the sound rows and the observation the last sound state; with no sound step,
+    the evaluation is refused saying so and why."""
     raw = yaml.safe_load(scenario_file("spherical_arm", "case1").read_text())
     raw["timing"].update(SHORT)
     raw.setdefault("sim", {})["force_limits"] = False
@@ -305,6 +305,9 @@ def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
     assert re.fullmatch(r"the physics failed at t = 0\.0010 s: .* DOF 0 \(joint 'q1'\).*", env.task.failure)
     rec = simbench_env.recording(env)
     assert rec.t.size == 1 and np.isfinite(rec.q).all()
+    with pytest.raises(RuntimeError, match=r"nothing to evaluate: the episode's first step failed \(the physics "
+                                           r"failed at t = 0\.0010 s: .*joint 'q1'"):
+        simbench_env.evaluation(env)
     assert env.step(np.zeros(4)).first()
 
 

@@ -166,7 +166,7 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
         The evaluation.
 
     Raises:
-        RuntimeError: The episode has taken no step since its reset.
+        RuntimeError: The episode has taken no sound step since its reset.
     """
     from simbench.analysis import analyse
     from simbench.pipeline import Evaluation
@@ -175,6 +175,8 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
     from simbench.verdict import FAILED, TRUNCATED, cut_short, run_verdict
 
     task = track_of(env)
+    if task.k == 0 and task.failure is not None:
+        raise RuntimeError(f"nothing to evaluate: the episode's first step failed ({task.failure})")
     if task.k == 0:
         raise RuntimeError("the episode has taken no step since its reset: nothing to evaluate")
     rec = recording(env)
