@@ -128,24 +128,22 @@ def test_all_tasks_are_the_shipped_scenarios():
 
 @pytest.mark.parametrize("robot, name", SERIAL, ids=[f"{r}/{n}" for r, n in SERIAL])
 def test_the_servo_as_a_policy_reproduces_simulate(robot, name):
-    """The servo's commands as actions give simulate's run of the same plan: every joint within 1e-9 (rad or
-    m), the tool and the actuator forces too, in an episode of exactly len(t) - 1 steps."""
+    """The servo's commands as actions give simulate's run of the same plan bit for bit (every joint, the tool
+    and the actuator forces; the first step after reset too), in an episode of exactly len(t) - 1 steps."""
     env = environment(robot, name)
     task = env.task
     steps, _ = episode(env, servo_policy(env))
     rec = simbench_env.recording(env)
     expected = simulate(task.plant, task.plan, Servo.from_scenario(task.scenario), settle=task.scenario.sim.settle)
     assert steps == task.plan.t.size - 1 == rec.t.size - 1
-    assert np.abs(rec.q - expected.q).max() <= 1e-9
-    assert np.abs(rec.qd - expected.qd).max() <= 1e-9
-    assert np.abs(rec.tool - expected.tool).max() <= 1e-9
-    assert np.allclose(rec.force, expected.force, rtol=0, atol=1e-6)
+    for key in ("q", "qd", "tool", "force"):
+        assert np.array_equal(getattr(rec, key), getattr(expected, key)), key
 
 
 @pytest.mark.parametrize("name", [n for _, n in RSMG])
 def test_the_servo_as_a_policy_reproduces_simulate_on_the_rsmg(name):
     """On the RSMG the welds switch at the same steps, the grip feedback revises the references the same way,
-    and the rotor stays within 1e-6 rad of simulate's."""
+    and the joints and the rotor are simulate's bit for bit."""
     env = environment("rsmg", name)
     task = env.task
     steps, _ = episode(env, servo_policy(env))
@@ -155,10 +153,9 @@ def test_the_servo_as_a_policy_reproduces_simulate_on_the_rsmg(name):
     assert len(task.plan.switches) > 10 and rec.eq_active.keys() == expected.eq_active.keys()
     for grip, active in rec.eq_active.items():
         assert np.array_equal(active, expected.eq_active[grip]), grip
-    assert rec.q_ref is not None and np.abs(rec.q_ref - expected.q_ref).max() <= 1e-6
-    overlap = np.abs(np.sum(rec.sensors["rotor_quat"] * expected.sensors["rotor_quat"], axis=1)).clip(max=1)
-    assert 2 * np.arccos(overlap).max() <= 1e-6
-    assert np.abs(rec.q - expected.q).max() <= 1e-6
+    assert rec.q_ref is not None and np.array_equal(rec.q_ref, expected.q_ref)
+    assert np.array_equal(rec.sensors["rotor_quat"], expected.sensors["rotor_quat"])
+    assert np.array_equal(rec.q, expected.q)
 
 
 def test_torque_actuation_settles_and_steps_as_simulate_does_with_computed_torque():
@@ -269,11 +266,28 @@ def test_wrong_actions_and_calls_are_refused_in_one_line():
         simbench_env.load(env.task.scenario, actuation="velocity")
 
 
+@pytest.mark.parametrize("kwargs", [{"n_sub_steps": 0}, {"n_sub_steps": -2}])
+def test_a_control_step_of_no_physics_step_is_refused(kwargs):
+    """A control step of no physics steps would never reach the episode's end (a policy loop until LAST hangs):
+    refused in one line when the environment is made (dm_control refuses a control_timestep of 0 itself)."""
+    with pytest.raises(ValueError, match="a control step must be at least one physics step"):
+        simbench_env.load_task("spherical_arm", "case1", environment_kwargs=kwargs)
+
+
+@pytest.mark.parametrize("random", [np.random.default_rng(0), "7", 2.5, True])
+def test_a_random_that_is_neither_a_seed_nor_a_randomstate_is_refused_in_one_line(random):
+    """task_kwargs' random is dm_control's: an int seed or a numpy.random.RandomState; a Generator (Gymnasium's
+    kind), a string, a float or a bool is refused naming what it got, not deep in NumPy."""
+    with pytest.raises(TypeError, match=rf"random must be a seed \(an int\) or a numpy.random.RandomState, got "
+                                        rf"{type(random).__name__}"):
+        simbench_env.load_task("spherical_arm", "case1", task_kwargs={"random": random})
+
+
 def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
     """Torques far beyond what the arm takes, its force limits lifted (the spec then bounds nothing: refused):
     the first step ends the episode (LAST, discount 0, reward 0), saying when and which joint, as simbench says
-    it of a run; the recording holds the sound rows, the observation the last sound state, and the evaluation of
-    what ran is `failed`."""
+    it of a run; the recording holds the sound rows and the observation the last sound state; with no sound step,
+    the evaluation is refused saying so and why."""
     raw = yaml.safe_load(scenario_file("spherical_arm", "case1").read_text())
     raw["timing"].update(SHORT)
     raw.setdefault("sim", {})["force_limits"] = False
@@ -291,6 +305,9 @@ def test_diverging_physics_ends_the_episode_with_the_time_and_the_joint():
     assert re.fullmatch(r"the physics failed at t = 0\.0010 s: .* DOF 0 \(joint 'q1'\).*", env.task.failure)
     rec = simbench_env.recording(env)
     assert rec.t.size == 1 and np.isfinite(rec.q).all()
+    with pytest.raises(RuntimeError, match=r"nothing to evaluate: the episode's first step failed \(the physics "
+                                           r"failed at t = 0\.0010 s: .*joint 'q1'"):
+        simbench_env.evaluation(env)
     assert env.step(np.zeros(4)).first()
 
 

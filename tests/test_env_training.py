@@ -317,3 +317,57 @@ def planar3r_scenarios():
 
     from simbench_planar3r import control as planar3r_control
     return Path(planar3r_control.__file__).parent / "scenarios"
+
+
+def test_random_joint_moves_under_torque_actuation_stay_within_the_joints_ranges():
+    """Under torque actuation the action bounds are force limits: the random joint moves are still drawn within
+    the joints' positions (MuJoCo's jnt_range of a limited joint), the same moves as under position actuation."""
+    envs = {act: simbench_env.load_task("spherical_arm", "case1", task_kwargs={"random": 1}, actuation=act)
+            for act in ("position", "torque")}
+    model, plant = envs["torque"].physics.model.ptr, envs["torque"].task.plant
+    jnt = model.actuator_trnid[plant.actuators, 0]
+    limited = model.jnt_limited[jnt].astype(bool)
+    lo, hi = model.jnt_range[jnt[limited]].T
+    for _ in range(3):
+        plans = {act: (env.reset(), env.task.plan.q_ref)[1] for act, env in envs.items()}
+        q = plans["torque"][:, limited]
+        assert (q >= lo).all() and (q <= hi).all(), (q.min(axis=0), q.max(axis=0), lo, hi)
+        assert np.array_equal(plans["torque"], plans["position"])
+
+
+@pytest.mark.parametrize("robot, name", [("puma600", "line"), ("agile_eye", "through_singularity")])
+def test_a_reset_leaves_the_data_as_mj_step1_leaves_it(robot, name):
+    """After reset (dm_control's after_reset runs mj_forward with the actuators off), the data's position- and
+    velocity-dependent quantities are MuJoCo's mj_step1 of the settled state: the actuators' velocities, which the
+    servos' damping uses in the first step, included."""
+    import copy
+
+    import mujoco
+
+    env = simbench_env.load_task(robot, name)
+    env.reset()
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    fresh = copy.copy(data)
+    mujoco.mj_step1(model, fresh)
+    assert np.abs(fresh.actuator_velocity).max() > 0
+    for field in ("actuator_velocity", "actuator_length", "qfrc_bias", "sensordata", "xpos"):
+        assert np.array_equal(getattr(data, field), getattr(fresh, field)), field
+
+
+@pytest.mark.parametrize("share_model", [False, True])
+def test_a_physics_copy_keeps_the_time_and_steps_as_the_environment(share_model):
+    """dm_control's physics.copy() mid-episode: the copy's time is the episode's (the plan's sample time), and a
+    step of it (the same control) lands where the environment's own step lands, leaving the episode unrecorded."""
+    env = simbench_env.load_task("puma600", "line")
+    policy, step = simbench_env.servo_policy(env), env.reset()
+    for _ in range(5):
+        step = env.step(policy(step))
+    ahead = env.physics.copy(share_model=share_model)
+    assert ahead.time() == env.physics.time() == pytest.approx(env.task.plan.t[5], abs=1e-12)
+    action = policy(step)
+    ahead.data.ptr.ctrl[env.task.plant.actuators] = action
+    ahead.step()
+    assert env.task.k == 5
+    env.step(action)
+    assert np.array_equal(ahead.data.ptr.qpos, env.physics.data.ptr.qpos)
+    assert ahead.time() == pytest.approx(env.physics.time(), abs=1e-12)

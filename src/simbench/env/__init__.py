@@ -84,6 +84,7 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     Raises:
         ScenarioError: The scenario is bad input, or beyond what the machine can give.
         RunError: The scenario cannot be planned, or its scene cannot be stepped as an environment steps.
+        ValueError: A control step of no physics step (n_sub_steps < 1).
     """
     scenario = as_scenario(scenario, "simbench.env.load")
     task_kwargs = dict(task_kwargs or {})
@@ -106,8 +107,12 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     plan = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     _, data, _ = at_start(plant, plan)  # the environment's own model copy: switching edits it
     physics = Physics(wrapper.MjData(data))
-    return control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),
-                               **environment_kwargs)
+    env = control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),
+                              **environment_kwargs)
+    if not env.control_timestep() > 0:  # dm_control takes 0: its episodes would never end
+        raise ValueError("a control step must be at least one physics step: environment_kwargs' n_sub_steps is "
+                         f"{environment_kwargs.get('n_sub_steps')}")
+    return env
 
 
 def load_task(robot: str, name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
@@ -161,7 +166,7 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
         The evaluation.
 
     Raises:
-        RuntimeError: The episode has taken no step since its reset.
+        RuntimeError: The episode has taken no sound step since its reset.
     """
     from simbench.analysis import analyse
     from simbench.pipeline import Evaluation
@@ -170,6 +175,8 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
     from simbench.verdict import FAILED, TRUNCATED, cut_short, run_verdict
 
     task = track_of(env)
+    if task.k == 0 and task.failure is not None:
+        raise RuntimeError(f"nothing to evaluate: the episode's first step failed ({task.failure})")
     if task.k == 0:
         raise RuntimeError("the episode has taken no step since its reset: nothing to evaluate")
     rec = recording(env)

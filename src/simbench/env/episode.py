@@ -49,15 +49,39 @@ class Physics(dm_mujoco.Physics):
         self.counts = data.ptr.warning.number  # a view of MuJoCo's warning counters
         self.readings = data.ptr.sensordata.copy()
 
+    def after_reset(self) -> None:
+        """dm_control's mj_forward with the actuators off (after a reset or a copy), then mj_step1: the next step
+        starts from the position- and velocity-dependent quantities of the actual state, as simbench's closed loop
+        leaves them (the actuators' velocities included, which the servos' damping uses)."""
+        super().after_reset()
+        mujoco.mj_step1(self.model.ptr, self.data.ptr)
+
+    def copy(self, share_model: bool = False) -> Physics:
+        """A copy at the episode's time, for looking ahead: it steps as dm_control's Physics does, unrecorded and
+        without the plan's switches.
+
+        Args:
+            share_model: Whether the copy shares the model.
+
+        Returns:
+            The copy.
+        """
+        new = super().copy(share_model)
+        new.t0 = self.t0
+        return new
+
     def step(self, nstep: int = 1) -> None:
         """Step the physics as simbench's closed loop does (mj_step2, then mj_step1), the task recording each step.
 
         No step goes past the plan's last sample; a step that fails ends the episode at the last sound state
-        (`Track.failure` says why).
+        (`Track.failure` says why). A copy (no task) steps as dm_control's Physics.
 
         Args:
             nstep: The most physics steps to take.
         """
+        if not hasattr(self, "track"):
+            super().step(nstep)
+            return
         model, data, track = self.model.ptr, self.data.ptr, self.track
         for _ in range(nstep):
             if track.k >= track.n - 1 or track.failure is not None:
@@ -107,11 +131,17 @@ class Track(control.Task):
 
     Attributes:
         failure: Why the physics ended the episode; None while it is sound.
+
+    Raises:
+        TypeError: `random` is neither a seed nor a RandomState.
     """
 
     def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
                  random: int | np.random.RandomState | None = None):
         super().__init__()
+        if isinstance(random, bool) or not isinstance(random, (type(None), int, np.integer, np.random.RandomState)):
+            raise TypeError("random must be a seed (an int) or a numpy.random.RandomState, got "
+                            f"{type(random).__name__}")
         self.scenario, self.plant, self.actuation = scenario, plant, plant.actuation
         self.random = random if random is None or isinstance(random, np.random.RandomState) \
             else np.random.RandomState(random)
@@ -123,6 +153,8 @@ class Track(control.Task):
         self._tool = plant.sensors[plant.robot.tool_sensor]
         self._tolerance = scenario.analysis.path_tolerance
         self.bounds = action_bounds(model, plant, plan)
+        # What random joint moves are drawn within: position targets, under torque actuation too
+        self.target_bounds = self.bounds if plant.actuation == "position" else joint_bounds(model, plant, plan)
         self.failure: str | None = None
         self._use(plan, data)
         self._rows(model)
@@ -166,6 +198,16 @@ class Track(control.Task):
         self._readings, self._ctrl = np.empty((n, model.nsensordata)), np.zeros((n, model.nu))
         self._eq = np.empty((n, model.neq), bool)
         self._command = np.zeros(model.nu)
+
+    @property
+    def _random(self) -> np.random.RandomState | None:
+        """`random` under dm_control's name, which shimmy's reset(seed=...) sets."""
+        return self.random
+
+    @_random.setter
+    def _random(self, value: np.random.RandomState) -> None:
+        if self.random is not None:  # a seed reseeds random tasks; without them, the scenario's task stays
+            self.random = value
 
     @property
     def q_ref(self) -> Array:
@@ -377,14 +419,20 @@ def action_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) ->
         limit = plant.force_limit()
         lo, hi = -limit, limit
     else:
-        jnt = model.actuator_trnid[act, 0]
-        span = np.array([CONTINUOUS_SPAN[mujoco.mjtJoint(t)] for t in model.jnt_type[jnt]])
-        limited = model.jnt_limited[jnt].astype(bool)
-        lo = np.where(limited, model.jnt_range[jnt, 0], plan.q_ref.min(axis=0) - span)
-        hi = np.where(limited, model.jnt_range[jnt, 1], plan.q_ref.max(axis=0) + span)
+        lo, hi = joint_bounds(model, plant, plan)
     ctrl = model.actuator_ctrllimited[act].astype(bool)
     lo = np.where(ctrl, np.maximum(lo, model.actuator_ctrlrange[act, 0]), lo)
     hi = np.where(ctrl, np.minimum(hi, model.actuator_ctrlrange[act, 1]), hi)
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
         raise ValueError(f"the {plant.robot.name}'s actuators have no force limits: a torque action needs them")
     return lo.astype(float), hi.astype(float)
+
+
+def joint_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:
+    """Each joint's range; a joint with none: the plan's span widened by CONTINUOUS_SPAN either side."""
+    jnt = model.actuator_trnid[plant.actuators, 0]
+    span = np.array([CONTINUOUS_SPAN[mujoco.mjtJoint(t)] for t in model.jnt_type[jnt]])
+    limited = model.jnt_limited[jnt].astype(bool)
+    lo = np.where(limited, model.jnt_range[jnt, 0], plan.q_ref.min(axis=0) - span)
+    hi = np.where(limited, model.jnt_range[jnt, 1], plan.q_ref.max(axis=0) + span)
+    return lo, hi

@@ -1,6 +1,7 @@
 """Random tasks for an environment's resets (task_kwargs={'random': seed}): the scenario planner's own where it
-draws them (api.Planner.random_task), else a joint move between two points drawn uniformly within the action
-bounds shrunk by MARGIN. A draw the planner refuses is drawn again, up to TRIES times."""
+draws them (api.Planner.random_task), else a joint move between two points drawn uniformly within the position
+targets' bounds (the position actuation's action bounds, under torque actuation too) shrunk by MARGIN. A draw the
+planner refuses is drawn again, up to TRIES times."""
 
 from __future__ import annotations
 
@@ -54,10 +55,11 @@ def _own(scenario: Scenario, sections: dict[str, Any]) -> Scenario:
 
 
 def _joint_move(track: Track) -> Scenario:
-    """The scenario turned into a random joint move within the action bounds."""
+    """The scenario turned into a random joint move within the position targets' bounds (under torque actuation
+    too)."""
     scenario, random = track.scenario, track.random
     assert random is not None, "a Track made with random"
-    lo, hi = track.bounds
+    lo, hi = track.target_bounds
     margin = MARGIN * (hi - lo)
     start, goal = (random.uniform(lo + margin, hi - margin) for _ in range(2))
     fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
