@@ -153,3 +153,45 @@ def test_an_arc_that_does_not_start_at_the_tool_is_bad_input(tmp_path, capsys):
     assert main(["validate", str(scenario)]) == 2
     err = capsys.readouterr().err.strip()
     assert "task.path[0].arc" in err and "starts 10.000 mm from the tool's point" in err
+
+
+def test_the_plans_orientation_error_past_90_deg_is_its_angle(tmp_path):
+    """A planar 3R arm asked to turn its tool 150 deg about an axis in its plane, which it cannot: the plan's
+    `plan_orientation_error_max` is the largest angle between scipy's slerp and the tool's orientation at the
+    plan's joints (MuJoCo's), 150 deg at the end, not the arcsine of its sine (30 deg)."""
+    planar3r = pytest.importorskip("simbench_planar3r", reason="pip install -e examples/planar3r")
+    scene = os.path.join(os.path.dirname(planar3r.__file__), "models", "scene.xml")
+    model = mujoco.MjModel.from_xml_path(scene)
+    data = mujoco.MjData(model)
+    start = np.deg2rad([0.0, 60.0, 60.0])
+
+    def rotations(q: np.ndarray) -> np.ndarray:
+        out = []
+        for row in q:
+            data.qpos[:] = row
+            mujoco.mj_kinematics(model, data)
+            out.append(data.site("tool").xmat.reshape(3, 3).copy())
+        return np.array(out)
+
+    r0 = rotations(start[None])[0]
+    goal = Rotation.from_rotvec(np.deg2rad(150.0) * np.array([1.0, 0.0, 0.0])) * Rotation.from_matrix(r0)
+    x, y, z, w = goal.as_quat().tolist()
+    data.qpos[:] = start
+    mujoco.mj_kinematics(model, data)
+    end = (data.site("tool").xpos + [0.0, 0.05, 0.0]) * 1e3
+    file = tmp_path / "turn.yaml"
+    file.write_text(f"""robot: {{model: {scene}, tool: {{site: tool}}, speed_limits: [180, 360, 360]}}
+planner: cartesian_path
+units: {{angle: deg, length: mm}}
+task:
+  start: {np.rad2deg(start).tolist()}
+  path:
+    - line: {{end: {end.tolist()}}}
+  orientation: {{convention: quat, value: {[w, x, y, z]}}}
+timing: {{duration: 2.0, hold: 0.3}}
+""")
+    plan = cartesian_path.PLANNER.plan(load_scenario(file), load_scenario(file).robot_def, 0.002)
+    truth = Slerp([0.0, 1.0], Rotation.from_matrix([r0, goal.as_matrix()]))(np.clip(plan.s, 0.0, 1.0))
+    angles = _angle(truth.as_matrix(), rotations(plan.q_ref))
+    assert np.rad2deg(angles.max()) == pytest.approx(150.0, abs=0.01)
+    assert plan.info["plan_orientation_error_max"] == pytest.approx(angles.max(), abs=1e-9)
