@@ -4,6 +4,7 @@ slerp, and a 7-joint arm keeping its start posture in the null space, each check
 
 import json
 import os
+from xml.etree import ElementTree
 from importlib.metadata import distribution
 
 import dm_control
@@ -14,6 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 import simbench.planners.cartesian_path as cartesian_path
 from simbench.cli import main
+from simbench.pipeline import check_plan
 from simbench.scenario import load_scenario
 
 JACO = os.path.join(os.path.dirname(dm_control.__file__), "third_party", "kinova", "jaco_arm.xml")
@@ -195,3 +197,29 @@ timing: {{duration: 2.0, hold: 0.3}}
     angles = _angle(truth.as_matrix(), rotations(plan.q_ref))
     assert np.rad2deg(angles.max()) == pytest.approx(150.0, abs=0.01)
     assert plan.info["plan_orientation_error_max"] == pytest.approx(angles.max(), abs=1e-9)
+
+
+def test_time_scaling_keeps_a_joint_held_at_its_limit_inside_its_range(tmp_path):
+    """The Panda turning its hand 60 deg about its axis along a 50 mm line from a start with joint 7 near its upper
+    limit: pinv's path holds joint 7 there and the others keep the tool on the path; time_scaling's plan stays
+    inside every range the URDF states (the cubic spline through that path overshot joint 7's by 2.4e-5 rad, and
+    the plan's verdict named a joint_limit 0.00 deg beyond it), and its verdict names none."""
+    limits = {j.get("name"): (float(j.find("limit").get("lower")), float(j.find("limit").get("upper")))
+              for j in ElementTree.parse(PANDA).getroot().findall("joint") if j.get("type") == "revolute"}
+    start = [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 2.6]  # rad
+    file = tmp_path / "turn.yaml"
+    file.write_text(f"robot: {{model: {PANDA}, tool: {{body: panda_hand_tcp}}}}\nplanner: cartesian_path\n"
+                    f"task: {{start: {start}, path: [{{line: {{end: [0.0, 0.0, 0.0]}}}}]}}\n"
+                    "timing: {duration: 3.0}\n")
+    robot = load_scenario(file).robot_def
+    tool0, r0 = robot.fk(np.array([start]))[0], robot.tool_rotation(np.array([start]))[0]
+    x, y, z, w = (Rotation.from_matrix(r0) * Rotation.from_rotvec([0.0, 0.0, np.deg2rad(60.0)])).as_quat().tolist()
+    file.write_text(file.read_text().replace(
+        "path: [{line: {end: [0.0, 0.0, 0.0]}}]",
+        f"path: [{{line: {{end: {(tool0 + [0.05, 0.0, 0.0]).tolist()}}}}}], method: time_scaling, "
+        f"orientation: {{convention: quat, value: {[w, x, y, z]}}}"))
+    plan, verdict = check_plan(load_scenario(file))
+    lower, upper = np.array([limits[j] for j in robot.joints]).T
+    assert plan.info["range_held_from"] is not None and np.abs(plan.q_ref[:, 6] - upper[6]).min() < 1e-9
+    assert np.all((plan.q_ref >= lower) & (plan.q_ref <= upper))
+    assert "joint_limit" not in {v.kind for v in verdict.violations}

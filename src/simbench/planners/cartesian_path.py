@@ -300,7 +300,8 @@ class CartesianPath(Planner):
                    else robot.qd_max / ACCEL_TIME)
         t, s, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
         points, rotations = pose(s)
-        q_plan, residual = exact_ik(robot, q_spline, points, rotations, _pose_error(robot))
+        q_plan, residual = exact_ik(robot, np.clip(q_spline, robot.lower, robot.upper), points, rotations,
+                                    _pose_error(robot))  # the spline may overshoot a limit its samples hold
         sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q_plan), robot.reach), compute_uv=False)[:, -1]
         at = np.clip(np.searchsorted(grid, s), 0, n - 1)
         extra = {"slowdown": duration / law.duration, "duration_asked": law.duration, "duration_planned": duration,
