@@ -4,6 +4,7 @@ slerp, and a 7-joint arm keeping its start posture in the null space, each check
 
 import json
 import os
+from xml.etree import ElementTree
 from importlib.metadata import distribution
 
 import dm_control
@@ -14,6 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 import simbench.planners.cartesian_path as cartesian_path
 from simbench.cli import main
+from simbench.pipeline import check_plan
 from simbench.scenario import load_scenario
 
 JACO = os.path.join(os.path.dirname(dm_control.__file__), "third_party", "kinova", "jaco_arm.xml")
@@ -153,3 +155,71 @@ def test_an_arc_that_does_not_start_at_the_tool_is_bad_input(tmp_path, capsys):
     assert main(["validate", str(scenario)]) == 2
     err = capsys.readouterr().err.strip()
     assert "task.path[0].arc" in err and "starts 10.000 mm from the tool's point" in err
+
+
+def test_the_plans_orientation_error_past_90_deg_is_its_angle(tmp_path):
+    """A planar 3R arm asked to turn its tool 150 deg about an axis in its plane, which it cannot: the plan's
+    `plan_orientation_error_max` is the largest angle between scipy's slerp and the tool's orientation at the
+    plan's joints (MuJoCo's), 150 deg at the end, not the arcsine of its sine (30 deg)."""
+    planar3r = pytest.importorskip("simbench_planar3r", reason="pip install -e examples/planar3r")
+    scene = os.path.join(os.path.dirname(planar3r.__file__), "models", "scene.xml")
+    model = mujoco.MjModel.from_xml_path(scene)
+    data = mujoco.MjData(model)
+    start = np.deg2rad([0.0, 60.0, 60.0])
+
+    def rotations(q: np.ndarray) -> np.ndarray:
+        out = []
+        for row in q:
+            data.qpos[:] = row
+            mujoco.mj_kinematics(model, data)
+            out.append(data.site("tool").xmat.reshape(3, 3).copy())
+        return np.array(out)
+
+    r0 = rotations(start[None])[0]
+    goal = Rotation.from_rotvec(np.deg2rad(150.0) * np.array([1.0, 0.0, 0.0])) * Rotation.from_matrix(r0)
+    x, y, z, w = goal.as_quat().tolist()
+    data.qpos[:] = start
+    mujoco.mj_kinematics(model, data)
+    end = (data.site("tool").xpos + [0.0, 0.05, 0.0]) * 1e3
+    file = tmp_path / "turn.yaml"
+    file.write_text(f"""robot: {{model: {scene}, tool: {{site: tool}}, speed_limits: [180, 360, 360]}}
+planner: cartesian_path
+units: {{angle: deg, length: mm}}
+task:
+  start: {np.rad2deg(start).tolist()}
+  path:
+    - line: {{end: {end.tolist()}}}
+  orientation: {{convention: quat, value: {[w, x, y, z]}}}
+timing: {{duration: 2.0, hold: 0.3}}
+""")
+    plan = cartesian_path.PLANNER.plan(load_scenario(file), load_scenario(file).robot_def, 0.002)
+    truth = Slerp([0.0, 1.0], Rotation.from_matrix([r0, goal.as_matrix()]))(np.clip(plan.s, 0.0, 1.0))
+    angles = _angle(truth.as_matrix(), rotations(plan.q_ref))
+    assert np.rad2deg(angles.max()) == pytest.approx(150.0, abs=0.01)
+    assert plan.info["plan_orientation_error_max"] == pytest.approx(angles.max(), abs=1e-9)
+
+
+def test_time_scaling_keeps_a_joint_held_at_its_limit_inside_its_range(tmp_path):
+    """The Panda turning its hand 60 deg about its axis along a 50 mm line from a start with joint 7 near its upper
+    limit: pinv's path holds joint 7 there and the others keep the tool on the path; time_scaling's plan stays
+    inside every range the URDF states (the cubic spline through that path overshot joint 7's by 2.4e-5 rad, and
+    the plan's verdict named a joint_limit 0.00 deg beyond it), and its verdict names none."""
+    limits = {j.get("name"): (float(j.find("limit").get("lower")), float(j.find("limit").get("upper")))
+              for j in ElementTree.parse(PANDA).getroot().findall("joint") if j.get("type") == "revolute"}
+    start = [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 2.6]  # rad
+    file = tmp_path / "turn.yaml"
+    file.write_text(f"robot: {{model: {PANDA}, tool: {{body: panda_hand_tcp}}}}\nplanner: cartesian_path\n"
+                    f"task: {{start: {start}, path: [{{line: {{end: [0.0, 0.0, 0.0]}}}}]}}\n"
+                    "timing: {duration: 3.0}\n")
+    robot = load_scenario(file).robot_def
+    tool0, r0 = robot.fk(np.array([start]))[0], robot.tool_rotation(np.array([start]))[0]
+    x, y, z, w = (Rotation.from_matrix(r0) * Rotation.from_rotvec([0.0, 0.0, np.deg2rad(60.0)])).as_quat().tolist()
+    file.write_text(file.read_text().replace(
+        "path: [{line: {end: [0.0, 0.0, 0.0]}}]",
+        f"path: [{{line: {{end: {(tool0 + [0.05, 0.0, 0.0]).tolist()}}}}}], method: time_scaling, "
+        f"orientation: {{convention: quat, value: {[w, x, y, z]}}}"))
+    plan, verdict = check_plan(load_scenario(file))
+    lower, upper = np.array([limits[j] for j in robot.joints]).T
+    assert plan.info["range_held_from"] is not None and np.abs(plan.q_ref[:, 6] - upper[6]).min() < 1e-9
+    assert np.all((plan.q_ref >= lower) & (plan.q_ref <= upper))
+    assert "joint_limit" not in {v.kind for v in verdict.violations}

@@ -21,7 +21,9 @@ from simbench.scenario import parse_scenario
 from simbench.planners import mink_baseline
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
+from simbench.resources import models_dir
 from simbench.scenario import parse_scenario
+from simbench.singularity_handling import SingularityHandling
 from conftest import scenario_file, segment_distance
 
 DT = 0.01  # s: the random lines' control grid (100 Hz; the shipped scenarios run at 1 kHz: the same method)
@@ -331,3 +333,24 @@ def test_compare_exits_0_once_written_even_where_every_method_ends_limits(tmp_pa
     assert main(["compare", str(WRIST), "--planners", "decoupled_path", "--quiet", "--out", str(out)]) == 0
     with open(out / "comparison.csv") as f:
         assert [r["status"] for r in csv.DictReader(f)] == ["limits"]
+
+
+def test_the_baseline_following_a_retimed_plan_has_its_slowdown(tmp_path):
+    """mink_baseline following cartesian_path's time_scaling along the PUMA's wrist line (its MJCF, its drives'
+    60 deg/s arm and 300 deg/s wrist) runs on the retimed plan's grid, so its slowdown, the metric compare's table
+    and a bench row read, is its own motion's duration over the asked one: when its reference reaches the line's
+    end (not 1: the baseline stated none)."""
+    doc = {"robot": {"model": str(models_dir() / "puma600" / "puma600.xml"), "tool": {"site": "tool"},
+                     "speed_limits": [60, 60, 60, 300, 300, 300]},
+           "planner": "cartesian_path", "units": {"angle": "deg", "length": "mm"},
+           "task": {"start": [181.8737, -117.777, -222.6356, 15.0872, 15.8376, -13.0006],
+                    "path": [{"line": {"end": [780.0, -149.0, -200.0]}}], "method": "time_scaling"},
+           "timing": {"law": "quintic", "duration": 2.0, "hold": 0.3}}
+    scenario = parse_scenario(follow(doc), "retimed")
+    robot = scenario.robot_def
+    plan = scenario.planner_def.plan(scenario, robot, 0.002)
+    end = np.array([0.780, -0.149, -0.200])
+    arrived = plan.t[np.argmax(np.linalg.norm(plan.tool_ref - end, axis=1) < 1e-12)]
+    assert arrived / 2.0 > 1.01  # the wrist's limits stretch the line
+    figures = SingularityHandling.for_run(robot, plan, scenario).finish()
+    assert figures["slowdown"] == pytest.approx(arrived / 2.0, abs=0.002 / 2.0)

@@ -243,8 +243,49 @@ def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: 
     return format_loc(loc), _in_user_terms(msg, first.get("input"))
 
 
+def _member(loc: tuple, document: Any) -> int | None:
+    """The index in pydantic's `loc` of the first union member's name (a part _field_loc leaves out), or None."""
+    node = document
+    for i, part in enumerate(loc):
+        if isinstance(node, dict) and part in node or isinstance(node, list) and isinstance(part, int) \
+                and 0 <= part < len(node):
+            node = node[part]
+        elif isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part or part[:1].isupper()):
+            return i
+        else:
+            return None
+    return None
+
+
+def _misfits(error: ErrorDetails, at: int) -> bool:
+    """Whether the error says its union member (named at loc[at]) does not take the value's shape at all: a wrong
+    type or literal for the member itself, or a field it lacks or does not know."""
+    depth = len(error["loc"]) - at
+    return (depth == 1 and (error["type"].endswith("_type") or error["type"] == "literal_error")
+            or depth == 2 and error["type"] in ("missing", "extra_forbidden"))
+
+
+def _fitting(errors: list[ErrorDetails], document: Any) -> list[ErrorDetails]:
+    """The errors without those of a union's members that do not take the value's shape, where another member
+    of that union does (its errors then say what is wrong: a `tool: {body, offset}` with a bad offset is not told
+    that `body` is unknown to `{site}`)."""
+    members: dict[tuple, dict[Any, list[ErrorDetails]]] = {}
+    for e in errors:
+        at = _member(tuple(e["loc"]), document)
+        if at is not None:
+            members.setdefault(tuple(e["loc"][:at]), {}).setdefault(e["loc"][at], []).append(e)
+    dropped = set()
+    for where, by_member in members.items():
+        misfit = {m for m, found in by_member.items() if any(_misfits(e, len(where)) for e in found)}
+        if len(misfit) < len(by_member):
+            dropped |= {id(e) for m in misfit for e in by_member[m]}
+    return [e for e in errors if id(e) not in dropped]
+
+
 def _first_error(errors: list[ErrorDetails], document: Any) -> ErrorDetails:
-    """An unknown field, else the first error that no other lies within, else the first."""
+    """An unknown field, else the first error that no other lies within, else the first; of a union, only its
+    members that take the value's shape count where one does (_fitting)."""
+    errors = _fitting(errors, document)
     locs = [_field_loc(e["loc"], document) for e in errors]
 
     def inside(i: int) -> bool:  # another error lies within this one's mapping or list

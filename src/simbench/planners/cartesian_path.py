@@ -157,6 +157,14 @@ def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
     return 0.5 * np.cross(np.swapaxes(r, -1, -2), np.swapaxes(r_goal, -1, -2)).sum(axis=-2)
 
 
+def _angles(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The angles (N,) in [0, pi] of the rotations from r to r_goal (N, 3, 3): atan2 of eq. 3.85's sin (the norm of
+    orientation_error) and the cos from the trace, exact near 0 and past 90 deg, where the arcsine folds back."""
+    sin = np.linalg.norm(orientation_error(r_goal, r), axis=-1)
+    cos = (np.einsum("nij,nij->n", r_goal, r) - 1) / 2
+    return np.arctan2(sin, cos)
+
+
 def _turn(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
     """The rotation vector (3,), world frame, of the rotation from r0 to r1 (the slerp's axis times its angle)."""
     w, *xyz = matrix_to_quat((r1 @ r0.T)[None])[0]
@@ -245,7 +253,7 @@ class CartesianPath(Planner):
                 series = {"plan_damping": np.sqrt(lam2), "plan_speed_scale": scale}
         tool = robot.fk(q)
         off = path_deviation(points, tool)
-        turned = np.array([np.linalg.norm(orientation_error(a, b)) for a, b in zip(rotations, robot.tool_rotation(q))])
+        turned = _angles(rotations, robot.tool_rotation(q))
         info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
                               "null_gain": NULL_GAIN if robot.dof > 6 else None, "reach": robot.reach},
@@ -253,7 +261,7 @@ class CartesianPath(Planner):
                 "sigma_min_least": float(sigma.min()), "damped_from": _first(t, lam2 > 0),
                 "speed_scaled_from": _first(t, scale < 1), "plan_path_deviation_max": float(off.max()),
                 "plan_goal_error": float(np.linalg.norm(tool[-1] - points[-1])),
-                "plan_orientation_error_max": float(np.arcsin(np.clip(turned.max(), 0.0, 1.0)))}
+                "plan_orientation_error_max": float(turned.max())}
         if task.method != "dls_adaptive":
             info["path_method"] = task.method
             info["damping"] = float(np.sqrt(lam2.max())) if task.method == "dls" else None
@@ -292,7 +300,8 @@ class CartesianPath(Planner):
                    else robot.qd_max / ACCEL_TIME)
         t, s, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
         points, rotations = pose(s)
-        q_plan, residual = exact_ik(robot, q_spline, points, rotations, _pose_error(robot))
+        q_plan, residual = exact_ik(robot, np.clip(q_spline, robot.lower, robot.upper), points, rotations,
+                                    _pose_error(robot))  # the spline may overshoot a limit its samples hold
         sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q_plan), robot.reach), compute_uv=False)[:, -1]
         at = np.clip(np.searchsorted(grid, s), 0, n - 1)
         extra = {"slowdown": duration / law.duration, "duration_asked": law.duration, "duration_planned": duration,

@@ -293,6 +293,8 @@ class MinkBaseline(Planner[Task]):
             "plan_orientation_error_max": float(orientation_error.max()) if costs[1] > 0 else None,
             "speed_limited_time": {name: float(held[:, j].sum() * dt) for j, name in enumerate(robot.joints)},
         }
+        if "slowdown" in reference.info:  # a retimed plan's grid, which this one runs on (singularity_handling)
+            info["slowdown"] = reference.info["slowdown"]
         warnings, violations = [], []
         if met["failed"]:
             first = met["failed"][0]
