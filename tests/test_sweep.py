@@ -222,6 +222,10 @@ BAD_SWEEPS = [
         "loguniform": [0, 0.002]}}}}, "loguniform: bounds must be > 0"),
     ("vector bounds differ", {"base": CASE1, "random": {"samples": 2, "params": {"task.goal": {
         "uniform": [[1, 2], [3, 4, 5]]}}}}, "its two bounds must be the same length"),
+    ("a number and a list as bounds", {"base": CASE1, "random": {"samples": 2, "params": {"task.goal[1]": {
+        "uniform": [60, [80]]}}}}, "random.params.task.goal[1].uniform: expected both bounds numbers, or both lists"),
+    ("a list and a number as bounds", {"base": CASE1, "random": {"samples": 2, "params": {"task.goal": {
+        "normal": [[120, 75, 5, 90], 1]}}}}, "random.params.task.goal.normal: expected both bounds numbers, or both"),
     ("swept twice", {"base": CASE1, "grid": {"timing.duration": [2]}, "random": {"samples": 2, "params": {
         "timing.duration": {"uniform": [2, 3]}}}}, "swept twice"),
     ("video without outputs", {"base": CASE1, "grid": {"timing.duration": [2]}, "video": True},

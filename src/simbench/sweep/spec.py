@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import AfterValidator, Field, model_validator
 
 from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
@@ -33,7 +33,16 @@ _KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
 
 MAX_BOUND = 1e15  # no scenario field is larger: a wider distribution is a typo, and its draws would overflow
 Bound = Annotated[float, Field(ge=-MAX_BOUND, le=MAX_BOUND)]
-Pair = Annotated[list[Bound | list[Bound]], Field(min_length=2, max_length=2)]
+
+
+def _alike(pair: list) -> list:
+    """Two bounds, both numbers or both lists (a number beside a list has no shape to draw)."""
+    if isinstance(pair[0], list) != isinstance(pair[1], list):
+        raise ValueError("expected both bounds numbers, or both lists of the same length, got a number and a list")
+    return pair
+
+
+Pair = Annotated[list[Bound | list[Bound]], Field(min_length=2, max_length=2), AfterValidator(_alike)]
 Integer = Annotated[int, Field(ge=-2**53, le=2**53)]
 
 
