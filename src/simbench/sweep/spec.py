@@ -22,7 +22,7 @@ from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
 from simbench.robots import robot_mapping
 from simbench.scenario import parse_scenario
-from simbench.schema import Name, SimbenchModel, file_name
+from simbench.schema import MAX_NAME, Name, SimbenchModel, file_name
 from simbench.sweep import size
 from simbench.sweep.size import MAX_RUNS
 from simbench.validation import kind_of, read_spec, read_yaml
@@ -274,7 +274,8 @@ def _expand(spec: SweepSpec, document: dict, paths: dict, base: Path, count: int
             doc["robot"] = robot_mapping.anchored(doc["robot"], folder)
         index = len(variants)
         run_id = f"r{index:0{width}d}"
-        doc["name"] = f"{doc.get('name') or base_name}-{run_id}"
+        stem = f"{doc.get('name') or base_name}"[:MAX_NAME - len(run_id) - 1]  # cut so that the run's name fits
+        doc["name"] = f"{stem}-{run_id}"
         variants.append(Variant(index, run_id, params, doc))
     return variants
 
