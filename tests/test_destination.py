@@ -232,3 +232,16 @@ def test_a_sweep_whose_full_output_runs_were_killed_resumes_or_is_replaced(tmp_p
     result = run_sweep(sweep, out, workers=1, force=force)
     assert result.resumed == (0 if force else 1) and result.table["status"] == ["ok", "ok"]
     assert sorted(p.name for p in (out / "runs").iterdir()) == [v.id for v in sweep.variants]
+
+
+def test_force_never_replaces_a_folder_of_other_runs_outputs(tmp_path, capsys):
+    """A folder holding simbench's outputs in subfolders (renders/ itself, say) was not written by simbench: it
+    has no marker of its own. --force into it is refused, naming a file, and the runs in it are kept."""
+    case1 = str(scenario_file("spherical_arm", "case1"))
+    for name in ("a", "b"):
+        assert main(["run", case1, "--out", str(tmp_path / "renders" / name), "--no-video", "--quiet"]) == 0
+    before = {p: p.read_bytes() for p in (tmp_path / "renders").rglob("*") if p.is_file()}
+    assert main(["run", case1, "--out", str(tmp_path / "renders"), "--no-video", "--quiet", "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {tmp_path / 'renders'}: ") and "a/" in err[0], err
+    assert {p: p.read_bytes() for p in (tmp_path / "renders").rglob("*") if p.is_file()} == before

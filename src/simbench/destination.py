@@ -149,10 +149,21 @@ def check_replace(out: Path, why: str = "--force replaces only simbench's own ou
     """ScenarioError naming one stranger unless simbench wrote every file in `out`."""
     with refused(out):
         strangers = foreign(out)
+        unmarked = None if strangers or (out / MARKER).is_file() else next(_files(out), None)
     if strangers:
         raise ScenarioError(str(out), None, f"holds {len(strangers)} file(s) simbench did not write (such as "
                                             f"{strangers[0].relative_to(out)}); {why}: move them out yourself or "
                                             "pick another --out")
+    if unmarked is not None:  # outputs of other runs in its subfolders (renders/ itself, say): not one output
+        raise ScenarioError(str(out), None, f"holds other runs' outputs (such as {unmarked.relative_to(out)}) and is "
+                                            f"not itself a folder simbench wrote (no {MARKER} of its own); {why}: "
+                                            "pick another --out")
+
+
+def _files(folder: Path) -> Iterator[Path]:
+    """The files in `folder`, at every depth, but markers and staging and lock leftovers."""
+    return (path for path in sorted(folder.rglob("*")) if not (path.is_dir() and not path.is_symlink())
+            and path.name != MARKER and not _leftover(path, folder))
 
 
 def check(out: Path, inputs: Iterable[Path], force: bool) -> None:
