@@ -164,9 +164,9 @@ def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
 def _compare(args) -> None:
     """The compare command: the table and plots of every method, and the table on screen."""
     from simbench.compare import compare
-    from simbench.schema import file_name
+    from simbench.scenario import load_scenario
 
-    out = args.out or Path("renders") / "compare" / file_name(args.scenario.stem, str(args.scenario))
+    out = args.out or Path("renders") / "compare" / load_scenario(args.scenario).name  # as run's renders/<name>/
     result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
                      progress=not args.quiet, allow_code=args.allow_code, plot_format=args.plot_format)
     _say((result.out / "comparison.md").read_text())
