@@ -96,6 +96,23 @@ def test_path_leaving_the_reach_between_its_ends_exits_1_naming_where(tmp_path, 
     assert not (tmp_path / "out").exists()
 
 
+def test_validate_checks_every_file_after_a_bad_one(tmp_path, capsys):
+    """validate FILE ... checks each file: one bad file is its line and the next files are still checked; the
+    exit code is 2 if any file is bad input, else 1 if any plan is refused."""
+    unrepairable = tmp_path / "unrepairable.yaml"
+    unrepairable.write_text(variant(task={"start": [300, 0, 80, 30], "goal": [47, 400, -75, 100]}))
+    good, nan, huge = SHIPPED[0], CORPUS / "nan.yaml", CORPUS / "huge.yaml"
+    code = main(["validate", str(nan), str(unrepairable), str(good), str(huge)])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert [line.split(": ")[:2] for line in err.strip().splitlines()] == [
+        ["error", str(nan)], ["run failed", "the straight path leaves the workspace and the new initial q3 of Fig. 8 "
+                                            "cannot repair it"], ["error", str(huge)]]
+    assert out.startswith(f"{good}: valid")
+    assert main(["validate", "--no-plan", str(good), str(unrepairable)]) == 0
+    assert main(["validate", str(unrepairable), str(good)]) == 1
+
+
 def test_real_command_line_prints_no_traceback(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text(variant(task__start=[120, 500, 120, 5]))

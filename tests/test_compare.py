@@ -272,6 +272,19 @@ def test_the_compare_command_prints_the_table_and_refuses_a_typo_in_one_line(tmp
     assert (tmp_path / "c" / "index.html").is_file()
 
 
+def test_the_compare_command_writes_by_default_under_the_scenarios_name(tmp_path, monkeypatch, capsys):
+    """As `run` does, compare names its default folder after the scenario's `name:`, which stands in for a file
+    name that could not name a folder (renders/compare/<name>/)."""
+    from simbench.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / "case 1 (copy).yaml"
+    path.write_text(yaml.safe_dump({**yaml.safe_load(scenario_file("spherical_arm", "case1").read_text()),
+                                    "name": "case1_copy"}))
+    assert main(["compare", str(path), "--planners", "safe_straight_path", "--quiet"]) == 0, capsys.readouterr().err
+    assert (tmp_path / "renders" / "compare" / "case1_copy" / "comparison.csv").is_file()
+
+
 def test_compare_of_a_strided_scenario_reads_the_speed_share_of_every_state(tmp_path):
     """With sim.record_every, a recording keeps qd at every k-th state only: the comparison still draws its speed
     plot, and its simulated speed share is the largest over every state of the run recorded whole

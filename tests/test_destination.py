@@ -206,3 +206,42 @@ def test_the_lock_file_never_follows_a_symlink(tmp_path, capsys, there):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and ".out.lock" in err[0] and "symlink" in err[0]
     assert (victim.read_text() == "the user's file" if there else not victim.exists()) and not out.exists()
+
+
+@pytest.mark.parametrize("force", [False, True], ids=["resumed", "forced"])
+def test_a_sweep_whose_full_output_runs_were_killed_resumes_or_is_replaced(tmp_path, force):
+    """Ctrl-C or SIGTERM ends a sweep's busy workers at once, mid-run: with outputs: full they leave their run's
+    lock and staging folder in runs/ (`.r0001.lock`, `.r0001.partial-PID/...`). Those are simbench's own: the
+    same command resumes over them, and --force replaces them, leaving none behind."""
+    from simbench.sweep import load_sweep, run_sweep
+
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"base": "spherical_arm/case1", "outputs": "full",
+                                    "grid": {"timing.duration": [2, 3]}}))
+    sweep, out = load_sweep(path), tmp_path / "out"
+    run_sweep(sweep, out, workers=1)
+    killed = sweep.variants[1].id  # as a worker killed mid-run leaves it: no row, no folder, its leftovers
+    (out / "rows" / f"{killed}.json").unlink()
+    shutil.rmtree(out / "runs" / killed)
+    for name in ("results.csv", "results.parquet", "summary.json", "index.html"):
+        (out / name).unlink(missing_ok=True)
+    (out / "runs" / f".{killed}.lock").touch()
+    staging = out / "runs" / f".{killed}.partial-{_dead_pid()}"
+    (staging / "plots").mkdir(parents=True)
+    (staging / "plots" / "joints.png").write_bytes(b"half a plot")
+    result = run_sweep(sweep, out, workers=1, force=force)
+    assert result.resumed == (0 if force else 1) and result.table["status"] == ["ok", "ok"]
+    assert sorted(p.name for p in (out / "runs").iterdir()) == [v.id for v in sweep.variants]
+
+
+def test_force_never_replaces_a_folder_of_other_runs_outputs(tmp_path, capsys):
+    """A folder holding simbench's outputs in subfolders (renders/ itself, say) was not written by simbench: it
+    has no marker of its own. --force into it is refused, naming a file, and the runs in it are kept."""
+    case1 = str(scenario_file("spherical_arm", "case1"))
+    for name in ("a", "b"):
+        assert main(["run", case1, "--out", str(tmp_path / "renders" / name), "--no-video", "--quiet"]) == 0
+    before = {p: p.read_bytes() for p in (tmp_path / "renders").rglob("*") if p.is_file()}
+    assert main(["run", case1, "--out", str(tmp_path / "renders"), "--no-video", "--quiet", "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {tmp_path / 'renders'}: ") and "a/" in err[0], err
+    assert {p: p.read_bytes() for p in (tmp_path / "renders").rglob("*") if p.is_file()} == before

@@ -17,6 +17,7 @@ from conftest import interrupt, scenario_file
 import simbench
 from simbench.cli import main
 from simbench.errors import ScenarioError
+from simbench.scenario import parse_scenario
 from simbench.resources import sweeps_dir
 from simbench.sweep import execute, load_sweep, run_sweep
 from simbench.sweep.spec import assign, parse_path
@@ -80,6 +81,19 @@ def test_grid_crossed_with_random_samples(tmp_path):
     assert [v.params for v in again.variants] == [v.params for v in sweep.variants]
     other = load_sweep(write(tmp_path, {**spec, "random": {**spec["random"], "seed": 12}}, "other"))
     assert [v.params for v in other.variants] != [v.params for v in sweep.variants]
+
+
+def test_a_base_with_the_longest_name_makes_valid_runs(tmp_path):
+    """A base scenario named with the most characters a name may have is valid, and so is each of its runs: the
+    run's name, the base's with '-r0000' added, is cut to fit rather than refused."""
+    name = "n" + "a" * 98 + "z"
+    base = tmp_path / "base.yaml"
+    base.write_text(yaml.safe_dump({**yaml.safe_load(open(scenario_file("spherical_arm", "case1"))), "name": name}))
+    assert simbench.load_scenario(base).name == name
+    sweep = load_sweep(write(tmp_path, {"base": "base.yaml", "grid": {"timing.duration": [2, 3]}}))
+    names = [parse_scenario(v.document, v.id).name for v in sweep.variants]
+    assert len(set(names)) == 2 and all(len(n) <= 100 and n.startswith("naaa") and n.endswith(v.id)
+                                        for n, v in zip(names, sweep.variants))
 
 
 def test_table_metrics_are_the_runs_own_numbers(tmp_path):
@@ -222,6 +236,10 @@ BAD_SWEEPS = [
         "loguniform": [0, 0.002]}}}}, "loguniform: bounds must be > 0"),
     ("vector bounds differ", {"base": CASE1, "random": {"samples": 2, "params": {"task.goal": {
         "uniform": [[1, 2], [3, 4, 5]]}}}}, "its two bounds must be the same length"),
+    ("a number and a list as bounds", {"base": CASE1, "random": {"samples": 2, "params": {"task.goal[1]": {
+        "uniform": [60, [80]]}}}}, "random.params.task.goal[1].uniform: expected both bounds numbers, or both lists"),
+    ("a list and a number as bounds", {"base": CASE1, "random": {"samples": 2, "params": {"task.goal": {
+        "normal": [[120, 75, 5, 90], 1]}}}}, "random.params.task.goal.normal: expected both bounds numbers, or both"),
     ("swept twice", {"base": CASE1, "grid": {"timing.duration": [2]}, "random": {"samples": 2, "params": {
         "timing.duration": {"uniform": [2, 3]}}}}, "swept twice"),
     ("video without outputs", {"base": CASE1, "grid": {"timing.duration": [2]}, "video": True},

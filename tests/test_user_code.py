@@ -138,9 +138,10 @@ def test_a_sweep_over_control_obeys_allow_code_per_variant(tmp_path, capsys, imp
 
 def test_compare_refuses_a_module_path_without_allow_code(tmp_path, capsys, importable):
     marker = module(tmp_path, "userpolicy", ACT)
-    code, _, lines = run_cli(["compare", scenario(tmp_path, "userpolicy:make"), "--planners", "dls_line",
-                              "--out", str(tmp_path / "out")], capsys)
+    path = scenario(tmp_path, "userpolicy:make")
+    code, _, lines = run_cli(["compare", path, "--planners", "dls_line", "--out", str(tmp_path / "out")], capsys)
     assert code == 2 and len(lines) == 1 and "--allow-code" in lines[0] and not os.path.exists(marker)
+    assert lines[0].startswith(f"error: {path}: control.policy: ")  # the file, as run names it
 
 
 def test_python_m_simbench_imports_nothing_from_the_current_folder(tmp_path):

@@ -164,9 +164,9 @@ def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
 def _compare(args) -> None:
     """The compare command: the table and plots of every method, and the table on screen."""
     from simbench.compare import compare
-    from simbench.schema import file_name
+    from simbench.scenario import load_scenario
 
-    out = args.out or Path("renders") / "compare" / file_name(args.scenario.stem, str(args.scenario))
+    out = args.out or Path("renders") / "compare" / load_scenario(args.scenario).name  # as run's renders/<name>/
     result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
                      progress=not args.quiet, allow_code=args.allow_code, plot_format=args.plot_format)
     _say((result.out / "comparison.md").read_text())
@@ -190,25 +190,40 @@ def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
     return "\n".join(lines), refused
 
 
-def _validate(paths: list[Path], plan: bool) -> int:
-    """Check each scenario and, if `plan`, plan it; EXIT_LIMITS if a plan breaks an unexpected promise."""
+def _validate(paths: list[Path], plan: bool, failed) -> int:
+    """Check each scenario and, if `plan`, plan it, a bad one not stopping the next (`failed` prints its line
+    and gives its code); 2 if any is bad input, else 1 if any failed, else EXIT_LIMITS if a plan breaks an
+    unexpected promise."""
+    codes = set()
+    for path in paths:
+        try:
+            codes.add(_validate_one(path, plan))
+        except Exception as err:
+            code = failed(err)
+            if code not in (1, 2):  # interrupted, or the output's reader went away: stop here
+                return code
+            codes.add(code)
+    return next((code for code in (2, 1, EXIT_LIMITS) if code in codes), 0)
+
+
+def _validate_one(path: Path, plan: bool) -> int:
+    """Check one scenario and, if `plan`, plan it; EXIT_LIMITS if its plan breaks an unexpected promise."""
     from simbench import pipeline, scenario
 
+    sc = scenario.load_scenario(path)
+    valid = f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)"
     code = 0
-    for path in paths:
-        sc = scenario.load_scenario(path)
-        valid = f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)"
-        if plan:
-            traj, verdict = pipeline.check_plan(sc)
-            _say(f"{valid}; plan: {verdict.status}")
-            if verdict.violations or verdict.expected is not None:
-                _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
-            for warning in traj.warnings:
-                _say(f"  plan warning: {warning}")
-            code = max(code, 0 if verdict.as_expected else EXIT_LIMITS)
-        else:
-            _say(valid)
-        _note_code(sc)
+    if plan:
+        traj, verdict = pipeline.check_plan(sc)
+        _say(f"{valid}; plan: {verdict.status}")
+        if verdict.violations or verdict.expected is not None:
+            _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
+        for warning in traj.warnings:
+            _say(f"  plan warning: {warning}")
+        code = 0 if verdict.as_expected else EXIT_LIMITS
+    else:
+        _say(valid)
+    _note_code(sc)
     return code
 
 
@@ -310,7 +325,7 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         elif args.command == "compare":
             _compare(args)
         elif args.command == "validate":
-            return _validate(args.scenarios, plan=not args.no_plan)
+            return _validate(args.scenarios, not args.no_plan, lambda err: _failed(args, ctrl_c, err))
         else:
             return _run(args)
     except (KeyboardInterrupt, SystemExit) as err:

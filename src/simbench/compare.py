@@ -135,6 +135,7 @@ def _variants(raw: dict, base: Scenario, source: Path, planners: list[str],
                 what = planner if len(controllers) == 1 else f"{planner} with {controller}"
                 raise ScenarioError(_SOURCE, "planners" if len(controllers) == 1 else "methods",
                                     f"{what} cannot run {source}: {err.detail}") from None
+            scenario._source = str(source)  # errors of its policy name the file, as `simbench run` of it does
             label = planner if len(controllers) == 1 else f"{planner} / {controller}"
             out.append((label, planner, controller, scenario))
     return out

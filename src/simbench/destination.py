@@ -77,17 +77,27 @@ def _listed(folder: Path) -> set[str]:
 
 
 def foreign(folder: Path) -> list[Path]:
-    """The files in `folder`, at every depth, that no marker on the way down lists (staging names excepted)."""
+    """The files in `folder`, at every depth, that no marker on the way down lists (staging folders and their
+    contents, and empty lock files, excepted: a sweep's worker killed mid-run leaves them in runs/)."""
     listed: dict[Path, set[str]] = {}
     out = []
     for path in sorted(folder.rglob("*")):
-        if path.is_dir() and not path.is_symlink() or path.name == MARKER or _staging_pid(path.name) is not None:
+        if path.is_dir() and not path.is_symlink() or path.name == MARKER or _leftover(path, folder):
             continue
         owners = [path.parent, *(p for p in path.parent.parents if folder in p.parents or p == folder)]
         if not any(path.relative_to(owner).as_posix() in listed.setdefault(owner, _listed(owner))
                    for owner in owners):
             out.append(path)
     return out
+
+
+def _leftover(path: Path, folder: Path) -> bool:
+    """Whether `path` (in `folder`) is or lies in a staging folder, or is an empty lock file (`.<name>.lock`)."""
+    if any(_staging_pid(part) is not None for part in path.relative_to(folder).parts):
+        return True
+    name = path.name
+    return (name.startswith(".") and name.endswith(".lock") and len(name) > len("..lock") and not path.is_symlink()
+            and path.is_file() and path.stat().st_size == 0)
 
 
 def _staging_pid(name: str) -> int | None:
@@ -139,10 +149,21 @@ def check_replace(out: Path, why: str = "--force replaces only simbench's own ou
     """ScenarioError naming one stranger unless simbench wrote every file in `out`."""
     with refused(out):
         strangers = foreign(out)
+        unmarked = None if strangers or (out / MARKER).is_file() else next(_files(out), None)
     if strangers:
         raise ScenarioError(str(out), None, f"holds {len(strangers)} file(s) simbench did not write (such as "
                                             f"{strangers[0].relative_to(out)}); {why}: move them out yourself or "
                                             "pick another --out")
+    if unmarked is not None:  # outputs of other runs in its subfolders (renders/ itself, say): not one output
+        raise ScenarioError(str(out), None, f"holds other runs' outputs (such as {unmarked.relative_to(out)}) and is "
+                                            f"not itself a folder simbench wrote (no {MARKER} of its own); {why}: "
+                                            "pick another --out")
+
+
+def _files(folder: Path) -> Iterator[Path]:
+    """The files in `folder`, at every depth, but markers and staging and lock leftovers."""
+    return (path for path in sorted(folder.rglob("*")) if not (path.is_dir() and not path.is_symlink())
+            and path.name != MARKER and not _leftover(path, folder))
 
 
 def check(out: Path, inputs: Iterable[Path], force: bool) -> None:

@@ -29,7 +29,7 @@ class Timing(SimbenchModel):
     law: Literal["cubic", "quintic", "4567", "trapezoidal"] = "quintic"
     duration: seconds(0.01, 86_400.0)
     hold: seconds(0.0, 60.0) = 0.5
-    accel_fraction: Annotated[float, Field(gt=0, le=0.5)] = 0.25
+    accel_fraction: Annotated[float, Field(ge=1e-6, le=0.5)] = 0.25  # below, 1 / (f (1 - f)) may overflow
 
     def law_fn(self) -> TimeLaw:
         """The time law s(t)."""

@@ -26,6 +26,7 @@ MIN_LENGTH = 1e-6  # m: below what the simulation resolves
 MAX_COMPONENT = 1e6  # items of a vector that is normalised (a direction, a quaternion)
 MIN_NORM = 1e-6  # and its least length
 MAX_GAIN = 1e9  # servo gains, SI
+MAX_NAME = 100  # characters of a name (it names a folder)
 
 
 class Units(SimbenchModel):
@@ -226,7 +227,7 @@ Gains = Annotated[float | list[float], AfterValidator(_to_gains)]
 """Servo gains, SI whatever the file's units: one for every joint, or one per joint."""
 Weight = Annotated[float, Field(ge=0, le=1e3)]
 """A weight of a cost's term, 0 to 1000."""
-Name = Annotated[str, Field(max_length=100), AfterValidator(_check_name)]
+Name = Annotated[str, Field(max_length=MAX_NAME), AfterValidator(_check_name)]
 """A name that can name a file: letters, digits, '_', '.' or '-', starting with a letter or digit."""
 
 

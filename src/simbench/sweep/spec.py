@@ -16,13 +16,13 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import AfterValidator, Field, model_validator
 
 from simbench.errors import ScenarioError
 from simbench.resources import scenarios_dir
 from simbench.robots import robot_mapping
 from simbench.scenario import parse_scenario
-from simbench.schema import Name, SimbenchModel, file_name
+from simbench.schema import MAX_NAME, Name, SimbenchModel, file_name
 from simbench.sweep import size
 from simbench.sweep.size import MAX_RUNS
 from simbench.validation import kind_of, read_spec, read_yaml
@@ -33,7 +33,16 @@ _KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
 
 MAX_BOUND = 1e15  # no scenario field is larger: a wider distribution is a typo, and its draws would overflow
 Bound = Annotated[float, Field(ge=-MAX_BOUND, le=MAX_BOUND)]
-Pair = Annotated[list[Bound | list[Bound]], Field(min_length=2, max_length=2)]
+
+
+def _alike(pair: list) -> list:
+    """Two bounds, both numbers or both lists (a number beside a list has no shape to draw)."""
+    if isinstance(pair[0], list) != isinstance(pair[1], list):
+        raise ValueError("expected both bounds numbers, or both lists of the same length, got a number and a list")
+    return pair
+
+
+Pair = Annotated[list[Bound | list[Bound]], Field(min_length=2, max_length=2), AfterValidator(_alike)]
 Integer = Annotated[int, Field(ge=-2**53, le=2**53)]
 
 
@@ -265,7 +274,8 @@ def _expand(spec: SweepSpec, document: dict, paths: dict, base: Path, count: int
             doc["robot"] = robot_mapping.anchored(doc["robot"], folder)
         index = len(variants)
         run_id = f"r{index:0{width}d}"
-        doc["name"] = f"{doc.get('name') or base_name}-{run_id}"
+        stem = f"{doc.get('name') or base_name}"[:MAX_NAME - len(run_id) - 1]  # cut so that the run's name fits
+        doc["name"] = f"{stem}-{run_id}"
         variants.append(Variant(index, run_id, params, doc))
     return variants
 
