@@ -8,7 +8,8 @@ mj_kinematics), computed here from the scenario alone:
     dls_adaptive the same with lambda from sigma_min of MuJoCo's Ju by the documented rule;
   - pinv's speed peaks break the wrist's limits, and the plan's verdict says so (velocity_limit, q4 and q6);
   - time_scaling: the tool on the line to 1e-9 m, every joint within its speed and acceleration limits by finite
-    differences, and the slowdown the planned duration over the asked one;
+    differences, and the slowdown the planned duration over the asked one; near the wrist singularity and at a
+    corner, the rates within the acceleration limits and the joints' kinks reported (`acceleration_limit`);
   - mink: inside the joint ranges and speed limits;
   - a bad method or a field of another method is a one-line error naming the field (exit 2).
 """
@@ -211,6 +212,63 @@ def test_time_scaling_keeps_the_line_and_every_joint_within_its_limits(tmp_path)
     assert 1.0 < plan.info["slowdown"] < 1.5  # measured: 1.024
     _, verdict = check_plan(sc)
     assert verdict.status == "ok"
+
+
+def _accelerations_reported(sc):
+    """The plan and verdict of a time_scaling scenario, checked against finite differences at the plan's samples:
+    its rates' first differences within each joint's acceleration limit (the 98 % margin's slack allowed), and an
+    `acceleration_limit` violation for exactly the joints whose planned q's second differences pass it, with their
+    worst ratio and first time."""
+    plan, verdict = check_plan(sc)
+    dt = plan.t[1] - plan.t[0]
+    limit = np.array(plan.info["acceleration_limits"])
+    assert np.allclose(limit, sc.robot_def.qd_max / 0.1)  # the default: each speed limit reached in 0.1 s
+    assert np.all(np.abs(np.diff(plan.qd_ref, axis=0)) / dt <= limit)
+    assert np.all(np.abs(plan.qd_ref) <= sc.robot_def.qd_max)
+    bends = np.abs(np.diff(plan.q_ref, 2, axis=0)) / dt**2 / limit  # bends[k]: at sample k + 1
+    found = {v.detail["joint"]: v for v in verdict.violations if v.kind == "acceleration_limit"}
+    assert set(found) == {sc.robot_def.joints[j] for j in np.flatnonzero(bends.max(axis=0) > 1)}
+    for name, v in found.items():
+        j = sc.robot_def.joints.index(name)
+        assert v.detail["ratio"] == pytest.approx(bends[:, j].max(), rel=1e-9)
+        assert v.t == pytest.approx(plan.t[np.argmax(bends[:, j] > 1) + 1])
+    assert verdict.status == ("limits" if found else "ok")
+    return plan, found
+
+
+def test_time_scaling_keeps_the_rates_within_the_acceleration_limits_and_reports_the_joints_kinks(tmp_path):
+    """An arc passing near the wrist singularity (the PUMA bench's task 9, seed 0), where q(s) bends sharply
+    between TOPP-RA's gridpoints: the plan's rates keep every acceleration limit (before the timing was stretched
+    for them, 1.38 times q4's and the run ended ok), and the exact joints' kink at the wrist is reported."""
+    speed = [4.363323129985824] * 3 + [5.235987755982989] * 3  # rad/s
+    arc = {"center": [-0.060928780945951735, -1.0272031675513507, 0.0710733120232599], "radius": 0.3799539282227059,
+           "normal": [-0.9951438633800633, 0.09504657830738787, -0.02558982471724994],
+           "ref": [0.07216283302234654, 0.5276761952941735, -0.846374833303811],
+           "start": -0.25579034058793965, "end": 0.22563550878706204}
+    doc = {"robot": {"model": str(XML), "tool": {"site": "tool"}, "speed_limits": speed},
+           "planner": "cartesian_path",
+           "task": {"start": [1.7382502833571756, -2.3991163316083006, -3.1558577234945657, 0.308624098373298,
+                              0.06281929385746834, 1.2217339722962344],
+                    "path": [{"arc": arc}], "method": "time_scaling"},
+           "timing": {"law": "quintic", "duration": 1.219464, "hold": 0.3}}
+    path = tmp_path / "arc.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    plan, found = _accelerations_reported(load_scenario(path))
+    assert {"q4", "q6"} <= set(found)  # measured: 3.5 times, within a sample of the wrist's flip
+
+
+def test_time_scaling_at_a_corner_keeps_the_rates_within_the_acceleration_limits_and_reports_the_kink(tmp_path):
+    """Two lines meeting at a right angle on the generic PUMA: the exact joints turn the corner within a sample,
+    which no uniform stretch of the timing smooths; the plan's rates keep the acceleration limits (before: 2.1
+    times q2's, and the run ended ok), and the joints that kink are reported."""
+    mid = [600.0, -149.0, -200.0]
+    path = _scenario(tmp_path, "time_scaling")
+    doc = yaml.safe_load(path.read_text())
+    doc["task"]["path"] = [{"line": {"end": mid}}, {"line": {"start": mid, "end": [600.0, -149.0, -100.0]}}]
+    doc["timing"]["duration"] = 1.0
+    path.write_text(yaml.safe_dump(doc))
+    plan, found = _accelerations_reported(load_scenario(path))
+    assert "q2" in found  # measured: 3.2 times at the corner
 
 
 def test_time_scaling_keeps_the_asked_law_where_no_limit_binds(tmp_path):

@@ -2,8 +2,8 @@
 
 A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked;
 otherwise `limits`, with one Violation per broken promise: a kind of KINDS (planners report `goal_missed`,
-`singular_crossing` and `clearance_margin` in `JointTrajectory.violations`) or an event the robot declares
-breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says whether it met it.
+`singular_crossing`, `clearance_margin` and `acceleration_limit` in `JointTrajectory.violations`) or an event the
+robot declares breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says whether it met it.
 An episode that ended early (simbench.env) is `failed` where its physics failed, else `truncated`: never `ok`.
 """
 
@@ -21,7 +21,7 @@ OK, LIMITS = "ok", "limits"
 FAILED, TRUNCATED = "failed", "truncated"  # a run cut short: its physics failed, or it was stopped
 # Violation kinds every robot can have (besides its own `breaking` events and its planner's).
 KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
-         "goal_missed", "singular_crossing", "clearance_margin")
+         "goal_missed", "singular_crossing", "clearance_margin", "acceleration_limit")
 
 
 @dataclass(frozen=True)

@@ -23,8 +23,9 @@ x = [v / L; w], L the reach):
 
 `task.method` picks the rate rule (path_methods, with references): the above is `dls_adaptive`; `dls` has a fixed
 lambda (`task.damping`); `pinv` is never scaled down (the verdict reports `velocity_limit`); `time_scaling` retimes
-pinv's joint path by TOPP-RA under the speed and acceleration limits (path_retiming; the report's `slowdown`);
-`mink` solves mink_baseline's QP per control step. Every method but mink holds the joint ranges as above.
+pinv's joint path by TOPP-RA under the speed and acceleration limits (path_retiming; the report's `slowdown`;
+`acceleration_limit` where its exact joints still ask more, at a corner or a singularity); `mink` solves
+mink_baseline's QP per control step. Every method but mink holds the joint ranges as above.
 
 Where the plan's own tool leaves the path by more than the path tolerance, or ends farther than the goal tolerance
 from its end, the plan reports it (`off_path`, `goal_missed`), with each joint held at a limit there (`joint_limit`).
@@ -236,9 +237,10 @@ class CartesianPath(Planner):
         points, rotations = pose(s)
         extra: dict = {}
         series: dict = {}
+        fast: tuple = ()  # time_scaling's acceleration_limit violations
         if task.method == "time_scaling":
-            t, s, q, qd, sigma, held, extra = self._time_scaled(task, robot, law, pose, twist, q0, dt,
-                                                                scenario.timing.hold)
+            t, s, q, qd, sigma, held, extra, fast = self._time_scaled(task, robot, law, pose, twist, q0, dt,
+                                                                      scenario.timing.hold)
             points, rotations = pose(s)
             lam2, scale = np.zeros(len(t)), np.ones(len(t))
         elif task.method == "mink":
@@ -278,6 +280,7 @@ class CartesianPath(Planner):
         if violations:
             violations += self._held(robot, t, q, held, off > scenario.analysis.path_tolerance,
                                      any(v.kind == "goal_missed" for v in violations))
+        violations += fast
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
                                waypoints=segment_waypoints(path, s, q), info=info, violations=violations,
                                series=series)
@@ -286,8 +289,8 @@ class CartesianPath(Planner):
     def _time_scaled(cls, task: Task, robot, law, pose, twist, q0: np.ndarray, dt: float,
                      hold: float) -> tuple:
         """time_scaling (path_retiming: pinv's joint path retimed by TOPP-RA): t, s, q, qd, sigma_min, the joints held
-        at a limit (N, dof), and the report's slowdown and durations."""
-        from simbench.planners.path_retiming import exact_ik, retime
+        at a limit (N, dof), the report's slowdown and durations, and the joints past their acceleration limits."""
+        from simbench.planners.path_retiming import acceleration_violations, exact_ik, retime
 
         n = max(int(round(law.duration / dt)), 2) + 1
         grid = np.linspace(0.0, 1.0, n)
@@ -304,9 +307,11 @@ class CartesianPath(Planner):
                                     _pose_error(robot))  # the spline may overshoot a limit its samples hold
         sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q_plan), robot.reach), compute_uv=False)[:, -1]
         at = np.clip(np.searchsorted(grid, s), 0, n - 1)
+        share, fast = acceleration_violations(robot, t, q_plan, qd, qdd_max)
         extra = {"slowdown": duration / law.duration, "duration_asked": law.duration, "duration_planned": duration,
-                 "acceleration_limits": qdd_max.tolist(), "ik_residual_max": float(residual.max())}
-        return t, s, q_plan, qd, sigma, held[at], extra
+                 "acceleration_limits": qdd_max.tolist(), "acceleration_share_max": float(share.max()),
+                 "ik_residual_max": float(residual.max())}
+        return t, s, q_plan, qd, sigma, held[at], extra, fast
 
     @staticmethod
     def _integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,

@@ -10,13 +10,17 @@ acceleration limits need it.
   3. The plan: the joints solved exactly at each s(t_k) (exact_ik from the spline's q), their rates the spline's.
 
 `slowdown` = planned duration / asked. MARGIN leaves room for the exact solution's departure from the spline; what
-TOPP-RA's grid does not see (the spline's rates between gridpoints) stretches the whole timing uniformly.
+TOPP-RA's grid does not see stretches the whole timing uniformly: the spline's rates between gridpoints (probed
+densely), and its rates' finite differences at the plan's own samples (near a singularity, at a corner between
+segments), which fall as the square of the stretch. Where the exact joints still ask a joint for more than its
+acceleration limit (their second differences: a kink the spline rounds off), the plan reports `acceleration_limit`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from simbench.api import REVOLUTE, Violation
 from simbench.errors import RunError
 from simbench.planners.path_methods import pinv_rates
 from simbench.robots.rank_loss import unit_jacobian
@@ -26,6 +30,7 @@ ACCEL_TIME = 0.1  # s: acceleration limits where the task gives none, each joint
 MARGIN = 0.98  # share of the speed and acceleration limits TOPP-RA plans for
 GRIDPOINTS = 1000  # TOPP-RA's gridpoints at most: s at uniform times of the asked law (dense where it is slow)
 PROBE = 8  # times between two gridpoints at which the timing's joint rates are checked
+STRETCHES = 8  # tries at the stretch that brings the sampled accelerations back under their limits
 MAX_SLOWDOWN = 100.0  # a longer timing is refused (its samples would be the run's memory)
 IK_TOL = 1e-12  # exact_ik's tolerance on the unit-consistent pose error
 IK_ITERATIONS = 30
@@ -87,6 +92,11 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
     _refuse_longer(float(timed.duration), law.duration)
     excess = _excess(timed, dof, qd_max, max(PROBE * len(gridpoints), 2 * int(timed.duration / dt)))
     stretch = excess / MARGIN if excess > 1.0 else 1.0  # back to MARGIN of the limit where the grid let it pass
+    for _ in range(STRETCHES):  # the same for the accelerations at the plan's samples, which rise as they densen
+        share = _sampled_acceleration(timed, dof, qdd_max, stretch, dt)
+        if share <= 1.0:
+            break
+        stretch *= np.sqrt(share / MARGIN)
     duration = float(timed.duration) * stretch
     _refuse_longer(duration, law.duration)
     t = control_grid(duration, hold, dt)
@@ -112,3 +122,38 @@ def _excess(timed, dof: int, qd_max: np.ndarray, count: int) -> float:
     times = np.linspace(0.0, float(timed.duration), count + 1)
     return max(float(np.max(np.abs(timed(chunk, 1)[:, :dof]) / qd_max)) for chunk in np.array_split(
         times, max(1, len(times) // 65536)))
+
+
+def _sampled_acceleration(timed, dof: int, qdd_max: np.ndarray, stretch: float, dt: float) -> float:
+    """The largest |qd_j(t_k+1) - qd_j(t_k)| / dt / qdd_max_j of TOPP-RA's timing stretched by `stretch`, at the
+    plan's samples t_k = k dt up to rest: what the plan's rates ask. Each averages the continuous acceleration over
+    a sample, whose narrow peaks (where q(s) bends sharply) would overstate it."""
+    duration = float(timed.duration) * stretch
+    t = np.append(np.arange(int(np.ceil(duration / dt))) * dt, duration)
+    rates = timed(t / stretch, 1)[:, :dof] / stretch
+    rates[-1] = 0.0
+    return float(np.max(np.abs(np.diff(rates, axis=0)) / dt / qdd_max))
+
+
+def acceleration_violations(robot, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                            qdd_max: np.ndarray) -> tuple[np.ndarray, tuple[Violation, ...]]:
+    """The plan's accelerations at its samples over each joint's limit, (N, dof): the larger of its rates' finite
+    differences and its joints' second differences (the exact solution's kinks). Returns them and one
+    `acceleration_limit` violation per joint past its limit (the MARGIN's slack spent): its worst, and from when."""
+    dt = t[1] - t[0]  # the control grid's uniform step
+    share = np.zeros_like(q)
+    share[1:] = np.abs(np.diff(qd, axis=0)) / dt / qdd_max
+    bends = np.abs(np.diff(q, 2, axis=0)) / dt**2 / qdd_max
+    share[1:-1] = np.maximum(share[1:-1], bends)
+    out = []
+    for j in np.flatnonzero(share.max(axis=0) > 1.0):
+        first, worst = int(np.argmax(share[:, j] > 1.0)), int(np.argmax(share[:, j]))
+        ratio, limit = float(share[worst, j]), float(qdd_max[j])
+        unit, scale = ("deg/s^2", np.rad2deg(1.0)) if robot.kinds[j] == REVOLUTE else ("mm/s^2", 1e3)
+        out.append(Violation("acceleration_limit", f"the plan asks {robot.joints[j]} for {ratio * limit * scale:.1f} "
+                             f"{unit} at t = {t[worst]:.3f} s, {ratio:.2f} times its acceleration limit "
+                             f"{limit * scale:.1f} {unit}, from t = {t[first]:.3f} s: the exact joints bend sharper "
+                             "there than the timing allows (a corner, a singularity)", float(t[first]), 0,
+                             {"joint": robot.joints[j], "ratio": ratio, "limit": limit, "t_worst": float(t[worst]),
+                              "source": "planner"}))
+    return share, tuple(out)
