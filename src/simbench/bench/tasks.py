@@ -4,7 +4,9 @@ drawn by its own generator (the suite's seed, the robot's name, i), so that more
 Each passes through the tool's point at an anchor q_a (its end, where the set bounds the reach), LENGTH times the
 reach on either side, the orientation at q_a held; the joints at its ends follow from q_a by damped Newton steps.
 `through`: q_a on the set; `near`: q_a off it, its gap between the NEAR percentiles of the robot's gap; `far`: gap
-at least the FAR percentile. A failed draw is drawn again, at most TRIES times.
+at least the FAR percentile. A failed draw is drawn again, at most TRIES times; so is one whose anchor, start, goal
+or a continuation step between puts two of the arm's geoms in contact as MuJoCo sees it (a self-collision), other
+than a pair already touching at the model's reference pose (qpos0 and a `home` keyframe: closed fingers).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ RADIUS = (0.15, 0.35)  # share of the reach: an arc's radius
 MARGIN = 0.1  # share of each joint range's width kept clear at either end
 TOLERANCE = (1e-7, 1e-6)  # m, rad: the continuation's error at the start
 STEPS = 60  # continuation steps from the anchor to either end
-TRIES = 50
+TRIES = 200  # draws a task may take: a self-collision refuses one too
 MIN_DURATION = 1.0  # s
 HOLD = 0.3  # s
 
@@ -86,11 +88,12 @@ def _attempt(robot: BenchRobot, index: int, kind: str, shape: str, rng: np.rando
     if robot.floor is not None and samples[:, 2].min() < robot.floor:
         return None
     u = before / (before + after)
-    start = _follow(arm, anchor, path, np.linspace(u, 0.0, STEPS + 1)[1:], rot, robot.hold)
+    start, back = _follow(arm, anchor, path, np.linspace(u, 0.0, STEPS + 1)[1:], rot, robot.hold)
     if start is None:
         return None
-    goal = _follow(arm, anchor, path, np.linspace(u, 1.0, STEPS + 1)[1:], rot, robot.hold) if u < 1 else anchor
-    if goal is None:
+    goal, ahead = (_follow(arm, anchor, path, np.linspace(u, 1.0, STEPS + 1)[1:], rot, robot.hold) if u < 1
+                   else (anchor, []))
+    if goal is None or not _clear(robot, np.array([anchor, *back, *ahead])):
         return None
     length = float(np.linalg.norm(np.diff(samples, axis=0), axis=1).sum())
     rot_start = rot if robot.hold else arm.tool_rotation(start[None])[0]
@@ -184,13 +187,16 @@ def _path(point: np.ndarray, before: float, after: float, shape: str, reach: flo
     return segment, Arc.from_plane(center, radius, normal, start, end, ref)
 
 
-def _follow(arm, q: np.ndarray, path, s: np.ndarray, rot: np.ndarray, hold: bool) -> np.ndarray | None:
+def _follow(arm, q: np.ndarray, path, s: np.ndarray, rot: np.ndarray,
+            hold: bool) -> tuple[np.ndarray | None, list[np.ndarray]]:
     """The joints at path(s[-1]), followed from q along path(s) by damped Newton steps (the orientation `rot` held
-    where `hold`); None where the last point is not reached within TOLERANCE or a joint leaves its range."""
+    where `hold`), and the joints at each step; None where the last point is not reached within TOLERANCE or a
+    joint leaves its range."""
     from simbench.planners.cartesian_path import orientation_error
 
     q = q.copy()
     rows = 6 if hold else 3
+    steps = []
     for k, point in enumerate(path.point(s)):
         last = k == len(s) - 1
         for _ in range(50 if last else 8):
@@ -205,5 +211,49 @@ def _follow(arm, q: np.ndarray, path, s: np.ndarray, rot: np.ndarray, hold: bool
             q = q + jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(rows), error)
         else:
             if last:
-                return None
-    return q if _inside(arm, q) else None
+                return None, steps
+        steps.append(q)
+    return (q if _inside(arm, q) else None), steps
+
+
+def _clear(robot: BenchRobot, q: np.ndarray) -> bool:
+    """Whether no configuration of q (N, dof) puts two of the arm's geoms in contact (mj_collision, which leaves
+    out parent-child pairs and those contype/conaffinity exclude) beyond the pairs touching at the reference pose."""
+    if "collider" not in robot.cache:
+        robot.cache["collider"] = _Collider(robot.model_arm())
+    return robot.cache["collider"].clear(q)
+
+
+class _Collider:
+    """The arm's scene compiled for contacts: its geoms (those of the trees its joints move) and the pairs of them
+    touching at qpos0 or a `home` keyframe."""
+
+    def __init__(self, arm):
+        import mujoco
+
+        self.model = model = arm.arm.spec().compile()
+        self.data = mujoco.MjData(model)
+        self.adr = [model.joint(name).qposadr[0] for name in arm.joints]
+        roots = [model.body_rootid[model.joint(name).bodyid[0]] for name in arm.joints]
+        self.ours = np.isin(model.body_rootid[model.geom_bodyid], roots)
+        homes = [model.key_qpos[k] for k in range(model.nkey) if model.key(k).name == "home"]
+        self.allowed = set().union(*(self.touching(qpos) for qpos in [model.qpos0, *homes]))
+
+    def clear(self, q: np.ndarray) -> bool:
+        for row in np.atleast_2d(q):
+            qpos = self.model.qpos0.copy()
+            qpos[self.adr] = row
+            if self.touching(qpos) - self.allowed:
+                return False
+        return True
+
+    def touching(self, qpos: np.ndarray) -> set[tuple[int, int]]:
+        """The pairs of the arm's geoms (ids, lower first) in contact at qpos."""
+        import mujoco
+
+        model, data = self.model, self.data
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        pairs = zip(data.contact.geom1[:data.ncon].tolist(), data.contact.geom2[:data.ncon].tolist())
+        return {(min(a, b), max(a, b)) for a, b in pairs if self.ours[a] and self.ours[b]}
