@@ -11,6 +11,7 @@ revisions and compare the files:
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import sys
@@ -40,17 +41,24 @@ def digest(path: Path) -> dict:
 
 
 def main(argv: list[str]) -> int:
-    if argv[:1] == ["--compare"]:
-        before, after = (json.loads(Path(p).read_text()) for p in argv[1:3])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.outputs_digest", description=__doc__.splitlines()[0])
+    parser.add_argument("out", nargs="?", type=Path, help="the digest file to write")
+    parser.add_argument("--compare", nargs=2, type=Path, metavar=("BEFORE", "AFTER"), help="compare two digests")
+    args = parser.parse_args(argv)
+    if args.compare:
+        before, after = (json.loads(p.read_text()) for p in args.compare)
+        arrays = lambda digest, name: digest.get(name, {}).get("arrays", {})  # noqa: E731
         differ = [f"{name}: {key}" for name in sorted(before.keys() | after.keys())
-                  for key in sorted(set(before.get(name, {}).get("arrays", {})) | set(after.get(name, {}).get("arrays", {})))
-                  if before.get(name, {}).get("arrays", {}).get(key) != after.get(name, {}).get("arrays", {}).get(key)]
+                  for key in sorted(set(arrays(before, name)) | set(arrays(after, name)))
+                  if arrays(before, name).get(key) != arrays(after, name).get(key)]
         differ += [f"{name}: status" for name in before if before[name]["status"] != after.get(name, {}).get("status")]
         print("\n".join(differ) or f"all {len(before)} scenarios equal, array by array")
         return 1 if differ else 0
+    if args.out is None:
+        parser.error("give the digest file to write, or --compare BEFORE AFTER")
     found = {str(p.relative_to(scenarios_dir()).with_suffix("")): digest(p)
              for p in sorted(scenarios_dir().glob("*/*.yaml"))}
-    Path(argv[0]).write_text(json.dumps(found, indent=1))
+    args.out.write_text(json.dumps(found, indent=1))
     return 0
 
 

@@ -118,3 +118,15 @@ def test_a_child_of_a_large_parent_reports_its_own_peak_memory():
     assert own < 100 * 2**20 < 400 * 2**20 <= resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     assert inherited >= 400 * 2**20  # why: getrusage carries the parent's high-water mark across exec
     del ballast
+
+
+def test_the_outputs_digest_answers_help_and_writes_no_file_named_after_it(tmp_path, capsys, monkeypatch):
+    """`--help` is an option, not the digest's file name (it ran every scenario and wrote a file '--help')."""
+    from benchmarks import outputs_digest
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as done:
+        outputs_digest.main(["--help"])
+    assert done.value.code == 0
+    assert "--compare BEFORE AFTER" in capsys.readouterr().out
+    assert not list(tmp_path.iterdir())
