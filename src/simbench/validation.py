@@ -319,10 +319,17 @@ def _union_message(first: ErrorDetails, same_field: list[ErrorDetails]) -> str:
     return msg
 
 
+_COUNT = re.compile(r"^\w+ should have at (least|most) (\d+) items? after validation, not (\d+)$")
+
+
 def _in_user_terms(msg: str, given: Any) -> str:
     """pydantic's message as what is expected and what was given (with a hint where YAML read a number as text)."""
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
     msg = re.sub(r"a valid dictionary or instance of \w+", "a mapping of its fields", msg)
+    counted = _COUNT.match(msg)  # a list or mapping of too few or too many items
+    if counted:
+        least, bound, found = counted.groups()
+        return f"expected at {least} {bound} item{'s' * (bound != '1')}, got {found}"
     if isinstance(given, (str, int, float, bool)) or given is None:
         msg += f", got {shown(given)}"
         if isinstance(given, str) and _reads_as_number(given) and len(given) < 40:
