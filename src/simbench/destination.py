@@ -81,9 +81,7 @@ def foreign(folder: Path) -> list[Path]:
     contents, and empty lock files, excepted: a sweep's worker killed mid-run leaves them in runs/)."""
     listed: dict[Path, set[str]] = {}
     out = []
-    for path in sorted(folder.rglob("*")):
-        if path.is_dir() and not path.is_symlink() or path.name == MARKER or _leftover(path, folder):
-            continue
+    for path in _files(folder):
         owners = [path.parent, *(p for p in path.parent.parents if folder in p.parents or p == folder)]
         if not any(path.relative_to(owner).as_posix() in listed.setdefault(owner, _listed(owner))
                    for owner in owners):
