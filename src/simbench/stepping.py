@@ -30,10 +30,11 @@ FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
 @dataclass(frozen=True)
 class Rows:
-    """A run's steps as recorded: each step's sensors (n + 1 rows, the last the final state's) and command, and
-    for each recorded row (row r: the state after step n_settle + r - 1) its joint positions, the constraints in
-    force from it on, and its full state where the row is `kept`. The steppers write up to CHUNK states into
-    `scratch` and then `keep` them, so that a strided run never holds every step's state."""
+    """A run's steps as recorded: each step's sensors (computed before integrating, so at the state the step started
+    from; n + 1 rows, the last the final state's) and command, and for each recorded row (row r: the state after
+    step n_settle + r - 1) its joint positions, the constraints in force from it on, and its full state where the
+    row is `kept`. The steppers write up to CHUNK states into `scratch` and then `keep` them, so that a strided run
+    never holds every step's state."""
 
     sensors: np.ndarray | WindowBuffer  # (n + 1, nsensordata)
     controls: np.ndarray | WindowBuffer  # (n, nu), or (0, nu) where the commands are not kept here
