@@ -24,6 +24,9 @@ class Switch:
 
 
 PER_SAMPLE = ("t", "s", "q_ref", "qd_ref", "tool_ref")  # JointTrajectory's arrays of a row a sample, but `series`
+# The series (N, 4) of the tool orientations a plan asks for, unit quaternions w x y z: where a plan has it, the
+# tool's orientation is a promise, held to analysis.orientation_tolerance (a derived arm's tool_orientation_error).
+ORIENTATION_REF = "tool_orientation_ref"
 
 
 @dataclass(frozen=True)

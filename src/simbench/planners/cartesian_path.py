@@ -49,7 +49,7 @@ from simbench.planners.path_retiming import ACCEL_TIME
 from simbench.robots.rank_loss import unit_jacobian
 from simbench.rotations import axis_rotation, matrix_to_quat
 from simbench.schema import JointVector, Orientation, Position, SimbenchModel, Units
-from simbench.trajectory import JointTrajectory, control_grid
+from simbench.trajectory import ORIENTATION_REF, JointTrajectory, control_grid
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
 NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
@@ -272,6 +272,7 @@ class CartesianPath(Planner):
             info["speed_exceeded_from"] = _first(t, (excess > 1).any(axis=1))
             info.update(extra)
         violations = self._off_path(t, off, sigma, scenario.analysis.path_tolerance, held)
+        violations += self._turned(t, turned, sigma, scenario.analysis.orientation_tolerance, held)
         if info["plan_goal_error"] > scenario.analysis.goal_tolerance:
             violations += (Violation("goal_missed", f"the plan's own tool ends {info['plan_goal_error'] * 1e3:.2f} mm "
                                      f"from the path's end (tolerance {scenario.analysis.goal_tolerance * 1e3:g} mm)",
@@ -281,6 +282,7 @@ class CartesianPath(Planner):
             violations += self._held(robot, t, q, held, off > scenario.analysis.path_tolerance,
                                      any(v.kind == "goal_missed" for v in violations))
         violations += fast
+        series[ORIENTATION_REF] = matrix_to_quat(rotations)  # what the tool's orientation is judged against
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
                                waypoints=segment_waypoints(path, s, q), info=info, violations=violations,
                                series=series)
@@ -352,6 +354,22 @@ class CartesianPath(Planner):
                                  float(t[k]), 0, {"joint": robot.joints[j], "bound": bound, "limit": float(limit),
                                                   "source": "planner"}))
         return tuple(out)
+
+    @staticmethod
+    def _turned(t: np.ndarray, turned: np.ndarray, sigma: np.ndarray, tolerance: float,
+                held: np.ndarray) -> tuple[Violation, ...]:
+        """The plan's own tool turned from the asked orientation beyond the orientation tolerance: from when, how
+        far, and why (a damped rule gives up orientation as it gives up the path)."""
+        if turned.max() <= tolerance:
+            return ()
+        k, worst = int(np.argmax(turned > tolerance)), int(np.argmax(turned))
+        why = (f"a joint held at its limit, least singular value {sigma[worst]:.3g}" if held[worst].any()
+               else f"damped near a rank loss (least singular value {sigma[worst]:.3g} there), out of reach, or "
+                    "more than the arm's joints can turn")
+        return (Violation("orientation_error", f"the plan's own tool turns up to {np.rad2deg(turned[worst]):.2f} deg "
+                          f"from the asked orientation (tolerance {np.rad2deg(tolerance):g} deg) from t = "
+                          f"{t[k]:.3f} s: {why}", float(t[k]), 0,
+                          {"worst": float(turned[worst]), "sigma_min": float(sigma[worst]), "source": "planner"}),)
 
     @staticmethod
     def _off_path(t: np.ndarray, off: np.ndarray, sigma: np.ndarray, tolerance: float,

@@ -6,7 +6,7 @@ start (the joint-space inertia's diagonal at qpos0 clipped into the ranges), w t
 `damping_ratio`. Any other actuator on a chain joint is replaced by such a servo, its force bound carried over (a
 motor's control range times its gear), as is the joint's own. The scene also gets a tool site where needed, a
 `framepos` sensor on it, gravity compensation on the bodies the chain moves (unless turned off), and where the
-model lacks them a floor, a light and a camera framing the reach.
+model lacks them a floor, a light and a camera framing the reach (robots.model_stage).
 """
 
 from __future__ import annotations
@@ -20,11 +20,10 @@ import numpy as np
 from simbench.computed_torque import pd_gains
 from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
 from simbench.robots.model_file import read_spec
+from simbench.robots.model_stage import stage, staging
 
 TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset
 TOOL_SENSOR = "simbench/tool_pos"
-CAMERA = "simbench/view"
-_FOVY = 45.0  # deg, the added camera's (MuJoCo's default)
 
 
 @dataclass(frozen=True)
@@ -105,11 +104,8 @@ def derive(path: str, options: ArmOptions) -> DerivedArm:
     limits = _force_limits(options, chain)
     inertia = _start_inertia(model, chain)
     drives = tuple(_drive(model, name, inertia[i], options, limits[i]) for i, name in enumerate(chain.joints))
-    added = [what for what, missing in (("floor", not (model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE).any()),
-                                        ("light", model.nlight == 0), ("camera", model.ncam == 0)) if missing]
-    camera = (f"'{CAMERA}' (added, framing the reach)" if model.ncam == 0
-              else f"'{model.camera(0).name}' (the model's, of {model.ncam})")
-    return DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=tuple(added),
+    added, camera = staging(model)
+    return DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=added,
                       outside=tuple(qpos0_outside(model, chain)), options=options, dropped=dropped)
 
 
@@ -205,32 +201,5 @@ def _scene(arm: DerivedArm) -> mujoco.MjSpec:
         moved = spec.body(model.body(model.jnt_bodyid[model.joint(arm.chain.joints[0]).id]).name)
         for body in [moved, *moved.find_all(mujoco.mjtObj.mjOBJ_BODY)]:
             body.gravcomp = 1.0
-    _stage(spec, model, arm)
+    stage(spec, model, arm)
     return spec
-
-
-def _stage(spec: mujoco.MjSpec, model: mujoco.MjModel, arm: DerivedArm) -> None:
-    """The floor, light and camera the model lacks (DerivedArm.added): the floor at the chain's root body, the
-    camera at 2.6 reaches (the distance at which MuJoCo's 45 degree view holds a sphere of one reach) from the first
-    joint, looking at it from the front right and above."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    first = model.joint(arm.chain.joints[0])
-    centre = data.xanchor[first.id].copy()
-    root = data.xpos[model.body_rootid[first.bodyid[0]]]
-    reach = arm.chain.reach
-    if "floor" in arm.added:
-        spec.worldbody.add_geom(name="simbench/floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
-                                pos=[centre[0], centre[1], root[2]], rgba=[0.35, 0.4, 0.45, 1], contype=0,
-                                conaffinity=0)
-    if "light" in arm.added:
-        spec.worldbody.add_light(name="simbench/light", pos=centre + [0, 0, 3 * reach], dir=[0, 0, -1],
-                                 type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
-    if "camera" in arm.added:
-        away = np.array([1.0, -1.0, 0.7]) / np.linalg.norm([1.0, -1.0, 0.7])
-        position = centre + away * reach / np.sin(np.deg2rad(_FOVY / 2))
-        right = np.cross(-away, [0.0, 0.0, 1.0])
-        right /= np.linalg.norm(right)
-        quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, np.column_stack([right, np.cross(away, right), away]).ravel())
-        spec.worldbody.add_camera(name=CAMERA, pos=position, quat=quat, fovy=_FOVY)
