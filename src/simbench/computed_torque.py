@@ -6,8 +6,11 @@ plan plus PD on the joint errors,
 For a serial arm tau_ff is `mj_inverse` at the planned q_ref, qd_ref, qdd_ref, computed once before the run. With
 an equality constraint in the scene (a closed chain, a gripped part) the plan fixes only the actuated joints, so
 tau_ff is the effective inertia (a diagonal approximation) times qdd_ref plus the bias force at the measured state.
-Default gains per joint: Kp = I w^2, Kd = 2 zeta I w (I the effective inertia at the plan's start, w `bandwidth`
-in rad/s, zeta `damping_ratio`). MuJoCo clamps the commands to the actuators' force ranges.
+Default gains per joint: Kp = I w^2, Kd = 2 zeta I w, zeta `damping_ratio`. For a serial arm they are designed for
+the plan (simbench.servo_design): I the largest inertia over the planned motion, w `bandwidth` (rad/s) capped where
+the explicit PD would not be stable at the timestep. With a constraint, I is the effective inertia at the plan's
+start and w `bandwidth`. MuJoCo clamps the commands to the
+actuators' force ranges.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from pydantic import Field
 from simbench.api import Array, Controller, ControlSettings, State
 from simbench.plant import Plant
 from simbench.schema import Gains
+from simbench.servo_design import design, pd_gains, plan_dynamics
 from simbench.switches import at_start
 from simbench.trajectory import JointTrajectory, gradient_rows
 
@@ -46,6 +50,7 @@ class ComputedTorque(Controller):
         self.config = settings or ComputedTorqueSettings(controller=self.name)
         self.kp = self.kd = np.zeros(0)
         self.tau_ff: Array | None = None  # (N, dof) for a serial arm; None where it is measured each step
+        self.design: list = []  # the joints' designed gains (servo_design.JointServo), for a serial arm
 
     def bind(self, plant: Plant, trajectory: JointTrajectory) -> None:
         self.plant = plant
@@ -54,6 +59,10 @@ class ComputedTorque(Controller):
         self.inertia = effective_inertia(plant, trajectory)
         c = self.config
         kp, kd = pd_gains(self.inertia, c.bandwidth, c.damping_ratio)
+        if not self.constrained:
+            self.design = design(plant, trajectory, plan_dynamics(plant, trajectory), np.ones(plant.robot.dof, bool),
+                                 None, c.bandwidth, c.damping_ratio, feedforward=True)
+            kp, kd = np.array([s.kp for s in self.design]), np.array([s.kv for s in self.design])
         self.kp = np.array(c.kp) if c.kp is not None else kp
         self.kd = np.array(c.kd) if c.kd is not None else kd
         self.qdd_ref = np.gradient(trajectory.qd_ref, float(plant.model.opt.timestep), axis=0)
@@ -103,15 +112,11 @@ class ComputedTorque(Controller):
         feedforward = ("effective inertia x planned acceleration + bias forces at the measured state "
                        "(constrained mechanism)" if self.constrained
                        else "inverse dynamics at the planned state")
+        designed = ({"design": [{"joint": s.joint, "bandwidth": s.bandwidth, "reason": s.reason,
+                                 "inertia": s.inertia} for s in self.design]}
+                    if self.design and self.config.kp is None and self.config.kd is None else {})
         return {"kp": self.kp.tolist(), "kd": self.kd.tolist(), "feedforward": feedforward,
-                "bandwidth": self.config.bandwidth, "damping_ratio": self.config.damping_ratio}
-
-
-def pd_gains(inertia: Array, bandwidth: float, damping_ratio: float) -> tuple[Array, Array]:
-    """The PD gains (Kp, Kd) that give joints of these inertias a second-order error response of natural frequency
-    `bandwidth` (rad/s) and damping ratio `damping_ratio`: Kp = I w^2, Kd = 2 zeta I w."""
-    inertia = np.asarray(inertia, float)
-    return inertia * bandwidth ** 2, 2 * damping_ratio * inertia * bandwidth
+                "bandwidth": self.config.bandwidth, "damping_ratio": self.config.damping_ratio, **designed}
 
 
 def effective_inertia(plant: Plant, trajectory: JointTrajectory) -> Array:

@@ -16,6 +16,7 @@ from simbench import budget, destination
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
 from simbench.errors import PhysicsError
+from simbench.fitting import fit
 from simbench.forked import forked
 from simbench.page import run_page, write_page
 from simbench.plot_formats import check_format
@@ -137,6 +138,7 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
                            controller.actuation)
     with watch.stage("plan"):
         traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
+        plant, traj, design = fit(scenario, plant, traj)
     a = scenario.analysis
     near, margin = Tolerance(a.near_angle, a.near_length), Tolerance(a.limit_angle, a.limit_length)
     # a strided run is analysed as it is simulated where the robot's summary comes a window at a time
@@ -147,7 +149,8 @@ def _evaluate(scenario: Scenario, progress: bool = False, watch: _Stopwatch | No
                        revise_in_place=True,  # the plan as planned is not needed after the run
                        analyser=analyser)
         traj = commanded(traj, rec) if analyser is None else replace(traj, feedback=None)  # the feedback is spent
-        control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains()}
+        control = {"controller": controller.name, "actuation": controller.actuation, **controller.gains(),
+                   **({"servo_design": list(design)} if design else {})}
         del controller  # with its commands (the servo's: N x nu): `rec` has what the outputs need of them
     if analyser is not None:
         watch.move(analyser.seconds, "simulate", "analyse")
@@ -166,6 +169,7 @@ def check_plan(scenario: Scenario) -> tuple[JointTrajectory, Verdict]:
     robot = scenario.robot_def
     plant = Plant.load(robot, scenario.sim.timestep)
     traj = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
+    traj = fit(scenario, plant, traj)[1]
     return traj, plan_verdict(robot, traj, plan_limit_events(robot, traj), scenario.expect)
 
 

@@ -93,9 +93,16 @@ def build_report(scenario, ev, wall_time: dict, outputs: dict, source: str | Non
         "waypoints": list(traj.waypoints),
         "wall_time": wall_time,
         "outputs": outputs,
-        **result.extra,
+        **_with_servos(result.extra, ev.control.get("servo_design")),
         "config": scenario.model_dump(mode="json"),
     })
+
+
+def _with_servos(extra: dict, design: list | None) -> dict:
+    """The robot's report entries, a derived arm's with the servos designed for the run (`derived_arm.servos`)."""
+    if not design or "derived_arm" not in extra:
+        return extra
+    return {**extra, "derived_arm": {**extra["derived_arm"], "servos": design}}
 
 
 def write_report(report: dict, path: Path) -> None:

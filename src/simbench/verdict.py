@@ -21,7 +21,7 @@ OK, LIMITS = "ok", "limits"
 FAILED, TRUNCATED = "failed", "truncated"  # a run cut short: its physics failed, or it was stopped
 # Violation kinds every robot can have (besides its own `breaking` events and its planner's).
 KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
-         "goal_missed", "singular_crossing", "clearance_margin", "acceleration_limit")
+         "goal_missed", "singular_crossing", "clearance_margin", "acceleration_limit", "force_limit", "contact")
 
 
 @dataclass(frozen=True)
@@ -111,10 +111,10 @@ def _actuator_saturation(name: str, events: list[Event], kind: str) -> Violation
                       f"{events[0].t_start:.3f} s", events, joint=name, duration=total)
 
 
-def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[Violation]:
-    """Tracking beyond the scenario's tolerances: off the path, off the orientation, short of the goal (the first
-    sample beyond from Analysis.rises, which saw every sample, a stride's too)."""
-    out, tracking = [], analysis.tracking
+def _tolerance_violations(analysis, traj: JointTrajectory, robot: Robot, tol) -> list[Violation]:
+    """Tracking beyond the scenario's tolerances: off the path, off the orientation (where the plan promises it),
+    short of the goal (the first sample beyond from Analysis.rises, which saw every sample, a stride's too)."""
+    out, tracking, t = [], analysis.tracking, traj.t
     if tracking["tool_max"] > tol.path_tolerance:
         k = analysis.rises["path_deviation"].first_beyond(tol.path_tolerance)
         out.append(_violation("off_path", f"the tool leaves the planned path by up to {tracking['tool_max'] * 1e3:.2f} "
@@ -124,7 +124,7 @@ def _tolerance_violations(analysis, t: np.ndarray, robot: Robot, tol) -> list[Vi
         out.append(_violation("goal_missed", f"the tool ends {tracking['tool_error_final'] * 1e3:.2f} mm from the "
                               f"plan's end (tolerance {tol.goal_tolerance * 1e3:g} mm)", [],
                               t=float(t[-1]), error=tracking["tool_error_final"]))
-    if "orientation_max" in tracking:
+    if "orientation_max" in tracking and robot.judges_orientation(traj):
         worst, final = tracking["orientation_max"], tracking["orientation_final"]
         if worst > tol.orientation_tolerance:
             k = analysis.rises[robot.orientation_error].first_beyond(tol.orientation_tolerance)
@@ -147,7 +147,8 @@ def _breaking_violations(robot: Robot, events: list[Event]) -> list[Violation]:
         if found:
             times = ", ".join(f"{e.t_start:.3f}" for e in found[:3]) + (", ..." if len(found) > 3 else "")
             count = "once" if len(found) == 1 else f"{len(found)} times"
-            out.append(_violation(kind, f"{kind.replace('_', ' ')} {count}, at t = {times} s", found))
+            what = f" ({found[0].detail['describe']}, the first)" if "describe" in found[0].detail else ""
+            out.append(_violation(kind, f"{kind.replace('_', ' ')} {count}, at t = {times} s{what}", found))
     return out
 
 
@@ -166,7 +167,7 @@ def run_verdict(robot: Robot, traj: JointTrajectory, analysis, tolerances, expec
     """The verdict on a simulated run: limits, breaking events and tracking against the scenario's tolerances."""
     found = (_limit_violations(robot, analysis.limit_events) + _planner_violations(traj)
              + _breaking_violations(robot, analysis.singularity_events)
-             + _tolerance_violations(analysis, traj.t, robot, tolerances))
+             + _tolerance_violations(analysis, traj, robot, tolerances))
     return _verdict(found, expect)
 
 

@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 from simbench.api.control import Commands, ControlSettings, Controller, PolicyFactory, State
 from simbench.api.metric import Figures, Metric
 from simbench.api.planner import Decoration, Planner
-from simbench.api.robot import PRISMATIC, REVOLUTE, Array, Robot, SingularSet, Summariser, Summary, Tolerance
+from simbench.api.robot import (PRISMATIC, REVOLUTE, Array, PlantFit, Robot, SingularSet, Summariser, Summary,
+                                Tolerance)
 from simbench.errors import RunError
 from simbench.events import Event, Violation
 from simbench.plant import Plant
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
     from simbench.scenario import Scenario
 
 __all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration", "Event",
-           "Figures", "JointTrajectory", "Metric", "Plant", "Planner", "PolicyFactory", "Recording", "Robot",
+           "Figures", "JointTrajectory", "Metric", "Plant", "PlantFit", "Planner", "PolicyFactory", "Recording", "Robot",
            "RunError", "SingularSet", "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
 
 

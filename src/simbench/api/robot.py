@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -13,8 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simbench.errors import RegistryError
-from simbench.events import Event
-from simbench.plant import compiled_scene
+from simbench.events import Event, Violation
+from simbench.plant import Plant, compiled_scene
 from simbench.recording import Recording
 from simbench.trajectory import JointTrajectory
 
@@ -78,6 +78,26 @@ class SingularSet:
     gaps: dict[str, Array]
     detail: Callable[[int], dict[str, Any]] | None = None
     closest: Callable[[int, int], int] | None = None
+
+
+@dataclass(frozen=True)
+class PlantFit:
+    """What a robot's plant needs for one plan before it is simulated (`Robot.plant_fit`).
+
+    Attributes:
+        kp: Position-servo stiffness designed for the plan, by joint name (SI); joints not named keep the scene's.
+        kv: Their damping, by joint name (SI).
+        design: report.json's entries of the design, one per joint designed (`derived_arm.servos`).
+        start_contacts: The contacts at the plan's first sample, in words: the start is refused (bad input).
+        violations: What the plan breaks that the plant shows before any physics (a contact along it, a force it
+            needs beyond a limit): the run cannot end `ok`.
+    """
+
+    kp: dict[str, float] = field(default_factory=dict)
+    kv: dict[str, float] = field(default_factory=dict)
+    design: tuple[dict, ...] = ()
+    start_contacts: tuple[str, ...] = ()
+    violations: tuple[Violation, ...] = ()
 
 
 class Summary(NamedTuple):
@@ -267,6 +287,33 @@ class Robot(ABC):
             As `singular_sets`'s.
         """
         return self.singular_sets(rec, tol)
+
+    def plant_fit(self, plant: Plant, trajectory: JointTrajectory, analysis: Any) -> PlantFit | None:
+        """What the plant needs for this plan, before it is simulated: servo gains designed for it, the contacts
+        at its start (refused) and along it, the forces it needs beyond the limits. An arm derived from its model
+        has it (simbench.servo_design, robots.contacts).
+
+        Args:
+            plant: The plant as loaded for the scenario.
+            trajectory: The plan.
+            analysis: The scenario's `analysis:` settings (its tolerances).
+
+        Returns:
+            The fit; None (the default): the scene runs as it is.
+        """
+        return None
+
+    def judges_orientation(self, trajectory: JointTrajectory) -> bool:
+        """Whether the tool's orientation error (`orientation_error`) is a promise of this plan, held to
+        `analysis.orientation_tolerance`; where not, it is reported only.
+
+        Args:
+            trajectory: The plan.
+
+        Returns:
+            True (the default): always, where the robot has the series.
+        """
+        return True
 
     def assemble(self, q: Array) -> dict[str, float]:
         """The passive joints' values that close the chain.

@@ -5,8 +5,9 @@ Each passes through the tool's point at an anchor q_a (its end, where the set bo
 reach on either side, the orientation at q_a held; the joints at its ends follow from q_a by damped Newton steps.
 `through`: q_a on the set; `near`: q_a off it, its gap between the NEAR percentiles of the robot's gap; `far`: gap
 at least the FAR percentile. A failed draw is drawn again, at most TRIES times; so is one whose anchor, start, goal
-or a continuation step between puts two of the arm's geoms in contact as MuJoCo sees it (a self-collision), other
-than a pair already touching at the model's reference pose (qpos0 and a `home` keyframe: closed fingers).
+or a continuation step between puts two of the arm's geoms, or one and the floor, in contact as the derived scene
+collides them (a pair already touching at the model's reference pose, qpos0 or a `home` keyframe, is excluded
+there: robots.model_scene).
 """
 
 from __future__ import annotations
@@ -217,43 +218,7 @@ def _follow(arm, q: np.ndarray, path, s: np.ndarray, rot: np.ndarray,
 
 
 def _clear(robot: BenchRobot, q: np.ndarray) -> bool:
-    """Whether no configuration of q (N, dof) puts two of the arm's geoms in contact (mj_collision, which leaves
-    out parent-child pairs and those contype/conaffinity exclude) beyond the pairs touching at the reference pose."""
-    if "collider" not in robot.cache:
-        robot.cache["collider"] = _Collider(robot.model_arm())
-    return robot.cache["collider"].clear(q)
-
-
-class _Collider:
-    """The arm's scene compiled for contacts: its geoms (those of the trees its joints move) and the pairs of them
-    touching at qpos0 or a `home` keyframe."""
-
-    def __init__(self, arm):
-        import mujoco
-
-        self.model = model = arm.arm.spec().compile()
-        self.data = mujoco.MjData(model)
-        self.adr = [model.joint(name).qposadr[0] for name in arm.joints]
-        roots = [model.body_rootid[model.joint(name).bodyid[0]] for name in arm.joints]
-        self.ours = np.isin(model.body_rootid[model.geom_bodyid], roots)
-        homes = [model.key_qpos[k] for k in range(model.nkey) if model.key(k).name == "home"]
-        self.allowed = set().union(*(self.touching(qpos) for qpos in [model.qpos0, *homes]))
-
-    def clear(self, q: np.ndarray) -> bool:
-        for row in np.atleast_2d(q):
-            qpos = self.model.qpos0.copy()
-            qpos[self.adr] = row
-            if self.touching(qpos) - self.allowed:
-                return False
-        return True
-
-    def touching(self, qpos: np.ndarray) -> set[tuple[int, int]]:
-        """The pairs of the arm's geoms (ids, lower first) in contact at qpos."""
-        import mujoco
-
-        model, data = self.model, self.data
-        data.qpos[:] = qpos
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
-        pairs = zip(data.contact.geom1[:data.ncon].tolist(), data.contact.geom2[:data.ncon].tolist())
-        return {(min(a, b), max(a, b)) for a, b in pairs if self.ours[a] and self.ours[b]}
+    """Whether no configuration of q (N, dof) puts two of the arm's geoms, or one and the floor, in contact, as its
+    derived scene collides them (robots.contacts: the pairs touching at the reference pose excluded)."""
+    contacts = robot.model_arm().contacts()
+    return not any(contacts.at(row) for row in np.atleast_2d(q))

@@ -46,6 +46,7 @@ from simbench import budget  # noqa: E402
 from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track, track_of  # noqa: E402
 from simbench.env.replay import Snapshot, restore, servo_policy, snapshot  # noqa: E402
 from simbench.errors import RunError  # noqa: E402
+from simbench.fitting import fit  # noqa: E402
 from simbench.plant import Actuation, Plant  # noqa: E402
 from simbench.resources import scenarios_dir  # noqa: E402
 from simbench.scenario import Scenario, as_scenario  # noqa: E402
@@ -105,6 +106,7 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
         from simbench.env.random_task import check
         check(scenario)
     plan = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
+    plant, plan, _ = fit(scenario, plant, plan)  # a derived arm's servos designed for the first plan
     _, data, _ = at_start(plant, plan)  # the environment's own model copy: switching edits it
     physics = Physics(wrapper.MjData(data))
     env = control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),

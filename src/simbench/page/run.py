@@ -25,7 +25,8 @@ _HEADLINE = (
 )
 _SHOWN = {"scenario", "robot", "planner", "control", "versions", "timestep", "duration", "hold", "settle",
           "time_law", "status", "violations", "expected", "failure", "samples", "tracking", "singularity_events",
-          "limit_events", "switch_events", "warnings", "plan", "waypoints", "wall_time", "outputs", "config", "metrics"}
+          "limit_events", "switch_events", "warnings", "plan", "waypoints", "wall_time", "outputs", "config", "metrics",
+          "record_every", "derived_arm"}
 # a robot's own figures (report.json beyond the common entries), in the units a reader thinks in
 _EXTRA_UNITS = {"closure_error_max": (_MM, "mm"), "rotor_error_max": (_DEG, "deg"),
                 "orientation_error_max": (_DEG, "deg"), "gripping_gamma": (_DEG, "deg")}
@@ -43,7 +44,7 @@ def run_page(out: Path, report: dict) -> str:
     plots = outputs.get("plots") or []
     if plots:
         body.append(f'<h2 id="plots">Plots</h2>\n{figure_grid(out, plots)}')
-    body += [_plan(report), _facts(report), _files(out, report),
+    body += [_derived(report), _plan(report), _facts(report), _files(out, report),
              config_section(report.get("config"), "As the run used it, after defaults and units: SI units, radians.")]
     return document(f"simbench: {title}", "".join(body))
 
@@ -159,6 +160,22 @@ def _video(out: Path, outputs: dict) -> str:
     return (f'{head}<figure><video controls preload="metadata" src="{href(video)}"{dims}>'
             f'<a href="{href(video)}">{esc(video)}</a></video>'
             f"<figcaption>{esc(video)}{esc(': ' + note if note else '')}</figcaption></figure>\n")
+
+
+def _derived(report: dict) -> str:
+    """An arm derived from its model: what simbench made of the file, and each servo designed for the run."""
+    arm = report.get("derived_arm")
+    if not isinstance(arm, dict):
+        return ""
+    servos = [s for s in arm.get("servos") or [] if isinstance(s, dict)]
+    facts = [[key.replace("_", " "), value if isinstance(value, (int, float, str)) else json.dumps(value)]
+             for key, value in arm.items() if key != "servos"]
+    parts = ['<h2 id="plant">The plant (report.json derived_arm)</h2>\n', table(["", "value"], facts, None, 4)]
+    if servos:
+        rows = [[s.get(key) for key in ("joint", "kp", "kv", "bandwidth", "reason", "inertia")] for s in servos]
+        parts.append(table(["joint", "kp", "kv", "bandwidth (rad/s)", "set by", "inertia"], rows,
+                           "The servos designed for this plan (SI: N m/rad, N m s/rad, kg m^2)", 4))
+    return "".join(parts)
 
 
 def _plan(report: dict) -> str:

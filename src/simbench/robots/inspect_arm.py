@@ -43,8 +43,10 @@ def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
         span = "continuous" if not np.isfinite(hi - lo) else f"[{lo:.6g}, {hi:.6g}]"
         speed = "" if qd_max is None else f", speed limit {qd_max[i]:.6g}/s"
         lines.append(f"  {name:12s} {kind:9s} {span}{speed}")
-    lines.append("actuators:")
-    lines += [f"  {d.joint:12s} {d.describe()}" for d in arm.drives]
+    lines.append("actuators (an added servo's gains are designed for each run's plan; here at the reference pose, "
+                 "at rest):")
+    rest = dict(zip(arm.chain.joints, rest_design(arm)))
+    lines += [f"  {d.joint:12s} {_drive(d, rest.get(d.joint))}" for d in arm.drives]
     limits = [d.force_limit for d in arm.drives]
     lines.append("force limits: " + (", ".join("none" if np.isinf(f) else f"{f:g}" for f in limits)
                                      if np.isfinite(limits).any() else "none (the model gives none)"))
@@ -53,7 +55,39 @@ def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
     lines.append(f"reach L: {chain.reach:.4g} m (the unit-consistent Jacobian's characteristic length)")
     lines.append(f"scene adds: {', '.join(arm.added) or 'nothing'}; gravity compensation "
                  f"{'on' if arm.options.gravity_compensation else 'off'}")
+    lines.append(f"integrator: {arm.integrator}")
+    lines.append(f"locked at their reference position: {', '.join(arm.locked) or 'no joint'}")
+    lines.append("excluded from collision (touching at the reference pose): "
+                 + ("; ".join(f"{a} and {b}" for a, b in arm.excluded) or "no pair"))
     lines += [f"dropped: {note}" for note in arm.dropped]
     lines.append("qpos0: inside the ranges" if not arm.outside else
                  f"qpos0: outside the range of {', '.join(arm.outside)} (a scenario's start must lie inside)")
     return "\n".join(lines)
+
+
+def _drive(drive, servo) -> str:
+    """A joint's actuator in words, with its servo designed at rest where simbench adds it."""
+    if servo is None:
+        return drive.describe()
+    bound = "no force limit" if np.isinf(drive.force_limit) else f"force limit {drive.force_limit:g}"
+    what = "no actuator: added" if drive.action == "added" else f"{drive.found} replaced by"
+    return f"{what} a position servo, {servo.describe()} ({bound})"
+
+
+def rest_design(arm: DerivedArm) -> list:
+    """The added servos as servo_design designs them for a plan that holds the reference pose (qpos0 clipped into
+    the ranges), under the default tolerances: what `inspect` shows before any plan."""
+    from simbench.plant import Plant
+    from simbench.robots.model_arm import ModelArm
+    from simbench.scenario import Thresholds
+    from simbench.servo_design import design, plan_dynamics
+    from simbench.trajectory import JointTrajectory
+
+    robot = ModelArm(arm, np.ones(len(arm.chain.joints)))
+    plant = Plant.load(robot)
+    q0 = plant.model.qpos0[plant.qpos_adr]
+    q = np.tile(np.clip(q0, arm.chain.lower, arm.chain.upper), (2, 1))
+    rest = JointTrajectory(t=np.array([0.0, plant.model.opt.timestep]), s=np.zeros(2), q_ref=q, qd_ref=np.zeros_like(q),
+                           tool_ref=robot.fk(q))
+    return design(plant, rest, plan_dynamics(plant, rest), arm.designed, Thresholds(), arm.options.bandwidth,
+                  arm.options.damping_ratio)

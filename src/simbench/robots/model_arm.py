@@ -10,6 +10,13 @@ mj_jacSite on a private MjData, the other joints at qpos0). Its singular measure
 with L the arm's reach (robots.chain.Chain.reach), so that a metre of tool motion at the end of the reach counts as
 a radian. The singular set `rank_loss` is where Ju loses rank; its gap, Ju's least singular value, grows near it as
 the joint angle away from it (rad), so it is near below the analysis' `near_angle` (robots.rank_loss).
+
+Its plant is fitted to each plan (plant_fit): the added servos designed for it (simbench.servo_design), a start
+whose geoms touch refused, contacts along the plan and forces past the limits reported before any physics. Its run
+adds the tool's orientation error, `tool_orientation_error` (rad): the angle from the orientation the plan asks
+(its `tool_orientation_ref`, else the tool's at q_ref) to the tool's at the recorded joints, a promise where the plan
+asks one; and a `contact` event (breaking) wherever the recorded joints put two of the arm's geoms, or one and the
+floor, in contact (robots.contacts).
 """
 
 from __future__ import annotations
@@ -20,10 +27,19 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simbench.api import Array, JointTrajectory, Recording, Robot, SingularSet, Summariser, Summary, Tolerance
+from simbench.api import (Array, JointTrajectory, PlantFit, Recording, Robot, SingularSet, Summariser, Summary,
+                          Tolerance, Violation)
+from simbench.events import Event
 from simbench.plant import register_scene
+from simbench.robots.contacts import Contacts, Touch, checked_rows
 from simbench.robots.model_scene import TOOL_SENSOR, TOOL_SITE, DerivedArm
 from simbench.robots.rank_loss import closest_sample, rank_loss_detail, unit_jacobian
+from simbench.rotations import quat_to_matrix, rotation_angle
+from simbench.servo_design import design, force_violations, plan_dynamics
+from simbench.trajectory import ORIENTATION_REF
+
+ORIENTATION_ERROR = "tool_orientation_error"
+CONTACT_STEP = {"revolute": np.deg2rad(0.5), "prismatic": 1e-3}  # joint motion between contact checks (rad, m)
 
 
 class ModelArm(Robot):
@@ -36,8 +52,9 @@ class ModelArm(Robot):
         super().__init__(name=arm.name, description=f"arm derived from its model {Path(arm.path).name}",
                          scene=self._register(), joints=chain.joints, kinds=chain.kinds, lower=chain.lower,
                          upper=chain.upper, qd_max=qd_max, tool_site=chain.tool.site or TOOL_SITE,
-                         tool_sensor=TOOL_SENSOR)
+                         tool_sensor=TOOL_SENSOR, orientation_error=ORIENTATION_ERROR, breaking=("contact",))
         self._kinematics: tuple[mujoco.MjModel, mujoco.MjData] | None = None
+        self._contacts: Contacts | None = None
 
     def _register(self) -> str:
         key = f"{self.arm.path}#simbench-{hashlib.sha1(repr(self.arm.options).encode()).hexdigest()[:12]}"
@@ -45,7 +62,7 @@ class ModelArm(Robot):
         return key
 
     def __getstate__(self) -> dict:
-        return {**self.__dict__, "_kinematics": None}  # MuJoCo's structures are made anew where it is unpickled
+        return {**self.__dict__, "_kinematics": None, "_contacts": None}  # MuJoCo's are made anew where unpickled
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
@@ -110,24 +127,97 @@ class ModelArm(Robot):
                             closest=lambda a, b: a + closest_sample(unit_jacobian(self.jacobian(rec.q[a:b + 1]),
                                                                                   self.reach)))]
 
+    def contacts(self) -> Contacts:
+        """Contact queries on the arm's scene (robots.contacts)."""
+        if self._contacts is None:
+            self._contacts = self.arm.contacts(self.arm.spec().compile())
+        return self._contacts
+
+    def contact_step(self) -> np.ndarray:
+        """How far each joint moves between contact checks along a plan or a run (rad or m)."""
+        return np.array([CONTACT_STEP[kind] for kind in self.kinds])
+
+    def plant_fit(self, plant, trajectory: JointTrajectory, analysis) -> PlantFit:
+        """The added servos designed for the plan (simbench.servo_design), the contacts at its start and along it
+        (robots.contacts), and the forces it needs past the limits."""
+        dynamics = plan_dynamics(plant, trajectory)
+        options = self.arm.options
+        servos = design(plant, trajectory, dynamics, self.arm.designed, analysis, options.bandwidth,
+                        options.damping_ratio)
+        contacts = self.contacts()
+        along = _first_touches(contacts.along(trajectory.q_ref, self.contact_step()))
+        violations = [Violation("contact", f"the plan puts {touch.describe()} at t = {trajectory.t[k]:.3f} s", 
+                                float(trajectory.t[k]), 0, {"bodies": list(touch.bodies), "depth": touch.depth,
+                                                            "source": "planner"})
+                      for k, touch in along if k > 0]
+        return PlantFit(kp={s.joint: s.kp for s in servos}, kv={s.joint: s.kv for s in servos},
+                        design=tuple(s.report() for s in servos),
+                        start_contacts=tuple(touch.describe() for touch in contacts.at(trajectory.q_ref[0])),
+                        violations=tuple(violations + force_violations(plant, trajectory, dynamics)))
+
+    def judges_orientation(self, trajectory: JointTrajectory) -> bool:
+        """The tool's orientation is a promise where the plan asks one (its tool_orientation_ref)."""
+        return ORIENTATION_REF in trajectory.series
+
     def summary(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> Summary:
         return self.summariser(traj).whole(traj, rec, series)
 
     def summariser(self, traj: JointTrajectory) -> Summariser:
-        return _Derived(self.arm)
+        return _Derived(self)
+
+
+def _first_touches(found: list[tuple[int, Touch]]) -> list[tuple[int, Touch]]:
+    """Each pair of bodies' first contact, the deepest of its row."""
+    first: dict[tuple[str, str], tuple[int, Touch]] = {}
+    for k, touch in found:
+        kept = first.get(touch.bodies)
+        if kept is None or (kept[0] == k and touch.depth > kept[1].depth):
+            first[touch.bodies] = (k, touch)
+    return sorted(first.values(), key=lambda item: item[0])
 
 
 class _Derived(Summariser):
-    """The report's entry `derived_arm`: the model, what was done to its actuators and what was dropped."""
+    """The tool's orientation error a window at a time, the contacts of the recorded joints (`contact` events: a
+    span a pair of bodies, its deepest overlap), and the report's entry `derived_arm`: the model, what was done to
+    its actuators, joints and contacts, and what was dropped."""
 
-    def __init__(self, arm: DerivedArm):
-        self.arm = arm
+    def __init__(self, arm: ModelArm):
+        self.robot, self.arm = arm, arm.arm
+        self.spans: dict[tuple[str, str], list] = {}  # each pair's spans: [t_start, t_end, deepest, touch]
+        self.open: set[tuple[str, str]] = set()  # the pairs in touch at the row checked last
 
     def add(self, traj: JointTrajectory, rec: Recording, series: dict[str, Array]) -> dict[str, Array]:
-        return {}
+        robot = self.robot
+        asked = (quat_to_matrix(traj.series[ORIENTATION_REF]) if ORIENTATION_REF in traj.series
+                 else robot.tool_rotation(traj.q_ref))
+        self._contacts(rec)
+        return {ORIENTATION_ERROR: rotation_angle(asked, robot.tool_rotation(rec.q))}
+
+    def _contacts(self, rec: Recording) -> None:
+        """The window's contacts at its checked rows (robots.contacts.checked_rows): a pair in touch at two checked
+        rows in a row is one span."""
+        contacts = self.robot.contacts()
+        for k in checked_rows(rec.q, self.robot.contact_step()):
+            t = float(rec.t[k])
+            touching = {touch.bodies: touch for touch in contacts.at(rec.q[k])}
+            for pair, touch in touching.items():
+                spans = self.spans.setdefault(pair, [])
+                if pair in self.open:
+                    spans[-1][1] = t
+                    if touch.depth > spans[-1][2]:
+                        spans[-1][2:] = [touch.depth, touch]
+                else:
+                    spans.append([t, t, touch.depth, touch])
+            self.open = set(touching)
 
     def finish(self):
         arm = self.arm
+        events = [Event(t0, t1, "contact", {"bodies": list(touch.bodies), "geoms": [touch.geom1, touch.geom2],
+                                            "depth": depth, "describe": touch.describe()})
+                  for spans in self.spans.values() for t0, t1, depth, touch in spans]
         return {"derived_arm": {"model": Path(arm.path).name, "tool": arm.chain.tool.describe(),
                                 "reach": arm.chain.reach, "actuator_notes": arm.notes(),
-                                "added": list(arm.added), "dropped": list(arm.dropped)}}, []
+                                "locked_joints": list(arm.locked),
+                                "excluded_pairs": [list(pair) for pair in arm.excluded],
+                                "integrator": arm.integrator,
+                                "added": list(arm.added), "dropped": list(arm.dropped)}}, events

@@ -1,26 +1,40 @@
-"""An arm's MJCF model made into a scene simbench runs (MjSpec), with what was done to it said.
+"""An arm's MJCF model made into a scene simbench runs (MjSpec), with what was done to it said: a plant a controls
+engineer would sign off, the model's kinematics and inertias untouched.
 
 Every chain joint (robots.chain) ends with exactly one position servo of unit gear: the model's own, kept; else one
-added with gains Kp = I w^2, Kd = 2 zeta I w (computed_torque.pd_gains), I the joint's effective inertia at the
-start (the joint-space inertia's diagonal at qpos0 clipped into the ranges), w the `bandwidth` (rad/s) and zeta the
-`damping_ratio`. Any other actuator on a chain joint is replaced by such a servo, its force bound carried over (a
-motor's control range times its gear), as is the joint's own. The scene also gets a tool site where needed, a
-`framepos` sensor on it, gravity compensation on the bodies the chain moves (unless turned off), and where the
-model lacks them a floor, a light and a camera framing the reach (robots.model_stage).
+added (no control range: the joint's own range holds the joint, and the servo's feed-forward may command past it).
+A run designs the added servos' gains for its plan (simbench.servo_design); the scene's own, used where no plan
+is given (`inspect`), are Kp = I w^2, Kd = 2 zeta I w, I the joint's inertia at the reference pose (qpos0 clipped
+into the ranges), w the `bandwidth` (DEFAULT_BANDWIDTH unless asked) and zeta the `damping_ratio`. Any other
+actuator on a chain joint is replaced by such a servo, its force bound carried over (a motor's control range times
+its gear), as is the joint's own.
+
+The scene also:
+  - locks every other joint of the arm's trees (a gripper's fingers, a joint `joints:` leaves out) at its
+    reference position: a joint nothing drives would swing free, its tiny inertia making the servos' coupled
+    dynamics stiff;
+  - integrates with `implicitfast` where the model leaves MuJoCo's default Euler, so that the servos' damping is
+    implicit and stable at any gain, as MuJoCo Menagerie's arms do;
+  - excludes from collision every pair of bodies whose geoms touch at the reference pose (qpos0 and a `home`
+    keyframe), as Menagerie's models exclude touching meshes: a URDF's base and shoulder meshes often overlap in
+    every configuration, a pair with the world body MuJoCo does not filter;
+  - gets a tool site where needed, a `framepos` sensor on it, gravity compensation on the bodies the chain moves
+    (unless turned off), and where the model lacks them a floor, sky, lights and camera (robots.model_stage).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from simbench.computed_torque import pd_gains
 from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
+from simbench.robots.contacts import Contacts
 from simbench.robots.model_file import read_spec
 from simbench.robots.model_stage import stage, staging
+from simbench.servo_design import DEFAULT_BANDWIDTH, pd_gains
 
 TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset
 TOOL_SENSOR = "simbench/tool_pos"
@@ -29,13 +43,13 @@ TOOL_SENSOR = "simbench/tool_pos"
 @dataclass(frozen=True)
 class ArmOptions:
     """A robot mapping's choices about its model (SI): the tool, the joints (None: the chain's), per-joint force
-    limits (None: the model's), the added servos' bandwidth (rad/s) and damping ratio, gravity compensation, and a
-    URDF's package folders (name, absolute path; robots.model_file)."""
+    limits (None: the model's), the added servos' least bandwidth (rad/s; None: DEFAULT_BANDWIDTH) and damping
+    ratio, gravity compensation, and a URDF's package folders (name, absolute path; robots.model_file)."""
 
     tool: Tool | None = None
     joints: tuple[str, ...] | None = None
     force_limits: tuple[float, ...] | None = None
-    bandwidth: float = 50.0
+    bandwidth: float | None = None
     damping_ratio: float = 1.0
     gravity_compensation: bool = True
     packages: tuple[tuple[str, str], ...] = ()
@@ -58,20 +72,18 @@ class Drive:
 
     def describe(self) -> str:
         bound = "no force limit" if np.isinf(self.force_limit) else f"force limit {self.force_limit:g}"
+        if self.keep is None:
+            servo = f"position servo ({bound}; its gains designed for each plan: simbench.servo_design)"
+            return f"no actuator: added a {servo}" if self.action == "added" else f"{self.found} replaced by a {servo}"
         servo = f"position servo kp {self.kp:.4g}, kv {self.kv:.4g} ({bound})"
-        if self.action == "kept":
-            return f"kept its {servo}"
-        if self.action == "added":
-            return f"no actuator: added a {servo}"
-        if self.keep is not None:
-            return f"kept its {servo}; removed its {self.found}"
-        return f"{self.found} replaced by a {servo}"
+        return f"kept its {servo}" if self.action == "kept" else f"kept its {servo}; removed its {self.found}"
 
 
 @dataclass(frozen=True)
 class DerivedArm:
-    """What simbench made of a model file: its chain, how each joint is driven, what the scene adds, and what was
-    dropped from the file (`dropped`: robots.model_file's notes)."""
+    """What simbench made of a model file: its chain, how each joint is driven, what the scene adds, what was
+    dropped from the file (`dropped`: robots.model_file's notes), the joints locked, the body pairs excluded from
+    collision (touching at the reference pose) and the integrator, in words (the module's docstring)."""
 
     path: str
     name: str
@@ -82,10 +94,22 @@ class DerivedArm:
     outside: tuple[str, ...]
     options: ArmOptions
     dropped: tuple[str, ...] = ()
+    locked: tuple[str, ...] = ()
+    excluded: tuple[tuple[str, str], ...] = ()
+    integrator: str = ""
 
     def notes(self) -> list[str]:
         """One line for each actuator the scene does not run as the model has it."""
         return [f"{d.joint}: {d.describe()}" for d in self.drives if d.action != "kept"]
+
+    @property
+    def designed(self) -> np.ndarray:
+        """Which chain joints' servos simbench added (their gains designed for each plan), (dof,) bool."""
+        return np.array([d.keep is None for d in self.drives])
+
+    def contacts(self, model: mujoco.MjModel) -> Contacts:
+        """Contact queries of the arm on its compiled scene `model`."""
+        return Contacts(model, self.chain.joints)
 
     def spec(self) -> mujoco.MjSpec:
         """The scene (built anew at each call: compiling changes a spec)."""
@@ -105,8 +129,30 @@ def derive(path: str, options: ArmOptions) -> DerivedArm:
     inertia = _start_inertia(model, chain)
     drives = tuple(_drive(model, name, inertia[i], options, limits[i]) for i, name in enumerate(chain.joints))
     added, camera = staging(model)
-    return DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=added,
-                      outside=tuple(qpos0_outside(model, chain)), options=options, dropped=dropped)
+    euler = model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    integrator = ("implicitfast (the model's: Euler, whose servo damping is explicit)" if euler
+                  else f"{mujoco.mjtIntegrator(model.opt.integrator).name[7:].lower()} (the model's)")
+    arm = DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=added,
+                     outside=tuple(qpos0_outside(model, chain)), options=options, dropped=dropped,
+                     locked=_locked(model, chain), integrator=integrator)
+    return replace(arm, excluded=_touching(arm))
+
+
+def _locked(model: mujoco.MjModel, chain: Chain) -> tuple[str, ...]:
+    """The joints of the arm's trees that the chain does not drive (module docstring), by name (or index)."""
+    roots = {model.body_rootid[model.joint(name).bodyid[0]] for name in chain.joints}
+    return tuple(model.joint(j).name or str(j) for j in range(model.njnt)
+                 if model.body_rootid[model.jnt_bodyid[j]] in roots and model.joint(j).name not in chain.joints)
+
+
+def _touching(arm: DerivedArm) -> tuple[tuple[str, str], ...]:
+    """The body pairs of the arm's own geoms touching at the reference pose: qpos0, and a `home` keyframe's (not
+    the floor's: an arm whose reference pose dips into the floor keeps colliding with it)."""
+    model = arm.spec().compile()
+    contacts = arm.contacts(model)
+    homes = [model.key_qpos[k] for k in range(model.nkey) if model.key(k).name == "home"]
+    return tuple(sorted({tuple(sorted(touch.bodies)) for qpos in [model.qpos0, *homes]
+                         for touch in contacts.at_qpos(qpos) if touch.within}))
 
 
 def _force_limits(options: ArmOptions, chain: Chain) -> tuple[float | None, ...]:
@@ -142,7 +188,7 @@ def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOption
         bound = limit if limit is not None else min(_bound(model, keep), _joint_bound(model, joint))
         return Drive(joint, "replaced" if removed else "kept", _names(model, removed), keep, removed,
                      float(model.actuator_gainprm[keep, 0]), float(-model.actuator_biasprm[keep, 2]), bound)
-    kp, kv = pd_gains(np.array([inertia]), options.bandwidth, options.damping_ratio)
+    kp, kv = pd_gains(np.array([inertia]), options.bandwidth or DEFAULT_BANDWIDTH, options.damping_ratio)
     bound = limit if limit is not None else min([_bound(model, i) for i in found] + [_joint_bound(model, joint)])
     return Drive(joint, "replaced" if found else "added", _names(model, tuple(found)), None, tuple(found),
                  float(kp[0]), float(kv[0]), bound)
@@ -175,7 +221,12 @@ def _scene(arm: DerivedArm) -> mujoco.MjSpec:
     """The scene of DerivedArm.spec."""
     spec = read_spec(arm.path, arm.options.packages)[0]
     model = spec.compile()
-    actuators = list(spec.actuators)
+    actuators = list(spec.actuators)  # by the file's indices (Drive.keep, Drive.removed), before any is deleted
+    _lock(spec, model, arm.locked)
+    if model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER:
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    for body1, body2 in arm.excluded:
+        spec.add_exclude(bodyname1=body1, bodyname2=body2)
     for i in sorted({i for drive in arm.drives for i in drive.removed}, reverse=True):
         spec.delete(actuators[i])
     taken = {a.name for a in spec.actuators}
@@ -186,8 +237,7 @@ def _scene(arm: DerivedArm) -> mujoco.MjSpec:
             actuator = spec.add_actuator(name=drive.joint if drive.joint not in taken else f"simbench/{drive.joint}",
                                          target=drive.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
             actuator.set_to_position(kp=drive.kp, kv=drive.kv)
-            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE if np.isfinite(hi - lo) else 0
-            actuator.ctrlrange = [lo, hi] if np.isfinite(hi - lo) else [0, 0]
+            actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         if np.isfinite(drive.force_limit):
             actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             actuator.forcerange = [-drive.force_limit, drive.force_limit]
@@ -203,3 +253,49 @@ def _scene(arm: DerivedArm) -> mujoco.MjSpec:
             body.gravcomp = 1.0
     stage(spec, model, arm)
     return spec
+
+
+def _lock(spec: mujoco.MjSpec, model: mujoco.MjModel, locked: tuple[str, ...]) -> None:
+    """Delete the locked joints (their bodies stay where the joints' reference positions put them), with what
+    refers to them: tendons over them, actuators on them or on those tendons, equalities and sensors of any of
+    these; and their entries in every keyframe, whose controls are dropped with the actuators the scene changes."""
+    joints = [model.joint(name).id if not name.isdigit() else int(name) for name in locked]
+    if not joints:
+        return
+    tendons = [t for t in range(model.ntendon) if any(
+        model.wrap_type[w] == mujoco.mjtWrap.mjWRAP_JOINT and model.wrap_objid[w] in joints
+        for w in range(model.tendon_adr[t], model.tendon_adr[t] + model.tendon_num[t]))]
+    on = {int(mujoco.mjtTrn.mjTRN_JOINT): joints, int(mujoco.mjtTrn.mjTRN_JOINTINPARENT): joints,
+          int(mujoco.mjtTrn.mjTRN_TENDON): tendons}
+    actuators = [a for a in range(model.nu) if model.actuator_trnid[a, 0] in on.get(int(model.actuator_trntype[a]), [])]
+    of = {int(mujoco.mjtEq.mjEQ_JOINT): joints, int(mujoco.mjtEq.mjEQ_TENDON): tendons}
+    equalities = [e for e in range(model.neq) if {model.eq_obj1id[e], model.eq_obj2id[e]} & set(of.get(int(model.eq_type[e]), []))]
+    kinds = {int(mujoco.mjtObj.mjOBJ_JOINT): joints, int(mujoco.mjtObj.mjOBJ_TENDON): tendons,
+             int(mujoco.mjtObj.mjOBJ_ACTUATOR): actuators}
+    sensors = [i for i in range(model.nsensor) if model.sensor_objid[i] in kinds.get(int(model.sensor_objtype[i]), [])]
+    _keyframes(spec, model, joints)
+    for elements, ids in ((spec.sensors, sensors), (spec.equalities, equalities), (spec.actuators, actuators),
+                          (spec.tendons, tendons), (spec.joints, joints)):
+        listed = list(elements)
+        for i in sorted(ids, reverse=True):
+            spec.delete(listed[i])
+
+
+def _keyframes(spec: mujoco.MjSpec, model: mujoco.MjModel, joints: list[int]) -> None:
+    """Every keyframe without the entries of `joints` (ids) and without controls."""
+    keep_qpos, keep_qvel = np.ones(model.nq, bool), np.ones(model.nv, bool)
+    for j in joints:
+        nq, nv = _sizes(model.jnt_type[j])
+        keep_qpos[model.jnt_qposadr[j]:model.jnt_qposadr[j] + nq] = False
+        keep_qvel[model.jnt_dofadr[j]:model.jnt_dofadr[j] + nv] = False
+    for key in spec.keys:
+        if len(key.qpos):
+            key.qpos = np.asarray(key.qpos)[keep_qpos]
+        if len(key.qvel):
+            key.qvel = np.asarray(key.qvel)[keep_qvel]
+        key.ctrl = []
+
+
+def _sizes(kind: int) -> tuple[int, int]:
+    """A joint type's (qpos, qvel) sizes."""
+    return {mujoco.mjtJoint.mjJNT_FREE: (7, 6), mujoco.mjtJoint.mjJNT_BALL: (4, 3)}.get(kind, (1, 1))

@@ -9,7 +9,7 @@ its MJCF or URDF model (robots.model_scene, robots.model_file), with no code of 
       packages: {ur_description: ../ur}        # optional: the folders of a URDF's package:// meshes
       joints: [joint_1, ...]                   # optional: the chain's joints to drive, in this order
       force_limits: [30, 30, 30, 10, 10, 10]   # optional: N m or N (SI), one per joint or one for all
-      servo: {bandwidth: 50, damping_ratio: 1} # optional: the added position servos' (rad/s)
+      servo: {bandwidth: 50, damping_ratio: 1} # optional: the added servos' least bandwidth (rad/s)
       gravity_compensation: true               # optional: gravcomp on the bodies the chain moves
 
 A robot file's relative paths are relative to its own folder, and it may state its own `units:` (default: the
@@ -51,10 +51,11 @@ class ToolBody(SimbenchModel):
 
 
 class ServoGains(SimbenchModel):
-    """How stiff the added position servos are: bandwidth w (rad/s) and damping ratio zeta (Kp = I w^2,
-    Kd = 2 zeta I w, I the joint's effective inertia at the start)."""
+    """The added position servos, designed for each plan (simbench.servo_design): their least bandwidth w (rad/s;
+    default servo_design.DEFAULT_BANDWIDTH, raised where the plan's torques ask, capped where the timestep or the
+    force limits do) and damping ratio zeta (Kp = I w^2, Kd = 2 zeta I w, I the plan's largest inertia)."""
 
-    bandwidth: Annotated[float, Field(gt=0, le=1e4)] = 50.0
+    bandwidth: Annotated[float, Field(gt=0, le=1e4)] | None = None
     damping_ratio: Annotated[float, Field(gt=0, le=10)] = 1.0
 
 
