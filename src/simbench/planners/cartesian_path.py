@@ -19,7 +19,12 @@ x = [v / L; w], L the reach):
   - a joint the rates would take past a limit within the sample is held to reach it exactly and the others solved
     again (Flacco, De Luca and Khatib, IEEE Trans. Robot. 31(3), 2015, Alg. 1, without its task scaling);
   - rates over a speed limit are all scaled down together (ours): the tool falls behind the time law, which the
-    closed loop makes up where it can.
+    closed loop makes up where it can;
+  - dls_adaptive damps only a passage (samples in a row where sigma_min < EPSILON) in which pinv's rates would pass
+    a speed limit, and crosses any other by pinv, on the path (ours). There the damping would lower no rate: along
+    the damped direction (singular value sigma, commanded twist x_n) the loop settles, within about
+    (sigma^2 + lambda^2) / (K sigma^2), at pinv's rate x_n / sigma, the tool x_n lambda^2 / (K sigma^2) behind
+    (Ju's units), off the path wherever that direction is not the path's.
 
 `task.method` picks the rate rule (path_methods, with references): the above is `dls_adaptive`; `dls` has a fixed
 lambda (`task.damping`); `pinv` is never scaled down (the verdict reports `velocity_limit`); `time_scaling` retimes
@@ -41,10 +46,10 @@ from pydantic import Field, ValidationInfo, field_validator
 from simbench import extras
 from simbench.analysis.path_distance import path_deviation
 from simbench.api import REVOLUTE, Planner, Violation
-from simbench.paths import Composite, Line
+from simbench.paths import Arc, Composite, Line
 from simbench.planners.decoupled_path import LineSpec, Segment, join_gap, segment_waypoints
 from simbench.planners.path_methods import (DAMPING, EPSILON, LAMBDA_MAX, METHODS, SCALED, Rule, damped_rates,
-                                            rule_of)
+                                            pinv_rates, rule_of)
 from simbench.planners.path_retiming import ACCEL_TIME
 from simbench.robots.rank_loss import unit_jacobian
 from simbench.rotations import axis_rotation, matrix_to_quat
@@ -56,6 +61,7 @@ NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the nu
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
 MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most
 _UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
+_ROUNDING = 1e-9  # m: a path point past the reach by this much at most is not refused
 _NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
 
 
@@ -152,6 +158,73 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
     return fixed, sigma, lam2, held
 
 
+def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
+            dt: float, rule: Rule) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """One control sample at the joints `now` (the module's qd_k): the path's twist plus K times the tool's error
+    from (point, rotation), by the rule within the ranges (_clamped_rates)."""
+    here = now[None]
+    error = np.concatenate([(point - robot.fk(here)[0]) / robot.reach,
+                            orientation_error(rotation, robot.tool_rotation(here)[0])])
+    ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)
+    return _clamped_rates(ju, twist + CLIK_SHARE / dt * error, now, q0, robot, dt, rule)
+
+
+def _crossing(robot, q0: np.ndarray, now: np.ndarray, points: np.ndarray, rotations: np.ndarray,
+              twists: np.ndarray, dt: float) -> tuple[tuple[np.ndarray, ...], np.ndarray] | None:
+    """pinv's samples from the joints `now` while sigma_min stays below EPSILON (a passage, to the path's end at
+    most): their q, qd, sigma_min and held joints, and the joints after; None where pinv's rates pass a speed
+    limit in it (the module's docstring: dls_adaptive's damping is for such a passage only)."""
+    rows = []
+    for point, rotation, twist in zip(points, rotations, twists):
+        rates, sigma, _, held = _sample(robot, q0, now, point, rotation, twist, dt, pinv_rates)
+        if sigma >= EPSILON:
+            break
+        if np.any(np.abs(rates) > _UNDER * robot.qd_max):
+            return None
+        rows.append((now, rates, sigma, held))
+        now = np.clip(now + dt * rates, robot.lower, robot.upper)
+    return tuple(np.array(column) for column in zip(*rows)), now
+
+
+def _beyond_reach(path: list[PathSegment], segments: list, robot) -> tuple[str, str] | None:
+    """The first segment with a point the arm certainly cannot reach: farther from the first joint's anchor than the
+    reach (robots.chain: the chain's length from that anchor, which no joint values exceed). A line's farthest point
+    is an end, its start the tool's or the last segment's end; an arc's is _farthest."""
+    anchor = _anchor(robot)
+    for i, (seg, segment) in enumerate(zip(path, segments)):
+        point = segment.point(np.ones(1))[0] if seg.line is not None else _farthest(segment, anchor)
+        far = float(np.linalg.norm(point - anchor))
+        if far > robot.reach + _ROUNDING:
+            field, what = ((f"task.path[{i}].line.end", "lies") if seg.line is not None
+                           else (f"task.path[{i}].arc", "has its farthest point"))
+            return field, (f"{what} {far * 1e3:.1f} mm from {robot.joints[0]}'s anchor, beyond the arm's reach of "
+                           f"{robot.reach * 1e3:.1f} mm (its chain's length from there): no joint values put the "
+                           "tool there")
+    return None
+
+
+def _anchor(robot) -> np.ndarray:
+    """The first joint's anchor (world, m), where robots.chain measures the reach from; a hinge's stays put."""
+    import mujoco
+
+    model = robot.arm.spec().compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    return data.xanchor[model.joint(robot.joints[0]).id].copy()
+
+
+def _farthest(arc: Arc, centre: np.ndarray) -> np.ndarray:
+    """The arc's point farthest from `centre`: an end, or the circle's farthest point (at the angle of the circle's
+    centre seen from `centre`, in the arc's plane) where the arc passes it."""
+    away = arc.center - centre
+    theta = np.arctan2(away @ np.cross(arc.normal, arc.ref), away @ arc.ref)
+    low, high = sorted((arc.theta0, arc.theta1))
+    theta += 2 * np.pi * np.ceil((low - theta) / (2 * np.pi))  # its first turn at or past the arc's lower end
+    s = [0.0, 1.0] + ([(theta - arc.theta0) / (arc.theta1 - arc.theta0)] if theta <= high else [])
+    points = arc.point(np.array(s))
+    return points[np.argmax(np.linalg.norm(points - centre, axis=1))]
+
+
 def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
     """1/2 (n x n_d + s x s_d + a x a_d) (..., 3) of rotations (..., 3, 3) (Siciliano et al. 2009, eq. 3.85):
     sin(angle) times the axis of the rotation from r to r_goal, world frame."""
@@ -191,7 +264,8 @@ class CartesianPath(Planner):
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
         """Only the first line may leave out its start, a given start (a line's, an arc's first point) must be the
-        tool's point at `start`, and the segments must join; the `mink` method needs mink installed (extras)."""
+        tool's point at `start`, the segments must join, and none may reach past the arm (_beyond_reach); the
+        `mink` method needs mink installed (extras)."""
         task = scenario.task
         refusal = extras.missing("mink", "the mink method") if task.method == "mink" else None
         if refusal:
@@ -212,7 +286,7 @@ class CartesianPath(Planner):
         if first is None and gap > START_TOL:
             return "task.path[0].arc", (f"starts {gap * 1e3:.3f} mm from the tool's point at task.start: the path "
                                         "must start there")
-        return join_gap(segments)
+        return join_gap(segments) or _beyond_reach(task.path, segments, robot)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
         """The task's method on the control grid (the module's docstring)."""
@@ -319,21 +393,31 @@ class CartesianPath(Planner):
     def _integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
                    dt: float, rule: Rule = damped_rates, scaled: bool = True) -> tuple[np.ndarray, ...]:
         """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of the module's integration from q0 by the
-        rate rule (path_methods), scaled down under the speed limits where `scaled`; and the held joints (N, dof)."""
-        n, gain = len(points), CLIK_SHARE / dt
-        q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.empty(n)
+        rate rule (path_methods), scaled down under the speed limits where `scaled`; and the held joints (N, dof).
+        dls_adaptive (`damped_rates`) crosses a passage below EPSILON by pinv where pinv keeps the speed limits
+        through it (_crossing), and damps it otherwise."""
+        n = len(points)
+        q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.zeros(n)
         scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
-        now = q0.copy()
-        for k in range(n):
-            here = now[None]
-            error = np.concatenate([(points[k] - robot.fk(here)[0]) / robot.reach,
-                                    orientation_error(rotations[k], robot.tool_rotation(here)[0])])
-            ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)
-            rates, sigma[k], lam2[k], held[k] = _clamped_rates(ju, twists[k] + gain * error, now, q0, robot, dt, rule)
+        now, k, damping = q0.copy(), 0, False
+        while k < n:
+            rates, sigma[k], lam2[k], held[k] = _sample(robot, q0, now, points[k], rotations[k], twists[k], dt, rule)
+            damping = damping and sigma[k] < EPSILON  # a damped passage lasts while sigma_min stays below EPSILON
+            if rule is damped_rates and sigma[k] < EPSILON and not damping:
+                crossed = _crossing(robot, q0, now, points[k:], rotations[k:], twists[k:], dt)
+                if crossed is not None:
+                    rows, now = crossed
+                    end = k + len(rows[0])
+                    q[k:end], qd[k:end], sigma[k:end], held[k:end] = rows
+                    lam2[k:end] = 0.0
+                    k = end
+                    continue
+                damping = True
             if scaled:
                 scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
             q[k], qd[k] = now, rates * scale[k]
             now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
+            k += 1
         return q, qd, sigma, lam2, scale, held
 
     @staticmethod
@@ -413,7 +497,8 @@ def _mink(robot, points: np.ndarray, rotations: np.ndarray, q0: np.ndarray, dt: 
 
 _DESCRIPTION = {
     "dls_adaptive": "damped least-squares resolved rates on the unit-consistent tool twist, closed loop "
-                    "(Siciliano et al. 2009, eqs. 3.59, 3.70; variable damping: Chiaverini et al. 1994)",
+                    "(Siciliano et al. 2009, eqs. 3.59, 3.70; variable damping: Chiaverini et al. 1994), damping "
+                    "only a passage near a rank loss that the pseudo-inverse would cross past a speed limit",
     "dls": "damped least-squares resolved rates with fixed damping on the unit-consistent tool twist, closed loop "
            "(Wampler 1986; Nakamura and Hanafusa 1986)",
     "pinv": "pseudo-inverse resolved rates on the unit-consistent tool twist, closed loop, joint speeds unbounded "

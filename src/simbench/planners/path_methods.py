@@ -9,7 +9,9 @@
                   lambda^2 diag(L^2, L^2, L^2, 1, 1, 1)) (damped least squares: Wampler, IEEE Trans. Syst. Man
                   Cybern. 16(1), 1986; Nakamura and Hanafusa, J. Dyn. Sys. Meas. Control 108, 1986, eq. 15);
     dls_adaptive  the same with lambda^2 = LAMBDA_MAX^2 (1 - (sigma_min / EPSILON)^2) below EPSILON, else 0
-                  (Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2), 1994, sec. III).
+                  (Chiaverini, Siciliano and Egeland, IEEE Trans. Control Syst. Technol. 2(2), 1994, sec. III),
+                  on a passage below EPSILON where pinv's rates would pass a speed limit: cartesian_path crosses
+                  any other passage by pinv (ours; its docstring says why).
 
 Each returns the rates, Ju's least singular value, the lambda^2 it used and the null-space projector I - Ju+ Ju
 (a redundant arm's posture term). cartesian_path scales the damped rules' rates down under the speed limits.
@@ -42,7 +44,7 @@ def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float]
 
 
 def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """dls_adaptive: the variable damping."""
+    """dls_adaptive: the variable damping (cartesian_path applies it where pinv would pass a speed limit)."""
     return _damped(ju, twist, lambda sigma: LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0)
 
 
