@@ -21,7 +21,8 @@ BOOTSTRAP = 2000
 LEVEL = 95.0
 _P95 = partial(np.percentile, q=95.0)
 COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_max",  # runs.csv's: scoring's
-           "speed_share_max": "speed_share_max", "slowdown": "slowdown", "closest_approach": "closest_approach"}
+           "orientation_max_deg": "orientation_max", "speed_share_max": "speed_share_max", "slowdown": "slowdown",
+           "closest_approach": "closest_approach"}
 
 
 def runs_table(rows: list[dict]) -> dict[str, list]:
@@ -32,6 +33,8 @@ def runs_table(rows: list[dict]) -> dict[str, list]:
     for name, shared in COLUMNS.items():
         table[name] = [s[shared] for s in scores]
     table["deviation_max_mm"] = [None if d is None else float(d) * 1e3 for d in table["deviation_max_mm"]]
+    table["orientation_max_deg"] = [None if a is None else math.degrees(a) for a in table["orientation_max_deg"]]
+    table["violations"] = [r["metrics"].get("violations.kinds") or "" for r in rows]
     table["wall_time"] = [r["wall_time"] for r in rows]
     return table
 
@@ -57,6 +60,7 @@ def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int
     row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _P95, rng))
     row["speed_share_max"] = _round(shares.max()) if len(shares) else None
     row.update(_estimate("slowdown_median", _finite(runs["slowdown"], index), np.median, rng))
+    row.update(_estimate("orientation_p95_deg", _finite(runs["orientation_max_deg"], index), _P95, rng))
     return row
 
 

@@ -127,6 +127,7 @@ SHIPPED: dict[str, Callable[[], BenchRobot]] = {"puma600": _puma, "spherical_arm
                                                  "planar3r": _planar3r, "jaco": _jaco, "panda": _panda}
 
 
-def custom(name: str, mapping: dict, speed: float = 0.1) -> BenchRobot:
-    """A suite file's own arm: rank_loss, its orientation held, lines and arcs, above a floor at z = 0."""
-    return BenchRobot(name, mapping, speed=speed, floor=0.05)
+def custom(name: str, mapping: dict, speed: float = 0.1, hold: bool = True) -> BenchRobot:
+    """A suite file's own arm: rank_loss, lines and arcs above a floor at z = 0, its orientation held where `hold`
+    (an arm of fewer than six joints cannot hold it along a line: its tasks ask the tool's point alone)."""
+    return BenchRobot(name, mapping, speed=speed, floor=0.05, hold=hold)

@@ -134,8 +134,8 @@ def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
 
     mapping = anchored(mapping, path.parent)
     try:
-        load_robot(mapping, source, Units())
+        arm = load_robot(mapping, source, Units())
     except ScenarioError as err:
         field = (err.field or "").removeprefix("robot").lstrip(".")
         raise ScenarioError(source, f"{where}.{field}" if field else where, err.message) from None
-    return custom(name, mapping, float(speed))
+    return custom(name, mapping, float(speed), hold=arm.dof >= 6)
