@@ -7,8 +7,9 @@ its six arm joints, the SO-100's gripper body with its five arm joints), nothing
 Beside each robot and method's ok share and deviation, every run's verdict split by cause: each kind of violation
 its run reports (report.json's, in runs.csv's `error`, `kind: message` each) counted once per run under one of
 CAUSES; runs that did not get a verdict are `bad_input` (a refused task: a start in contact, say) or `run_failed`.
-A run can count under more than one cause. Run it with another simbench on the path (PYTHONPATH) to measure that
-one: it reads nothing but runs.csv.
+A run can count under more than one cause. `from t = 0` counts the runs whose actuator saturates from the first
+sample: the set-up's doing (a start in contact, an unstable servo), not the method's. Run it with another simbench
+on the path (PYTHONPATH) to measure that one: it reads nothing but runs.csv.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ CAUSES = {"force": ("actuator_saturation", "force_limit"), "contact": ("contact"
           "speed": ("velocity_limit", "acceleration_limit"), "range": ("joint_limit",),
           "off path": ("off_path", "goal_missed", "reference_jump"), "orientation": ("orientation_error",)}
 _KIND = re.compile(r"(?:^|; )([a-z_]+): ")
+_FROM_START = re.compile(r"(?:^|; )actuator_saturation: [^;]* from t = 0\.000 s")
 
 
 def suite_text() -> str:
@@ -80,6 +82,7 @@ def table(runs: Path) -> list[dict]:
         group = [r for r in rows if (r["robot"], r["method"]) == key]
         status = Counter(r["status"] for r in group)
         cause = Counter(c for r in group if r["status"] == "limits" for c in causes(r))
+        cause["from t = 0"] = sum(bool(_FROM_START.search(r["error"] or "")) for r in group)
         deviation = [float(r["deviation_max_mm"]) for r in group if r["deviation_max_mm"] not in ("", None)]
         orientation = [float(r["orientation_max_deg"]) for r in group if r.get("orientation_max_deg") not in ("", None)]
         out.append({"robot": key[0], "method": key[1], "runs": len(group), "status": status, "causes": cause,
@@ -120,15 +123,15 @@ def markdown(r: dict) -> str:
              "acceleration_limit; range: joint_limit; off path: off_path, goal_missed, reference_jump; orientation: "
              "orientation_error). Deviation: the p95 of tracking.tool_max over the runs that were simulated, mm.",
              "",
-             "| robot | method | runs | ok | limits | bad input | failed | force | contact | speed | range | off path "
-             "| orientation | other | deviation p95 mm | orientation p95 deg |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| robot | method | runs | ok | limits | bad input | failed | force | (from t = 0) | contact | speed | "
+             "range | off path | orientation | other | deviation p95 mm | orientation p95 deg |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in r["rows"]:
         n, status, cause = row["runs"], row["status"], row["causes"]
         failed = status["run_failed"] + status["crashed"]
         cells = [row["robot"], row["method"], str(n), _share(status["ok"], n), _share(status["limits"], n),
                  _share(status["bad_input"], n), _share(failed, n),
-                 *(_share(cause[c], n) for c in (*CAUSES, "other")),
+                 *(_share(cause[c], n) for c in ("force", "from t = 0", *list(CAUSES)[1:], "other")),
                  "-" if row["deviation_p95_mm"] is None else f"{row['deviation_p95_mm']:.3g}",
                  "-" if row["orientation_p95_deg"] is None else f"{row['orientation_p95_deg']:.3g}"]
         head.append("| " + " | ".join(cells) + " |")

@@ -1,13 +1,14 @@
-"""Random straight lines on two arms nobody here modelled (issue 35): dm-control's Kinova Jaco (MJCF) and the UR5
-of example-robot-data (URDF), both read from their installs untouched, with the `cartesian_path` planner.
+"""Random straight lines on arms nobody here modelled (issues 35 and 44): dm-control's Kinova Jaco (MJCF) and the UR5,
+xArm7 and Z1 of example-robot-data (URDF), read from their installs untouched, with the `cartesian_path` planner.
 
 LINES lines per arm (seed SEED): each one's start configuration drawn uniformly within the joint ranges, 10 % of
 each range's width away from its ends (a continuous joint within -180..180 deg), its end point at a uniform random
 direction and a length of 50-300 mm from the start's tool point; a draw whose start or end point lies under
 FLOOR_CLEARANCE above the floor is drawn again. Duration: the length at SPEED (at least 1 s), hold 0.3 s. Each
 line is run by simbench.run without video into a temporary folder, and ends `ok`, `limits` (its violation kinds
-tallied), refused (ScenarioError: the planner's check or bad input, its reason tallied) or failed (the physics, or
-any other exception).
+tallied, and each run counted once under each cause its kinds fall under, bench_arms.CAUSES), refused
+(ScenarioError: the planner's check or bad input, its reason tallied: a start in contact, an end past the reach) or
+failed (the physics, or any other exception).
 
 Every `ok` run is checked from its timeseries.npz alone, independently of simbench's analysis (`promises_broken`):
 the tool's distance from the line (point to segment) within analysis.path_tolerance, its last point within
@@ -22,6 +23,7 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+import re  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
@@ -30,10 +32,14 @@ from pathlib import Path  # noqa: E402
 
 import dm_control  # noqa: E402
 import numpy as np  # noqa: E402
+import yaml  # noqa: E402
 
 import simbench  # noqa: E402
+from benchmarks.bench_arms import CAUSES  # noqa: E402
 from benchmarks.common import segment_distance  # noqa: E402
 from simbench.errors import ScenarioError  # noqa: E402
+from simbench.robots.robot_mapping import load_robot  # noqa: E402
+from simbench.schema import Units  # noqa: E402
 
 LINES = 100
 SEED = 35
@@ -51,15 +57,30 @@ def jaco_robot() -> str:
     return f"{{model: {model}, tool: {{site: wristsite}}, speed_limits: [36, 36, 36, 48, 48, 48]}}"
 
 
+def _urdf(path: str) -> Path:
+    """A URDF of the example-robot-data distribution, by its path under robots/."""
+    return Path(str(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data"))) / \
+        "robots" / path
+
+
 def ur5_robot() -> str:
-    """The UR5's robot mapping (millimetres), its URDF found in the example-robot-data distribution; the tool is the
-    tool0 flange on wrist_3_link, the speed limits the URDF's."""
-    package = distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
-    model = package / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"
-    return f"{{model: {model}, tool: {{body: wrist_3_link, offset: [0, 82.3, 0]}}}}"
+    """The UR5's robot mapping (millimetres); the tool is the tool0 flange on wrist_3_link, the speed limits the
+    URDF's."""
+    return f"{{model: {_urdf('ur_description/urdf/ur5_robot.urdf')}, tool: {{body: wrist_3_link, offset: [0, 82.3, 0]}}}}"
 
 
-ARMS = {"jaco": jaco_robot, "ur5": ur5_robot}
+def xarm7_robot() -> str:
+    """The xArm7's robot mapping: its URDF's one chain end (link_eef), the speed limits the URDF's."""
+    return f"{{model: {_urdf('xarm_description/urdf/xarm7.urdf')}}}"
+
+
+def z1_robot() -> str:
+    """The Z1's robot mapping: its six arm joints to the gripper's stator (the gripper's own joint left out)."""
+    return (f"{{model: {_urdf('z1_description/urdf/z1.urdf')}, tool: {{body: gripperStator}}, "
+            "joints: [joint1, joint2, joint3, joint4, joint5, joint6]}")
+
+
+ARMS = {"jaco": jaco_robot, "ur5": ur5_robot, "xarm7": xarm7_robot, "z1": z1_robot}
 
 
 def scenario_text(robot: str, start_deg, end_mm, duration: float) -> str:
@@ -132,6 +153,7 @@ def run_line(robot: str, line: dict, folder: Path) -> dict:
         return {**row, "outcome": "failed", "reason": f"{type(err).__name__}: {err}"}
     report = result.report
     row.update(outcome=report["status"], kinds=sorted({v["kind"] for v in report["violations"]}))
+    row["causes"] = sorted(cause for cause, members in CAUSES.items() if set(row["kinds"]) & set(members))
     if report["status"] == "ok":
         with np.load(folder / name / "timeseries.npz") as series:
             row["broken"], row["figures"] = promises_broken(series, scenario)
@@ -143,7 +165,7 @@ def run_arm(arm: str, n: int = LINES, seed: int = SEED) -> list[dict]:
     robot = ARMS[arm]()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        probe = load(scenario_text(robot, [180.0] * 6, [0.0, 0.0, 2000.0], 1.0), folder, "probe").robot_def
+        probe = load_robot(yaml.safe_load(robot), "bench_random_lines", Units(angle="deg", length="mm"))
         return [run_line(robot, line, folder) for line in draw_lines(probe, n, seed)]
 
 
@@ -156,6 +178,11 @@ def measure(n: int = LINES) -> dict:
     return out
 
 
+def _reason(text: str) -> str:
+    """A refusal's reason without what varies from line to line (its figures), so that alike ones tally together."""
+    return re.sub(r"-?\d+(\.\d+)?", "#", text)
+
+
 def _tally(counter: Counter) -> str:
     return ", ".join(f"{key} {count}" for key, count in counter.most_common()) or "none"
 
@@ -163,7 +190,7 @@ def _tally(counter: Counter) -> str:
 def markdown(r: dict) -> str:
     """The result as a BENCHMARKS.md section."""
     lines = [
-        "### Random lines on arms from their MJCF and URDF (issue 35)",
+        "### Random lines on arms from their MJCF and URDF (issues 35 and 44)",
         "",
         f"`python -m benchmarks.run bench_random_lines`: {LINES} random lines per arm (seed {SEED}), `cartesian_path`, "
         f"run by `simbench.run` without video: starts uniform within the joint ranges ({MARGIN:.0%} of each width "
@@ -173,23 +200,25 @@ def markdown(r: dict) -> str:
         "path_tolerance of the line (point to segment), its end within goal_tolerance, q_ref inside the ranges, "
         "its finite-difference speeds within the limits, no NaN.",
         "",
-        "| arm | ok | limits | refused | failed | violation kinds (runs) | ok runs breaking a promise | worst ok "
-        "deviation mm | worst ok goal error mm | highest ok speed / limit | s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| arm | ok | limits | refused | failed | limits by cause (runs) | violation kinds (runs) | ok runs breaking "
+        "a promise | worst ok deviation mm | worst ok goal error mm | highest ok speed / limit | s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     notes = []
     for arm, result in r.items():
         rows = result["rows"]
         outcomes = Counter(row["outcome"] for row in rows)
         kinds = Counter(kind for row in rows for kind in row.get("kinds", ()))
+        causes = Counter(cause for row in rows for cause in row.get("causes", ()))
         ok = [row for row in rows if row["outcome"] == "ok"]
         broken = [row for row in ok if row["broken"]]
         worst = {key: max((row["figures"][key] for row in ok), default=float("nan"))
                  for key in ("deviation", "goal_error", "speed_ratio")}
         lines.append(f"| {arm} | {outcomes['ok']} | {outcomes['limits']} | {outcomes['refused']} | "
-                     f"{outcomes['failed']} | {_tally(kinds)} | {len(broken)} | {worst['deviation'] * 1e3:.3f} | "
+                     f"{outcomes['failed']} | {_tally(causes)} | {_tally(kinds)} | {len(broken)} | "
+                     f"{worst['deviation'] * 1e3:.3f} | "
                      f"{worst['goal_error'] * 1e3:.3f} | {worst['speed_ratio']:.4f} | {result['seconds']:.0f} |")
-        reasons = Counter(row["reason"] for row in rows if row["outcome"] in ("refused", "failed"))
+        reasons = Counter(_reason(row["reason"]) for row in rows if row["outcome"] in ("refused", "failed"))
         if reasons:
             notes.append(f"- {arm}, refused or failed: " + "; ".join(f"{why} ({n})" for why, n in reasons.items()))
         notes += [f"- {arm}, line {row['index']} (seed {SEED}) ended `ok` but breaks {', '.join(row['broken'])}: "

@@ -54,7 +54,7 @@ def test_a_350_mm_line_ends_ok_with_the_tool_on_it(tmp_path, capsys):
 
 
 def test_a_line_past_the_reach_loses_the_twist_along_it(tmp_path, capsys):
-    end = TOOL0 + 400.0 * OUTWARD  # from 506 mm of joint_2 to 906: past the stretched arm
+    end = TOOL0 + 350.0 * OUTWARD  # from 506 mm of joint_2 to 856: past the stretched arm, inside its reach bound
     main(["run", str(_scenario(tmp_path, end, name="outward")), "--out", str(tmp_path / "out")])
     assert "goal_missed" in capsys.readouterr().out
     report = json.loads((tmp_path / "out" / "report.json").read_text())
@@ -181,20 +181,21 @@ def test_the_plan_keeps_every_joint_inside_mujocos_ranges_on_random_lines(tmp_pa
 
 
 def test_a_line_that_needs_a_joint_past_its_range_says_so(tmp_path, capsys):
-    """A line along which joint_2 falls to its lower limit: out of reach within the range (a bounded least-squares
-    inverse kinematics by MuJoCo's own kinematics cannot end on it; unbounded, it can, with joint_2 below), and the
-    run reports joint_2 held at its limit and the tool off the line, its plan inside the range."""
+    """A line along which joint_3 folds to its lower limit: out of reach within the range (a bounded least-squares
+    inverse kinematics by MuJoCo's own kinematics cannot end on it; unbounded, it can, with joint_3 below), and the
+    run reports joint_3 held at its limit and the tool off the line, its plan inside the range. The start is clear of
+    the floor and of the arm's own geoms (a search, once, among starts with joint_3 13 deg above its limit)."""
     least_squares = pytest.importorskip("scipy.optimize").least_squares
     model = mujoco.MjModel.from_xml_path(JACO)
     data = mujoco.MjData(model)
     lo, hi = _limited(model)
-    start = np.array([24.4, 60.0, 286.9, -28.9, 70.8, 177.6])  # joint_2 13 deg above its lower limit, 47 deg
+    start = np.array([303.9, 167.1, 32.0, 177.5, 222.4, 21.9])  # joint_3 13 deg above its lower limit, 19 deg
     data.qpos[:] = np.deg2rad(start)
     mujoco.mj_forward(model, data)
     jacp = np.zeros((3, model.nv))
     mujoco.mj_jacSite(model, data, jacp, None, model.site("wristsite").id)
     p0, r0 = data.site("wristsite").xpos.copy(), data.site("wristsite").xmat.reshape(3, 3).copy()
-    end = p0 - 0.15 * jacp[:, 1] / np.linalg.norm(jacp[:, 1])  # where joint_2 falls alone would take the tool
+    end = p0 - 0.15 * jacp[:, 2] / np.linalg.norm(jacp[:, 2])  # where joint_3 folding alone would take the tool
 
     def residual(q):
         data.qpos[:] = q
@@ -203,14 +204,14 @@ def test_a_line_that_needs_a_joint_past_its_range_says_so(tmp_path, capsys):
 
     free = least_squares(residual, np.deg2rad(start), xtol=1e-14, ftol=1e-14)
     bounded = least_squares(residual, np.deg2rad(start), bounds=(lo, hi), xtol=1e-14, ftol=1e-14)
-    assert np.linalg.norm(residual(free.x)) < 1e-6 and free.x[1] < lo[1]
-    assert np.linalg.norm(residual(bounded.x)[:3]) > 1e-3  # measured: 26.5 mm short; unbounded, joint_2 at 41.5 deg
+    assert np.linalg.norm(residual(free.x)) < 1e-6 and free.x[2] < lo[2]
+    assert np.linalg.norm(residual(bounded.x)[:3]) > 1e-3  # measured: 27.1 mm short
     path = _scenario(tmp_path, end * 1e3, start=start, duration=2.0, name="to_limit")
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "--no-video"]) == 3  # limits
     assert "status: limits" in capsys.readouterr().out
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     (held,) = [v for v in report["violations"] if v["kind"] == "joint_limit"]
-    assert held["joint"] == "joint_2" and held["bound"] == "lower" and held["source"] == "planner"
+    assert held["joint"] == "joint_3" and held["bound"] == "lower" and held["source"] == "planner"
     assert {"off_path", "goal_missed"} <= {v["kind"] for v in report["violations"]}
     q_ref = np.load(tmp_path / "out" / "timeseries.npz")["q_ref"]
-    assert (q_ref >= lo).all() and (q_ref <= hi).all() and q_ref[:, 1].min() == lo[1]
+    assert (q_ref >= lo).all() and (q_ref <= hi).all() and q_ref[:, 2].min() == lo[2]
