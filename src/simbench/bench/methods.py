@@ -36,25 +36,27 @@ class Method:
                 "timing": {"law": "quintic", "duration": round(task.duration, 6), "hold": HOLD}}
 
 
-def _path_task(task: Task, robot: BenchRobot) -> dict | None:
-    """cartesian_path's task: the start, the path and the orientation held."""
-    if not robot.hold:
-        return None
-    return {"start": list(task.start), "path": [task.segment], "orientation": "hold"}
+def _path_task(task: Task, robot: BenchRobot) -> dict:
+    """cartesian_path's task: the start, the path and the orientation held, or free where the robot's tasks ask
+    the tool's point alone (bench.tasks)."""
+    return {"start": list(task.start), "path": [task.segment], "orientation": "hold" if robot.hold else "free"}
 
 
-def _with(method: str) -> Callable[[Task, BenchRobot], dict | None]:
-    def fields(task: Task, robot: BenchRobot) -> dict | None:
-        own = _path_task(task, robot)
-        return None if own is None else {**own, "method": method}
+def _with(method: str) -> Callable[[Task, BenchRobot], dict]:
+    def fields(task: Task, robot: BenchRobot) -> dict:
+        return {**_path_task(task, robot), "method": method}
     return fields
 
 
 def _mink(task: Task, robot: BenchRobot) -> dict | None:
-    """mink's QP on cartesian_path's path (written directly), or following the paper planner's plan."""
+    """mink's QP following the paper planner's plan where the robot's tasks ask the point alone and it has a paper
+    planner; else on cartesian_path's path, written directly, the orientation's cost 0 where the point alone is
+    asked."""
     if robot.hold:
         return _path_task(task, robot)
-    return {"follow": robot.paper, "task": _paper(task, robot)}
+    if robot.paper:
+        return {"follow": robot.paper, "task": _paper(task, robot)}
+    return {**_path_task(task, robot), "orientation_cost": 0.0}
 
 
 def _paper(task: Task, robot: BenchRobot) -> dict | None:
@@ -70,19 +72,20 @@ def _paper(task: Task, robot: BenchRobot) -> dict | None:
     return None
 
 
-def _cartesian(robot: BenchRobot) -> str | None:
-    return "cartesian_path" if robot.hold else None
+def _every_robot(planner: str) -> Callable[[BenchRobot], str]:
+    """A method's planner that applies to every robot."""
+    return lambda robot: planner
 
 
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("dls_adaptive", "cartesian_path as it is: damped least squares, damping grown near a rank loss",
-           _path_task, _cartesian),
-    Method("pinv", "cartesian_path, the pseudo-inverse", _with("pinv"), _cartesian),
-    Method("dls", "cartesian_path, fixed damping", _with("dls"), _cartesian),
+           _path_task, _every_robot("cartesian_path")),
+    Method("pinv", "cartesian_path, the pseudo-inverse", _with("pinv"), _every_robot("cartesian_path")),
+    Method("dls", "cartesian_path, fixed damping", _with("dls"), _every_robot("cartesian_path")),
     Method("time_scaling", "cartesian_path, the path kept and retimed under the limits", _with("time_scaling"),
-           _cartesian),
-    Method("mink", "mink_baseline: mink's QP under the speed limits", _mink,
-           lambda robot: "mink_baseline" if robot.hold or robot.paper else None, needs="mink"),
+           _every_robot("cartesian_path")),
+    Method("mink", "mink_baseline: mink's QP under the speed limits", _mink, _every_robot("mink_baseline"),
+           needs="mink"),
     Method("paper", "the paper's own planner for the robot", _paper, lambda robot: robot.paper),
 )}
 

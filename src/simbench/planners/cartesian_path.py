@@ -2,9 +2,11 @@
 least-squares resolved rates with closed-loop correction (or another method).
 
 The task: the joints `start`, the path (decoupled_path's segments; the first line's start may be left out: the
-tool's point at `start`) on the scenario's time law, and the orientation: `hold`, or a goal reached by slerp along
-the path. At each control sample k, in the unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist
-x = [v / L; w], L the reach):
+tool's point at `start`) on the scenario's time law, and the orientation: `hold`, a goal reached by slerp along
+the path, or `free`: the tool's point alone follows the path, its orientation whatever the joints give (an arm of
+fewer than six joints cannot hold one along a line). At each control sample k, in the unit-consistent frame of
+robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v / L; w], L the reach; a free task keeps the position rows
+alone: Ju = Jp / L, x = v / L, e_k the point's error):
 
     qd_k = Ju# (x_d + K e_k) + (I - Ju+ Ju) K_N (q_start - q_k)        q_{k+1} = q_k + dt qd_k
 
@@ -14,8 +16,8 @@ x = [v / L; w], L the reach):
   - K = CLIK_SHARE / dt, closed-loop inverse kinematics (ibid., sec. 3.7, eq. 3.70): Euler's error does not
     accumulate, the gain under the 1 / dt at which explicit Euler would overshoot;
   - Ju# the method's damped least-squares inverse (ibid., eq. 3.59; path_methods);
-  - a redundant arm (more than 6 joints) is pulled back to its start posture at rate K_N = NULL_GAIN in the null
-    space of Ju (ibid., eq. 3.54; Ju+ the pseudo-inverse);
+  - a redundant arm (more joints than Ju has rows: 6, or 3 on a free task) is pulled back to its start posture at
+    rate K_N = NULL_GAIN in the null space of Ju (ibid., eq. 3.54; Ju+ the pseudo-inverse);
   - a joint the rates would take past a limit within the sample is held to reach it exactly and the others solved
     again (Flacco, De Luca and Khatib, IEEE Trans. Robot. 31(3), 2015, Alg. 1, without its task scaling);
   - rates over a speed limit are all scaled down together (ours): the tool falls behind the time law, which the
@@ -26,18 +28,25 @@ x = [v / L; w], L the reach):
     (sigma^2 + lambda^2) / (K sigma^2), at pinv's rate x_n / sigma, the tool x_n lambda^2 / (K sigma^2) behind
     (Ju's units), off the path wherever that direction is not the path's.
 
+sigma_min, which the plan damps on and reports (`sigma_min_least`), is that of the rows of Ju the task uses: on a
+free task, of Jp / L alone. The run's `rank_loss` analysis is the robot's, of [Jp / L; Jr], whatever the task.
+
 `task.method` picks the rate rule (path_methods, with references): the above is `dls_adaptive`; `dls` has a fixed
 lambda (`task.damping`); `pinv` is never scaled down (the verdict reports `velocity_limit`); `time_scaling` retimes
 pinv's joint path by TOPP-RA under the speed and acceleration limits (path_retiming; the report's `slowdown`;
 `acceleration_limit` where its exact joints still ask more, at a corner or a singularity); `mink` solves
-mink_baseline's QP per control step. Every method but mink holds the joint ranges as above.
+mink_baseline's QP per control step (its orientation cost 0 on a free task, as on an arm of fewer than six
+joints). Every method but mink holds the joint ranges as above.
 
 Where the plan's own tool leaves the path by more than the path tolerance, or ends farther than the goal tolerance
-from its end, the plan reports it (`off_path`, `goal_missed`), with each joint held at a limit there (`joint_limit`).
+from its end, the plan reports it (`off_path`, `goal_missed`), with each joint held at a limit there (`joint_limit`);
+where its tool turns from the asked orientation by more than the orientation tolerance, `orientation_error`. A free
+task asks none: its plan writes no `tool_orientation_ref`, so the run reports the tool's orientation unjudged.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Annotated, Literal
 
 import numpy as np
@@ -63,6 +72,7 @@ MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits a
 _UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
 _ROUNDING = 1e-9  # m: a path point past the reach by this much at most is not refused
 _NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
+POSITION_ROWS = 3  # a free task's rows of Ju and of the twist: the point's
 
 
 class OpenLine(LineSpec):
@@ -93,9 +103,10 @@ class Task(SimbenchModel):
 
     start: JointVector
     path: list[PathSegment] = Field(min_length=1)
-    orientation: Literal["hold"] | Orientation = Field(
-        "hold", description="'hold': the tool's orientation at start, all along; or the orientation it turns to "
-                            "by slerp along the path")
+    orientation: Literal["hold", "free"] | Orientation = Field(
+        "hold", description="'hold': the tool's orientation at start, all along; 'free': the tool's point alone "
+                            "follows the path, its orientation whatever the joints give; or the orientation it "
+                            "turns to by slerp along the path")
     method: Literal["dls_adaptive", "pinv", "dls", "time_scaling", "mink"] = Field(
         "dls_adaptive", description="how a singularity is met: " + ", ".join(METHODS) + " (path_methods)")
     damping: Annotated[float, Field(gt=0, le=1)] | None = Field(
@@ -137,7 +148,7 @@ class Task(SimbenchModel):
 def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
                    dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
     """One sample's rates by the rule with every joint kept inside its range (the module's docstring): the rates,
-    the whole arm's sigma_min and lambda^2, and which joints are held (dof,)."""
+    the whole arm's sigma_min (of Ju's rows, those the task uses) and lambda^2, and which joints are held (dof,)."""
     held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     sigma = lam2 = 0.0
     while not held.all():
@@ -145,7 +156,7 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
         rates, s, l2, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
         if not held.any():
             sigma, lam2 = s, l2
-        if len(now) > 6:
+        if len(now) > len(ju):  # redundant for the task's rows
             rates += null @ (NULL_GAIN * (q0 - now)[free])
         out = fixed.copy()
         out[free] = rates
@@ -161,12 +172,30 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
 def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
             dt: float, rule: Rule) -> tuple[np.ndarray, float, float, np.ndarray]:
     """One control sample at the joints `now` (the module's qd_k): the path's twist plus K times the tool's error
-    from (point, rotation), by the rule within the ranges (_clamped_rates)."""
-    here = now[None]
-    error = np.concatenate([(point - robot.fk(here)[0]) / robot.reach,
-                            orientation_error(rotation, robot.tool_rotation(here)[0])])
-    ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)
+    from (point, rotation), by the rule within the ranges (_clamped_rates), on the twist's rows of Ju."""
+    here, rows = now[None], len(twist)
+    error = _task_error(robot, point[None], rotation[None], here, rows)[0]
+    ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)[:rows]
     return _clamped_rates(ju, twist + CLIK_SHARE / dt * error, now, q0, robot, dt, rule)
+
+
+def _task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
+    """The unit-consistent error (N, rows) of the tool at q (N, dof) from points, rotations (the module's e_k): the
+    point's / L, then, on a task of 6 rows, the orientation's (eq. 3.85)."""
+    position = (points - robot.fk(q)) / robot.reach
+    if rows == POSITION_ROWS:
+        return position
+    return np.hstack([position, orientation_error(rotations, robot.tool_rotation(q))])
+
+
+def _rows(task: Task) -> int:
+    """The rows of Ju and of the twist the task asks for: the point's alone where its orientation is free."""
+    return POSITION_ROWS if task.orientation == "free" else 6
+
+
+def _sigma_min(robot, q: np.ndarray, rows: int) -> np.ndarray:
+    """The least singular value (N,) of the task's rows of Ju at q (N, dof)."""
+    return np.linalg.svd(unit_jacobian(robot.jacobian(q), robot.reach)[:, :rows], compute_uv=False)[:, -1]
 
 
 def _crossing(robot, q0: np.ndarray, now: np.ndarray, points: np.ndarray, rotations: np.ndarray,
@@ -297,8 +326,9 @@ class CartesianPath(Planner):
         q0 = np.array(task.start)
         tool0 = robot.fk(q0[None])[0]  # where a first line without a start begins
         path = Composite(tuple(seg.build_from(tool0) for seg in task.path))
-        r0 = robot.tool_rotation(q0[None])[0]
-        turn = _turn(r0, r0 if task.orientation == "hold" else task.orientation.matrix())
+        rows = _rows(task)
+        r0 = robot.tool_rotation(q0[None])[0]  # a free task's rotations stay r0: no row reads them, mink weighs 0
+        turn = _turn(r0, r0 if task.orientation in ("hold", "free") else task.orientation.matrix())
         angle = np.linalg.norm(turn)
         axis = turn / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
 
@@ -306,7 +336,8 @@ class CartesianPath(Planner):
             return path.point(s), axis_rotation(np.tile(axis, (len(s), 1)), s * angle) @ r0
 
         def twist(s: np.ndarray, ds: np.ndarray) -> np.ndarray:
-            return np.hstack([path.tangent(s) / robot.reach, turn[None] * np.ones((len(s), 1))]) * ds[:, None]
+            x = np.hstack([path.tangent(s) / robot.reach, turn[None] * np.ones((len(s), 1))])
+            return x[:, :rows] * ds[:, None]
 
         points, rotations = pose(s)
         extra: dict = {}
@@ -318,8 +349,8 @@ class CartesianPath(Planner):
             points, rotations = pose(s)
             lam2, scale = np.zeros(len(t)), np.ones(len(t))
         elif task.method == "mink":
-            q, qd, extra = _mink(robot, points, rotations, q0, dt)
-            sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q), robot.reach), compute_uv=False)[:, -1]
+            q, qd, extra = _mink(robot, points, rotations, q0, dt, rows)
+            sigma = _sigma_min(robot, q, rows)
             lam2, scale, held = np.zeros(len(t)), np.ones(len(t)), np.zeros(q.shape, bool)
         else:
             q, qd, sigma, lam2, scale, held = self._integrate(robot, q0, points, rotations, twist(s, ds), dt,
@@ -329,15 +360,15 @@ class CartesianPath(Planner):
                 series = {"plan_damping": np.sqrt(lam2), "plan_speed_scale": scale}
         tool = robot.fk(q)
         off = path_deviation(points, tool)
-        turned = _angles(rotations, robot.tool_rotation(q))
+        turned = _angles(rotations, robot.tool_rotation(q)) if rows > POSITION_ROWS else None  # None: free
         info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
-                              "null_gain": NULL_GAIN if robot.dof > 6 else None, "reach": robot.reach},
+                              "null_gain": NULL_GAIN if robot.dof > rows else None, "reach": robot.reach},
                 "segments": [("line" if seg.line else "arc") for seg in task.path], "path_length": path.length,
                 "sigma_min_least": float(sigma.min()), "damped_from": _first(t, lam2 > 0),
                 "speed_scaled_from": _first(t, scale < 1), "plan_path_deviation_max": float(off.max()),
                 "plan_goal_error": float(np.linalg.norm(tool[-1] - points[-1])),
-                "plan_orientation_error_max": float(turned.max())}
+                "plan_orientation_error_max": None if turned is None else float(turned.max())}
         if task.method != "dls_adaptive":
             info["path_method"] = task.method
             info["damping"] = float(np.sqrt(lam2.max())) if task.method == "dls" else None
@@ -356,7 +387,8 @@ class CartesianPath(Planner):
             violations += self._held(robot, t, q, held, off > scenario.analysis.path_tolerance,
                                      any(v.kind == "goal_missed" for v in violations))
         violations += fast
-        series[ORIENTATION_REF] = matrix_to_quat(rotations)  # what the tool's orientation is judged against
+        if turned is not None:  # what the tool's orientation is judged against; a free task asks none
+            series[ORIENTATION_REF] = matrix_to_quat(rotations)
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
                                waypoints=segment_waypoints(path, s, q), info=info, violations=violations,
                                series=series)
@@ -371,17 +403,19 @@ class CartesianPath(Planner):
         n = max(int(round(law.duration / dt)), 2) + 1
         grid = np.linspace(0.0, 1.0, n)
         step = law.duration / (n - 1)
+        rows = _rows(task)
+        error_of = partial(_task_error, robot, rows=rows)  # exact_ik's: the pose's, or a free task's point's
         points, rotations = pose(grid)
         q, _, _, _, _, held = cls._integrate(robot, q0, points, rotations, twist(grid, np.full(n, 1 / law.duration)),
                                              step, rule_of("pinv", None), False)
-        q, _ = exact_ik(robot, q, points, rotations, _pose_error(robot))
+        q, _ = exact_ik(robot, q, points, rotations, error_of)
         qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
                    else robot.qd_max / ACCEL_TIME)
         t, s, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
         points, rotations = pose(s)
         q_plan, residual = exact_ik(robot, np.clip(q_spline, robot.lower, robot.upper), points, rotations,
-                                    _pose_error(robot))  # the spline may overshoot a limit its samples hold
-        sigma = np.linalg.svd(unit_jacobian(robot.jacobian(q_plan), robot.reach), compute_uv=False)[:, -1]
+                                    error_of)  # the spline may overshoot a limit its samples hold
+        sigma = _sigma_min(robot, q_plan, rows)
         at = np.clip(np.searchsorted(grid, s), 0, n - 1)
         share, fast = acceleration_violations(robot, t, q_plan, qd, qdd_max)
         extra = {"slowdown": duration / law.duration, "duration_asked": law.duration, "duration_planned": duration,
@@ -440,11 +474,12 @@ class CartesianPath(Planner):
         return tuple(out)
 
     @staticmethod
-    def _turned(t: np.ndarray, turned: np.ndarray, sigma: np.ndarray, tolerance: float,
+    def _turned(t: np.ndarray, turned: np.ndarray | None, sigma: np.ndarray, tolerance: float,
                 held: np.ndarray) -> tuple[Violation, ...]:
         """The plan's own tool turned from the asked orientation beyond the orientation tolerance: from when, how
-        far, and why (a damped rule gives up orientation as it gives up the path)."""
-        if turned.max() <= tolerance:
+        far, and why (a damped rule gives up orientation as it gives up the path). None where a free task asks
+        none."""
+        if turned is None or turned.max() <= tolerance:
             return ()
         k, worst = int(np.argmax(turned > tolerance)), int(np.argmax(turned))
         why = (f"a joint held at its limit, least singular value {sigma[worst]:.3g}" if held[worst].any()
@@ -469,17 +504,10 @@ class CartesianPath(Planner):
                           {"worst": float(off[worst]), "sigma_min": float(sigma[worst])}),)
 
 
-def _pose_error(robot):
-    """The unit-consistent pose error (N, 6) of the tool at q (N, dof) from points, rotations."""
-    def error_of(points: np.ndarray, rotations: np.ndarray, q: np.ndarray) -> np.ndarray:
-        rotation = orientation_error(rotations, robot.tool_rotation(q))
-        return np.hstack([(points - robot.fk(q)) / robot.reach, rotation])
-    return error_of
-
-
-def _mink(robot, points: np.ndarray, rotations: np.ndarray, q0: np.ndarray, dt: float) -> tuple:
-    """mink: mink_baseline's QP per control step (its defaults) towards the path's next pose, from q0. Returns q,
-    qd and the QP's failures."""
+def _mink(robot, points: np.ndarray, rotations: np.ndarray, q0: np.ndarray, dt: float, rows: int) -> tuple:
+    """mink: mink_baseline's QP per control step (its defaults) towards the path's next pose, from q0, the
+    orientation's cost 0 where the task's rows are the point's alone (free) or the arm has fewer than 6 joints.
+    Returns q, qd and the QP's failures."""
     import mujoco
 
     from simbench.planners import mink_baseline as mb
@@ -489,7 +517,7 @@ def _mink(robot, points: np.ndarray, rotations: np.ndarray, q0: np.ndarray, dt: 
     for pose, rotation in zip(poses, rotations):
         mujoco.mju_mat2Quat(pose[:4], rotation.reshape(-1))
     defaults = {name: mb.Task.model_fields[name].default for name in ("damping", "posture_cost", "solver")}
-    costs = (mb.Task.model_fields["position_cost"].default, 1.0 if robot.dof >= 6 else 0.0)
+    costs = (mb.Task.model_fields["position_cost"].default, 1.0 if robot.dof >= 6 and rows > POSITION_ROWS else 0.0)
     q, qd, met = mb.solve(mb.scene_model(robot), robot, dt, poses, q0, defaults["damping"], costs,
                           defaults["posture_cost"], defaults["solver"])
     return q, qd, {"qp_failures": len(met["failed"]), "mink": {**defaults, "costs": list(costs)}}

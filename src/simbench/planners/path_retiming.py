@@ -2,7 +2,8 @@
 acceleration limits need it.
 
   1. The joint path q(s): pinv's closed-loop resolved rates (path_methods) on a uniform grid of s (one step per
-     control sample), each sample then solved exactly for the path's pose (`exact_ik`).
+     control sample), each sample then solved exactly for the path's pose (`exact_ik`; for its point alone where
+     the task's orientation is free: the position rows of Ju and of the error).
   2. The timing s(t): time-optimal path parameterisation by reachability analysis (TOPP-RA: Pham and Pham, IEEE
      Trans. Robot. 34(3), 2018; the `toppra` library) of the cubic spline through q(s), under
      |qd_j| <= MARGIN qd_max_j and |qdd_j| <= MARGIN qdd_max_j, and no faster along the path than the asked time
@@ -41,9 +42,9 @@ IK_STEP = 0.1  # rad (or m): the most a Newton step, and the whole solution, may
 def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
              error_of) -> tuple[np.ndarray, np.ndarray]:
     """Joints (N, dof) at which the tool's pose is points, rotations: Newton's q <- q + Ju+ e from q, e =
-    error_of(points, rotations, q) (N, 6), steps of at most IK_STEP, inside the joint ranges. A sample that does not
-    converge to IK_ACCEPT within IK_STEP of its start (another branch, near a singularity) keeps it. Returns the
-    joints and the last |e| (N,)."""
+    error_of(points, rotations, q) (N, rows), Ju's first `rows` rows (6: the pose; 3: the point alone, a free
+    task's), steps of at most IK_STEP, inside the joint ranges. A sample that does not converge to IK_ACCEPT within
+    IK_STEP of its start (another branch, near a singularity) keeps it. Returns the joints and the last |e| (N,)."""
     start = np.array(q, float)
     q = start.copy()
     for _ in range(IK_ITERATIONS):
@@ -51,7 +52,7 @@ def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
         size = np.linalg.norm(error, axis=1)
         if size.max() <= IK_TOL:
             break
-        ju = unit_jacobian(robot.jacobian(q), robot.reach)
+        ju = unit_jacobian(robot.jacobian(q), robot.reach)[:, :error.shape[1]]
         step = np.array([pinv_rates(j, e)[0] for j, e in zip(ju, error)])
         longest = np.abs(step).max(axis=1, keepdims=True)
         q = np.clip(q + step * np.minimum(1.0, IK_STEP / np.maximum(longest, 1e-300)), robot.lower, robot.upper)
