@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from simbench.cli import main
-from simbench.planners.cartesian_path import CLIK_SHARE
+from simbench.planners.resolved_rates import CLIK_SHARE
 from simbench.planners.path_methods import EPSILON
 from simbench.scenario import load_scenario
 

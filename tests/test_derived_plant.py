@@ -39,6 +39,7 @@ ARMS = {
     "jaco": (JACO, {"site": "wristsite"}, None, [-0.1008, 1.3759, 1.1908, 0.2729, -0.4936, 1.2828]),
 }
 JACO_SPEEDS = [0.6, 0.6, 0.6, 0.8, 0.8, 0.8]  # rad/s: the Jaco's MJCF states none
+REASONS = ("inertia", "accuracy", "timestep", "force limit")
 
 
 def raw_model(path: Path) -> mujoco.MjModel:
@@ -124,6 +125,10 @@ def test_a_300_mm_line_at_mid_reach_is_tracked_within_half_a_millimetre_and_a_fi
     assert np.abs(ts["q"][settle] - ts["q_ref"][settle]).max() < 1e-4 and np.abs(ts["qd"][settle]).max() < 0.01
     report = result.report
     np.testing.assert_allclose(report["tracking"]["orientation_max"], turned.max(), atol=2e-4)  # rad, the plan's
+    servos = report["derived_arm"]["servos"]
+    assert [s["joint"] for s in servos] == joints and all(s["reason"] in REASONS for s in servos)
+    page = (tmp_path / "out" / "index.html").read_text()
+    assert "The servos designed for this plan" in page and all(f"<td>{j}</td>" in page for j in joints)
 
 
 def test_the_so100s_touching_base_pair_is_excluded_and_its_joint_moves_end_ok(tmp_path):

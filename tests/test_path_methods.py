@@ -23,7 +23,7 @@ import yaml
 
 from simbench.cli import main
 from simbench.pipeline import check_plan
-from simbench.planners.cartesian_path import CLIK_SHARE, NULL_GAIN
+from simbench.planners.resolved_rates import CLIK_SHARE, NULL_GAIN
 from simbench.plant import compiled_scene
 from simbench.planners.path_methods import EPSILON, LAMBDA_MAX
 from simbench.resources import models_dir

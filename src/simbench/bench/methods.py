@@ -27,8 +27,6 @@ class Method:
 
     def document(self, task: Task, robot: BenchRobot) -> dict | None:
         """The scenario document (SI) of `task` by this method, or None where it does not apply."""
-        if self.name in robot.skip:
-            return None
         planner, fields = self.planner(robot), self.fields(task, robot)
         if planner is None or fields is None:
             return None

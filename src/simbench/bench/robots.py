@@ -32,7 +32,6 @@ class BenchRobot:
     speed: float = 0.1  # m/s: the tool's mean speed along a task
     floor: float | None = None  # m: the path kept this high above z = 0 (a derived scene's floor)
     plane: bool = False  # the tool moves in the plane z = const: paths in it
-    skip: tuple[str, ...] = ()  # methods that cannot drive it
     paper: str | None = None
     cache: dict = field(default_factory=dict, compare=False, repr=False)  # the derived arm, made on first use
 
@@ -119,8 +118,7 @@ def _panda() -> BenchRobot:
                                            "installed") from None
     model = Path(str(share)) / "robots" / "panda_description" / "urdf" / "panda.urdf"
     return BenchRobot("panda", {"model": str(model), "tool": {"body": "panda_link8"},
-                                "joints": [f"panda_joint{i}" for i in range(1, 8)]}, floor=0.05,
-                      skip=("mink",))  # mink_baseline refuses a model with unactuated joints (the fingers)
+                                "joints": [f"panda_joint{i}" for i in range(1, 8)]}, floor=0.05)
 
 
 SHIPPED: dict[str, Callable[[], BenchRobot]] = {"puma600": _puma, "spherical_arm": _spherical,

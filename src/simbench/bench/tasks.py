@@ -193,7 +193,7 @@ def _follow(arm, q: np.ndarray, path, s: np.ndarray, rot: np.ndarray,
     """The joints at path(s[-1]), followed from q along path(s) by damped Newton steps (the orientation `rot` held
     where `hold`), and the joints at each step; None where the last point is not reached within TOLERANCE or a
     joint leaves its range."""
-    from simbench.planners.cartesian_path import orientation_error
+    from simbench.planners.resolved_rates import orientation_error
 
     q = q.copy()
     rows = 6 if hold else 3

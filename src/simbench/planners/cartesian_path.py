@@ -55,24 +55,27 @@ from pydantic import Field, ValidationInfo, field_validator
 from simbench import extras
 from simbench.analysis.path_distance import path_deviation
 from simbench.api import REVOLUTE, Planner, Violation
-from simbench.paths import Arc, Composite, Line
+from simbench.paths import Composite, Line
 from simbench.planners.decoupled_path import LineSpec, Segment, join_gap, segment_waypoints
-from simbench.planners.path_methods import (DAMPING, EPSILON, LAMBDA_MAX, METHODS, SCALED, Rule, damped_rates,
-                                            pinv_rates, rule_of)
+from simbench.planners.path_methods import DAMPING, EPSILON, LAMBDA_MAX, METHODS, SCALED, rule_of
+from simbench.planners.path_reach import beyond_reach
 from simbench.planners.path_retiming import ACCEL_TIME
-from simbench.robots.rank_loss import unit_jacobian
+from simbench.planners.resolved_rates import (
+    CLIK_SHARE,
+    NULL_GAIN,
+    POSITION_ROWS,
+    integrate,
+    orientation_error,
+    sigma_min,
+    task_error,
+)
 from simbench.rotations import axis_rotation, matrix_to_quat
 from simbench.schema import JointVector, Orientation, Position, SimbenchModel, Units
 from simbench.trajectory import ORIENTATION_REF, JointTrajectory, control_grid
 
-CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
-NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
 MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most
-_UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
-_ROUNDING = 1e-9  # m: a path point past the reach by this much at most is not refused
 _NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
-POSITION_ROWS = 3  # a free task's rows of Ju and of the twist: the point's
 
 
 class OpenLine(LineSpec):
@@ -145,119 +148,9 @@ class Task(SimbenchModel):
         return si
 
 
-def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
-                   dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """One sample's rates by the rule with every joint kept inside its range (the module's docstring): the rates,
-    the whole arm's sigma_min (of Ju's rows, those the task uses) and lambda^2, and which joints are held (dof,)."""
-    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
-    sigma = lam2 = 0.0
-    while not held.all():
-        free = ~held
-        rates, s, l2, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
-        if not held.any():
-            sigma, lam2 = s, l2
-        if len(now) > len(ju):  # redundant for the task's rows
-            rates += null @ (NULL_GAIN * (q0 - now)[free])
-        out = fixed.copy()
-        out[free] = rates
-        after = now + dt * out
-        passing = free & ((after > robot.upper) | (after < robot.lower))
-        if not passing.any():
-            return out, sigma, lam2, held
-        fixed[passing] = (np.clip(after[passing], robot.lower[passing], robot.upper[passing]) - now[passing]) / dt
-        held |= passing
-    return fixed, sigma, lam2, held
-
-
-def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
-            dt: float, rule: Rule) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """One control sample at the joints `now` (the module's qd_k): the path's twist plus K times the tool's error
-    from (point, rotation), by the rule within the ranges (_clamped_rates), on the twist's rows of Ju."""
-    here, rows = now[None], len(twist)
-    error = _task_error(robot, point[None], rotation[None], here, rows)[0]
-    ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)[:rows]
-    return _clamped_rates(ju, twist + CLIK_SHARE / dt * error, now, q0, robot, dt, rule)
-
-
-def _task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
-    """The unit-consistent error (N, rows) of the tool at q (N, dof) from points, rotations (the module's e_k): the
-    point's / L, then, on a task of 6 rows, the orientation's (eq. 3.85)."""
-    position = (points - robot.fk(q)) / robot.reach
-    if rows == POSITION_ROWS:
-        return position
-    return np.hstack([position, orientation_error(rotations, robot.tool_rotation(q))])
-
-
 def _rows(task: Task) -> int:
     """The rows of Ju and of the twist the task asks for: the point's alone where its orientation is free."""
     return POSITION_ROWS if task.orientation == "free" else 6
-
-
-def _sigma_min(robot, q: np.ndarray, rows: int) -> np.ndarray:
-    """The least singular value (N,) of the task's rows of Ju at q (N, dof)."""
-    return np.linalg.svd(unit_jacobian(robot.jacobian(q), robot.reach)[:, :rows], compute_uv=False)[:, -1]
-
-
-def _crossing(robot, q0: np.ndarray, now: np.ndarray, points: np.ndarray, rotations: np.ndarray,
-              twists: np.ndarray, dt: float) -> tuple[tuple[np.ndarray, ...], np.ndarray] | None:
-    """pinv's samples from the joints `now` while sigma_min stays below EPSILON (a passage, to the path's end at
-    most): their q, qd, sigma_min and held joints, and the joints after; None where pinv's rates pass a speed
-    limit in it (the module's docstring: dls_adaptive's damping is for such a passage only)."""
-    rows = []
-    for point, rotation, twist in zip(points, rotations, twists):
-        rates, sigma, _, held = _sample(robot, q0, now, point, rotation, twist, dt, pinv_rates)
-        if sigma >= EPSILON:
-            break
-        if np.any(np.abs(rates) > _UNDER * robot.qd_max):
-            return None
-        rows.append((now, rates, sigma, held))
-        now = np.clip(now + dt * rates, robot.lower, robot.upper)
-    return tuple(np.array(column) for column in zip(*rows)), now
-
-
-def _beyond_reach(path: list[PathSegment], segments: list, robot) -> tuple[str, str] | None:
-    """The first segment with a point the arm certainly cannot reach: farther from the first joint's anchor than the
-    reach (robots.chain: the chain's length from that anchor, which no joint values exceed). A line's farthest point
-    is an end, its start the tool's or the last segment's end; an arc's is _farthest."""
-    anchor = _anchor(robot)
-    for i, (seg, segment) in enumerate(zip(path, segments)):
-        point = segment.point(np.ones(1))[0] if seg.line is not None else _farthest(segment, anchor)
-        far = float(np.linalg.norm(point - anchor))
-        if far > robot.reach + _ROUNDING:
-            field, what = ((f"task.path[{i}].line.end", "lies") if seg.line is not None
-                           else (f"task.path[{i}].arc", "has its farthest point"))
-            return field, (f"{what} {far * 1e3:.1f} mm from {robot.joints[0]}'s anchor, beyond the arm's reach of "
-                           f"{robot.reach * 1e3:.1f} mm (its chain's length from there): no joint values put the "
-                           "tool there")
-    return None
-
-
-def _anchor(robot) -> np.ndarray:
-    """The first joint's anchor (world, m), where robots.chain measures the reach from; a hinge's stays put."""
-    import mujoco
-
-    model = robot.arm.spec().compile()
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    return data.xanchor[model.joint(robot.joints[0]).id].copy()
-
-
-def _farthest(arc: Arc, centre: np.ndarray) -> np.ndarray:
-    """The arc's point farthest from `centre`: an end, or the circle's farthest point (at the angle of the circle's
-    centre seen from `centre`, in the arc's plane) where the arc passes it."""
-    away = arc.center - centre
-    theta = np.arctan2(away @ np.cross(arc.normal, arc.ref), away @ arc.ref)
-    low, high = sorted((arc.theta0, arc.theta1))
-    theta += 2 * np.pi * np.ceil((low - theta) / (2 * np.pi))  # its first turn at or past the arc's lower end
-    s = [0.0, 1.0] + ([(theta - arc.theta0) / (arc.theta1 - arc.theta0)] if theta <= high else [])
-    points = arc.point(np.array(s))
-    return points[np.argmax(np.linalg.norm(points - centre, axis=1))]
-
-
-def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """1/2 (n x n_d + s x s_d + a x a_d) (..., 3) of rotations (..., 3, 3) (Siciliano et al. 2009, eq. 3.85):
-    sin(angle) times the axis of the rotation from r to r_goal, world frame."""
-    return 0.5 * np.cross(np.swapaxes(r, -1, -2), np.swapaxes(r_goal, -1, -2)).sum(axis=-2)
 
 
 def _angles(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -315,7 +208,7 @@ class CartesianPath(Planner):
         if first is None and gap > START_TOL:
             return "task.path[0].arc", (f"starts {gap * 1e3:.3f} mm from the tool's point at task.start: the path "
                                         "must start there")
-        return join_gap(segments) or _beyond_reach(task.path, segments, robot)
+        return join_gap(segments) or beyond_reach(task.path, segments, robot)
 
     def plan(self, scenario, robot, dt: float) -> JointTrajectory:
         """The task's method on the control grid (the module's docstring)."""
@@ -350,10 +243,10 @@ class CartesianPath(Planner):
             lam2, scale = np.zeros(len(t)), np.ones(len(t))
         elif task.method == "mink":
             q, qd, extra = _mink(robot, points, rotations, q0, dt, rows)
-            sigma = _sigma_min(robot, q, rows)
+            sigma = sigma_min(robot, q, rows)
             lam2, scale, held = np.zeros(len(t)), np.ones(len(t)), np.zeros(q.shape, bool)
         else:
-            q, qd, sigma, lam2, scale, held = self._integrate(robot, q0, points, rotations, twist(s, ds), dt,
+            q, qd, sigma, lam2, scale, held = integrate(robot, q0, points, rotations, twist(s, ds), dt,
                                                               rule_of(task.method, task.damping),
                                                               task.method in SCALED)
             if task.method != "dls_adaptive":
@@ -404,9 +297,9 @@ class CartesianPath(Planner):
         grid = np.linspace(0.0, 1.0, n)
         step = law.duration / (n - 1)
         rows = _rows(task)
-        error_of = partial(_task_error, robot, rows=rows)  # exact_ik's: the pose's, or a free task's point's
+        error_of = partial(task_error, robot, rows=rows)  # exact_ik's: the pose's, or a free task's point's
         points, rotations = pose(grid)
-        q, _, _, _, _, held = cls._integrate(robot, q0, points, rotations, twist(grid, np.full(n, 1 / law.duration)),
+        q, _, _, _, _, held = integrate(robot, q0, points, rotations, twist(grid, np.full(n, 1 / law.duration)),
                                              step, rule_of("pinv", None), False)
         q, _ = exact_ik(robot, q, points, rotations, error_of)
         qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
@@ -415,44 +308,13 @@ class CartesianPath(Planner):
         points, rotations = pose(s)
         q_plan, residual = exact_ik(robot, np.clip(q_spline, robot.lower, robot.upper), points, rotations,
                                     error_of)  # the spline may overshoot a limit its samples hold
-        sigma = _sigma_min(robot, q_plan, rows)
+        sigma = sigma_min(robot, q_plan, rows)
         at = np.clip(np.searchsorted(grid, s), 0, n - 1)
         share, fast = acceleration_violations(robot, t, q_plan, qd, qdd_max)
         extra = {"slowdown": duration / law.duration, "duration_asked": law.duration, "duration_planned": duration,
                  "acceleration_limits": qdd_max.tolist(), "acceleration_share_max": float(share.max()),
                  "ik_residual_max": float(residual.max())}
         return t, s, q_plan, qd, sigma, held[at], extra, fast
-
-    @staticmethod
-    def _integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
-                   dt: float, rule: Rule = damped_rates, scaled: bool = True) -> tuple[np.ndarray, ...]:
-        """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of the module's integration from q0 by the
-        rate rule (path_methods), scaled down under the speed limits where `scaled`; and the held joints (N, dof).
-        dls_adaptive (`damped_rates`) crosses a passage below EPSILON by pinv where pinv keeps the speed limits
-        through it (_crossing), and damps it otherwise."""
-        n = len(points)
-        q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.zeros(n)
-        scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
-        now, k, damping = q0.copy(), 0, False
-        while k < n:
-            rates, sigma[k], lam2[k], held[k] = _sample(robot, q0, now, points[k], rotations[k], twists[k], dt, rule)
-            damping = damping and sigma[k] < EPSILON  # a damped passage lasts while sigma_min stays below EPSILON
-            if rule is damped_rates and sigma[k] < EPSILON and not damping:
-                crossed = _crossing(robot, q0, now, points[k:], rotations[k:], twists[k:], dt)
-                if crossed is not None:
-                    rows, now = crossed
-                    end = k + len(rows[0])
-                    q[k:end], qd[k:end], sigma[k:end], held[k:end] = rows
-                    lam2[k:end] = 0.0
-                    k = end
-                    continue
-                damping = True
-            if scaled:
-                scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
-            q[k], qd[k] = now, rates * scale[k]
-            now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
-            k += 1
-        return q, qd, sigma, lam2, scale, held
 
     @staticmethod
     def _held(robot, t: np.ndarray, q: np.ndarray, held: np.ndarray, off: np.ndarray,

@@ -1,0 +1,118 @@
+"""cartesian_path's resolved rates, a control sample at a time (the planner's module docstring states the rule and its
+references): the rates within the joint ranges, the closed loop's error, and dls_adaptive's crossing of a passage
+below EPSILON by pinv.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simbench.planners.path_methods import EPSILON, Rule, damped_rates, pinv_rates
+from simbench.robots.rank_loss import unit_jacobian
+
+CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
+NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
+_UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
+POSITION_ROWS = 3  # a free task's rows of Ju and of the twist: the point's
+
+
+def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
+                   dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """One sample's rates by the rule with every joint kept inside its range (cartesian_path's docstring): the rates,
+    the whole arm's sigma_min (of Ju's rows, those the task uses) and lambda^2, and which joints are held (dof,)."""
+    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
+    sigma = lam2 = 0.0
+    while not held.all():
+        free = ~held
+        rates, s, l2, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
+        if not held.any():
+            sigma, lam2 = s, l2
+        if len(now) > len(ju):  # redundant for the task's rows
+            rates += null @ (NULL_GAIN * (q0 - now)[free])
+        out = fixed.copy()
+        out[free] = rates
+        after = now + dt * out
+        passing = free & ((after > robot.upper) | (after < robot.lower))
+        if not passing.any():
+            return out, sigma, lam2, held
+        fixed[passing] = (np.clip(after[passing], robot.lower[passing], robot.upper[passing]) - now[passing]) / dt
+        held |= passing
+    return fixed, sigma, lam2, held
+
+
+def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
+            dt: float, rule: Rule) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """One control sample at the joints `now` (cartesian_path's qd_k): the path's twist plus K times the tool's error
+    from (point, rotation), by the rule within the ranges (_clamped_rates), on the twist's rows of Ju."""
+    here, rows = now[None], len(twist)
+    error = task_error(robot, point[None], rotation[None], here, rows)[0]
+    ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)[:rows]
+    return _clamped_rates(ju, twist + CLIK_SHARE / dt * error, now, q0, robot, dt, rule)
+
+
+def task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
+    """The unit-consistent error (N, rows) of the tool at q (N, dof) from points, rotations (cartesian_path's e_k): the
+    point's / L, then, on a task of 6 rows, the orientation's (eq. 3.85)."""
+    position = (points - robot.fk(q)) / robot.reach
+    if rows == POSITION_ROWS:
+        return position
+    return np.hstack([position, orientation_error(rotations, robot.tool_rotation(q))])
+
+
+def sigma_min(robot, q: np.ndarray, rows: int) -> np.ndarray:
+    """The least singular value (N,) of the task's rows of Ju at q (N, dof)."""
+    return np.linalg.svd(unit_jacobian(robot.jacobian(q), robot.reach)[:, :rows], compute_uv=False)[:, -1]
+
+
+def _crossing(robot, q0: np.ndarray, now: np.ndarray, points: np.ndarray, rotations: np.ndarray,
+              twists: np.ndarray, dt: float) -> tuple[tuple[np.ndarray, ...], np.ndarray] | None:
+    """pinv's samples from the joints `now` while sigma_min stays below EPSILON (a passage, to the path's end at
+    most): their q, qd, sigma_min and held joints, and the joints after; None where pinv's rates pass a speed
+    limit in it (cartesian_path's docstring: dls_adaptive's damping is for such a passage only)."""
+    rows = []
+    for point, rotation, twist in zip(points, rotations, twists):
+        rates, sigma, _, held = _sample(robot, q0, now, point, rotation, twist, dt, pinv_rates)
+        if sigma >= EPSILON:
+            break
+        if np.any(np.abs(rates) > _UNDER * robot.qd_max):
+            return None
+        rows.append((now, rates, sigma, held))
+        now = np.clip(now + dt * rates, robot.lower, robot.upper)
+    return tuple(np.array(column) for column in zip(*rows)), now
+
+
+def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """1/2 (n x n_d + s x s_d + a x a_d) (..., 3) of rotations (..., 3, 3) (Siciliano et al. 2009, eq. 3.85):
+    sin(angle) times the axis of the rotation from r to r_goal, world frame."""
+    return 0.5 * np.cross(np.swapaxes(r, -1, -2), np.swapaxes(r_goal, -1, -2)).sum(axis=-2)
+
+
+def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
+              dt: float, rule: Rule = damped_rates, scaled: bool = True) -> tuple[np.ndarray, ...]:
+    """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of cartesian_path's integration from q0 by the
+    rate rule (path_methods), scaled down under the speed limits where `scaled`; and the held joints (N, dof).
+    dls_adaptive (`damped_rates`) crosses a passage below EPSILON by pinv where pinv keeps the speed limits
+    through it (_crossing), and damps it otherwise."""
+    n = len(points)
+    q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.zeros(n)
+    scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
+    now, k, damping = q0.copy(), 0, False
+    while k < n:
+        rates, sigma[k], lam2[k], held[k] = _sample(robot, q0, now, points[k], rotations[k], twists[k], dt, rule)
+        damping = damping and sigma[k] < EPSILON  # a damped passage lasts while sigma_min stays below EPSILON
+        if rule is damped_rates and sigma[k] < EPSILON and not damping:
+            crossed = _crossing(robot, q0, now, points[k:], rotations[k:], twists[k:], dt)
+            if crossed is not None:
+                rows, now = crossed
+                end = k + len(rows[0])
+                q[k:end], qd[k:end], sigma[k:end], held[k:end] = rows
+                lam2[k:end] = 0.0
+                k = end
+                continue
+            damping = True
+        if scaled:
+            scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
+        q[k], qd[k] = now, rates * scale[k]
+        now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
+        k += 1
+    return q, qd, sigma, lam2, scale, held
