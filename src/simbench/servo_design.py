@@ -2,8 +2,8 @@
 (robosuite and Drake derive their joint controllers from it too), and the forces a plan needs checked against the
 force limits before it is simulated.
 
-Over the plan's samples (SAMPLES of them evenly, and each joint's rows of largest planned acceleration), for each
-designed joint i, with M the joint-space inertia (armature included):
+Over the plan's samples (SAMPLES of them evenly, and each joint's rows of largest planned acceleration; the torques
+at every row), for each designed joint i, with M the joint-space inertia (armature included):
 
     I_i      the largest M_ii: the inertia the servo must move at its stiffest need
     I0_i     the least 1 / (M^-1)_ii: the inertia the joint shows when the other joints give way, which sets the
@@ -45,7 +45,7 @@ import numpy as np
 from simbench.api import Array, Violation
 from simbench.trajectory import JointTrajectory
 
-SAMPLES = 200  # plan rows read evenly (the first and the last among them)
+SAMPLES = 200  # plan rows whose inertias and levers are read, evenly (the first and the last among them)
 ERROR_SHARE = 0.05  # of the path and orientation tolerances: a designed joint's steady error budget
 STABLE = 0.5  # share of the timestep's stability bound a designed joint may use (the module's docstring)
 DEFAULT_BANDWIDTH = 50.0  # rad/s: w0 where the robot mapping gives none
@@ -79,7 +79,7 @@ class JointServo:
 class PlanDynamics:
     """What the design reads of a plan (the module's docstring), per joint (dof,): the largest M_ii, the least
     1 / (M^-1)_ii, the largest torque beyond the feed-forward, the largest lever (m per rad or m) and turn (rad per
-    rad) on the tool; and each sampled row's whole torque need (n, dof) with its rows (n,)."""
+    rad) on the tool; and every row's whole torque need (N, dof)."""
 
     inertia: Array
     fastest: Array
@@ -87,49 +87,53 @@ class PlanDynamics:
     lever: Array
     turn: Array
     need: Array
-    rows: np.ndarray
 
 
 def plan_dynamics(plant, traj: JointTrajectory) -> PlanDynamics:
-    """The plan's inertias, torques and levers at its sampled rows (the module's docstring)."""
+    """The plan's inertias and levers at its sampled rows, and its torques at every row (the module's docstring)."""
     model, dofs = plant.model, plant.dof_adr
     n = len(traj.t)
     qdd = np.gradient(traj.qd_ref, traj.dt, axis=0) if n > 1 else np.zeros_like(traj.qd_ref)
-    rows = np.unique(np.concatenate([np.linspace(0, n - 1, min(n, SAMPLES)).round().astype(int),
-                                     np.argmax(np.abs(qdd), axis=0)]))
+    sampled = np.unique(np.concatenate([np.linspace(0, n - 1, min(n, SAMPLES)).round().astype(int),
+                                        np.argmax(np.abs(qdd), axis=0)]))
     data = mujoco.MjData(model)
     site = model.site(plant.robot.tool_site).id
     full, jacp, jacr = np.zeros((model.nv, model.nv)), np.zeros((3, model.nv)), np.zeros((3, model.nv))
-    diag, fastest, beyond, need = (np.empty((len(rows), len(dofs))) for _ in range(4))
+    diag, fastest = np.empty((len(sampled), len(dofs))), np.empty((len(sampled), len(dofs)))
     lever, turn = np.zeros(len(dofs)), np.zeros(len(dofs))
-    friction = model.dof_frictionloss[dofs] * np.sign(traj.qd_ref[rows])
-    for i, k in enumerate(rows):
-        data.qpos[:] = plant.initial_qpos(traj.q_ref[k])
-        data.qvel[:] = 0
-        data.qvel[dofs] = traj.qd_ref[k]
-        _dynamics(model, data)
+    for i, k in enumerate(sampled):
+        _pose(plant, data, traj, qdd, k)
+        mujoco.mj_crb(model, data)
         mujoco.mj_fullM(model, data, full)
         m = full[np.ix_(dofs, dofs)]
         diag[i], fastest[i] = m.diagonal(), 1 / np.linalg.inv(m).diagonal()
-        whole = m @ qdd[k] + (data.qfrc_bias - data.qfrc_passive)[dofs]
-        beyond[i] = whole - model.dof_damping[dofs] * traj.qd_ref[k]
-        need[i] = whole + friction[i]
         mujoco.mj_jacSite(model, data, jacp, jacr, site)
         lever = np.maximum(lever, np.linalg.norm(jacp[:, dofs], axis=0))
         turn = np.maximum(turn, np.linalg.norm(jacr[:, dofs], axis=0))
-    return PlanDynamics(diag.max(axis=0), fastest.min(axis=0),
-                        np.abs(beyond).max(axis=0) + model.dof_frictionloss[dofs], lever, turn, need, rows)
+    whole = np.empty((n, len(dofs)))  # M qdd + c - passive at every row
+    inverse = np.zeros(model.nv)
+    for k in range(n):
+        _pose(plant, data, traj, qdd, k)
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_passive(model, data)
+        mujoco.mj_rne(model, data, 1, inverse)
+        whole[k] = (inverse - data.qfrc_passive)[dofs]
+    friction = model.dof_frictionloss[dofs]
+    beyond = np.abs(whole - model.dof_damping[dofs] * traj.qd_ref).max(axis=0) + friction
+    return PlanDynamics(diag.max(axis=0), fastest.min(axis=0), beyond, lever, turn,
+                        whole + friction * np.sign(traj.qd_ref))
 
 
-def _dynamics(model: mujoco.MjModel, data: mujoco.MjData) -> None:
-    """Positions, inertia, bias and passive forces of data's qpos and qvel, without the collision detection
-    mj_forward would run (the design needs no contacts)."""
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_comPos(model, data)
-    mujoco.mj_crb(model, data)
-    mujoco.mj_comVel(model, data)
-    mujoco.mj_passive(model, data)
-    mujoco.mj_rne(model, data, 0, data.qfrc_bias)
+def _pose(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray, k: int) -> None:
+    """data at the plan's row k: positions, velocities and accelerations, kinematics and centres of mass computed
+    (not the collision detection mj_forward would run: the design needs no contacts)."""
+    data.qpos[:] = plant.initial_qpos(traj.q_ref[k])
+    data.qvel[:] = 0
+    data.qacc[:] = 0
+    data.qvel[plant.dof_adr] = traj.qd_ref[k]
+    data.qacc[plant.dof_adr] = qdd[k]
+    mujoco.mj_kinematics(plant.model, data)
+    mujoco.mj_comPos(plant.model, data)
 
 
 def design(plant, traj: JointTrajectory, dynamics: PlanDynamics, designed: np.ndarray, tolerances,
@@ -176,19 +180,17 @@ def stable_bandwidth(ratio: Array, damping_ratio: float, dt: float, implicit: bo
 
 
 def force_violations(plant, traj: JointTrajectory, dynamics: PlanDynamics) -> list[Violation]:
-    """A `force_limit` violation for each joint whose torque need passes its force limit at a sampled row: the
-    worst, and from when."""
+    """A `force_limit` violation for each joint whose torque need passes its force limit at a row: the worst, and
+    from when."""
     limit = plant.force_limit()
-    robot, t = plant.robot, traj.t[dynamics.rows]
+    robot, t, need = plant.robot, traj.t, np.abs(dynamics.need)
     out = []
-    for j in np.flatnonzero((np.abs(dynamics.need) > limit).any(axis=0)):
-        over = np.abs(dynamics.need[:, j]) > limit[j]
-        worst = int(np.argmax(np.abs(dynamics.need[:, j])))
+    for j in np.flatnonzero((need > limit).any(axis=0)):
+        first, worst = int(np.argmax(need[:, j] > limit[j])), int(np.argmax(need[:, j]))
         unit = "N m" if robot.kinds[j] == "revolute" else "N"
-        out.append(Violation("force_limit", f"the plan needs {robot.joints[j]} to exert "
-                             f"{abs(dynamics.need[worst, j]):.3g} {unit} at t = {t[worst]:.3f} s, beyond its force "
-                             f"limit {limit[j]:g} {unit} (from t = {t[np.argmax(over)]:.3f} s)",
-                             float(t[np.argmax(over)]), 0,
-                             {"joint": robot.joints[j], "need": float(abs(dynamics.need[worst, j])),
-                              "limit": float(limit[j]), "source": "planner"}))
+        out.append(Violation("force_limit", f"the plan needs {robot.joints[j]} to exert {need[worst, j]:.3g} {unit} at "
+                             f"t = {t[worst]:.3f} s, beyond its force limit {limit[j]:g} {unit} (from t = "
+                             f"{t[first]:.3f} s)", float(t[first]), 0,
+                             {"joint": robot.joints[j], "need": float(need[worst, j]), "limit": float(limit[j]),
+                              "source": "planner"}))
     return out
