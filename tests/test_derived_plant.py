@@ -187,6 +187,29 @@ def test_a_plan_into_the_floor_is_a_contact_violation_before_any_physics(tmp_pat
     assert "plan: limits" in out and "contact: the plan puts world (geom simbench/floor)" in out
 
 
+def test_a_contact_in_the_physics_is_a_breaking_event_where_the_file_puts_a_geom_under_the_floor(tmp_path):
+    """The same line run: the recording's contacts are `contact` events (the run ends `limits`), and at each event's
+    start some geom of the arm lies below z = 0, the floor, by MuJoCo's own kinematics of the untouched file."""
+    start = ARMS["ur5"][3]
+    joints = chain_joints("ur5")
+    raw = raw_model(UR5)
+    (p0,), _ = tool_pose(raw, {"body": "tool0"}, joints, np.array(start))
+    result = simbench.run(simbench.load_scenario(line_scenario(tmp_path, "ur5", start, [p0[0], p0[1], -0.05])),
+                          out=tmp_path / "out", video=False)
+    report = result.report
+    events = [e for e in report["singularity_events"] if e["kind"] == "contact" and "world" in e["detail"]["bodies"]]
+    assert events and report["status"] == "limits" and "contact" in {v["kind"] for v in report["violations"]}
+    ts = np.load(tmp_path / "out" / "timeseries.npz")
+    data = mujoco.MjData(raw)
+    adr = [raw.joint(j).qposadr[0] for j in joints]
+    for event in events:
+        data.qpos[adr] = ts["q"][np.argmin(np.abs(ts["t"] - event["t_start"]))]
+        mujoco.mj_kinematics(raw, data)
+        body = raw.body(next(b for b in event["detail"]["bodies"] if b != "world")).id
+        low = [data.geom_xpos[g][2] - raw.geom_rbound[g] for g in np.flatnonzero(raw.geom_bodyid == body)]
+        assert min(low) < 0.0
+
+
 def test_a_plan_that_needs_more_than_a_force_limit_is_a_violation_naming_the_joint(tmp_path):
     """The UR5's line up 200 mm in 1 s with every force limit at 2 N m: a joint needs more to move the arm, reported
     before simulating, and MuJoCo's own inverse dynamics (mj_inverse on the untouched file, gravity left out as the
