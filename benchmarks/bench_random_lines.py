@@ -6,7 +6,8 @@ each range's width away from its ends (a continuous joint within -180..180 deg),
 direction and a length of 50-300 mm from the start's tool point; a draw whose start or end point lies under
 FLOOR_CLEARANCE above the floor is drawn again. Duration: the length at SPEED (at least 1 s), hold 0.3 s. Each
 line is run by simbench.run without video into a temporary folder, and ends `ok`, `limits` (its violation kinds
-tallied, and each run counted once under each cause its kinds fall under, bench_arms.CAUSES), refused
+tallied, and each run counted once under each cause its kinds fall under, bench_arms.CAUSES; and whether an
+actuator saturates from the first sample, the set-up's doing), refused
 (ScenarioError: the planner's check or bad input, its reason tallied: a start in contact, an end past the reach) or
 failed (the physics, or any other exception).
 
@@ -154,6 +155,8 @@ def run_line(robot: str, line: dict, folder: Path) -> dict:
     report = result.report
     row.update(outcome=report["status"], kinds=sorted({v["kind"] for v in report["violations"]}))
     row["causes"] = sorted(cause for cause, members in CAUSES.items() if set(row["kinds"]) & set(members))
+    row["from_start"] = any(v["kind"] == "actuator_saturation" and v["t"] <= report["timestep"]
+                            for v in report["violations"])
     if report["status"] == "ok":
         with np.load(folder / name / "timeseries.npz") as series:
             row["broken"], row["figures"] = promises_broken(series, scenario)
@@ -200,9 +203,10 @@ def markdown(r: dict) -> str:
         "path_tolerance of the line (point to segment), its end within goal_tolerance, q_ref inside the ranges, "
         "its finite-difference speeds within the limits, no NaN.",
         "",
-        "| arm | ok | limits | refused | failed | limits by cause (runs) | violation kinds (runs) | ok runs breaking "
-        "a promise | worst ok deviation mm | worst ok goal error mm | highest ok speed / limit | s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| arm | ok | limits | refused | failed | limits by cause (runs) | saturated from t = 0 | violation kinds "
+        "(runs) | ok runs breaking a promise | worst ok deviation mm | worst ok goal error mm | highest ok speed / "
+        "limit | s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     notes = []
     for arm, result in r.items():
@@ -215,7 +219,8 @@ def markdown(r: dict) -> str:
         worst = {key: max((row["figures"][key] for row in ok), default=float("nan"))
                  for key in ("deviation", "goal_error", "speed_ratio")}
         lines.append(f"| {arm} | {outcomes['ok']} | {outcomes['limits']} | {outcomes['refused']} | "
-                     f"{outcomes['failed']} | {_tally(causes)} | {_tally(kinds)} | {len(broken)} | "
+                     f"{outcomes['failed']} | {_tally(causes)} | {sum(row.get('from_start', 0) for row in rows)} | "
+                     f"{_tally(kinds)} | {len(broken)} | "
                      f"{worst['deviation'] * 1e3:.3f} | "
                      f"{worst['goal_error'] * 1e3:.3f} | {worst['speed_ratio']:.4f} | {result['seconds']:.0f} |")
         reasons = Counter(_reason(row["reason"]) for row in rows if row["outcome"] in ("refused", "failed"))

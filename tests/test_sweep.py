@@ -268,3 +268,24 @@ def test_shipped_sweeps_are_valid():
     for path in shipped:
         sweep = load_sweep(path)
         assert len(sweep.variants) >= 10
+
+
+def test_a_worker_stopped_as_soon_as_it_is_forked_ends():
+    """A sweep whose last run crashed stops the replacement worker it has just forked. Under a parent whose SIGTERM
+    handler swallows the signal (a sweep's own handler may), a worker that has not yet reset it inherited the
+    handler: stopped by SIGTERM it lived on and the sweep waited for ever (seen under load). Stopped at once,
+    twenty times in a row, each worker ends within seconds."""
+    import multiprocessing
+    import signal
+    import threading
+
+    previous = signal.signal(signal.SIGTERM, lambda *_: None)
+    try:
+        ctx = multiprocessing.get_context("fork")
+        for _ in range(20):
+            worker = execute._Worker(ctx)
+            done = threading.Event()
+            threading.Thread(target=lambda w=worker: (w.stop(), done.set()), daemon=True).start()
+            assert done.wait(10.0), "the worker outlived its stop"
+    finally:
+        signal.signal(signal.SIGTERM, previous)

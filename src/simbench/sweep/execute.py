@@ -149,10 +149,12 @@ class _Worker:
         self.conn.send(kwargs)
 
     def stop(self) -> int | None:
-        """End the process (at once, mid-run or not); its exit code."""
+        """End the process (at once, mid-run or not); its exit code. SIGKILL, not SIGTERM: a worker stopped as soon
+        as it is forked may not yet have reset the SIGTERM handler it inherits (as_worker), which would swallow it
+        and leave this join waiting for ever."""
         self.conn.close()
         if self.process.is_alive():
-            self.process.terminate()
+            self.process.kill()
         self.process.join()
         return self.process.exitcode
 
