@@ -14,6 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 import simbench.planners.cartesian_path as cartesian_path
+import simbench.planners.resolved_rates as resolved_rates
 from simbench.cli import main
 from simbench.pipeline import check_plan
 from simbench.scenario import load_scenario
@@ -143,7 +144,7 @@ timing: {{duration: 4.0, hold: 0.3}}
     moved = np.abs(plan.q_ref - q0).max()
     assert np.abs(null).max() < 0.15 * moved  # measured: 0.041 of 0.378 rad
     assert np.abs(plan.q_ref[-1] - q0).max() < 2e-3  # measured: 1.2e-3 rad
-    monkeypatch.setattr(cartesian_path, "NULL_GAIN", 0.0)
+    monkeypatch.setattr(resolved_rates, "NULL_GAIN", 0.0)
     drifted = cartesian_path.PLANNER.plan(scenario, robot, 0.002).q_ref[-1]
     assert np.abs(drifted - q0).max() > 1e-2  # measured: 0.024 rad
 
