@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import html
 import json
 import os
 from dataclasses import dataclass
@@ -22,7 +23,7 @@ from simbench import api, budget, csv_cells, destination, registry
 from simbench.atomic import staged_folder
 from simbench.plot_formats import check_format
 from simbench.page import table_page, write_page
-from simbench.errors import PhysicsError, RunError, ScenarioError
+from simbench.errors import PhysicsError, RunError, ScenarioError, printable
 from simbench.figures import columns
 from simbench.policy import refuse_code
 from simbench.scenario import Scenario, load_scenario, parse_scenario
@@ -271,18 +272,25 @@ def _display(column: str, robot) -> tuple[str, float, str]:
     return column.replace("_", " "), 1.0, "{}"
 
 
+def markdown_text(text: Any) -> str:
+    """Text (a model's joint name, say) as a Markdown table reads it as written: HTML's metacharacters as entities,
+    backslashes and '|' escaped (so that no cell ends early), control characters and line breaks as printable
+    escapes (so that no row splits)."""
+    return printable(html.escape(str(text), quote=False).replace("\\", "\\\\").replace("|", "\\|"))
+
+
 def table_markdown(base: Scenario, rows: tuple[dict, ...]) -> str:
     """comparison.md: a column per method, a line per figure, in mm, deg/s and percent."""
     robot = base.robot_def
     a = base.analysis
     lines = [f"# {base.name}: methods compared", "",
-             f"{base.description}".strip() or f"robot {base.robot}, planner {base.planner}", "",
-             f"Robot `{base.robot}`. Tool error: the simulated tool against the plan's reference at the same time; "
-             "path deviation: its distance from the planned path; plan path deviation: the plan's own tool (the "
-             "robot's forward kinematics at its joint references). Speed peaks are the plan's. Distances to "
+             markdown_text(base.description.strip() or f"robot {base.robot}, planner {base.planner}"), "",
+             f"Robot {markdown_text(base.robot)}. Tool error: the simulated tool against the plan's reference at the "
+             "same time; path deviation: its distance from the planned path; plan path deviation: the plan's own tool "
+             "(the robot's forward kinematics at its joint references). Speed peaks are the plan's. Distances to "
              f"singular sets are in multiples of the near tolerance ({np.rad2deg(a.near_angle):g} deg, "
              f"{a.near_length * 1e3:g} mm): at most 1 is near.", "",
-             "| | " + " | ".join(f"`{r['method']}`" for r in rows) + " |",
+             "| | " + " | ".join(f"`{markdown_text(r['method'])}`" for r in rows) + " |",
              "|---|" + "---:|" * len(rows)]
     for column in _columns(rows):
         if column == "method":
@@ -296,8 +304,8 @@ def table_markdown(base: Scenario, rows: tuple[dict, ...]) -> str:
             elif isinstance(value, (int, float)) and not isinstance(value, bool):
                 cells.append(fmt.format(int(value)) if fmt == "{:d}" else fmt.format(value * scale))
             else:
-                cells.append(str(value).replace("|", "\\|"))
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+                cells.append(markdown_text(value))
+        lines.append(f"| {markdown_text(label)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -336,7 +344,7 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_forma
     """The methods overlaid against time: tool error, joint speeds, distance to each singular set."""
     from matplotlib import rcParams
 
-    from simbench.plots import save, time_panels
+    from simbench.plots import plot_text, save, time_panels
 
     folder.mkdir(parents=True, exist_ok=True)
     ran = [r for r in runs if r.evaluation is not None]
@@ -349,7 +357,7 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_forma
     for r in ran:
         series, t = r.evaluation.analysis.series, r.evaluation.recording.t
         axes[0, 0].plot(t, np.maximum(series["path_deviation"] * 1e3, floor), color=color[r.label], lw=1.2,
-                        label=r.label)
+                        label=plot_text(r.label))
         axes[1, 0].plot(t, np.maximum(series["tool_error"] * 1e3, floor), color=color[r.label], lw=1.2)
     axes[0, 0].axhline(base.analysis.path_tolerance * 1e3, color="k", ls=":", lw=0.8, label="path tolerance")
     axes[0, 0].set_ylabel("distance from path (mm)")
@@ -368,12 +376,13 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_forma
         scale, unit = (180 / np.pi, "deg/s") if revolute else (1e3, "mm/s")
         for r in ran:
             ev = r.evaluation
-            ax.plot(ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2, label=r.label)
+            ax.plot(ev.trajectory.t, ev.trajectory.qd_ref[:, j] * scale, color=color[r.label], lw=1.2,
+                    label=plot_text(r.label))
             rec = ev.recording.thinned()  # qd is kept at every record_every-th state
             ax.plot(rec.t, rec.qd[:, j] * scale, color=color[r.label], lw=0.7, ls="--")
         for sign in (-1, 1):
             ax.axhline(sign * robot.qd_max[j] * scale, color="k", ls=":", lw=0.8)
-        ax.set_ylabel(f"{robot.joints[j]} ({unit})")
+        ax.set_ylabel(f"{plot_text(robot.joints[j])} ({unit})")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, loc="best")
     axes[0, 0].set_title("Joint speeds: planned (solid), simulated (dashed), speed limits (dotted)", y=1.0)
@@ -390,10 +399,10 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_forma
         for i, (ax, sset) in enumerate(zip(axes.flat, first)):
             for r in ran:
                 ax.plot(r.evaluation.recording.t, np.maximum(sets[r.label][i].distance, 1e-3), color=color[r.label],
-                        lw=1.2, label=r.label)
+                        lw=1.2, label=plot_text(r.label))
             ax.axhline(1.0, color="k", ls=":", lw=0.8)
             ax.set_yscale("log")
-            ax.set_title(f"{sset.name}: {sset.condition}", fontsize=8, y=1.0)
+            ax.set_title(plot_text(f"{sset.name}: {sset.condition}"), fontsize=8, y=1.0)
             ax.grid(alpha=0.3, which="both")
         for ax in list(axes.flat)[len(first):]:
             ax.remove()

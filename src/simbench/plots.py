@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simbench.analysis import Analysis
+from simbench.errors import printable
 from simbench.robots import REVOLUTE, Robot
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
@@ -21,6 +22,13 @@ DPI = 110  # a PNG's pixels an inch
 _MARGINS = (1.0, 0.15, 0.36, 0.59)  # in: left (tick labels and y label), right, top (title), bottom (x label)
 _GAP = 0.22  # in: between panels that share their time axis
 _COLUMN_GAP = 1.05  # in: between columns of panels (the next column's tick labels and y label)
+
+
+def plot_text(text: str) -> str:
+    """A name (a model's joint, say) as a figure's label or title draws it as written: control characters and line
+    breaks escaped (an SVG copies the text into an XML comment, where they are not allowed, and the fonts have no
+    glyph for them) and '$' escaped (two would start mathtext, and a formula matplotlib cannot parse fails the save)."""
+    return printable(text).replace("$", r"\$")
 
 
 def _display(kind: str) -> tuple[float, str]:
@@ -91,7 +99,7 @@ def _joint_panels(robot: Robot, t: np.ndarray, planned: np.ndarray, simulated: n
         ax.plot(t, planned[:, j] * scale, "--", color="tab:blue", lw=1.4, label=labels[0])
         ax.plot(t, simulated[:, j] * scale, color="tab:orange", lw=1.0, label=labels[1])
         decorate(ax, j, scale)
-        ax.set_ylabel(f"{robot.joints[j]} ({unit}{'/s' if per_second else ''})")
+        ax.set_ylabel(f"{plot_text(robot.joints[j])} ({unit}{'/s' if per_second else ''})")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[0, 0].set_title(title, y=1.0)  # y given: no search for a place above the ticks
@@ -148,14 +156,14 @@ def plot_singularity(robot: Robot, rec: Recording, result: Analysis) -> Figure:
     fig, axes = time_panels(len(names), 8, 2.4 * len(names) + 0.6)
     for ax, name in zip(axes[:, 0], names):
         ax.plot(rec.t, result.series[name], color="tab:green")
-        ax.set_ylabel(name)
+        ax.set_ylabel(plot_text(name))
         ax.grid(alpha=0.3)
         _shade(ax, result.singularity_events, None, "tab:orange")
     seen = set()
     for e in result.singularity_events:
         if e["kind"] not in seen:
-            axes[0, 0].annotate(e["kind"], (e["t_start"], 1.0), xycoords=("data", "axes fraction"), fontsize=7,
-                                rotation=90, va="top")
+            axes[0, 0].annotate(plot_text(e["kind"]), (e["t_start"], 1.0), xycoords=("data", "axes fraction"),
+                                fontsize=7, rotation=90, va="top")
             seen.add(e["kind"])
     axes[0, 0].set_title("Singularity measures (orange: near a singular set)", y=1.0)
     axes[-1, 0].set_xlabel("time (s)")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import ScenarioError
+from simbench.errors import ScenarioError, printable
 from simbench.robots import robot_mapping
 from simbench.robots.chain import ArmError
 from simbench.robots.model_scene import ArmOptions, DerivedArm
@@ -36,7 +36,8 @@ def inspect(path: Path) -> str:
 
 def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
     """The arm in lines: its joints with kind and range, how each is driven, the tool, the camera, the reach, what
-    the scene adds, what was dropped from the file, and whether qpos0 lies inside the ranges."""
+    the scene adds, what was dropped from the file, and whether qpos0 lies inside the ranges; each line printable
+    (the model's names hold any character: a line break in one cannot start a line, an ESC cannot drive the tty)."""
     chain = arm.chain
     lines = [f"{arm.name}: {len(chain.joints)} joints from {arm.path}", "joints (SI: rad or m):"]
     for i, (name, kind, lo, hi) in enumerate(zip(chain.joints, chain.kinds, chain.lower, chain.upper)):
@@ -62,7 +63,7 @@ def describe(arm: DerivedArm, qd_max: np.ndarray | None) -> str:
     lines += [f"dropped: {note}" for note in arm.dropped]
     lines.append("qpos0: inside the ranges" if not arm.outside else
                  f"qpos0: outside the range of {', '.join(arm.outside)} (a scenario's start must lie inside)")
-    return "\n".join(lines)
+    return "\n".join(printable(line) for line in lines)
 
 
 def _drive(drive, servo) -> str:
