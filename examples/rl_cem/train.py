@@ -115,21 +115,54 @@ def plot(history: list, reference: float, task: str, path: Path) -> None:
     plt.close(fig)
 
 
+class Parser(argparse.ArgumentParser):
+    """A bad argument in one line on stderr, exit 2 (argparse's usage left to --help)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def at_least(low: int):
+    """An argument's type: an integer >= low."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}")
+        return value
+    return parse
+
+
+def shipped_task(text: str) -> str:
+    """An argument's type: a shipped task, robot/name (simbench.env.ALL_TASKS)."""
+    if tuple(text.partition("/")[::2]) not in simbench_env.ALL_TASKS:
+        shipped = ", ".join(f"{robot}/{name}" for robot, name in simbench_env.ALL_TASKS)
+        raise argparse.ArgumentTypeError(f"expected a shipped task ({shipped}), got {text!r}")
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--task", default="puma600/line", help="a shipped task, robot/name (simbench.env.ALL_TASKS)")
-    parser.add_argument("--iterations", type=int, default=10)
-    parser.add_argument("--population", type=int, default=16, help="episodes an iteration")
-    parser.add_argument("--elite", type=int, default=None, help="episodes kept an iteration (a quarter)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser = Parser(description=__doc__.split("\n")[0])
+    parser.add_argument("--task", type=shipped_task, default="puma600/line",
+                        help="a shipped task, robot/name (simbench.env.ALL_TASKS)")
+    parser.add_argument("--iterations", type=at_least(1), default=10)
+    parser.add_argument("--population", type=at_least(2), default=16, help="episodes an iteration")
+    parser.add_argument("--elite", type=at_least(2), default=None, help="episodes kept an iteration (a quarter)")
+    parser.add_argument("--seed", type=at_least(0), default=0)
     parser.add_argument("--per-joint", action="store_true", help="a gain a joint for each feature (3 x dof)")
     parser.add_argument("--out", type=Path, default=Path("renders/rl_cem"))
     parser.add_argument("--no-report", action="store_true", help="skip writing the best policy's episode")
     args = parser.parse_args(argv)
     robot, _, name = args.task.partition("/")
     elite = args.elite or max(2, args.population // 4)
-    if not 1 < elite <= args.population:
-        parser.error("--elite must be between 2 and --population")
+    if elite > args.population:
+        parser.error(f"argument --elite: expected at most --population ({args.population}), got {elite}")
+    try:  # before the search: a folder that cannot be made is known now, not a minute later
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        parser.error(f"argument --out: cannot make {str(args.out)!r}: {err.strerror}")
 
     env = simbench_env.load_task(robot, name)
     dof = env.action_spec().shape[0]
@@ -137,7 +170,6 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.task}: {length} steps an episode, {dof} joints; the reference as target scores {reference:.4f}")
     history = cem(env, dof if args.per_joint else 1, args.iterations, args.population, elite, args.seed, length)
 
-    args.out.mkdir(parents=True, exist_ok=True)
     plot(history, reference, args.task, args.out / "curve.png")
     with open(args.out / "history.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=[k for k in history[0] if k != "best_gains"])

@@ -135,7 +135,7 @@ def _sweep(args) -> None:
     cluster.check_where(args.workers, args.ray)
     sweep = load_sweep(args.sweep)
     if args.dry_run:
-        listing, refused = _dry_run(sweep)
+        listing, refused = _dry_run(sweep, args.allow_code)
         _say(listing)
         _refuse_all_bad_input(sweep, refused)
         return
@@ -173,15 +173,17 @@ def _compare(args) -> None:
     _say(f"table, plots and index.html in {result.out}")
 
 
-def _dry_run(sweep) -> tuple[str, list[tuple[str, str]]]:
-    """The listing of a sweep's runs and parameters, and the (run id, reason) of those the schema refuses."""
+def _dry_run(sweep, allow_code: bool) -> tuple[str, list[tuple[str, str]]]:
+    """The listing of a sweep's runs and parameters, and the (run id, reason) of those the sweep would refuse: the
+    schema's, and without `allow_code` a policy that names a module."""
+    from simbench.policy import refuse_code
     from simbench.scenario import parse_scenario
 
     lines = [f"{sweep.name}: {len(sweep.variants)} runs of {sweep.base}"]
     refused = []
     for v in sweep.variants:
         try:
-            parse_scenario(v.document, v.id)
+            refuse_code(parse_scenario(v.document, v.id), allow_code)
             verdict = ""
         except ScenarioError as err:
             verdict = f"  -> bad_input: {err.detail}"
@@ -258,8 +260,9 @@ def _run(args) -> int:
 
 
 def _list() -> str:
-    """The registered plugins with their origins and broken entry points, then the shipped scenarios and sweeps."""
-    from simbench import registry
+    """The registered plugins with their origins and broken entry points (a planner's robots, and the extra it
+    needs, if any), then the shipped scenarios and sweeps."""
+    from simbench import extras, registry
 
     lines = []
     for kind, found, width in (("robot", registry.robots, 16), ("planner", registry.planners, 20),
@@ -268,6 +271,8 @@ def _list() -> str:
         lines.append(f"{found.__name__}:")
         for x in found().values():
             works = f" [{_works(x)}]" if kind == "planner" else ""
+            needs = extras.mark(x.name) if kind == "planner" else None
+            works += f" [{needs}]" if needs else ""
             lines.append(f"  {x.name:{width}s} {x.description}{works} ({registry.origin(kind, x.name)})")
         lines += [f"  {name:20s} BROKEN: {printable(why)}" for name, why in sorted(registry.broken(kind).items())]
     for title, root in (("scenarios", scenarios_dir()), ("sweeps", sweeps_dir())):

@@ -22,6 +22,15 @@ EXTRAS: dict[str, tuple[str, str]] = {
     "shimmy": ("rl", "Shimmy"),
 }
 
+# simbench's own planners that need an extra, for `simbench list`: planner -> (the module, the part of the planner
+# that needs it; None: the planner itself). Each refuses without it where it plans (tests/test_extras.py); the table
+# is held to the planners' calls of require and missing by tests/test_reliability_round4.py.
+PLANNERS: dict[str, tuple[str, str | None]] = {
+    "avoidance_4567": ("ompl", "its global search in SO(3)"),
+    "cartesian_path": ("mink", "its mink method"),
+    "mink_baseline": ("mink", None),
+}
+
 
 class MissingExtra(ScenarioError):
     """An optional package not installed (or failing to import): what needs it, and the extra that installs it."""
@@ -58,3 +67,14 @@ def require(module: str, needs: str, source: str = "simbench", field: str | None
         absent = isinstance(err, ModuleNotFoundError) and (err.name or module).partition(".")[0] == module
         problem = "is not installed" if absent else f"fails to import ({type(err).__name__}: {err})"
         raise MissingExtra(source, field, module, needs, problem) from None
+
+
+def mark(planner: str) -> str | None:
+    """What `simbench list` says of a planner that needs an extra (PLANNERS): 'its mink method needs mink,
+    installed' or '..., not installed: pip install 'simbench[mink]''; None for one that needs none."""
+    if planner not in PLANNERS:
+        return None
+    module, part = PLANNERS[planner]
+    extra, package = EXTRAS[module]
+    state = "installed" if installed(module) else f"not installed: pip install 'simbench[{extra}]'"
+    return f"{part + ' ' if part else ''}needs {package}, {state}"

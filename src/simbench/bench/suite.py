@@ -8,16 +8,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import Field
+from pydantic import Field, ValidationError
 
 from simbench.bench import methods as methods_table
 from simbench.bench.robots import SHIPPED, BenchRobot, custom
 from simbench.errors import ScenarioError
 from simbench.schema import Name, SimbenchModel, file_name
-from simbench.validation import read_spec
+from simbench.validation import describe, read_spec
 
 MAX_TASKS = 10000
 DEFAULT_TASKS = 30
+MAX_SEED = 2**63 - 1  # the tasks' seed, as a suite file gives it or --seed
 
 
 class SuiteSpec(SimbenchModel):
@@ -26,9 +27,16 @@ class SuiteSpec(SimbenchModel):
     name: Name | None = None
     description: str = ""
     tasks: Annotated[int, Field(ge=1, le=MAX_TASKS)] = DEFAULT_TASKS
-    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
+    seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
     methods: Annotated[list[str], Field(min_length=1)] | None = None
     robots: Annotated[list[str | dict[str, Any]], Field(min_length=1)]
+
+
+class _OwnArm(SimbenchModel):
+    """The name a suite file gives an arm of its own, held to the rule of a scenario's `name:` (it names rows and
+    folders)."""
+
+    name: Name
 
 
 @dataclass(frozen=True)
@@ -48,8 +56,8 @@ class Suite:
         """The suite with the command line's overrides; ScenarioError naming the option at fault."""
         if tasks is not None and not 1 <= tasks <= MAX_TASKS:
             raise ScenarioError("--tasks", None, f"expected a number of tasks from 1 to {MAX_TASKS}, got {tasks}")
-        if seed is not None and seed < 0:
-            raise ScenarioError("--seed", None, f"expected a seed >= 0, got {seed}")
+        if seed is not None and not 0 <= seed <= MAX_SEED:
+            raise ScenarioError("--seed", None, f"expected a seed from 0 to {MAX_SEED} (2^63 - 1), got {seed}")
         chosen = self.methods if methods is None else tuple(check_methods(methods, "--methods", None))
         return Suite(self.name, self.source, self.robots, self.tasks if tasks is None else tasks,
                      self.seed if seed is None else seed, chosen, self.description)
@@ -121,12 +129,12 @@ def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
             raise ScenarioError(source, where, err.message) from None
     mapping = dict(entry)
     name, speed = mapping.pop("name", None), mapping.pop("speed", 0.1)
-    if not isinstance(name, str):
+    if name is None:
         raise ScenarioError(source, f"{where}.name", "missing: an arm of your own needs a name")
     try:
-        file_name(name, source)
-    except ScenarioError as err:
-        raise ScenarioError(source, f"{where}.name", err.message) from None
+        _OwnArm(name=name)
+    except ValidationError as err:
+        raise ScenarioError(source, f"{where}.name", describe(err, _OwnArm, {"name": name})[1]) from None
     if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not 0 < speed <= 10:
         raise ScenarioError(source, f"{where}.speed", f"expected a tool speed in m/s, > 0 and <= 10, got {speed!r}")
     from simbench.robots.robot_mapping import anchored, load_robot

@@ -5,6 +5,7 @@ one-line error, a run that kills its worker a `crashed` one, so that the table h
 
 from __future__ import annotations
 
+import ipaddress
 import multiprocessing
 import os
 import signal
@@ -12,6 +13,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from multiprocessing import connection
 from typing import Any
 
@@ -237,8 +239,9 @@ def _join_ray(address: str, workers: int) -> bool:
         return False
     options = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
     try:
-        if address == "local":
-            ray.init(num_cpus=workers, **options)
+        if address == "local":  # a new cluster whatever RAY_ADDRESS names, on this machine's loopback alone
+            with _loopback_node():
+                ray.init(address="local", num_cpus=workers, **options)
         else:  # one attempt to join (long where a port answers that is not Ray's), not Ray's twenty
             os.environ.setdefault("RAY_gcs_server_port_wait_time_s", "1")
             ray.init(address=address, **options)
@@ -247,7 +250,36 @@ def _join_ray(address: str, workers: int) -> bool:
         if address == "local":
             raise RunError(f"could not start a Ray cluster here: {reason}") from None
         raise ScenarioError("--ray", None, f"could not join the Ray cluster at {address}: {reason}") from None
+    if address == "local":
+        _check_loopback(ray)
     return True
+
+
+@contextmanager
+def _loopback_node() -> Iterator[None]:
+    """Ray's switch for a cluster of this machine alone, off while `ray.init` starts one, so that its node takes
+    the loopback address (127.0.0.1) and its services listen there alone, as on macOS and Windows; on Linux Ray
+    would take the network interface's address and open them to the network. Ray reads the switch (the variable
+    RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER) from the environment when first imported, hence its module's constant;
+    restored after, for a cluster joined later in this process."""
+    from ray._private import ray_constants
+
+    saved = ray_constants.ENABLE_RAY_CLUSTER
+    ray_constants.ENABLE_RAY_CLUSTER = False
+    try:
+        yield
+    finally:
+        ray_constants.ENABLE_RAY_CLUSTER = saved
+
+
+def _check_loopback(ray) -> None:
+    """RunError, the cluster stopped, unless every node of the cluster started here is on a loopback address (a
+    Ray whose switch no longer works)."""
+    nodes = sorted({node["NodeManagerAddress"] for node in ray.nodes()})
+    if not all(ipaddress.ip_address(node).is_loopback for node in nodes):
+        ray.shutdown()
+        raise RunError(f"the Ray cluster started here is on {', '.join(nodes)}, not on the loopback address alone: "
+                       "stopped rather than left open to the network (a Ray release simbench does not know?)")
 
 
 def cpu_count() -> int:
