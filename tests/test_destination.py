@@ -1,8 +1,7 @@
 """No data loss (issue 11): simbench never writes over its input, the working folder or a file it did not write,
 whatever --force says; one writer at a time; nothing left behind by a writer stopped by a signal; sweep workers
-die with their parent."""
+die with their parent. What a killed writer leaves, and what --force removes of it: tests/test_force_leftovers.py."""
 
-import os
 import shutil
 import signal
 import subprocess
@@ -57,27 +56,6 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
                      "--quiet"]) == 2
     assert "another simbench run or sweep is writing into this folder" in capsys.readouterr().err
     assert not out.exists()
-
-
-def _dead_pid() -> int:
-    proc = subprocess.Popen([sys.executable, "-c", "pass"])
-    proc.wait()
-    return proc.pid
-
-
-def test_leftovers_of_dead_writers_are_swept_and_a_live_ones_kept(tmp_path):
-    out = tmp_path / "out"
-    dead = tmp_path / f".out.partial-{_dead_pid()}"
-    (dead / "plots").mkdir(parents=True)
-    old = tmp_path / f".out.old-{_dead_pid()}"
-    old.mkdir()
-    with subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]) as alive:
-        live = tmp_path / f".out.partial-{alive.pid}"
-        live.mkdir()
-        assert main(["run", str(scenario_file("spherical_arm", "case1")), "--out", str(out), "--no-video",
-                     "--quiet"]) == 0
-        alive.kill()
-    assert not dead.exists() and not old.exists() and live.exists()
 
 
 def test_sigterm_during_the_video_cleans_up_as_ctrl_c_does(tmp_path):
@@ -206,32 +184,6 @@ def test_the_lock_file_never_follows_a_symlink(tmp_path, capsys, there):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and ".out.lock" in err[0] and "symlink" in err[0]
     assert (victim.read_text() == "the user's file" if there else not victim.exists()) and not out.exists()
-
-
-@pytest.mark.parametrize("force", [False, True], ids=["resumed", "forced"])
-def test_a_sweep_whose_full_output_runs_were_killed_resumes_or_is_replaced(tmp_path, force):
-    """Ctrl-C or SIGTERM ends a sweep's busy workers at once, mid-run: with outputs: full they leave their run's
-    lock and staging folder in runs/ (`.r0001.lock`, `.r0001.partial-PID/...`). Those are simbench's own: the
-    same command resumes over them, and --force replaces them, leaving none behind."""
-    from simbench.sweep import load_sweep, run_sweep
-
-    path = tmp_path / "sweep.yaml"
-    path.write_text(yaml.safe_dump({"base": "spherical_arm/case1", "outputs": "full",
-                                    "grid": {"timing.duration": [2, 3]}}))
-    sweep, out = load_sweep(path), tmp_path / "out"
-    run_sweep(sweep, out, workers=1)
-    killed = sweep.variants[1].id  # as a worker killed mid-run leaves it: no row, no folder, its leftovers
-    (out / "rows" / f"{killed}.json").unlink()
-    shutil.rmtree(out / "runs" / killed)
-    for name in ("results.csv", "results.parquet", "summary.json", "index.html"):
-        (out / name).unlink(missing_ok=True)
-    (out / "runs" / f".{killed}.lock").touch()
-    staging = out / "runs" / f".{killed}.partial-{_dead_pid()}"
-    (staging / "plots").mkdir(parents=True)
-    (staging / "plots" / "joints.png").write_bytes(b"half a plot")
-    result = run_sweep(sweep, out, workers=1, force=force)
-    assert result.resumed == (0 if force else 1) and result.table["status"] == ["ok", "ok"]
-    assert sorted(p.name for p in (out / "runs").iterdir()) == [v.id for v in sweep.variants]
 
 
 def test_force_never_replaces_a_folder_of_other_runs_outputs(tmp_path, capsys):

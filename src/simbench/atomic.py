@@ -6,12 +6,11 @@ errors.OutputError, naming the file as the user knows it and saying what was kep
 from __future__ import annotations
 
 import os
-import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from simbench.destination import check_replace, mark, sweep_leftovers
+from simbench.destination import check_replace, mark, marked, remove, sweep_leftovers
 from simbench.errors import OutputError, output_error, shown_path
 from simbench.interrupts import held_back
 
@@ -56,20 +55,24 @@ def staged_file(path: Path) -> Iterator[Path]:
 @contextmanager
 def staged_folder(out: Path) -> Iterator[Path]:
     """A fresh hidden folder beside `out`, moved onto `out` with its marker if the block succeeds, else removed.
-    That `out` may be replaced is checked again before it is (a file of the user's may have come since)."""
+    Its marker is written as it is made (what a killed writer leaves is then known as simbench's) and rewritten
+    at the end. That `out` may be replaced is checked again before it is (a file of the user's may have come
+    since)."""
     with _writing(out):
         out.parent.mkdir(parents=True, exist_ok=True)
         sweep_leftovers(out)
         tmp = _beside(out, "partial")
-        shutil.rmtree(tmp, ignore_errors=True)
+        if marked(tmp):  # under this process's id: left by a failed write of its own, or a dead process's
+            remove(tmp)
         try:
             tmp.mkdir()  # inside the try: a Ctrl-C handled as mkdir returns still removes it
+            mark(tmp, [])
             yield tmp
             mark(tmp)
             if out.exists():
-                check_replace(out)
+                check_replace(out, removes=True)
         except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
+            remove(tmp)
             raise
         _move(tmp, out)
 
@@ -89,6 +92,6 @@ def _move(tmp: Path, out: Path) -> None:
                     old.rename(out)
                 raise
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        remove(tmp)
         raise
-    shutil.rmtree(old, ignore_errors=True)
+    remove(old)

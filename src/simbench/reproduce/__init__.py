@@ -17,6 +17,7 @@ from pathlib import Path
 
 from simbench import destination
 from simbench.atomic import staged_folder
+from simbench.errors import STAGED, ScenarioError
 from simbench.reproduce._common import CLASSES, ERROR, OURS, TYPO, Difference, PaperSummary
 from simbench.resources import scenarios_dir
 
@@ -75,10 +76,12 @@ def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], N
         Each paper's part of the summary, where they were written and how long it took.
 
     Raises:
-        ScenarioError: an unknown paper, or a folder that holds something without `force`.
+        ScenarioError: an unknown paper, an `out` that holds anything but reproductions, or a folder that holds
+            something without `force`.
     """
     names = _papers(paper)
     out = destination.followed(Path(out))
+    _check_own(out)
     folders = {name: destination.followed(out / name) for name in names}
     start = time.perf_counter()
     parts = []
@@ -100,3 +103,20 @@ def reproduce(paper: str, out: Path, force: bool = False, log: Callable[[str], N
                 log(f"paper {name}: done in {part.seconds:.1f} s")
             parts.append(part)
     return Summary(out, tuple(parts), time.perf_counter() - start)
+
+
+def _check_own(out: Path) -> None:
+    """ScenarioError unless `out` is a folder of reproductions' own: new, empty, or holding nothing but paper
+    folders (000 ... 003) and simbench's hidden names beside them (their locks, staging folders). The papers are
+    written into it as subfolders with their locks beside them: into `/` or a home folder, they would land among
+    the user's own files."""
+    ours = {*PAPERS, *(f".{name}.lock" for name in PAPERS)}
+    with destination.refused(out):
+        if not out.is_dir():
+            return  # new (or a file, which the checks of its subfolders refuse)
+        other = next((p.name for p in sorted(out.iterdir()) if p.name not in ours and not (
+            (m := STAGED.match(p.name)) and m["name"] in PAPERS)), None)
+    if other is not None:
+        raise ScenarioError(str(out), None, f"holds {other}, which is not a reproduction: reproduce writes its "
+                                            f"papers ({out / PAPERS[0]} ...) only into a folder of their own (new, "
+                                            "empty, or holding only reproductions); pick another --out")
