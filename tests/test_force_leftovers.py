@@ -110,9 +110,6 @@ def _write(path) -> None:
 @pytest.mark.parametrize("command", ["run", "bench"])
 @pytest.mark.parametrize("lookalike", LOOKALIKES)
 def test_force_never_removes_a_users_file_that_looks_like_a_leftover(request, tmp_path, capsys, command, lookalike):
-    if (command, lookalike) == ("bench", "empty folder"):
-        request.applymarker(pytest.mark.xfail(strict=True, reason="a bench's or sweep's --force removes its folder "
-                                              "in sweep.store, whose check must pass removes=True"))
     make, named = LOOKALIKES[lookalike]
     out = tmp_path / "out"
     shutil.copytree(request.getfixturevalue(f"finished_{command}"), out)

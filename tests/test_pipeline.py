@@ -147,9 +147,10 @@ def test_a_folder_simbench_did_not_write_is_never_replaced(tmp_path):
     out.mkdir()
     (out / "notes.txt").write_text("the user's own")
     scenario = parse_scenario(short_case1(), "short")
-    with pytest.raises(ScenarioError, match="the output folder exists; pass --force"):
+    with pytest.raises(ScenarioError, match="the output folder exists; pass force=True"):
         simbench.run(scenario, out=out, video=False)
-    with pytest.raises(ScenarioError, match=r"holds 1 file\(s\) simbench did not write \(such as notes.txt\)"):
+    with pytest.raises(ScenarioError,
+                       match=r"holds 1 file\(s\) or folder\(s\) simbench did not write \(such as notes.txt\)"):
         simbench.run(scenario, out=out, video=False, force=True)
     assert written(out) == {"notes.txt"} and (out / "notes.txt").read_text() == "the user's own"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from simbench import interrupts
 from simbench.bench import command as bench_command
+from simbench.destination import command_line
 from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
                              os_error_line, printable)
 from simbench.plot_formats import FORMATS
@@ -99,7 +100,7 @@ def _names(text: str) -> list[str]:
 def _summary(result) -> str:
     r = result.report
     tr = r["tracking"]
-    lines = [f"{r['scenario']['name']}: {r['robot']} / {r['planner']} -> {result.out}"]
+    lines = [f"{r['scenario']['name']}: {printable(r['robot'])} / {r['planner']} -> {result.out}"]
     if "orientation_max" in tr:  # the task is an orientation: its error first, in degrees
         lines.append(f"  orientation vs plan: RMS {math.degrees(tr['orientation_rms']):.3f} deg, max "
                      f"{math.degrees(tr['orientation_max']):.3f} deg")
@@ -107,7 +108,7 @@ def _summary(result) -> str:
               f"lag RMS {tr['tool_lag_rms'] * 1e3:.3f} mm",
               f"  events: {len(r['singularity_events'])} singularity, {len(r['limit_events'])} limit; "
               f"MuJoCo warnings: {len(r['warnings'])}"]
-    lines += [f"  plan warning: {w}" for w in r["plan"]["warnings"]]
+    lines += [f"  plan warning: {printable(w)}" for w in r["plan"]["warnings"]]
     lines += _status_lines(r["status"], r["violations"], r.get("expected"))
     return "\n".join(lines)
 
@@ -116,7 +117,7 @@ def _status_lines(status: str, violations: list[dict], expected: dict | None) ->
     """The status, each violation on its line, and whether the scenario expected it."""
     lines = [f"  status: {status}" + (f" ({len(violations)} promise{'s' * (len(violations) > 1)} broken)"
                                       if violations else "")]
-    lines += [f"    {v['kind']}: {v['message']}" for v in violations]
+    lines += [f"    {v['kind']}: {printable(v['message'])}" for v in violations]
     if expected is not None:
         if expected["met"]:
             lines.append(f"  as the scenario expects ({expected['status']}: {', '.join(expected['violations'])})")
@@ -221,7 +222,7 @@ def _validate_one(path: Path, plan: bool) -> int:
         if verdict.violations or verdict.expected is not None:
             _say("\n".join(_status_lines(verdict.status, list(verdict.violations), verdict.expected)[1:]))
         for warning in traj.warnings:
-            _say(f"  plan warning: {warning}")
+            _say(f"  plan warning: {printable(warning)}")
         code = 0 if verdict.as_expected else EXIT_LIMITS
     else:
         _say(valid)
@@ -302,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
         except interrupts.Interrupted:  # pressed while the command line was read
             _say("interrupted", file=sys.stderr)
             return ctrl_c.exit_code
-        return _command(args, ctrl_c)
+        with command_line():
+            return _command(args, ctrl_c)
 
 
 def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:

@@ -64,12 +64,12 @@ class Store:
         if not (out.exists() and any(p.name != destination.MARKER for p in out.iterdir())):
             return
         if force:
-            destination.check_replace(out)
+            destination.check_replace(out, removes=True)
             shutil.rmtree(out)
         elif _fingerprint_in(out / "sweep.json") != fingerprint:
             raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or files "
-                                                "that are not a sweep's); pass --force to replace them, or --out to "
-                                                "write elsewhere")
+                                                f"that are not a sweep's); pass {destination.option('--force', 'force=True')} "
+                                                "to replace them, or --out to write elsewhere")
         else:
             destination.check_replace(out, "a sweep resumed here rewrites its own files, and never yours")
 
