@@ -53,7 +53,7 @@ class ModelArm(Robot):
                          scene=self._register(), joints=chain.joints, kinds=chain.kinds, lower=chain.lower,
                          upper=chain.upper, qd_max=qd_max, tool_site=chain.tool.site or TOOL_SITE,
                          tool_sensor=TOOL_SENSOR, orientation_error=ORIENTATION_ERROR, breaking=("contact",))
-        self._kinematics: tuple[mujoco.MjModel, mujoco.MjData] | None = None
+        self._kinematics: tuple[mujoco.MjModel, mujoco.MjData, np.ndarray, np.ndarray, int] | None = None
         self._contacts: Contacts | None = None
 
     def _register(self) -> str:
@@ -68,23 +68,32 @@ class ModelArm(Robot):
         self.__dict__.update(state)
         register_scene(str(self.scene), self.arm.spec)
 
-    def _posed(self, q: Array):
-        """(model, data) at each row of q (N, dof) in turn, kinematics and com positions computed."""
-        if self._kinematics is None:
-            model = self.arm.spec().compile()
-            self._kinematics = model, mujoco.MjData(model)
-        model, data = self._kinematics
-        adr = [model.joint(name).qposadr[0] for name in self.joints]
+    def _posed(self, q: Array, com: bool = False):
+        """(model, data) at each row of q (N, dof) in turn, kinematics computed, and com positions where `com` (a
+        Jacobian needs them)."""
+        model, data, adr, _, _ = self._compiled()
         for row in np.atleast_2d(q):
             data.qpos[:] = model.qpos0
             data.qpos[adr] = row
             mujoco.mj_kinematics(model, data)
-            mujoco.mj_comPos(model, data)
+            if com:
+                mujoco.mj_comPos(model, data)
             yield model, data
+
+    def _compiled(self) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray, np.ndarray, int]:
+        """The arm's kinematics model and data, its joints' qpos and dof addresses and the tool site's id, made once
+        (planning asks for them at every control sample)."""
+        if self._kinematics is None:
+            model = self.arm.spec().compile()
+            joints = [model.joint(name) for name in self.joints]
+            self._kinematics = (model, mujoco.MjData(model), np.array([j.qposadr[0] for j in joints]),
+                                np.array([j.dofadr[0] for j in joints]), model.site(self.tool_site).id)
+        return self._kinematics
 
     def fk(self, q: Array) -> Array:
         """The tool point (N, 3) in metres at joint values q (N, dof), as MuJoCo places the tool's site."""
-        return np.array([data.site(self.tool_site).xpos.copy() for _, data in self._posed(q)])
+        site = self._compiled()[4]
+        return np.array([data.site_xpos[site].copy() for _, data in self._posed(q)])
 
     @property
     def reach(self) -> float:
@@ -93,15 +102,16 @@ class ModelArm(Robot):
 
     def tool_rotation(self, q: Array) -> Array:
         """The tool site's orientation (N, 3, 3) in the world at joint values q (N, dof): MuJoCo's site_xmat."""
-        return np.array([data.site(self.tool_site).xmat.reshape(3, 3).copy() for _, data in self._posed(q)])
+        site = self._compiled()[4]
+        return np.array([data.site_xmat[site].reshape(3, 3).copy() for _, data in self._posed(q)])
 
     def jacobian(self, q: Array) -> Array:
         """J = [Jp; Jr] (N, 6, dof) at joint values q (N, dof): mj_jacSite's, at the tool site."""
+        _, _, _, dofs, site = self._compiled()
         out = []
-        for model, data in self._posed(q):
+        for model, data in self._posed(q, com=True):
             jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
-            mujoco.mj_jacSite(model, data, jacp, jacr, model.site(self.tool_site).id)
-            dofs = [model.joint(name).dofadr[0] for name in self.joints]
+            mujoco.mj_jacSite(model, data, jacp, jacr, site)
             out.append(np.vstack([jacp[:, dofs], jacr[:, dofs]]))
         return np.array(out)
 
