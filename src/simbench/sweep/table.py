@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 
 from simbench import csv_cells, extras
 from simbench.atomic import staged_file, staged_folder, write_text
+from simbench.plots import plot_text
 from simbench.sweep.execute import as_worker
 
 STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
@@ -181,14 +182,14 @@ def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], 
         if (~ok).any():
             ax.plot(x[~ok], np.full((~ok).sum(), floor), "x", ms=7, color="tab:red", label=f"failed ({(~ok).sum()})")
         if labels is not None:
-            ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right")
+            ax.set_xticks(range(len(labels)), [plot_text(label) for label in labels], rotation=30, ha="right")
         elif (x > 0).all() and x.max() > 100 * x.min():
             ax.set_xscale("log")
-        ax.set_xlabel(name)
+        ax.set_xlabel(plot_text(name))
         ax.grid(alpha=0.3)
     if log_y:
         panels[0][0].set_yscale("log")
-    panels[0][0].set_ylabel(metric)
+    panels[0][0].set_ylabel(plot_text(metric))
     panels[0][0].legend(fontsize=8)
     return _save(fig, folder, f"{_safe(metric)}.png")
 
@@ -208,9 +209,9 @@ def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table:
     image = ax.imshow(cells, origin="lower", aspect="auto", cmap="viridis")
     ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs])
     ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys])
-    ax.set_xlabel(pair[0])
-    ax.set_ylabel(pair[1])
-    fig.colorbar(image, ax=ax, label=f"{metric} (median)")
+    ax.set_xlabel(plot_text(pair[0]))
+    ax.set_ylabel(plot_text(pair[1]))
+    fig.colorbar(image, ax=ax, label=f"{plot_text(metric)} (median)")
     return _save(fig, folder, f"{_safe(metric)}_grid.png")
 
 
