@@ -1,21 +1,35 @@
 """An arm's model file read into an MjSpec ready to compile: MJCF as it is, URDF through MuJoCo's own reader.
-Reading a model runs no code. For a URDF:
+Reading a model runs no code, and nothing MuJoCo cannot be stopped in starts before simbench has read the files:
+  - the model is surveyed first (robots.model_size: hardened XML, every number finite, every file it includes or
+    names a regular file, its size held to the machine's memory) and refused in one line (ArmError);
+  - MuJoCo reads and compiles it on a thread this one waits for (`interruptible`), so that Ctrl-C and SIGTERM are
+    answered at once, and MuJoCo's warnings are kept from the terminal and from a MUJOCO_LOG.TXT;
+  - the arena is given room for MuJoCo's collision buffers where a model of many bodies needs it.
+For a URDF:
   - every link is kept as a body (MuJoCo would fuse fixed-joint links, a UR's tool link `tool0` among them);
   - a mesh `package://NAME/rest` is read from the mapping's `packages: {NAME: folder}`, else the nearest folder
     called NAME above the URDF;
   - a mesh MuJoCo cannot decode (not STL, OBJ or MSH, e.g. COLLADA .dae) is dropped with a note where only visual
     geoms use it, and is bad input otherwise;
-  - the joints' `velocity` limits are read from the file, as MuJoCo keeps none (their `effort` it keeps).
+  - the joints' `velocity` limits are read from the file, as MuJoCo keeps none (their `effort` it keeps), each
+    limit checked (robots.model_xml.urdf_limits).
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
+import threading
+import warnings
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import mujoco
 
+from simbench.faults import quiet_mujoco
+from simbench.robots import model_size
 from simbench.robots.chain import ArmError
+from simbench.robots.model_xml import read_xml
+from simbench.robots.model_xml import urdf_limits as _stated_limits
 
 _PACKAGE = "package://"
 _DECODED = (".stl", ".obj", ".msh")  # the mesh files MuJoCo reads
@@ -28,14 +42,53 @@ def is_urdf(path: str) -> bool:
 def read_spec(path: str, packages: tuple[tuple[str, str], ...] = ()) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
     """The model at `path` (absolute) as an MjSpec ready to compile, and a note for each mesh dropped; ArmError
     naming the field at fault. `packages`: (name, absolute folder) pairs for a URDF's package:// meshes."""
+    counts = model_size.survey(path)
     try:
-        spec = mujoco.MjSpec.from_file(path)
+        spec = interruptible(mujoco.MjSpec.from_file, path)
     except ValueError as err:
-        raise ArmError("model", f"MuJoCo cannot read it: {str(err).strip().splitlines()[0]}") from None
-    if not is_urdf(path):
-        return spec, ()
-    spec.compiler.fusestatic = False
-    return spec, tuple(_resolve_meshes(spec, path, dict(packages)))
+        raise ArmError("model", f"MuJoCo cannot read it: {mujoco_words(err)}") from None
+    notes: tuple[str, ...] = ()
+    if is_urdf(path):
+        spec.compiler.fusestatic = False
+        notes = tuple(_resolve_meshes(spec, path, dict(packages)))
+    model_size.check(path, counts, model_size.asset_bytes(spec, path))
+    model_size.fit_arena(spec)
+    return spec, notes
+
+
+def compiled(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """spec.compile(), interruptible; ArmError ('model') where MuJoCo cannot compile it."""
+    try:
+        return interruptible(spec.compile)
+    except ValueError as err:
+        raise ArmError("model", f"MuJoCo cannot load it: {mujoco_words(err)}") from None
+
+
+def mujoco_words(err: Exception) -> str:
+    """MuJoCo's error, whole, on one line (its first line may end at a colon: 'XML parse error 8:')."""
+    return " ".join(line.strip() for line in str(err).strip().splitlines() if line.strip())
+
+
+def interruptible(fn: Callable[..., Any], *args: Any) -> Any:
+    """fn(*args) run on a thread that this one waits for, MuJoCo's warnings silenced: MuJoCo lets go of the GIL
+    while it reads and compiles, so that a signal's handler (interrupts.raising_interrupted) runs here at once
+    instead of when MuJoCo is done. An interrupted call's thread ends with the process."""
+    outcome: dict[str, Any] = {}
+
+    def call() -> None:
+        try:
+            outcome["value"] = fn(*args)
+        except BaseException as err:  # noqa: BLE001  raised again in the caller's thread
+            outcome["error"] = err
+
+    with quiet_mujoco(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the compiler's warnings (a near-singular inertia): not the user's lines
+        thread = threading.Thread(target=call, name="simbench-model", daemon=True)
+        thread.start()
+        thread.join()
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]
 
 
 def _resolve_meshes(spec: mujoco.MjSpec, path: str, packages: dict[str, str]) -> list[str]:
@@ -73,19 +126,19 @@ def _package_folder(named: str, path: str, packages: dict[str, str]) -> Path:
 
 
 def urdf_limits(path: str) -> dict[str, tuple[float | None, float | None]]:
-    """Each URDF joint's (velocity, effort) limits as the file states them (SI; None where absent)."""
-    limits: dict[str, tuple[float | None, float | None]] = {}
-    for joint in ET.parse(path).getroot().iter("joint"):
-        limit, name = joint.find("limit"), joint.get("name")
-        if limit is not None and name:
-            limits[name] = (_positive(limit.get("velocity")), _positive(limit.get("effort")))
-    return limits
+    """Each URDF joint's (velocity, effort) limits as the file states them (SI; None where absent or 0)."""
+    return _stated_limits(read_xml(Path(path)), Path(path))
 
 
-def _positive(text: str | None) -> float | None:
-    """A limit's value, None where absent or not positive (URDF's 0 is 'unstated')."""
-    try:
-        value = float(text) if text is not None else 0.0
-    except ValueError:
-        return None
-    return value if value > 0 else None
+def fingerprint(path: str, packages: tuple[tuple[str, str], ...] = ()) -> str:
+    """A digest of the model's files by content: its own, those it includes, and those its assets name (a URDF's
+    package:// meshes found as read_spec finds them); robots.model_size.fingerprint."""
+    counts = model_size.survey(path)
+    assets = counts.asset_files(Path(path).parent)
+    for _, named in counts.assets:
+        if named.startswith(_PACKAGE):
+            try:
+                assets.append(_package_folder(named, path, dict(packages)) / named[len(_PACKAGE):].partition("/")[2])
+            except ArmError:  # read_spec says so
+                continue
+    return model_size.fingerprint(counts, assets)

@@ -30,9 +30,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from simbench.faults import quiet_mujoco
 from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
 from simbench.robots.contacts import Contacts
-from simbench.robots.model_file import read_spec
+from simbench.robots.model_file import compiled, read_spec
 from simbench.robots.model_stage import stage, staging
 from simbench.servo_design import DEFAULT_BANDWIDTH, pd_gains
 
@@ -44,7 +45,9 @@ TOOL_SENSOR = "simbench/tool_pos"
 class ArmOptions:
     """A robot mapping's choices about its model (SI): the tool, the joints (None: the chain's), per-joint force
     limits (None: the model's), the added servos' least bandwidth (rad/s; None: DEFAULT_BANDWIDTH) and damping
-    ratio, gravity compensation, and a URDF's package folders (name, absolute path; robots.model_file)."""
+    ratio, gravity compensation, a URDF's package folders (name, absolute path; robots.model_file), and the digest
+    of the model's files (robots.model_file.fingerprint) the arm was derived from: so that whatever is keyed by the
+    options (the derived arm, its registered scene) is made anew when a file changes."""
 
     tool: Tool | None = None
     joints: tuple[str, ...] | None = None
@@ -53,6 +56,7 @@ class ArmOptions:
     damping_ratio: float = 1.0
     gravity_compensation: bool = True
     packages: tuple[tuple[str, str], ...] = ()
+    digest: str = ""
 
 
 @dataclass(frozen=True)
@@ -120,13 +124,11 @@ def derive(path: str, options: ArmOptions) -> DerivedArm:
     """The arm in the MJCF or URDF at `path` (absolute), as `options` ask; ArmError naming the field at fault."""
     spec, dropped = read_spec(path, options.packages)
     name = spec.modelname or Path(path).stem
-    try:
-        model = spec.compile()
-    except ValueError as err:
-        raise ArmError("model", f"MuJoCo cannot load it: {str(err).strip().splitlines()[0]}") from None
+    model = compiled(spec)
     chain = chain_of(model, options.tool, options.joints)
     limits = _force_limits(options, chain)
-    inertia = _start_inertia(model, chain)
+    with quiet_mujoco():
+        inertia = _start_inertia(model, chain)
     drives = tuple(_drive(model, name, inertia[i], options, limits[i]) for i, name in enumerate(chain.joints))
     added, camera = staging(model)
     euler = model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
@@ -148,11 +150,12 @@ def _locked(model: mujoco.MjModel, chain: Chain) -> tuple[str, ...]:
 def _touching(arm: DerivedArm) -> tuple[tuple[str, str], ...]:
     """The body pairs of the arm's own geoms touching at the reference pose: qpos0, and a `home` keyframe's (not
     the floor's: an arm whose reference pose dips into the floor keeps colliding with it)."""
-    model = arm.spec().compile()
+    model = compiled(arm.spec())
     contacts = arm.contacts(model)
     homes = [model.key_qpos[k] for k in range(model.nkey) if model.key(k).name == "home"]
-    return tuple(sorted({tuple(sorted(touch.bodies)) for qpos in [model.qpos0, *homes]
-                         for touch in contacts.at_qpos(qpos) if touch.within}))
+    with quiet_mujoco():
+        return tuple(sorted({tuple(sorted(touch.bodies)) for qpos in [model.qpos0, *homes]
+                             for touch in contacts.at_qpos(qpos) if touch.within}))
 
 
 def _force_limits(options: ArmOptions, chain: Chain) -> tuple[float | None, ...]:
@@ -220,7 +223,7 @@ def _bound(model: mujoco.MjModel, i: int) -> float:
 def _scene(arm: DerivedArm) -> mujoco.MjSpec:
     """The scene of DerivedArm.spec."""
     spec = read_spec(arm.path, arm.options.packages)[0]
-    model = spec.compile()
+    model = compiled(spec)
     actuators = list(spec.actuators)  # by the file's indices (Drive.keep, Drive.removed), before any is deleted
     _lock(spec, model, arm.locked)
     if model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER:

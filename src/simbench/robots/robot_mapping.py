@@ -13,7 +13,8 @@ its MJCF or URDF model (robots.model_scene, robots.model_file), with no code of 
       gravity_compensation: true               # optional: gravcomp on the bodies the chain moves
 
 A robot file's relative paths are relative to its own folder, and it may state its own `units:` (default: the
-scenario's). Reading the model runs no code.
+scenario's). Reading the model runs no code (robots.model_file), and what is derived from it is kept for the
+process keyed by the content of its files, never by its path alone: a model edited between two loads is read anew.
 """
 
 from __future__ import annotations
@@ -26,11 +27,12 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field, ValidationError
 
-from simbench.errors import ScenarioError
+from simbench.errors import ScenarioError, os_words
 from simbench.robots.chain import ArmError, Tool
 from simbench.robots.model_arm import ModelArm
-from simbench.robots.model_file import is_urdf, urdf_limits
+from simbench.robots.model_file import fingerprint, is_urdf, urdf_limits
 from simbench.robots.model_scene import ArmOptions, DerivedArm, derive
+from simbench.robots.model_size import file_problem
 from simbench.schema import Position, SimbenchModel, Units
 from simbench.validation import describe, kind_of, read_yaml
 
@@ -84,7 +86,12 @@ def anchored(value: Any, folder: str | Path) -> Any:
     against `folder`, the scenario's own: what a copy of the scenario read from elsewhere (a sweep's runs) needs to
     name the same files. Anything else is returned as it is, for the schema to judge."""
     def absolute(text: Any) -> Any:
-        return str(Path(folder, text).resolve()) if isinstance(text, str) and not Path(text).is_absolute() else text
+        if not isinstance(text, str) or Path(text).is_absolute():
+            return text
+        try:
+            return str(Path(folder, text).resolve())
+        except (OSError, RuntimeError, ValueError):  # a symlink loop, a NUL byte: refused, named, where it is read
+            return str(Path(folder, text))
 
     if isinstance(value, str):
         return absolute(value) if is_mapping(value) else value
@@ -100,17 +107,29 @@ def load_robot(value: dict | str, source: str, units: Units) -> ModelArm:
     """The arm a scenario's `robot:` describes (`source`: the scenario file); ScenarioError naming the file and the
     field at fault."""
     raw, source, field = _mapping(value, source)
-    units = Units.model_validate(raw["units"]) if isinstance(raw.get("units"), dict) else units
+    units = units_of(raw, source, field) or units
     try:
         mapping = RobotMapping.model_validate(raw, context={"units": units})
     except ValidationError as err:
         raise ScenarioError(source, *describe(err, RobotMapping, raw, prefix=field)) from None
     where = ".".join(field)
     try:
-        path, choices = model_path(mapping.model, source, where), options(mapping, source)
-        return _arm(path, choices, _speed_limits(mapping.speed_limits, path, derived(path, choices), units))
+        path = model_path(mapping.model, source, where)
+        choices = _stamped(path, options(mapping, source))
+        return _arm(path, choices, _speed_limits(mapping.speed_limits, path, _derived(path, choices), units))
     except ArmError as err:
         raise ScenarioError(source, ".".join((*field, err.field)), str(err)) from None
+
+
+def units_of(raw: Any, source: str, field: tuple[str, ...] = ()) -> Units | None:
+    """The `units:` a mapping (a scenario, a robot file) states, None where it states none; ScenarioError naming
+    the field where they are not units."""
+    if not isinstance(raw, dict) or not isinstance(raw.get("units"), dict):
+        return None
+    try:
+        return Units.model_validate(raw["units"])
+    except ValidationError as err:
+        raise ScenarioError(source, *describe(err, Units, raw["units"], prefix=(*field, "units"))) from None
 
 
 def _mapping(value: dict | str, source: str) -> tuple[dict, str, tuple[str, ...]]:
@@ -118,6 +137,8 @@ def _mapping(value: dict | str, source: str) -> tuple[dict, str, tuple[str, ...]
     if isinstance(value, dict):
         return value, source, ("robot",)
     path = Path(value) if Path(value).is_absolute() else Path(source).parent / value
+    if "\0" in str(path):  # read_yaml says what else a path may be in the way of
+        raise ScenarioError(source, "robot", "expected a path without a NUL byte")
     raw = read_yaml(path)
     if not isinstance(raw, dict):
         raise ScenarioError(str(path), None, f"expected a robot mapping (model, tool, speed_limits), got "
@@ -131,8 +152,9 @@ def model_path(model: str, source: str, where: str) -> str:
     field = f"{where}.model" if where else "model"
     if path.suffix.lower() not in (".xml", ".urdf"):
         raise ScenarioError(source, field, f"expected an MJCF (.xml) or URDF (.urdf) file, got {model!r}")
-    if not path.is_file():
-        raise ScenarioError(source, field, f"no such file: {path}")
+    problem = file_problem(path)
+    if problem is not None:
+        raise ScenarioError(source, field, problem)
     return str(path.resolve())
 
 
@@ -147,8 +169,20 @@ def options(mapping: RobotMapping, source: str) -> ArmOptions:
         force_limits=None if limits is None else (tuple(limits) if isinstance(limits, tuple) else (limits,)),
         bandwidth=mapping.servo.bandwidth, damping_ratio=mapping.servo.damping_ratio,
         gravity_compensation=mapping.gravity_compensation,
-        packages=tuple((name, str((Path(source).parent / folder).resolve()))
+        packages=tuple((name, _folder(name, Path(source).parent / folder))
                        for name, folder in sorted(mapping.packages.items())))
+
+
+def _folder(name: str, folder: Path) -> str:
+    """A package's folder made absolute; ArmError ('packages') for a path that names none."""
+    try:
+        return str(folder.resolve())
+    except ValueError:
+        raise ArmError("packages", f"{name}: expected a path without a NUL byte") from None
+    except RuntimeError:  # Path.resolve's symlink loop
+        raise ArmError("packages", f"{name}: {folder}: a symlink loop") from None
+    except OSError as err:
+        raise ArmError("packages", f"{name}: {folder}: {os_words(err)}") from None
 
 
 def _speed_limits(values: list[float] | None, path: str, arm: DerivedArm, units: Units) -> tuple[float, ...]:
@@ -168,9 +202,20 @@ def _speed_limits(values: list[float] | None, path: str, arm: DerivedArm, units:
     return tuple(v * units.factor(kind) for v, kind in zip(values, kinds))
 
 
-@cache
 def derived(path: str, arm_options: ArmOptions) -> DerivedArm:
-    """The arm in the model at `path`, derived once per process for the same choices (a sweep's runs share it)."""
+    """The arm in the model at `path`, derived once per process for the same choices and the same content of the
+    model's files (robots.model_file.fingerprint): a sweep's runs share it, an edited model is derived anew."""
+    return _derived(path, _stamped(path, arm_options))
+
+
+def _stamped(path: str, arm_options: ArmOptions) -> ArmOptions:
+    """The options with the digest of the model's files now."""
+    return replace(arm_options, digest=fingerprint(path, arm_options.packages))
+
+
+@cache
+def _derived(path: str, arm_options: ArmOptions) -> DerivedArm:
+    """derived, keyed by options _stamped with the files' digest."""
     if arm_options.force_limits is not None and len(arm_options.force_limits) == 1:
         joints = derive(path, replace(arm_options, force_limits=None)).chain.joints
         arm_options = replace(arm_options, force_limits=arm_options.force_limits * len(joints))
@@ -179,5 +224,6 @@ def derived(path: str, arm_options: ArmOptions) -> DerivedArm:
 
 @cache
 def _arm(path: str, arm_options: ArmOptions, qd_max: tuple[float, ...]) -> ModelArm:
-    """One Robot per arm and speed limits, so that runs of the same arm share their compiled scene and plant."""
-    return ModelArm(derived(path, arm_options), np.array(qd_max))
+    """One Robot per arm (its options holding the files' digest) and speed limits, so that runs of the same arm
+    share their compiled scene and plant."""
+    return ModelArm(_derived(path, arm_options), np.array(qd_max))
