@@ -306,3 +306,24 @@ def test_a_sweep_over_robot_model_names_a_loop_and_a_nul_byte_as_bad_input_rows(
     assert "-> bad_input: robot.model: a symlink loop" in out
     assert "-> bad_input: robot.model: expected a path without a NUL byte" in out
     assert out.count("bad_input") == 2
+
+
+def test_a_bench_suite_naming_a_symlink_loop_is_bad_input(tmp_path, capsys):
+    """Before: `internal error: RuntimeError: Symlink loop` (exit 1)."""
+    (tmp_path / "loop.xml").symlink_to(tmp_path / "loop.xml")
+    suite = tmp_path / "suite.yaml"
+    suite.write_text("robots:\n  - {name: mine, model: loop.xml, tool: {site: tool}, speed_limits: [3, 3, 3]}\n"
+                     "tasks: 2\n")
+    err = _refused(capsys, ["bench", str(suite), "--out", str(tmp_path / "out")])
+    assert err.endswith("suite.yaml: robots[0].model: a symlink loop (too many levels of symbolic links)")
+
+
+def test_xml_nested_past_mujocos_depth_and_a_file_included_twice_are_one_line(tmp_path, capsys):
+    """Before: 'XML parse error 18:' and 'XML Error: File ... already included', each cut at its colon."""
+    _planar3r(tmp_path, "<body>" * 600 + "</body>" * 600)
+    err = _refused(capsys, ["validate", str(_scenario(tmp_path, "arm.xml"))])
+    assert "robot.model: arm.xml line " in err and "elements nested more than 500 deep" in err
+    (tmp_path / "part.xml").write_text("<mujoco><body/></mujoco>")
+    _planar3r(tmp_path, '<include file="part.xml"/><include file="part.xml"/>')
+    err = _refused(capsys, ["validate", str(_scenario(tmp_path, "arm.xml"))])
+    assert err.endswith("robot.model: arm.xml: <include> file='part.xml': already included")

@@ -116,7 +116,7 @@ def survey(path: str) -> Counts:
     if root.tag == "robot":
         _urdf(root, Path(path), counts)
     else:
-        _mjcf(root, Path(path), Path(path).parent, 1, counts, (Path(path),))
+        _mjcf(root, Path(path), Path(path).parent, 1, counts)
     check(path, counts)
     return counts
 
@@ -133,8 +133,7 @@ def _read(path: Path, model: Path, counts: Counts):
     return read_xml(path)
 
 
-def _mjcf(element, path: Path, folder: Path, times: int, counts: Counts, stack: tuple[Path, ...],
-          owner: str = "") -> None:
+def _mjcf(element, path: Path, folder: Path, times: int, counts: Counts, owner: str = "") -> None:
     """Count an MJCF element's children (each `times` over, replicated), reading what they include; `owner`: the
     named element they are in, in words."""
     section = element.tag
@@ -147,18 +146,17 @@ def _mjcf(element, path: Path, folder: Path, times: int, counts: Counts, stack: 
             problem = file_problem(included)
             if problem is not None:
                 raise ArmError("model", f"{path.name}: {where(child)} file={named!r}: {problem}")
-            if included.resolve() in {p.resolve() for p in stack}:
-                raise ArmError("model", f"{path.name}: {where(child)} file={named!r}: includes itself")
-            root = _read(included, stack[0], counts)
-            _mjcf(root, included, folder, times, counts, (*stack, included), owner)
+            if included.resolve() in {p.resolve() for p in counts.files}:  # as MuJoCo refuses it
+                raise ArmError("model", f"{path.name}: {where(child)} file={named!r}: already included")
+            _mjcf(_read(included, counts.files[0], counts), included, folder, times, counts, owner)
             continue
         counts.elements += times
         inner = where(child) if child.get("name") else owner
         if tag == "replicate":
-            _mjcf(child, path, folder, times * _int(child, "count", 1, path), counts, stack, inner)
+            _mjcf(child, path, folder, times * _int(child, "count", 1, path), counts, inner)
             continue
         _count(section, child, times, counts, path)
-        _mjcf(child, path, folder, times, counts, stack, inner)
+        _mjcf(child, path, folder, times, counts, inner)
 
 
 def _count(section: str, element, times: int, counts: Counts, path: Path) -> None:

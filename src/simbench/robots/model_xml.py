@@ -20,6 +20,7 @@ from xml.parsers import expat
 from simbench.robots.chain import ArmError
 
 MAX_MAGNITUDE = 1e6  # m, kg, kg m^2, deg or rad: far past any manipulator, well inside MuJoCo's 1e10 "huge value"
+MAX_DEPTH = 500  # elements nested (tinyxml2's, MuJoCo's reader's, bound)
 MAX_LIMIT = 1e6  # a URDF joint's velocity (rad/s, m/s) and effort (N m, N): robot_mapping's own bounds
 
 # Attributes whose value is a name or a word, never a number (a body may be called "inf").
@@ -41,8 +42,21 @@ def read_xml(path: Path) -> ET.Element:
     as '?': names are not what this reading is for."""
     builder = ET.TreeBuilder()
     parser = expat.ParserCreate()
-    parser.StartElementHandler = builder.start
-    parser.EndElementHandler = builder.end
+    depth = [0]
+
+    def start(tag: str, attributes: dict[str, str]) -> None:
+        depth[0] += 1
+        if depth[0] > MAX_DEPTH:
+            raise ArmError("model", f"{path.name} line {parser.CurrentLineNumber}: elements nested more than "
+                                    f"{MAX_DEPTH} deep (MuJoCo's XML reader reads none deeper)")
+        builder.start(tag, attributes)
+
+    def end(tag: str) -> None:
+        depth[0] -= 1
+        builder.end(tag)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
 
     def doctype(*_) -> None:
         raise ArmError("model", f"{path.name} line {parser.CurrentLineNumber}: a document type declaration "
