@@ -52,7 +52,7 @@ def read_spec(path: str, packages: tuple[tuple[str, str], ...] = ()) -> tuple[mu
         spec.compiler.fusestatic = False
         notes = tuple(_resolve_meshes(spec, path, dict(packages)))
     model_size.check(path, counts, model_size.asset_bytes(spec, path))
-    model_size.fit_arena(spec)
+    model_size.fit_arena(spec, counts)
     return spec, notes
 
 
