@@ -187,8 +187,6 @@ def test_units_a_robot_file_states_are_checked(tmp_path, capsys):
     assert err.startswith(f"error: {tmp_path / 'arm.yaml'}: units.angle:") and "furlong" in err
 
 
-@pytest.mark.xfail(strict=True, reason="needs simbench/robots/inspect_arm.py to check a path as robot_mapping does "
-                                       "(model_path before resolving it; robot_mapping.units_of for units)")
 def test_inspect_refuses_a_symlink_loop_and_bad_units_in_one_line(tmp_path, capsys):
     """`inspect MODEL` on a symlink loop, and on a robot file or scenario whose units are no units."""
     (tmp_path / "loop.xml").symlink_to(tmp_path / "loop.xml")

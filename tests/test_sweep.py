@@ -206,7 +206,7 @@ def test_output_folder_is_guarded(tmp_path):
     second = load_sweep(write(tmp_path, {"base": CASE1, "outputs": "none", "grid": {"timing.duration": [3]}}, "b"))
     out = tmp_path / "out"
     run_sweep(first, out, workers=1)
-    with pytest.raises(ScenarioError, match="holds other results.*--force"):
+    with pytest.raises(ScenarioError, match="holds other results.*force=True"):
         run_sweep(second, out, workers=1)
     assert run_sweep(second, out, workers=1, force=True).table["timing.duration"] == [3]
     with Store(out, second), pytest.raises(ScenarioError, match="another simbench run or sweep is writing into this folder"):

@@ -23,7 +23,7 @@ import numpy as np
 
 from simbench.api import REVOLUTE, Violation
 from simbench.errors import RunError
-from simbench.planners.path_methods import pinv_rates
+from simbench.planners.path_methods import RCOND
 from simbench.robots.rank_loss import unit_jacobian
 from simbench.trajectory import control_grid
 
@@ -43,19 +43,23 @@ def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
              error_of) -> tuple[np.ndarray, np.ndarray]:
     """Joints (N, dof) at which the tool's pose is points, rotations: Newton's q <- q + Ju+ e from q, e =
     error_of(points, rotations, q) (N, rows), Ju's first `rows` rows (6: the pose; 3: the point alone, a free
-    task's), steps of at most IK_STEP, inside the joint ranges. A sample that does not converge to IK_ACCEPT within
-    IK_STEP of its start (another branch, near a singularity) keeps it. Returns the joints and the last |e| (N,)."""
+    task's), steps of at most IK_STEP, inside the joint ranges; a sample is solved for until its error is within
+    IK_TOL or it leaves IK_STEP of its start. A sample that does not converge to IK_ACCEPT within IK_STEP of its start
+    (another branch, near a singularity) keeps it. Returns the joints and the last |e| (N,)."""
     start = np.array(q, float)
     q = start.copy()
+    going = np.arange(len(q))  # the samples still solved for
     for _ in range(IK_ITERATIONS):
-        error = error_of(points, rotations, q)
-        size = np.linalg.norm(error, axis=1)
-        if size.max() <= IK_TOL:
+        error = error_of(points[going], rotations[going], q[going])
+        on = (np.linalg.norm(error, axis=1) > IK_TOL) & (np.abs(q[going] - start[going]).max(axis=1) <= IK_STEP)
+        going, error = going[on], error[on]
+        if not len(going):
             break
-        ju = unit_jacobian(robot.jacobian(q), robot.reach)[:, :error.shape[1]]
-        step = np.array([pinv_rates(j, e)[0] for j, e in zip(ju, error)])
+        ju = unit_jacobian(robot.jacobian(q[going]), robot.reach)[:, :error.shape[1]]
+        step = np.einsum("nij,nj->ni", np.linalg.pinv(ju, rcond=RCOND), error)  # pinv_rates' Ju+ e, all at once
         longest = np.abs(step).max(axis=1, keepdims=True)
-        q = np.clip(q + step * np.minimum(1.0, IK_STEP / np.maximum(longest, 1e-300)), robot.lower, robot.upper)
+        q[going] = np.clip(q[going] + step * np.minimum(1.0, IK_STEP / np.maximum(longest, 1e-300)), robot.lower,
+                           robot.upper)
     size = np.linalg.norm(error_of(points, rotations, q), axis=1)
     kept = (size > IK_ACCEPT) | (np.abs(q - start).max(axis=1) > IK_STEP)
     q[kept] = start[kept]

@@ -20,7 +20,7 @@ def inspect(path: Path) -> str:
     source = str(path)
     if path.suffix.lower() in (".xml", ".urdf"):
         try:
-            model = robot_mapping.model_path(str(path.resolve()), source, "")
+            model = robot_mapping.model_path(str(path.absolute()), source, "")
             return describe(robot_mapping.derived(model, ArmOptions()), None)
         except ArmError as err:
             raise ScenarioError(source, err.field, str(err)) from None
@@ -29,8 +29,8 @@ def inspect(path: Path) -> str:
     if not robot_mapping.is_mapping(value):
         raise ScenarioError(source, "robot", "expected a robot mapping (model, tool, speed_limits), an MJCF or a URDF "
                                              "file: a registered robot is described by `simbench list`")
-    units = Units.model_validate(raw.get("units", {})) if isinstance(raw.get("units"), dict) else Units()
-    robot = robot_mapping.load_robot(value if value is not raw else str(path.resolve()), source, units)
+    units = robot_mapping.units_of(raw, source) or Units()
+    robot = robot_mapping.load_robot(value if value is not raw else str(path.absolute()), source, units)
     return describe(robot.arm, robot.qd_max)
 
 

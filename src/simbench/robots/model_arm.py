@@ -70,10 +70,9 @@ class ModelArm(Robot):
 
     def _posed(self, q: Array, com: bool = False):
         """(model, data) at each row of q (N, dof) in turn, kinematics computed, and com positions where `com` (a
-        Jacobian needs them)."""
+        Jacobian needs them). The joints off the chain stay at qpos0, set once."""
         model, data, adr, _, _ = self._compiled()
         for row in np.atleast_2d(q):
-            data.qpos[:] = model.qpos0
             data.qpos[adr] = row
             mujoco.mj_kinematics(model, data)
             if com:
@@ -86,7 +85,8 @@ class ModelArm(Robot):
         if self._kinematics is None:
             model = self.arm.spec().compile()
             joints = [model.joint(name) for name in self.joints]
-            self._kinematics = (model, mujoco.MjData(model), np.array([j.qposadr[0] for j in joints]),
+            data = mujoco.MjData(model)  # its qpos starts at qpos0
+            self._kinematics = (model, data, np.array([j.qposadr[0] for j in joints]),
                                 np.array([j.dofadr[0] for j in joints]), model.site(self.tool_site).id)
         return self._kinematics
 
@@ -108,12 +108,15 @@ class ModelArm(Robot):
     def jacobian(self, q: Array) -> Array:
         """J = [Jp; Jr] (N, 6, dof) at joint values q (N, dof): mj_jacSite's, at the tool site."""
         _, _, _, dofs, site = self._compiled()
-        out = []
-        for model, data in self._posed(q, com=True):
-            jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
-            mujoco.mj_jacSite(model, data, jacp, jacr, site)
-            out.append(np.vstack([jacp[:, dofs], jacr[:, dofs]]))
-        return np.array(out)
+        q = np.atleast_2d(q)
+        out = np.empty((len(q), 6, len(dofs)))
+        jac = None
+        for k, (model, data) in enumerate(self._posed(q, com=True)):
+            if jac is None:
+                jac = np.zeros((6, model.nv))
+            mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
+            out[k] = jac[:, dofs]
+        return out
 
     def measures(self, rec: Recording) -> dict[str, Array]:
         """sigma_min (SI), manipulability and inverse_condition along the run (the module's docstring)."""
