@@ -51,8 +51,17 @@ def _parser() -> argparse.ArgumentParser:
     validate.add_argument("--no-plan", action="store_true", help="check the files only: do not plan")
     sub.add_parser("list", help="list robots, planners, controllers, policies, metrics and shipped scenarios")
     inspect = sub.add_parser("inspect", help="print the arm simbench derives from an MJCF or URDF model, a robot "
-                                             "file or a scenario's robot mapping")
+                                             "file or a scenario's robot mapping, and where its tool is")
     inspect.add_argument("model", type=Path, help="an MJCF (.xml), a URDF, a robot file or a scenario (.yaml)")
+    inspect.add_argument("--at", metavar="Q1,Q2,...", default=None,
+                         help="pose the tool at these joint values, one per joint, as a task's start takes them: in "
+                              "the file's units (a robot file's or scenario's units:; rad and m for a bare model) "
+                              "unless --units says (default: a scenario's task.start, else the model's qpos0)")
+    inspect.add_argument("--units", metavar="UNITS", default=None,
+                         help="the units of --at and of the joint values shown: rad or deg, m or mm, or both "
+                              "(e.g. deg or deg,mm)")
+    inspect.add_argument("--json", action="store_true",
+                         help="print the joints and the tool's pose as JSON, SI, in full precision")
     reproduce = sub.add_parser("reproduce", help="regenerate a paper's published results beside simbench's")
     reproduce.add_argument("paper", choices=["000", "001", "002", "003", "all"])
     reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",
@@ -316,7 +325,7 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         elif args.command == "inspect":
             from simbench.robots.inspect_arm import inspect
 
-            _say(inspect(args.model))
+            _say(inspect(args.model, args.at, args.units, args.json))
         elif args.command == "train-fk":
             from simbench.planners import learnt_fk
 

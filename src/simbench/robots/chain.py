@@ -29,6 +29,16 @@ class ArmError(ValueError):
         super().__init__(message)
 
 
+class SeveralEnds(ArmError):
+    """A model whose longest chain ends in several bodies (`ends`, by name), none named the tool: `inspect` lists
+    them for the user to choose one."""
+
+    def __init__(self, ends: tuple[str, ...]):
+        self.ends = ends
+        super().__init__("tool", f"no single end of the model's longest chain ({', '.join(ends)}): name the tool, "
+                                 "tool: {site: NAME} or {body: NAME, offset: [x, y, z]}")
+
+
 @dataclass(frozen=True)
 class Tool:
     """The tool point: an existing site of the model, or a point `offset` (m, body frame) on a body, where simbench
@@ -128,10 +138,10 @@ def _default_tool(model: mujoco.MjModel) -> Tool:
         depth[b], joints[b] = depth[parent] + 1, joints[parent] + model.body_jntnum[b]
     best = [b for b in range(1, model.nbody) if joints[b] == joints.max()]
     best = [b for b in best if depth[b] == depth[best].max()]
-    if len(best) > 1 or joints.max() == 0:
-        ends = ", ".join(model.body(b).name or f"body {b}" for b in best) or "none"
-        raise ArmError("tool", f"no single end of the model's longest chain ({ends}): name the tool, tool: "
-                               "{site: NAME} or {body: NAME, offset: [x, y, z]}")
+    if joints.max() == 0:
+        raise ArmError("tool", "no hinge or slide joint in the model: nothing moves a tool")
+    if len(best) > 1:
+        raise SeveralEnds(tuple(model.body(b).name or f"body {b}" for b in best))
     body = best[0]
     sites = np.flatnonzero(model.site_bodyid == body)
     if len(sites) and model.site(sites[0]).name:
