@@ -180,19 +180,31 @@ def format_loc(loc: tuple) -> str:
 def _fields_at(cls: type[BaseModel], loc: tuple) -> list[str]:
     """Field names of the model(s) at pydantic's error location `loc` from cls (for 'did you mean'); where a
     union's member is not named, the fields of all of them."""
+    return list(dict.fromkeys(name for m in _models_at(cls, loc) for name in m.model_fields))
+
+
+def _models_at(cls: type[BaseModel], loc: tuple) -> list[type[BaseModel]]:
+    """The model(s) at pydantic's error location `loc` from cls: a union's members where `loc` names none."""
     models = [cls]
     for part in loc:
         if isinstance(part, int):
             continue
-        named = [m for m in models if part == m.__name__ or part.endswith((f", {m.__name__}]", f"[{m.__name__}]"))]
-        if named:  # a union member's tag: its class name, or a validator wrapping it (function-after[..., Name])
+        named = _named(models, part)
+        if named:
             models = named
             continue
         fields = [m.model_fields[part] for m in models if part in m.model_fields]
         if not fields:
             continue  # a tag pydantic puts in the location of a tagged union's member
         models = [m for f in fields for m in _models_in(f.annotation)]
-    return list(dict.fromkeys(name for m in models for name in m.model_fields))
+    return models
+
+
+def _named(models: list[type[BaseModel]], part: Any) -> list[type[BaseModel]]:
+    """The models a union member's tag in a location names: its class name, or validators wrapping it
+    (function-after[..., function-after[..., Name]])."""
+    return [m for m in models if isinstance(part, str)
+            and (part == m.__name__ or part.rstrip("]").endswith((f", {m.__name__}", f"[{m.__name__}")))]
 
 
 def _models_in(annotation: Any) -> list[type[BaseModel]]:
@@ -227,16 +239,17 @@ def _reads_as_number(text: str) -> bool:
 
 
 def describe(err: ValidationError, cls: type[BaseModel], document: Any, prefix: tuple = ()) -> tuple[str, str]:
-    """The first validation error of `document` as (field path, message in the user's terms). An unknown field
-    goes first: a misspelt name also makes the field it meant go missing."""
-    errors = err.errors(include_url=False)
+    """The first validation error of `document` as (field path, message in the user's terms), of a union's member
+    the mapping names by its key, or that takes its shape (_fitting). An unknown field goes first: a misspelt name
+    also makes the field it meant go missing."""
+    errors = _fitting(err.errors(include_url=False), document, cls)
     first = _first_error(errors, document)
     where = _field_loc(first["loc"], document)
     loc = prefix + where
     if first["type"] == "missing":
         return format_loc(loc), "missing: this field is required"
     if first["type"] == "extra_forbidden":
-        return format_loc(loc), _unknown_field(cls, tuple(first["loc"])[:-1], str(loc[-1]))
+        return format_loc(loc), _unknown_field(cls, _unknown_loc(cls, tuple(first["loc"]), document), str(loc[-1]))
     msg = _union_message(first, [e for e in errors if e is not first and _field_loc(e["loc"], document) == where])
     if msg.startswith("Value error, "):
         return format_loc(loc), msg.removeprefix("Value error, ")
@@ -265,10 +278,11 @@ def _misfits(error: ErrorDetails, at: int) -> bool:
             or depth == 2 and error["type"] in ("missing", "extra_forbidden"))
 
 
-def _fitting(errors: list[ErrorDetails], document: Any) -> list[ErrorDetails]:
-    """The errors without those of a union's members that do not take the value's shape, where another member
-    of that union does (its errors then say what is wrong: a `tool: {body, offset}` with a bad offset is not told
-    that `body` is unknown to `{site}`)."""
+def _fitting(errors: list[ErrorDetails], document: Any, cls: type[BaseModel]) -> list[ErrorDetails]:
+    """The errors of the union member a mapping names by its key (_keyed) where it names one; else without those
+    of a union's members that do not take the value's shape, where another member of that union does (its errors
+    then say what is wrong: a `tool: {body, offset}` with a bad offset is not told that `body` is unknown to
+    `{site}`)."""
     members: dict[tuple, dict[Any, list[ErrorDetails]]] = {}
     for e in errors:
         at = _member(tuple(e["loc"]), document)
@@ -276,16 +290,48 @@ def _fitting(errors: list[ErrorDetails], document: Any) -> list[ErrorDetails]:
             members.setdefault(tuple(e["loc"][:at]), {}).setdefault(e["loc"][at], []).append(e)
     dropped = set()
     for where, by_member in members.items():
-        misfit = {m for m, found in by_member.items() if any(_misfits(e, len(where)) for e in found)}
+        keyed = _keyed(cls, where, document)
+        misfit = ({m for m in by_member if not _named([keyed], m)} if keyed is not None else
+                  {m for m, found in by_member.items() if any(_misfits(e, len(where)) for e in found)})
         if len(misfit) < len(by_member):
             dropped |= {id(e) for m in misfit for e in by_member[m]}
     return [e for e in errors if id(e) not in dropped]
 
 
+def _keyed(cls: type[BaseModel], where: tuple, document: Any) -> type[BaseModel] | None:
+    """The one model of the union at `where` whose discriminating key the document's mapping there holds: a field
+    that model requires and no other model of the union has (`body` of `tool: {body: ...}`, `site` of
+    `{site: ...}`); None where none, or more than one, is named so."""
+    node = document
+    for part in where:
+        node = node[part]
+    if not isinstance(node, dict):
+        return None
+    models = _models_at(cls, where)
+
+    def names(model: type[BaseModel]) -> bool:
+        return any(f.is_required() and key in node and all(key not in other.model_fields for other in models
+                                                               if other is not model)
+                   for key, f in model.model_fields.items())
+
+    named = [m for m in models if names(m)]
+    return named[0] if len(named) == 1 else None
+
+
+def _unknown_loc(cls: type[BaseModel], loc: tuple, document: Any) -> tuple:
+    """The location of the model whose fields an unknown field at `loc` (pydantic's) is told of: its union
+    member's, unless no member is named by its key (_keyed) and none has that field, where every member's."""
+    parent = loc[:-1]
+    at = _member(parent, document)
+    if at is None or _keyed(cls, parent[:at], document) is not None:
+        return parent
+    union = parent[:at] + parent[at + 1:]
+    return parent if loc[-1] in _fields_at(cls, union) else union
+
+
 def _first_error(errors: list[ErrorDetails], document: Any) -> ErrorDetails:
-    """An unknown field, else the first error that no other lies within, else the first; of a union, only its
-    members that take the value's shape count where one does (_fitting)."""
-    errors = _fitting(errors, document)
+    """An unknown field, else the first error that no other lies within, else the first (of the errors _fitting
+    kept)."""
     locs = [_field_loc(e["loc"], document) for e in errors]
 
     def inside(i: int) -> bool:  # another error lies within this one's mapping or list

@@ -11,7 +11,7 @@ and anything else (activation dynamics, a non-unit gear on a servo) is a general
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -39,19 +39,29 @@ class SeveralEnds(ArmError):
                                  "tool: {site: NAME} or {body: NAME, offset: [x, y, z]}")
 
 
+IDENTITY = (1.0, 0.0, 0.0, 0.0)
+
+
 @dataclass(frozen=True)
 class Tool:
-    """The tool point: an existing site of the model, or a point `offset` (m, body frame) on a body, where simbench
-    adds a site."""
+    """The tool frame: an existing site of the model, or a point `offset` (m, body frame) on a body, turned by
+    `rotation` (a unit quaternion w x y z) after the site's or the body's frame; simbench adds a site for a body's
+    point or a turned frame (robots.model_scene)."""
 
     body: str
     site: str | None = None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation: tuple[float, float, float, float] = IDENTITY
+
+    @property
+    def rotated(self) -> bool:
+        return self.rotation != IDENTITY
 
     def describe(self) -> str:
+        turned = f", turned by quat {[round(v, 9) for v in self.rotation]} (w x y z)" if self.rotated else ""
         if self.site is not None:
-            return f"site '{self.site}' (on body '{self.body}')"
-        return f"body '{self.body}' at offset {list(self.offset)} m"
+            return f"site '{self.site}' (on body '{self.body}'){turned}"
+        return f"body '{self.body}' at offset {list(self.offset)} m{turned}"
 
 
 @dataclass(frozen=True)
@@ -115,7 +125,11 @@ def _tool(model: mujoco.MjModel, tool: Tool | None) -> Tool:
         return _default_tool(model)
     if tool.site is not None:
         site = _named(model, mujoco.mjtObj.mjOBJ_SITE, tool.site, "tool.site", "site")
-        return Tool(body=model.body(model.site_bodyid[site]).name, site=tool.site)
+        body = model.body(model.site_bodyid[site]).name
+        if tool.rotated and not body:
+            raise ArmError("tool.site", f"site '{tool.site}' is on a body without a name: name the body in the "
+                                        "model for the tool's frame to be turned on it")
+        return replace(tool, body=body)
     _named(model, mujoco.mjtObj.mjOBJ_BODY, tool.body, "tool.body", "body")
     return tool
 

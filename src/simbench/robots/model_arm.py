@@ -32,7 +32,7 @@ from simbench.api import (Array, JointTrajectory, PlantFit, Recording, Robot, Si
 from simbench.events import Event
 from simbench.plant import register_scene
 from simbench.robots.contacts import Contacts, Touch, checked_rows
-from simbench.robots.model_scene import TOOL_SENSOR, TOOL_SITE, DerivedArm
+from simbench.robots.model_scene import TOOL_SENSOR, DerivedArm
 from simbench.robots.rank_loss import closest_sample, rank_loss_detail, unit_jacobian
 from simbench.rotations import quat_to_matrix, rotation_angle
 from simbench.servo_design import design, force_violations, plan_dynamics
@@ -51,7 +51,7 @@ class ModelArm(Robot):
         chain = arm.chain
         super().__init__(name=arm.name, description=f"arm derived from its model {Path(arm.path).name}",
                          scene=self._register(), joints=chain.joints, kinds=chain.kinds, lower=chain.lower,
-                         upper=chain.upper, qd_max=qd_max, tool_site=chain.tool.site or TOOL_SITE,
+                         upper=chain.upper, qd_max=qd_max, tool_site=arm.tool_site,
                          tool_sensor=TOOL_SENSOR, orientation_error=ORIENTATION_ERROR, breaking=("contact",))
         self._kinematics: tuple[mujoco.MjModel, mujoco.MjData, np.ndarray, np.ndarray, int] | None = None
         self._contacts: Contacts | None = None

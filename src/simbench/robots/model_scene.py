@@ -18,7 +18,9 @@ The scene also:
   - excludes from collision every pair of bodies whose geoms touch at the reference pose (qpos0 and a `home`
     keyframe), as Menagerie's models exclude touching meshes: a URDF's base and shoulder meshes often overlap in
     every configuration, a pair with the world body MuJoCo does not filter;
-  - gets a tool site where needed, a `framepos` sensor on it, gravity compensation on the bodies the chain moves
+  - gets a tool site where needed (at a body's offset, or where the tool's frame is turned: the site's own frame,
+    or the body's, times the rotation, so that the tool's orientation everywhere is the turned frame), a
+    `framepos` sensor on it, gravity compensation on the bodies the chain moves
     (unless turned off), and where the model lacks them a floor, sky, lights and camera (robots.model_stage).
 """
 
@@ -37,18 +39,20 @@ from simbench.robots.model_file import compiled, read_spec
 from simbench.robots.model_stage import stage, staging
 from simbench.servo_design import DEFAULT_BANDWIDTH, pd_gains
 
-TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset
+TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset, or turned
 TOOL_SENSOR = "simbench/tool_pos"
 
 
 @dataclass(frozen=True)
 class ArmOptions:
-    """A robot mapping's choices about its model (SI): the tool, the joints (None: the chain's), per-joint force
-    limits (None: the model's), the added servos' least bandwidth (rad/s; None: DEFAULT_BANDWIDTH) and damping
-    ratio, gravity compensation, a URDF's package folders (name, absolute path; robots.model_file), and the digest
-    of the model's files (robots.model_file.fingerprint) the arm was derived from: so that whatever is keyed by the
-    options (the derived arm, its registered scene) is made anew when a file changes."""
+    """A robot mapping's choices about its model (SI): the arm's name (None: the model's own, else its file's
+    stem), the tool, the joints (None: the chain's), per-joint force limits (None: the model's), the added servos'
+    least bandwidth (rad/s; None: DEFAULT_BANDWIDTH) and damping ratio, gravity compensation, a URDF's package
+    folders (name, absolute path; robots.model_file), and the digest of the model's files
+    (robots.model_file.fingerprint) the arm was derived from: so that whatever is keyed by the options (the derived
+    arm, its registered scene) is made anew when a file changes."""
 
+    name: str | None = None
     tool: Tool | None = None
     joints: tuple[str, ...] | None = None
     force_limits: tuple[float, ...] | None = None
@@ -111,6 +115,12 @@ class DerivedArm:
         """Which chain joints' servos simbench added (their gains designed for each plan), (dof,) bool."""
         return np.array([d.keep is None for d in self.drives])
 
+    @property
+    def tool_site(self) -> str:
+        """The scene's site at the tool: the model's own where the tool is one, unturned; else the one added."""
+        tool = self.chain.tool
+        return tool.site if tool.site is not None and not tool.rotated else TOOL_SITE
+
     def contacts(self, model: mujoco.MjModel) -> Contacts:
         """Contact queries of the arm on its compiled scene `model`."""
         return Contacts(model, self.chain.joints)
@@ -123,7 +133,7 @@ class DerivedArm:
 def derive(path: str, options: ArmOptions) -> DerivedArm:
     """The arm in the MJCF or URDF at `path` (absolute), as `options` ask; ArmError naming the field at fault."""
     spec, dropped = read_spec(path, options.packages)
-    name = spec.modelname or Path(path).stem
+    name = options.name or spec.modelname or Path(path).stem
     model = compiled(spec)
     chain = chain_of(model, options.tool, options.joints)
     limits = _force_limits(options, chain)
@@ -244,18 +254,28 @@ def _scene(arm: DerivedArm) -> mujoco.MjSpec:
         if np.isfinite(drive.force_limit):
             actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             actuator.forcerange = [-drive.force_limit, drive.force_limit]
-    site = arm.chain.tool.site
-    if site is None:
-        site = TOOL_SITE
-        spec.body(arm.chain.tool.body).add_site(name=site, pos=list(arm.chain.tool.offset))
+    if arm.tool_site == TOOL_SITE:
+        _add_tool_site(spec, model, arm.chain.tool)
     spec.add_sensor(name=TOOL_SENSOR, type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE,
-                    objname=site)
+                    objname=arm.tool_site)
     if arm.options.gravity_compensation:  # on the first joint's body and every body below it
         moved = spec.body(model.body(model.jnt_bodyid[model.joint(arm.chain.joints[0]).id]).name)
         for body in [moved, *moved.find_all(mujoco.mjtObj.mjOBJ_BODY)]:
             body.gravcomp = 1.0
     stage(spec, model, arm)
     return spec
+
+
+def _add_tool_site(spec: mujoco.MjSpec, model: mujoco.MjModel, tool: Tool) -> None:
+    """TOOL_SITE on the tool's body: at the offset, turned by the rotation; or, for a site, at the site's place in
+    its body (the compiled model's, whatever frames or Euler angles the file states it with) and its orientation
+    times the rotation."""
+    pos, quat = np.array(tool.offset), np.array(tool.rotation)
+    if tool.site is not None:
+        site = model.site(tool.site)
+        pos = site.pos.copy()
+        mujoco.mju_mulQuat(quat, site.quat, np.array(tool.rotation))
+    spec.body(tool.body).add_site(name=TOOL_SITE, pos=pos, quat=quat)
 
 
 def _lock(spec: mujoco.MjSpec, model: mujoco.MjModel, locked: tuple[str, ...]) -> None:

@@ -3,7 +3,9 @@ its MJCF or URDF model (robots.model_scene, robots.model_file), with no code of 
 
     robot:
       model: arms/jaco_arm.xml                 # an MJCF or a URDF, relative to the scenario's folder (or absolute)
-      tool: {site: wristsite}                  # or {body: b_6, offset: [0, 0, 160]} (the scenario's length unit)
+      name: jaco                               # optional: the arm's name in outputs (default: the model's own)
+      tool: {site: wristsite}                  # or {body: b_6, offset: [0, 0, 160]} (the scenario's length unit);
+                                               # either turned: rpy: [r, p, y] (its angle unit) or quat: [w, x, y, z]
       speed_limits: [36, 36, 36, 48, 48, 48]   # the scenario's angle (or length) unit per second, one per joint
                                                # (optional for a URDF whose joints state their `velocity`)
       packages: {ur_description: ../ur}        # optional: the folders of a URDF's package:// meshes
@@ -25,31 +27,76 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import Field, ValidationError
+from pydantic import AfterValidator, Field, ValidationError, model_validator
 
 from simbench.errors import ScenarioError, os_words
-from simbench.robots.chain import ArmError, Tool
+from simbench.robots.chain import IDENTITY, ArmError, Tool
 from simbench.robots.model_arm import ModelArm
 from simbench.robots.model_file import fingerprint, is_urdf, urdf_limits
 from simbench.robots.model_scene import ArmOptions, DerivedArm, derive
 from simbench.robots.model_size import file_problem
-from simbench.schema import Position, SimbenchModel, Units
+from simbench.rotations import axis_rotation, matrix_to_quat
+from simbench.schema import Angle, Name, Position, SimbenchModel, Units, _finite_norm
 from simbench.validation import describe, kind_of, read_yaml
 
 _Positive = Annotated[float, Field(gt=0, le=1e6)]
 
 
-class ToolSite(SimbenchModel):
-    """The tool at a site of the model."""
+def _sized(size: int, shape: str):
+    """A list of `size` values, or ValueError naming the shape expected."""
+    def check(value: list) -> list:
+        if len(value) != size:
+            raise ValueError(f"expected {shape}, got {len(value)} values")
+        return value
+    return AfterValidator(check)
+
+
+def _unit_quat(value: list[float]) -> list[float]:
+    norm = _finite_norm(value, "a quaternion")
+    return [v / norm for v in value]
+
+
+Rpy = Annotated[list[Angle], _sized(3, "[roll, pitch, yaw]")]
+"""Angles in the file's unit about the fixed x, y and z axes in turn, URDF's rpy: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+Quat = Annotated[list[float], _sized(4, "a quaternion [w, x, y, z]"), AfterValidator(_unit_quat)]
+"""A rotation as a quaternion [w, x, y, z] of any non-zero length, a unit one once loaded."""
+
+
+class _Turned(SimbenchModel):
+    """A tool frame turned after the site's or the body's by `rpy` or `quat` (its subclasses' fields), not both."""
+
+    @model_validator(mode="after")
+    def _one_rotation(self) -> _Turned:
+        if self.rpy is not None and self.quat is not None:
+            raise ValueError("expected rpy or quat, not both")
+        return self
+
+    def rotation(self) -> tuple[float, float, float, float]:
+        """The rotation as a unit quaternion w x y z (the identity where none is given)."""
+        if self.quat is not None:
+            return tuple(self.quat)
+        if self.rpy is None:
+            return IDENTITY
+        rz, ry, rx = axis_rotation(np.eye(3)[::-1], np.array(self.rpy)[::-1])
+        return tuple(matrix_to_quat(rz @ ry @ rx)[0].tolist())
+
+
+class ToolSite(_Turned):
+    """The tool at a site of the model, its frame turned by `rpy` or `quat`."""
 
     site: str
+    rpy: Rpy | None = None
+    quat: Quat | None = None
 
 
-class ToolBody(SimbenchModel):
-    """The tool at a point of a body, `offset` in its frame (the file's length unit)."""
+class ToolBody(_Turned):
+    """The tool at a point of a body, `offset` in its frame (the file's length unit), its frame the body's turned
+    by `rpy` or `quat`."""
 
     body: str
     offset: Position = [0.0, 0.0, 0.0]
+    rpy: Rpy | None = None
+    quat: Quat | None = None
 
 
 class ServoGains(SimbenchModel):
@@ -65,6 +112,7 @@ class RobotMapping(SimbenchModel):
     """The fields of a robot mapping (the module's docstring)."""
 
     model: str
+    name: Name | None = None
     tool: ToolSite | ToolBody | None = None
     speed_limits: list[_Positive] | None = None
     joints: list[str] | None = None
@@ -163,8 +211,10 @@ def options(mapping: RobotMapping, source: str) -> ArmOptions:
     tool = mapping.tool
     limits = mapping.force_limits
     return ArmOptions(
-        tool=None if tool is None else (Tool(body="", site=tool.site) if isinstance(tool, ToolSite)
-                                        else Tool(body=tool.body, offset=tuple(tool.offset))),
+        name=mapping.name,
+        tool=None if tool is None else (Tool(body="", site=tool.site, rotation=tool.rotation())
+                                        if isinstance(tool, ToolSite)
+                                        else Tool(body=tool.body, offset=tuple(tool.offset), rotation=tool.rotation())),
         joints=None if mapping.joints is None else tuple(mapping.joints),
         force_limits=None if limits is None else (tuple(limits) if isinstance(limits, tuple) else (limits,)),
         bandwidth=mapping.servo.bandwidth, damping_ratio=mapping.servo.damping_ratio,
