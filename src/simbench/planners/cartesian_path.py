@@ -1,12 +1,13 @@
 """A tool path of lines and arcs for any serial arm simbench can evaluate (robots.model_arm), by damped
 least-squares resolved rates with closed-loop correction (or another method).
 
-The task: the joints `start`, the path (decoupled_path's segments; the first line's start may be left out: the
-tool's point at `start`) on the scenario's time law, and the orientation: `hold`, a goal reached by slerp along
-the path, or `free`: the tool's point alone follows the path, its orientation whatever the joints give (an arm of
-fewer than six joints cannot hold one along a line). At each control sample k, in the unit-consistent frame of
-robots.rank_loss (Ju = [Jp / L; Jr], the twist x = [v / L; w], L the reach; a free task keeps the position rows
-alone: Ju = Jp / L, x = v / L, e_k the point's error):
+The task: the joints `start`, the path (decoupled_path's segments, each placed absolutely or from where the path
+is: path_segments; the first line's start may be left out: the tool's point at `start`) on the scenario's time law,
+and the orientation: `hold`, a goal reached by slerp along the path, or `free`: the tool's point alone follows the
+path, its orientation whatever the joints give (an arm of fewer than six joints cannot hold one along a line). At
+each control sample k, in the unit-consistent frame of robots.rank_loss (Ju = [Jp / L; Jr], the twist
+x = [v / L; w], L the reach; a free task keeps the position rows alone: Ju = Jp / L, x = v / L, e_k the point's
+error):
 
     qd_k = Ju# (x_d + K e_k) + (I - Ju+ Ju) K_N (q_start - q_k)        q_{k+1} = q_k + dt qd_k
 
@@ -38,10 +39,12 @@ pinv's joint path by TOPP-RA under the speed and acceleration limits (path_retim
 mink_baseline's QP per control step (its orientation cost 0 on a free task, as on an arm of fewer than six
 joints). Every method but mink holds the joint ranges as above.
 
-Where the plan's own tool leaves the path by more than the path tolerance, or ends farther than the goal tolerance
-from its end, the plan reports it (`off_path`, `goal_missed`), with each joint held at a limit there (`joint_limit`);
-where its tool turns from the asked orientation by more than the orientation tolerance, `orientation_error`. A free
-task asks none: its plan writes no `tool_orientation_ref`, so the run reports the tool's orientation unjudged.
+A corner between segments (their tangents more than path_segments.CORNER apart) is a plan warning: the tool's
+velocity turns there within one control step. Where the plan's own tool leaves the path by more than the path
+tolerance, or ends farther than the goal tolerance from its end, the plan reports it (`off_path`, `goal_missed`),
+with each joint held at a limit there (`joint_limit`); where its tool turns from the asked orientation by more
+than the orientation tolerance, `orientation_error`. A free task asks none: its plan writes no
+`tool_orientation_ref`, so the run reports the tool's orientation unjudged.
 """
 
 from __future__ import annotations
@@ -55,11 +58,12 @@ from pydantic import Field, ValidationInfo, field_validator
 from simbench import extras
 from simbench.analysis.path_distance import path_deviation
 from simbench.api import REVOLUTE, Planner, Violation
-from simbench.paths import Composite, Line
-from simbench.planners.decoupled_path import LineSpec, Segment, join_gap, segment_waypoints
+from simbench.paths import Composite
+from simbench.planners.decoupled_path import join_gap, segment_waypoints
 from simbench.planners.path_methods import DAMPING, EPSILON, LAMBDA_MAX, METHODS, SCALED, rule_of
 from simbench.planners.path_reach import beyond_reach
 from simbench.planners.path_retiming import ACCEL_TIME
+from simbench.planners.path_segments import PathSegment, corner_warning, corners, place, placed_path
 from simbench.planners.resolved_rates import (
     CLIK_SHARE,
     NULL_GAIN,
@@ -70,35 +74,12 @@ from simbench.planners.resolved_rates import (
     task_error,
 )
 from simbench.rotations import axis_rotation, matrix_to_quat
-from simbench.schema import JointVector, Orientation, Position, SimbenchModel, Units
+from simbench.schema import JointVector, Orientation, SimbenchModel, Units
 from simbench.trajectory import ORIENTATION_REF, JointTrajectory, control_grid
 
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
 MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most
 _NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
-
-
-class OpenLine(LineSpec):
-    """A line; on the path's first segment `start` may be left out: the tool's point at the task's start."""
-
-    start: Position | None = None
-
-    def build_from(self, start: np.ndarray) -> Line:
-        """The path segment, from `start` where the line gives none."""
-        return Line(np.asarray(start if self.start is None else self.start, float), np.array(self.end))
-
-    def _not_a_point(self) -> OpenLine:  # a line without a start is checked against the tool's point (check)
-        return self if self.start is None else super()._not_a_point()
-
-
-class PathSegment(Segment):
-    """One piece of the path: `line: {...}` (its start optional on the first) or `arc: {...}`."""
-
-    line: OpenLine | None = None
-
-    def build_from(self, start: np.ndarray):
-        """The path segment, a line without a start beginning at `start`."""
-        return self.line.build_from(start) if self.line is not None else self.arc.build()
 
 
 class Task(SimbenchModel):
@@ -185,25 +166,30 @@ class CartesianPath(Planner):
         return None
 
     def check(self, scenario, robot) -> tuple[str, str] | None:
-        """Only the first line may leave out its start, a given start (a line's, an arc's first point) must be the
-        tool's point at `start`, the segments must join, and none may reach past the arm (_beyond_reach); the
-        `mink` method needs mink installed (extras)."""
+        """Only the first line, or one placed by an offset, may leave out its start; a relative arc must start
+        where the path is (path_segments.place); a given start (a line's, an arc's first point) must be the tool's
+        point at `start`, the segments must join, and none may reach past the arm (_beyond_reach); the `mink`
+        method needs mink installed (extras)."""
         task = scenario.task
         refusal = extras.missing("mink", "the mink method") if task.method == "mink" else None
         if refusal:
             return "task.method", refusal
         for i, seg in enumerate(task.path[1:], 1):
-            if seg.line is not None and seg.line.start is None:
-                return f"task.path[{i}].line.start", "missing: only the first segment may leave out its start"
-        tool = robot.fk(np.array([task.start]))[0]
-        segments = [seg.build_from(tool) for seg in task.path]
+            if seg.line is not None and seg.line.start is None and seg.line.end is not None:
+                return f"task.path[{i}].line.start", ("missing: only the first line, or one placed by 'by' or "
+                                                      "'by_tool', may leave out its start")
+        q0 = np.array([task.start])
+        tool = robot.fk(q0)[0]
+        segments, misfit = place(task.path, tool, robot.tool_rotation(q0)[0])
+        if misfit is not None:
+            return misfit
         first = task.path[0].line
         if first is not None and first.start is not None and np.linalg.norm(tool - first.start) > START_TOL:
             gap = np.linalg.norm(tool - first.start) * 1e3
             return ("task.path[0].line.start", f"lies {gap:.3f} mm from the tool's point at task.start: leave it "
                                                "out to start where the tool is")
         if first is not None and segments[0].length < 1e-9:
-            return "task.path[0].line.end", "is the tool's point at task.start: a zero-length line"
+            return f"task.path[0].line.{first.placed_by}", "is the tool's point at task.start: a zero-length line"
         gap = np.linalg.norm(tool - segments[0].point(np.zeros(1))[0])
         if first is None and gap > START_TOL:
             return "task.path[0].arc", (f"starts {gap * 1e3:.3f} mm from the tool's point at task.start: the path "
@@ -217,10 +203,10 @@ class CartesianPath(Planner):
         t = control_grid(law.duration, scenario.timing.hold, dt)
         s, ds = law(t, order=1)
         q0 = np.array(task.start)
-        tool0 = robot.fk(q0[None])[0]  # where a first line without a start begins
-        path = Composite(tuple(seg.build_from(tool0) for seg in task.path))
-        rows = _rows(task)
         r0 = robot.tool_rotation(q0[None])[0]  # a free task's rotations stay r0: no row reads them, mink weighs 0
+        segments, _ = place(task.path, robot.fk(q0[None])[0], r0)  # check placed them all
+        path = Composite(tuple(segments))
+        rows = _rows(task)
         turn = _turn(r0, r0 if task.orientation in ("hold", "free") else task.orientation.matrix())
         angle = np.linalg.norm(turn)
         axis = turn / angle if angle > 0 else np.array([0.0, 0.0, 1.0])
@@ -257,7 +243,8 @@ class CartesianPath(Planner):
         info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
                               "null_gain": NULL_GAIN if robot.dof > rows else None, "reach": robot.reach},
-                "segments": [("line" if seg.line else "arc") for seg in task.path], "path_length": path.length,
+                "segments": [("line" if seg.line else "arc") for seg in task.path], "path": placed_path(segments),
+                "path_length": path.length,
                 "sigma_min_least": float(sigma.min()), "damped_from": _first(t, lam2 > 0),
                 "speed_scaled_from": _first(t, scale < 1), "plan_path_deviation_max": float(off.max()),
                 "plan_goal_error": float(np.linalg.norm(tool[-1] - points[-1])),
@@ -282,9 +269,10 @@ class CartesianPath(Planner):
         violations += fast
         if turned is not None:  # what the tool's orientation is judged against; a free task asks none
             series[ORIENTATION_REF] = matrix_to_quat(rotations)
+        info["corners"] = corners(path, robot, t, s, qd)
         return JointTrajectory(t=t, s=s, q_ref=q, qd_ref=qd, tool_ref=points,
                                waypoints=segment_waypoints(path, s, q), info=info, violations=violations,
-                               series=series)
+                               warnings=tuple(corner_warning(c, robot) for c in info["corners"]), series=series)
 
     @classmethod
     def _time_scaled(cls, task: Task, robot, law, pose, twist, q0: np.ndarray, dt: float,

@@ -67,18 +67,25 @@ class ArcSpec(SimbenchModel):
 
     @model_validator(mode="after")
     def _proper_arc(self) -> "ArcSpec":
-        if abs(self.end - self.start) < 1e-9:
+        self._check_angles(self.start)
+        return self
+
+    def _check_angles(self, start: float | None) -> None:
+        """Different start and end angles (start None: known only once the arc is placed), ref off the normal."""
+        if start is not None and abs(self.end - start) < 1e-9:
             raise ValueError("an arc needs different start and end angles")
         if self.ref is not None and abs(np.dot(self.ref, self.normal)) > 1 - 1e-6:
             raise ValueError("ref must not be parallel to the normal")
-        return self
+
+    def default_ref(self) -> list[float]:
+        """`ref`, or where it is left out world x (world y for a normal near x), which Arc projects onto the plane."""
+        if self.ref is not None:
+            return list(self.ref)
+        return [1.0, 0.0, 0.0] if abs(self.normal[0]) < 0.99 else [0.0, 1.0, 0.0]
 
     def build(self) -> Arc:
         """The path segment."""
-        ref = self.ref
-        if ref is None:
-            ref = [1.0, 0.0, 0.0] if abs(self.normal[0]) < 0.99 else [0.0, 1.0, 0.0]
-        return Arc.from_plane(self.center, self.radius, self.normal, self.start, self.end, ref)
+        return Arc.from_plane(self.center, self.radius, self.normal, self.start, self.end, self.default_ref())
 
 
 class Segment(SimbenchModel):

@@ -20,8 +20,11 @@ def beyond_reach(path: list, segments: list, robot) -> tuple[str, str] | None:
         point = segment.point(np.ones(1))[0] if seg.line is not None else _farthest(segment, anchor)
         far = float(np.linalg.norm(point - anchor))
         if far > robot.reach + _ROUNDING:
-            field, what = ((f"task.path[{i}].line.end", "lies") if seg.line is not None
-                           else (f"task.path[{i}].arc", "has its farthest point"))
+            if seg.line is None:
+                field, what = f"task.path[{i}].arc", "has its farthest point"
+            else:
+                by = seg.line.placed_by
+                field, what = f"task.path[{i}].line.{by}", "lies" if by == "end" else "puts the line's end"
             return field, (f"{what} {far * 1e3:.1f} mm from {robot.joints[0]}'s anchor, beyond the arm's reach of "
                            f"{robot.reach * 1e3:.1f} mm (its chain's length from there): no joint values put the "
                            "tool there")
