@@ -1,5 +1,6 @@
 """A bench's tables (columns: docs/guide/bench.md): runs.csv, a row per task and method, as simbench.scoring
-scores it (shared with `compare`); leaderboard.csv, a row per robot and method, and leaderboard_by_kind.csv, per
+scores it (shared with `compare`), `too_slow` where its plan's slowdown passes the suite's max_slowdown, with
+its scenario file; leaderboard.csv, a row per robot and method, and leaderboard_by_kind.csv, per
 kind of task too, with percentile bootstrap intervals drawn at the suite's seed, the robot's and the method's name,
 each figure to FIGURES significant digits: the same suite at the same seed writes the same bytes.
 """
@@ -13,8 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from simbench.bench.outputs import scenario_file
 from simbench.scoring import score_flat
+from simbench.sweep import table as sweep_table
 
+TOO_SLOW = "too_slow"  # a run whose plan passed a cost the suite states
+STATUSES = (*sweep_table.STATUSES, TOO_SLOW)
 PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "length_mm", "duration")
 FIGURES = 6
 BOOTSTRAP = 2000
@@ -25,11 +30,12 @@ COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_
            "closest_approach": "closest_approach"}
 
 
-def runs_table(rows: list[dict]) -> dict[str, list]:
+def runs_table(rows: list[dict], max_slowdown: float) -> dict[str, list]:
     """runs.csv as columns, in run order."""
     rows = sorted(rows, key=lambda r: r["run"])
     table: dict[str, list] = {name: [r["params"].get(name) for r in rows] for name in PARAMS}
-    scores = [score_flat(r["status"], r["error"], r["metrics"]) for r in rows]
+    table["scenario"] = [scenario_file(r["id"]) for r in rows]
+    scores = [_cut(score_flat(r["status"], r["error"], r["metrics"]), max_slowdown) for r in rows]
     for name, shared in COLUMNS.items():
         table[name] = [s[shared] for s in scores]
     table["deviation_max_mm"] = [None if d is None else float(d) * 1e3 for d in table["deviation_max_mm"]]
@@ -37,6 +43,22 @@ def runs_table(rows: list[dict]) -> dict[str, list]:
     table["violations"] = [r["metrics"].get("violations.kinds") or "" for r in rows]
     table["wall_time"] = [r["wall_time"] for r in rows]
     return table
+
+
+def _cut(score: dict[str, Any], max_slowdown: float) -> dict[str, Any]:
+    """A run's score, its status `too_slow` where its plan's slowdown passes `max_slowdown` (the cost said first in
+    its error, the run's own figures kept)."""
+    slowdown = score["slowdown"]
+    if slowdown is None or slowdown <= max_slowdown:
+        return score
+    said = (f"too_slow: the plan takes {slowdown:.4g} times the asked duration, past the suite's max_slowdown "
+            f"{max_slowdown:g}")
+    return {**score, "status": TOO_SLOW, "error": f"{said}; {score['error']}" if score["error"] else said}
+
+
+def status_counts(status: list[str]) -> dict[str, int]:
+    """Runs per status, every status named (a bench's: a sweep's and `too_slow`)."""
+    return {s: status.count(s) for s in STATUSES}
 
 
 def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot", "method")) -> dict[str, list]:
@@ -55,7 +77,8 @@ def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int
     rng = np.random.default_rng([seed, *(zlib.crc32(value.encode()) for value in key.values())])
     ok = np.array([runs["status"][i] == "ok" for i in index], float)
     shares = _finite(runs["speed_share_max"], index)
-    row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum())}
+    row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum()),
+                           TOO_SLOW: sum(runs["status"][i] == TOO_SLOW for i in index)}
     row.update(_estimate("ok_share", ok, np.mean, rng))
     row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _P95, rng))
     row["speed_share_max"] = _round(shares.max()) if len(shares) else None

@@ -4,8 +4,10 @@ task fields it takes (docs/guide/bench.md). A method that does not apply to a ro
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -26,12 +28,37 @@ class Method:
     needs: str | None = None  # the optional module it plans with (simbench.extras), if any
 
     def document(self, task: Task, robot: BenchRobot) -> dict | None:
-        """The scenario document (SI) of `task` by this method, or None where it does not apply."""
+        """The scenario document of `task` by this method, or None where it does not apply: complete (every section
+        the run reads, defaults written out, SI), so that the file the bench writes of it (scenarios/<id>.yaml)
+        says all the run used."""
         planner, fields = self.planner(robot), self.fields(task, robot)
         if planner is None or fields is None:
             return None
-        return {"name": f"{task.id}-{self.name}", "robot": robot.mapping, "planner": planner, "task": fields,
-                "timing": {"law": "quintic", "duration": round(task.duration, 6), "hold": HOLD}}
+        units, timing, settings = _defaults()
+        return {"name": f"{task.id}-{self.name}",
+                "description": f"{task.robot}'s bench task {task.index} ({task.kind} {task.shape}) by {self.name}",
+                "robot": robot.mapping, "planner": planner, "units": units, "task": fields,
+                "timing": {"law": timing.pop("law"), "duration": round(task.duration, 6), "hold": HOLD, **timing},
+                **settings}
+
+
+def _defaults() -> tuple[dict, dict, dict]:
+    """The schema's defaults a bench run takes, as a scenario writes them (fresh copies): its units, its time law
+    (the duration and hold are the task's) and its sim, analysis and control sections."""
+    return json.loads(_defaults_text())
+
+
+@cache
+def _defaults_text() -> str:
+    """_defaults' sections as JSON, made once."""
+    from simbench.api import ControlSettings
+    from simbench.scenario import Sim, Thresholds, Timing
+    from simbench.schema import Units
+
+    law = Timing(law="quintic", duration=1.0).model_dump(mode="json", exclude={"duration", "hold"})
+    return json.dumps([Units().model_dump(mode="json"), law,
+                       {"sim": Sim().model_dump(mode="json"), "analysis": Thresholds().model_dump(mode="json"),
+                        "control": ControlSettings().model_dump(mode="json")}])
 
 
 def _path_task(task: Task, robot: BenchRobot) -> dict:

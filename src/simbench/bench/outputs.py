@@ -1,5 +1,6 @@
-"""A bench's files beside its rows: the tables (simbench.bench.board), plots/, summary.json and index.html, each
-claimed in the folder's marker before it is written (simbench.destination).
+"""A bench's files beside its rows: every run's scenario file (scenarios/<id>.yaml, before the runs), then the
+tables (simbench.bench.board), plots/, summary.json and index.html, each claimed in the folder's marker before it
+is written (simbench.destination).
 """
 
 from __future__ import annotations
@@ -7,14 +8,66 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import yaml
 from matplotlib.figure import Figure
 
-from simbench.atomic import staged_folder
-from simbench.page import table_page, write_page
-from simbench.report import write_report
+from simbench.atomic import staged_folder, write_text
+from simbench.page import write_page
+from simbench.page.html import cell, config_section, document, esc, figure_grid, href, paragraphs
+from simbench.page.tables import MAX_ROWS
+from simbench.report import plain, write_report
 from simbench.sweep import table
 
 RESULTS = ("runs.csv", "runs.parquet", "leaderboard.csv", "leaderboard_by_kind.csv", "summary.json", "index.html")
+SCENARIOS = "scenarios"  # the folder of the runs' scenario files
+
+
+def scenario_file(run_id: str) -> str:
+    """Where run `run_id`'s scenario file is, relative to the bench's folder (runs.csv's `scenario`)."""
+    return f"{SCENARIOS}/{run_id}.yaml"
+
+
+def scenario_text(bench, variant) -> str:
+    """Run `variant`'s scenario file: the document the bench runs (bench.methods: complete, SI) as YAML, after a
+    comment saying which run of which bench it is."""
+    spec = bench.spec
+    head = (f"# simbench bench {spec.suite} (seed {spec.seed}, {spec.tasks} tasks per robot): run {variant.index + 1} "
+            f"of {len(bench.variants)}, runs.csv's {variant.id}.\n"
+            "# `simbench run` of this file plans, simulates and scores it alone, as the bench ran it.\n")
+    return head + yaml.dump(plain(variant.document), Dumper=_Dumper, sort_keys=False, width=120)
+
+
+class _Dumper(yaml.SafeDumper):
+    """YAML as a scenario file is written by hand: sections as blocks, a list of numbers on one line."""
+
+    def represent_list(self, data: list) -> yaml.Node:
+        flat = not any(isinstance(item, (list, dict)) for item in data)
+        return self.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flat)
+
+
+_Dumper.add_representer(list, _Dumper.represent_list)
+
+
+def write_scenarios(store, out: Path, bench) -> None:
+    """Every run's scenario file not yet in `out` as it should be, claimed in the folder's marker first; before the
+    runs, so that a run in progress can be opened too."""
+    texts = {scenario_file(v.id): scenario_text(bench, v) for v in bench.variants}
+    todo = {name: text for name, text in texts.items() if not _holds(out / name, text)}
+    if not todo:
+        return
+    store.claim(tuple(todo))
+    with store.writing():
+        (out / SCENARIOS).mkdir(exist_ok=True)
+        for name, text in todo.items():
+            write_text(out / name, text)
+
+
+def _holds(path: Path, text: str) -> bool:
+    """Whether `path` is a file (not a link) holding `text`."""
+    try:
+        return not path.is_symlink() and path.read_text(encoding="utf-8") == text
+    except (OSError, UnicodeDecodeError):
+        return False
 
 
 def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list], dict[str, list]], summary: dict,
@@ -38,12 +91,37 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
         counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)
         intro = (f"{summary['runs']} runs ({counts}): {summary['tasks']} tasks per robot at seed {summary['seed']} "
                  f"(through, near and far from each robot's singular set, in turn), by {', '.join(summary['methods'])}"
-                 f", on {summary['backend']}.\n\nEach run is planned, simulated and analysed as `simbench run` does; "
-                 "the leaderboard's intervals are bootstrap 95 % intervals over the tasks.")
-        write_page(out, table_page(out, f"Bench: {summary['suite']}", intro,
-                                   [("Leaderboard (leaderboard.csv)", Path("leaderboard.csv")),
-                                    ("By kind of task (leaderboard_by_kind.csv)", Path("leaderboard_by_kind.csv")),
-                                    ("Every run (runs.csv)", Path("runs.csv"))], plots, summary))
+                 f", on {summary['backend']}.\n\nEach run is planned, simulated and analysed as `simbench run` does, from "
+                 f"its scenario file ({SCENARIOS}/, linked from its row), which `simbench run` runs alone; one whose "
+                 f"plan takes more than {summary['max_slowdown']:g} times the asked duration is too_slow. The "
+                 "leaderboard's intervals are bootstrap 95 % intervals over the tasks.")
+        write_page(out, page(out, f"Bench: {summary['suite']}", intro, runs, boards, plots, summary))
+
+
+def page(out: Path, title: str, intro: str, runs: dict[str, list], boards: tuple[dict[str, list], dict[str, list]],
+         plots: list[str], summary: dict) -> str:
+    """index.html: the leaderboards, every run (its `scenario` a link to its file), the plots and the summary."""
+    tables = [("Leaderboard", "leaderboard.csv", boards[0]), ("By kind of task", "leaderboard_by_kind.csv", boards[1]),
+              ("Every run, each linked to its scenario file", "runs.csv", runs)]
+    body = [f"<h1>{esc(title)}</h1>\n", paragraphs(intro), '<h2 id="tables">Tables</h2>\n',
+            *(_table(caption, name, columns) for caption, name, columns in tables),
+            f'<h2 id="figures">Figures</h2>\n{figure_grid(out, plots)}' if plots else "", config_section(summary)]
+    return document(f"simbench: {title}", "".join(body))
+
+
+def _table(caption: str, name: str, columns: dict[str, list]) -> str:
+    """A table of `columns` (its file `name` linked), a `scenario` column's paths as links; MAX_ROWS rows at most."""
+    head = f'<h3>{esc(caption)} (<a href="{href(name)}">{esc(name)}</a>)</h3>\n'
+    if not columns:
+        return f'{head}<p class="note">(empty)</p>\n'
+    rows = list(zip(*columns.values()))
+    shown = "".join("<tr>" + "".join(f'<td><a href="{href(v)}">{esc(v)}</a></td>' if k == "scenario" else cell(v)
+                                     for k, v in zip(columns, row)) + "</tr>\n" for row in rows[:MAX_ROWS])
+    more = (f'<p class="note">The first {MAX_ROWS} of {len(rows)} rows; all are in the file above.</p>\n'
+            if len(rows) > MAX_ROWS else "")
+    header = "".join(f"<th>{esc(k)}</th>" for k in columns)
+    return (f'{head}<div class="scroll"><table><thead><tr>{header}</tr></thead>\n<tbody>\n{shown}</tbody></table>'
+            f"</div>\n{more}")
 
 
 def draw(runs: dict[str, list], folder: Path) -> list[str]:

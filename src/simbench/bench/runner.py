@@ -1,6 +1,7 @@
 """Running a suite: every task of every robot by every method that applies, through the sweep's machinery (its
 folder store, so that the same command resumes, worker processes or Ray, crash isolation), each run the real
-pipeline (simbench.sweep.execute.run_variant), the bench's results beside (simbench.bench.outputs).
+pipeline (simbench.sweep.execute.run_variant) of the scenario file written for it first, the bench's results
+beside (simbench.bench.outputs).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from simbench.bench.methods import METHODS
 from simbench.bench.suite import Suite
 from simbench.bench.tasks import draw
 from simbench.schema import SimbenchModel
-from simbench.sweep import cluster, run_remaining, table
+from simbench.sweep import cluster, run_remaining
 from simbench.sweep.spec import Sweep, Variant
 from simbench.sweep.store import Store
 
@@ -30,6 +31,7 @@ class BenchSpec(SimbenchModel):
     seed: int
     methods: list[str]
     robots: list[str]
+    max_slowdown: float
     outputs: ClassVar[str] = "none"
     video: ClassVar[bool] = False
 
@@ -71,13 +73,14 @@ def plan_bench(suite: Suite) -> Bench:
                           "length_mm": task.length * 1e3, "duration": round(task.duration, 6)}
                 variants.append(Variant(len(variants), f"{task.id}-{name}", params, document))
     spec = BenchSpec(suite=suite.name, tasks=suite.tasks, seed=suite.seed, methods=list(suite.methods),
-                     robots=[r.name for r in suite.robots])
+                     robots=[r.name for r in suite.robots], max_slowdown=suite.max_slowdown)
     return Bench(suite.name, suite.source, spec, Path(suite.source), tuple(variants))
 
 
 def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
               force: bool = False, progress: bool = False) -> BenchResult:
-    """Run every run of the suite that has no row yet in `out`, then write its tables, plots and page.
+    """Write every run's scenario file, run every run of the suite that has no row yet in `out`, then write its
+    tables, plots and page.
 
     Args:
         suite: The suite, from `load_suite` (`suite.with_options(tasks=..., methods=...)` to change it).
@@ -98,14 +101,16 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     if ray is not None:
         cluster.reach(ray)
     with Store(out, bench, force=force) as store:
+        outputs.write_scenarios(store, out, bench)
         ran = run_remaining(store, workers, ray, progress, lambda v: {
             "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
-        runs = board.runs_table(list(ran.rows.values()))
+        runs = board.runs_table(list(ran.rows.values()), suite.max_slowdown)
         leaderboard = board.leaderboard(runs, suite.seed)
         by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
         summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
                    "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
-                   "runs": len(bench.variants), "status": table.status_counts(runs["status"]), "resumed": ran.resumed,
+                   "max_slowdown": suite.max_slowdown, "runs": len(bench.variants),
+                   "status": board.status_counts(runs["status"]), "resumed": ran.resumed,
                    "backend": ran.backend, "wall_time": round(time.perf_counter() - ran.start, 3)}
         outputs.write(store, out, runs, (leaderboard, by_kind), summary, ran.workers)
     return BenchResult(out, runs, leaderboard, summary)

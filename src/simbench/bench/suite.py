@@ -4,7 +4,7 @@ suite is named by a robot (or `all`); a suite file's errors name the file and th
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -19,6 +19,7 @@ from simbench.validation import describe, read_spec
 MAX_TASKS = 10000
 DEFAULT_TASKS = 30
 MAX_SEED = 2**63 - 1  # the tasks' seed, as a suite file gives it or --seed
+MAX_SLOWDOWN = 10.0  # a run whose plan takes longer than this times the asked duration is `too_slow` (its default)
 
 
 class SuiteSpec(SimbenchModel):
@@ -30,6 +31,7 @@ class SuiteSpec(SimbenchModel):
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
     methods: Annotated[list[str], Field(min_length=1)] | None = None
     robots: Annotated[list[str | dict[str, Any]], Field(min_length=1)]
+    max_slowdown: Annotated[float, Field(gt=0.0, le=1e6)] = MAX_SLOWDOWN
 
 
 class _OwnArm(SimbenchModel):
@@ -41,7 +43,8 @@ class _OwnArm(SimbenchModel):
 
 @dataclass(frozen=True)
 class Suite:
-    """A suite ready to draw: its name, where it came from, its robots, tasks per robot, seed and methods."""
+    """A suite ready to draw: its name, where it came from, its robots, tasks per robot, seed and methods, and the
+    cost past which a run is `too_slow` (its plan's slowdown: planned over asked duration)."""
 
     name: str
     source: str
@@ -50,6 +53,7 @@ class Suite:
     seed: int
     methods: tuple[str, ...]
     description: str = ""
+    max_slowdown: float = MAX_SLOWDOWN
 
     def with_options(self, tasks: int | None = None, seed: int | None = None,
                      methods: list[str] | None = None) -> Suite:
@@ -59,8 +63,8 @@ class Suite:
         if seed is not None and not 0 <= seed <= MAX_SEED:
             raise ScenarioError("--seed", None, f"expected a seed from 0 to {MAX_SEED} (2^63 - 1), got {seed}")
         chosen = self.methods if methods is None else tuple(check_methods(methods, "--methods", None))
-        return Suite(self.name, self.source, self.robots, self.tasks if tasks is None else tasks,
-                     self.seed if seed is None else seed, chosen, self.description)
+        return replace(self, tasks=self.tasks if tasks is None else tasks, seed=self.seed if seed is None else seed,
+                       methods=chosen)
 
 
 def check_methods(names: list[str], source: str, field: str | None) -> list[str]:
@@ -113,7 +117,7 @@ def _load_file(path: Path) -> Suite:
     chosen = (check_methods(spec.methods, source, "methods") if spec.methods is not None
               else methods_table.installed())
     return Suite(spec.name or file_name(path.stem, source), source, tuple(robots), spec.tasks, spec.seed,
-                 tuple(chosen), spec.description)
+                 tuple(chosen), spec.description, spec.max_slowdown)
 
 
 def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
