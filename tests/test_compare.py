@@ -367,3 +367,43 @@ def test_the_baseline_following_a_retimed_plan_has_its_slowdown(tmp_path):
     assert arrived / 2.0 > 1.01  # the wrist's limits stretch the line
     figures = SingularityHandling.for_run(robot, plan, scenario).finish()
     assert figures["slowdown"] == pytest.approx(arrived / 2.0, abs=0.002 / 2.0)
+
+
+def test_compare_methods_runs_each_of_cartesian_paths_methods_as_its_own_scenario_would(tmp_path):
+    """`--methods pinv,dls_adaptive` on a UR5 line (its URDF untouched) whose file asks dls with its damping: one row
+    a method, each the run of the same file with its task.method written in (dls's damping, which no other method
+    reads, left out), evaluated separately."""
+    from simbench.cli import main
+    from test_export import ur5_line
+
+    path, out = ur5_line(tmp_path, task="method: dls\ndamping: 0.2"), tmp_path / "cmp"
+    assert main(["compare", str(path), "--methods", "pinv,dls_adaptive", "--out", str(out), "--quiet"]) == 0
+    with open(out / "comparison.csv") as f:
+        rows = {r["method"]: r for r in csv.DictReader(f)}
+    assert list(rows) == ["pinv", "dls_adaptive"] and {r["planner"] for r in rows.values()} == {"cartesian_path"}
+    assert "| | `pinv` | `dls_adaptive` |" in (out / "comparison.md").read_text()
+    for method, row in rows.items():
+        ev = simbench.evaluate(ur5_line(tmp_path, method, task=f"method: {method}"))
+        assert row["status"] == ev.verdict.status == "ok"
+        assert float(row["tool_error_max_m"]) == ev.analysis.tracking["tool_error_max"]
+        assert float(row["path_deviation_rms_m"]) == ev.analysis.tracking["tool_rms"]
+        peak = np.abs(ev.trajectory.qd_ref).max(axis=0)
+        assert [float(v) for k, v in row.items() if k.startswith("qd_peak_")] == peak.tolist()
+
+
+def test_compare_methods_refuses_an_unknown_method_or_a_scenario_not_cartesian_paths_in_one_line(tmp_path, capsys):
+    from simbench.cli import main
+
+    out = tmp_path / "c"
+    for scenario, methods, words in ((WRIST, "pinv", "plans with decoupled_path: compare planners with --planners"),
+                                     (WRIST, "pinv,dls_adaptiv", "unknown method 'dls_adaptiv'")):
+        assert main(["compare", str(scenario), "--methods", methods, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], err
+    with pytest.raises(ScenarioError, match="planners or methods"):
+        compare(WRIST, ["decoupled_path"], None, out, methods=["pinv"])
+    for both_or_neither in (["--planners", "decoupled_path", "--methods", "pinv"], []):
+        with pytest.raises(SystemExit) as exited:
+            main(["compare", str(WRIST), *both_or_neither, "--out", str(out)])
+        assert exited.value.code == 2
+    assert not out.exists()

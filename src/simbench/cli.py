@@ -1,4 +1,4 @@
-"""Command line: `simbench run | sweep | validate | list | inspect | compare | reproduce | bench | train-fk`.
+"""Command line: `simbench run | export | sweep | validate | list | inspect | compare | reproduce | bench | train-fk`.
 
 Exit codes: 0 done as the scenario expects; 3 done, but the run broke a promise (status `limits`); 2 bad input
 (a file system refusal before the run included); 1 the run failed (a full disk while writing included) or a bug
@@ -18,6 +18,9 @@ from simbench.bench import command as bench_command
 from simbench.destination import command_line
 from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
                              os_error_line, printable)
+from simbench.export import FORMATS as EXPORT_FORMATS
+from simbench.export import export as export_timeseries
+from simbench.planners.path_methods import METHODS as PATH_METHODS
 from simbench.plot_formats import FORMATS
 from simbench.resources import scenarios_dir, sweeps_dir
 
@@ -32,7 +35,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--force", action="store_true", help="replace the output folder if it exists")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
     run.add_argument("--plot-format", choices=FORMATS, default="png", help="the plots' file format (default png)")
+    run.add_argument("--timeseries", choices=EXPORT_FORMATS, default=None,
+                     help="also write the timeseries as timeseries.csv (as `simbench export` does)")
     _allow_code(run)
+    export = sub.add_parser("export", help="write a run's timeseries.npz as timeseries.csv beside it: a row a sample, "
+                                           "a column a joint's or an axis's, units in the header")
+    export.add_argument("run_folder", type=Path, help="a run's output folder (renders/<name>/)")
+    export.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="the file's format (default csv)")
     sweep = sub.add_parser("sweep", help="run a scenario over parameter grids or random samples, into one table")
     sweep.add_argument("sweep", type=Path)
     sweep.add_argument("--out", type=Path, default=None, help="output folder (default renders/sweeps/<name>/)")
@@ -67,10 +76,15 @@ def _parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--out", type=Path, default=Path("renders") / "reproduce",
                            help="output folder, one subfolder a paper (default renders/reproduce/)")
     reproduce.add_argument("--force", action="store_true", help="replace an earlier reproduction")
-    compare = sub.add_parser("compare", help="run one scenario's task with several planners or controllers")
+    compare = sub.add_parser("compare", help="run one scenario's task with several planners, cartesian_path "
+                                             "methods or controllers")
     compare.add_argument("scenario", type=Path)
-    compare.add_argument("--planners", type=_names, required=True, help="comma-separated, e.g. "
-                                                                      "decoupled_path,mink_baseline")
+    which = compare.add_mutually_exclusive_group(required=True)
+    which.add_argument("--planners", type=_names, default=None, help="comma-separated, e.g. "
+                                                                    "decoupled_path,mink_baseline")
+    which.add_argument("--methods", type=_names, default=None,
+                       help="a cartesian_path scenario's task.method, comma-separated, e.g. pinv,dls_adaptive (of "
+                            f"{', '.join(PATH_METHODS)})")
     compare.add_argument("--controllers", type=_names, default=None,
                          help="comma-separated (default: the scenario's own)")
     compare.add_argument("--out", type=Path, default=None, help="output folder (default renders/compare/<name>/)")
@@ -178,7 +192,8 @@ def _compare(args) -> None:
 
     out = args.out or Path("renders") / "compare" / load_scenario(args.scenario).name  # as run's renders/<name>/
     result = compare(args.scenario, args.planners, args.controllers, out, force=args.force,
-                     progress=not args.quiet, allow_code=args.allow_code, plot_format=args.plot_format)
+                     progress=not args.quiet, allow_code=args.allow_code, plot_format=args.plot_format,
+                     methods=args.methods)
     _say((result.out / "comparison.md").read_text())
     _say(f"table, plots and index.html in {result.out}")
 
@@ -260,13 +275,26 @@ def _run(args) -> int:
                               allow_code=args.allow_code, plot_format=args.plot_format)
     except PhysicsError as err:
         kept = "the report and the timeseries up to then are" if err.recording is not None else "the report is"
+        if err.recording is not None and args.timeseries:
+            _export(out, args.timeseries, sc.robot_def.kinds, quiet=True)
         raise RunError(f"{err}; {kept} in {out}") from None
     if not args.quiet:
         _say(_summary(result))
     elif not result.evaluation.verdict.as_expected:  # errors only: the broken promises are errors
         _say("\n".join(_status_lines(result.report["status"], result.report["violations"],
                                      result.report.get("expected"))), file=sys.stderr)
+    if args.timeseries:
+        _export(result.out, args.timeseries, sc.robot_def.kinds, args.quiet)
     return 0 if result.evaluation.verdict.as_expected else EXIT_LIMITS
+
+
+def _export(folder: Path, fmt: str = "csv", kinds: tuple[str, ...] | None = None, quiet: bool = False) -> None:
+    """Write the run folder's timeseries in `fmt` and say where, and what it left out."""
+    written = export_timeseries(folder, fmt, kinds)
+    if not quiet:
+        _say(f"{written.path}: {written.rows} rows, {len(written.columns)} columns")
+        for name in written.left_out:
+            _say(f"  note: {name} left out: not one number a sample")
 
 
 def _list() -> str:
@@ -340,6 +368,8 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
             _say("\n".join(reproduce(args.paper, args.out, force=args.force).lines()))
         elif args.command == "compare":
             _compare(args)
+        elif args.command == "export":
+            _export(args.run_folder, args.format)
         elif args.command == "validate":
             return _validate(args.scenarios, not args.no_plan, lambda err: _failed(args, ctrl_c, err))
         else:

@@ -12,6 +12,7 @@ import difflib
 import html
 import json
 import os
+from collections.abc import Collection
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -23,6 +24,7 @@ from simbench import api, budget, csv_cells, destination, registry
 from simbench.atomic import staged_folder
 from simbench.plot_formats import check_format
 from simbench.page import table_page, write_page
+from simbench.planners.path_methods import METHODS
 from simbench.errors import PhysicsError, RunError, ScenarioError, printable
 from simbench.figures import columns
 from simbench.policy import refuse_code
@@ -32,6 +34,8 @@ from simbench.singularity_handling import SingularityHandling
 from simbench.validation import read_yaml
 
 MINK = "mink_baseline"
+PATH = "cartesian_path"  # the planner whose task.method `methods` compares
+_SETTINGS = {"damping": "dls", "acceleration_limits": "time_scaling"}  # task fields only one method reads
 _SOURCE = "compare"  # how a refusal of the arguments names where it comes from (the arguments, not a file)
 
 
@@ -60,20 +64,23 @@ class ComparisonResult:
     files: tuple[str, ...]
 
 
-def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: list[str] | None, out: Path,
+def compare(scenario_path: str | os.PathLike, planners: list[str] | None, controllers: list[str] | None, out: Path,
             force: bool = False, progress: bool = False, allow_code: bool = False,
-            plot_format: str = "png") -> ComparisonResult:
-    """Run the scenario's task with every pair of planners and controllers, and write the table and plots.
+            plot_format: str = "png", methods: list[str] | None = None) -> ComparisonResult:
+    """Run the scenario's task with every pair of planners (or cartesian_path methods) and controllers, and write
+    the table and plots.
 
     Args:
         scenario_path: The scenario whose task, robot and timing every method gets.
-        planners: Planner names; `mink_baseline` follows the scenario's own planner's path.
+        planners: Planner names; `mink_baseline` follows the scenario's own planner's path. None: `methods`.
         controllers: Controller names; None for the scenario's own.
         out: The folder for comparison.csv/.md/.json, the overlaid plots and index.html.
         force: Replace a folder that holds another comparison (only files simbench wrote).
         progress: Show each run's progress.
         allow_code: Let a policy name a module to import.
         plot_format: `"png"`, `"svg"` or `"pdf"`.
+        methods: A cartesian_path scenario's `task.method`s (planners/path_methods.METHODS), each its row, instead
+            of `planners`.
 
     Returns:
         Where it was written, the methods in order with their runs, the table's rows (SI) and the files.
@@ -84,11 +91,17 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
     source = Path(scenario_path)
     check_format(plot_format, "simbench.compare")
     out = destination.followed(Path(out))
+    if (planners is None) == (methods is None):
+        raise ScenarioError(_SOURCE, "planners", "expected planners or methods (cartesian_path's task.method), one "
+                                                 "of the two")
     base = load_scenario(source)
     raw = read_yaml(source)
-    variants = _variants(raw, base, source, _names(planners, "planner", registry.planners()),
-                         _names(controllers, "controller", registry.controllers()) if controllers is not None
-                         else [base.control.controller])
+    choices = (_planned(raw, base, _names(planners, "planner", registry.planners())) if methods is None
+               else _methods(raw, base, source, _names(methods, "method", METHODS)))
+    controllers = (_names(controllers, "controller", registry.controllers()) if controllers is not None
+                   else [base.control.controller])
+    variants = _variants(raw, base, source, choices, controllers,
+                         "planners" if methods is None and len(controllers) == 1 else "methods")
     for *_, scenario in variants:  # every method affordable (simbench.budget) and allowed before any runs
         budget.check(scenario)
         refuse_code(scenario, allow_code)
@@ -104,7 +117,7 @@ def compare(scenario_path: str | os.PathLike, planners: list[str], controllers: 
                             files=tuple(files))
 
 
-def _names(names: Any, kind: str, known: dict) -> list[str]:
+def _names(names: Any, kind: str, known: Collection[str]) -> list[str]:
     """The names asked for, duplicates dropped; ScenarioError naming the first unknown one."""
     if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:
         raise ScenarioError(_SOURCE, f"{kind}s", f"expected a list of one or more {kind} names, got {names!r:.80}")
@@ -117,15 +130,32 @@ def _names(names: Any, kind: str, known: dict) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-def _variants(raw: dict, base: Scenario, source: Path, planners: list[str],
-              controllers: list[str]) -> list[tuple[str, str, str, Scenario]]:
-    """(label, planner, controller, scenario) of every method, each validated; ScenarioError naming one unsuited."""
+def _planned(raw: dict, base: Scenario, planners: list[str]) -> list[tuple[str, str, Any, bool]]:
+    """(label, planner, task, whether the scenario's own) of each planner."""
+    return [(planner, planner, _task_for(planner, raw, base), planner == base.planner) for planner in planners]
+
+
+def _methods(raw: dict, base: Scenario, source: Path, methods: list[str]) -> list[tuple[str, str, Any, bool]]:
+    """(label, planner, task, whether the scenario's own) of each of cartesian_path's methods: the scenario's task
+    with its `method`, without another method's settings; ScenarioError if the scenario is not cartesian_path's."""
+    if base.planner != PATH:
+        raise ScenarioError(_SOURCE, "methods", f"are {PATH}'s task.method, and {source} plans with "
+                                                f"{base.planner}: compare planners with --planners")
+    own = base.task.method
+    return [(method, PATH, {**{k: v for k, v in raw["task"].items() if _SETTINGS.get(k, method) == method},
+                            "method": method}, method == own) for method in methods]
+
+
+def _variants(raw: dict, base: Scenario, source: Path, choices: list[tuple[str, str, Any, bool]],
+              controllers: list[str], field: str) -> list[tuple[str, str, str, Scenario]]:
+    """(label, planner, controller, scenario) of every choice (`_planned`, `_methods`) with every controller, each
+    validated; ScenarioError naming one unsuited (and `field`, the argument at fault)."""
     out = []
-    for planner in planners:
+    for choice, planner, task, own_choice in choices:
         for controller in controllers:
             doc = copy.deepcopy(raw)
-            doc["planner"], doc["task"] = planner, _task_for(planner, raw, base)
-            own = planner == base.planner and controller == base.control.controller
+            doc["planner"], doc["task"] = planner, copy.deepcopy(task)
+            own = own_choice and controller == base.control.controller
             if controller != base.control.controller:
                 doc["control"] = {"controller": controller}
             if not own:
@@ -133,11 +163,10 @@ def _variants(raw: dict, base: Scenario, source: Path, planners: list[str],
             try:
                 scenario = parse_scenario(doc, str(source), default_name=source.stem)
             except ScenarioError as err:
-                what = planner if len(controllers) == 1 else f"{planner} with {controller}"
-                raise ScenarioError(_SOURCE, "planners" if len(controllers) == 1 else "methods",
-                                    f"{what} cannot run {source}: {err.detail}") from None
+                what = choice if len(controllers) == 1 else f"{choice} with {controller}"
+                raise ScenarioError(_SOURCE, field, f"{what} cannot run {source}: {err.detail}") from None
             scenario._source = str(source)  # errors of its policy name the file, as `simbench run` of it does
-            label = planner if len(controllers) == 1 else f"{planner} / {controller}"
+            label = choice if len(controllers) == 1 else f"{choice} / {controller}"
             out.append((label, planner, controller, scenario))
     return out
 
