@@ -323,6 +323,44 @@ def test_the_timeline_marks_every_event_at_its_time(run_out, open_page):
 
 
 @needs_browser
+def test_the_timelines_labels_overlap_neither_each_other_nor_a_mark(tmp_path, open_page):
+    """Events a few milliseconds apart in each lane, long names, and an instant at the run's end (issue 46: the
+    labels were drawn over the next marks): as the browser lays them out, no label's box meets another's or a
+    mark's, each lies inside the timeline, and each names a mark it starts over (or, at the end, ends over)."""
+    spans = [{"t_start": t, "t_end": t + 0.02, "kind": kind, "detail": {}}
+             for t, kind in ((0.9, "type2"), (0.905, "assembly_mode_change"), (0.93, "type2"), (1.2, "wrist"))]
+    instants = [{"kind": kind, "t": t, "message": ""} for t, kind in
+                ((0.925, "singular_crossing"), (0.9315, "assembly_mode_change"), (0.9325, "off_path"),
+                 (1.3, "orientation_error"), (1.99, "goal_missed"))]
+    report = {"status": "limits", "duration": 2.0, "hold": 0.0, "singularity_events": spans, "violations": instants,
+              "limit_events": [{"t_start": 0.0, "t_end": 0.001, "kind": "velocity_limit_of_a_long_joint_name",
+                                "detail": {}}]}
+    write_page(tmp_path, run_page(tmp_path, report))
+    page = open_page(tmp_path / "index.html")
+    box = "r => ({x0: r.left, x1: r.right, y0: r.top, y1: r.bottom})"
+    labels = page.evaluate(f"[...document.querySelectorAll('svg.timeline text.label')].map(t => "
+                           f"[t.textContent, ({box})(t.getBoundingClientRect())])")
+    marks = page.evaluate(f"[...document.querySelectorAll('svg.timeline g.mark')].map(g => "
+                          f"[g.querySelector('title').textContent, ({box})(g.getBoundingClientRect())])")
+    (frame,) = page.evaluate(f"[...document.querySelectorAll('svg.timeline')].map(s => "
+                             f"({box})(s.getBoundingClientRect()))")
+
+    def meet(a, b):
+        return a["x0"] < b["x1"] and b["x0"] < a["x1"] and a["y0"] < b["y1"] and b["y0"] < a["y1"]
+
+    assert len(marks) == 10 and len(labels) >= 5  # a label a lane at least
+    for (name, a), (other, b) in itertools.combinations(labels, 2):
+        assert not meet(a, b), (name, other)
+    for name, a in labels:
+        assert not any(meet(a, b) for _, b in marks), name
+        assert frame["x0"] <= a["x0"] and a["x1"] <= frame["x1"], name
+        kind, t = name.rsplit(" ", 2)[:2]
+        assert any(title.startswith(f"{kind}, t = {t}") and min(abs(b["x0"] - a["x0"]), abs(b["x1"] - a["x1"])) < 8
+                   for title, b in marks), name
+    assert "goal_missed 1.99 s" in dict(labels)
+
+
+@needs_browser
 def test_a_failed_runs_page_says_when_and_why(failed_out, open_page):
     rep = report(failed_out)
     assert rep["status"] == "failed" and "plots" not in rep["outputs"] and "video" not in rep["outputs"]

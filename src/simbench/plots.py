@@ -22,6 +22,9 @@ DPI = 110  # a PNG's pixels an inch
 _MARGINS = (1.0, 0.15, 0.36, 0.59)  # in: left (tick labels and y label), right, top (title), bottom (x label)
 _GAP = 0.22  # in: between panels that share their time axis
 _COLUMN_GAP = 1.05  # in: between columns of panels (the next column's tick labels and y label)
+_LABEL_SIZE = 7  # pt: an event's name in a panel
+_LABEL_ROWS = 3  # rows of event names at a panel's top
+MIN_SPAN = 1e-4  # an axis's least span, of its values' size (plain_ticks)
 
 
 def plot_text(text: str) -> str:
@@ -83,9 +86,30 @@ def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: floa
     return fig, fig.subplots(rows, cols, sharex=True, squeeze=False)
 
 
+def plain_ticks(fig: Figure) -> None:
+    """Tick labels as the values themselves on every axis of the figure (a 3-D one's z too): no offset such as
+    `1e-6+1.335e-1`, which matplotlib adds to a nearly constant series and which reads as a value. A linear axis
+    spanning under MIN_SPAN of its values' size is widened to that span about its middle, so that its labels (six
+    significant digits) fit beside the panel: a variation that small is drawn as the near-flat line it is."""
+    from matplotlib.ticker import ScalarFormatter
+
+    for ax in fig.axes:
+        for axis in filter(None, (ax.xaxis, ax.yaxis, getattr(ax, "zaxis", None))):
+            formatter = axis.get_major_formatter()
+            if not isinstance(formatter, ScalarFormatter):
+                continue
+            formatter.set_useOffset(False)
+            lo, hi = sorted(axis.get_view_interval())
+            least = MIN_SPAN * max(abs(lo), abs(hi))
+            if axis.get_scale() == "linear" and hi - lo < least:
+                middle = (lo + hi) / 2
+                getattr(ax, f"set_{axis.axis_name}lim")(middle - least / 2, middle + least / 2)
+
+
 def save(fig: Figure, folder: Path, stem: str, plot_format: str = "png") -> str:
-    """Write the figure as `folder/<stem>.<plot_format>`; the file's name."""
+    """Write the figure as `folder/<stem>.<plot_format>`, its ticks plain (plain_ticks); the file's name."""
     name = f"{stem}.{plot_format}"
+    plain_ticks(fig)
     fig.savefig(folder / name, format=plot_format)
     return name
 
@@ -159,28 +183,79 @@ def plot_singularity(robot: Robot, rec: Recording, result: Analysis) -> Figure:
         ax.set_ylabel(plot_text(name))
         ax.grid(alpha=0.3)
         _shade(ax, result.singularity_events, None, "tab:orange")
-    seen = set()
+    firsts: dict[str, float] = {}
     for e in result.singularity_events:
-        if e["kind"] not in seen:
-            axes[0, 0].annotate(plot_text(e["kind"]), (e["t_start"], 1.0), xycoords=("data", "axes fraction"),
-                                fontsize=7, rotation=90, va="top")
-            seen.add(e["kind"])
-    axes[0, 0].set_title("Singularity measures (orange: near a singular set)", y=1.0)
+        firsts.setdefault(e["kind"], e["t_start"])
+    left_out = _event_labels(axes[0, 0], firsts)
+    note = f"; {left_out} unlabelled, too close to another: report.json names each" if left_out else ""
+    axes[0, 0].set_title(f"Singularity measures (orange: near a singular set{note})", y=1.0)
     axes[-1, 0].set_xlabel("time (s)")
     return fig
 
 
+def _event_labels(ax, starts: dict[str, float]) -> int:
+    """Name each kind of event at its start, `starts` {kind: t}, in the panel's top rows: each label in the first
+    row where it overlaps no other (measured as drawn), flipped to the left of its time at the right edge; a
+    label that fits no row is left out. Returns how many were left out."""
+    renderer = _renderer(ax.figure)
+    ax.get_xlim()  # the limits autoscaled now: the labels are measured where they will be drawn
+    frame = ax.get_window_extent(renderer)
+    placed: list = []  # the labels' boxes, display pixels
+    left_out = 0
+    for kind, t in sorted(starts.items(), key=lambda item: item[1]):
+        label = ax.annotate(plot_text(kind), (t, 1.0), (0, 0), xycoords=("data", "axes fraction"),
+                            textcoords="offset points", fontsize=_LABEL_SIZE, va="top",
+                            bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
+        for row in range(_LABEL_ROWS):
+            y = -2 - row * _LABEL_SIZE * 1.6  # points below the panel's top
+            label.xyann = (2, y)
+            label.set_horizontalalignment("left")
+            box = label.get_window_extent(renderer)
+            if box.x1 > frame.x1:
+                label.xyann = (-2, y)
+                label.set_horizontalalignment("right")
+                box = label.get_window_extent(renderer)
+            if not any(box.overlaps(other) for other in placed):
+                placed.append(box.padded(2))
+                break
+        else:
+            label.remove()
+            left_out += 1
+    return left_out
+
+
+def _renderer(fig: Figure):
+    """A renderer that measures text as the saved figure draws it (Agg's, at the figure's resolution)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    return canvas.get_renderer()
+
+
+def _equal_axes(ax, points: np.ndarray) -> None:
+    """Equal scales on the three axes: a cube about the points' middle, as long as their largest extent (at least
+    1 mm), in a cubic box. A flat arc looks flat, and a line's small sideways wobble as small as it is."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    middle, half = (lo + hi) / 2, max(float(np.max(hi - lo)), 1.0) / 2
+    ax.set_xlim3d(middle[0] - half, middle[0] + half)
+    ax.set_ylim3d(middle[1] - half, middle[1] + half)
+    ax.set_zlim3d(middle[2] - half, middle[2] + half)
+    ax.set_box_aspect((1.0, 1.0, 1.0))
+
+
 def plot_path(traj: JointTrajectory, rec: Recording) -> Figure:
-    """The planned path and the simulated tool trace in 3-D, with the method's waypoints."""
+    """The planned path and the simulated tool trace in 3-D on equal axes, with the method's waypoints."""
     fig = figure(6.5, 6)
     fig.subplots_adjust(left=0.02, right=0.95, bottom=0.04, top=0.98)
     ax = fig.add_subplot(projection="3d")
     ref, tool = traj.tool_ref * 1e3, rec.tool * 1e3
     ax.plot(*ref.T, "--", color="tab:blue", lw=2, label="planned")
     ax.plot(*tool.T, color="tab:red", lw=1, label="simulated tool")
+    points = [ref, tool]
     if traj.waypoints:
-        wp = np.array([w["X"] for w in traj.waypoints]) * 1e3
-        ax.scatter(*wp.T, color="k", s=12, label="waypoints")
+        points.append(np.array([w["X"] for w in traj.waypoints]) * 1e3)
+        ax.scatter(*points[-1].T, color="k", s=12, label="waypoints")
+    _equal_axes(ax, np.vstack(points))
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
@@ -188,14 +263,18 @@ def plot_path(traj: JointTrajectory, rec: Recording) -> Figure:
     return fig
 
 
+def draw_plots(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis) -> dict[str, Figure]:
+    """simbench's plots and the robot's own (its `plots` hook), by their file stems."""
+    return {"joints": plot_joints(robot, traj, rec, result),
+            "joint_speeds": plot_joint_speeds(robot, traj, rec, result),
+            "tool_deviation": plot_tool(traj, result),
+            "singularity": plot_singularity(robot, rec, result),
+            "path": plot_path(traj, rec),
+            **robot.plots(traj, rec, result)}
+
+
 def write_plots(robot: Robot, traj: JointTrajectory, rec: Recording, result: Analysis, folder: Path,
                 plot_format: str = "png") -> list[str]:
-    """simbench's plots and the robot's own (its `plots` hook) into folder, in `plot_format`; their file names."""
+    """draw_plots' figures into folder, in `plot_format`; their file names."""
     folder.mkdir(parents=True, exist_ok=True)
-    figures = {"joints": plot_joints(robot, traj, rec, result),
-               "joint_speeds": plot_joint_speeds(robot, traj, rec, result),
-               "tool_deviation": plot_tool(traj, result),
-               "singularity": plot_singularity(robot, rec, result),
-               "path": plot_path(traj, rec),
-               **robot.plots(traj, rec, result)}
-    return [save(fig, folder, stem, plot_format) for stem, fig in figures.items()]
+    return [save(fig, folder, stem, plot_format) for stem, fig in draw_plots(robot, traj, rec, result).items()]

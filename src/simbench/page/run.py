@@ -127,9 +127,29 @@ def _metrics(report: dict) -> str:
     found = report.get("metrics")
     if not isinstance(found, dict) or not found:
         return ""
-    tables = [table(["figure", "value"], [[path, number(value)] for path, value in flatten(figures)],
+    tables = [table(["figure", "value"], [[path, _figure(report, f"{name}.{path}", value)]
+                                          for path, value in flatten(figures)],
                     f"{name} (report.json metrics.{name}, SI units)") for name, figures in found.items()]
     return '<h2 id="metrics">Metrics</h2>\n' + "".join(tables)
+
+
+def _figure(report: dict, path: str, value: object) -> str:
+    """A metric's figure as text; singularity_handling's closest_approach, null for a robot without the
+    `sigma_min_unit` measure it reads, with the singular events' own closest approach beside it."""
+    if value is not None or path != "singularity_handling.closest_approach":
+        return number(value)
+    closest = [(e["detail"]["distance"], e) for e in report.get("singularity_events") or []
+               if isinstance(e, dict) and isinstance(e.get("detail"), dict)
+               and isinstance(e["detail"].get("distance"), (int, float))]
+    if not closest:
+        return "n/a"
+    _, e = min(closest, key=lambda pair: pair[0])
+    detail = e["detail"]
+    gaps = detail.get("gaps_at_closest")
+    value = (", ".join(f"{k} {number(v)}" for k, v in gaps.items()) if isinstance(gaps, dict) and gaps
+             else f"distance {number(detail['distance'])}")
+    return (f"n/a (no sigma_min_unit); closest event: {e.get('kind', '?')} at "
+            f"{number(detail.get('t_closest', e.get('t_start')))} s, {value}")
 
 
 def _events(report: dict) -> str:
@@ -142,8 +162,9 @@ def _events(report: dict) -> str:
     for e in found:
         counts[e["lane"]] = counts.get(e["lane"], 0) + 1
     summary = "; ".join(f"{lane}: {n}" for lane, n in counts.items())
-    return (f"{head}<p>{esc(summary)}. Spans are bars, instants diamonds; hover a mark for its kind and time."
-            f"</p>\n{timeline.svg(found, end)}{timeline.table(found)}")
+    return (f"{head}<p>{esc(summary)}. Spans are bars, instants diamonds; hover a mark for its kind and time (a mark "
+            "whose label would overlap the one before is unlabelled; the table below lists them).</p>\n"
+            f"{timeline.svg(found, end)}{timeline.table(found)}")
 
 
 def _video(out: Path, outputs: dict) -> str:
@@ -201,7 +222,7 @@ def scaled_list(values, scale: float) -> str:
 def _facts(report: dict) -> str:
     seconds = ("timestep", "duration", "hold", "settle")
     rows = [[f"{key} (s)" if key in seconds else key, number(report[key])]
-            for key in ("samples", *seconds, "time_law") if key in report]
+            for key in ("samples", *seconds, "record_every", "time_law") if key in report]
     for group in ("control", "versions", "wall_time"):
         if isinstance(report.get(group), dict):
             unit = " (s)" if group == "wall_time" else ""

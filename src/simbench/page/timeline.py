@@ -8,7 +8,9 @@ from simbench.page.html import esc, number
 
 _WIDTH = 1000  # the SVG's user units; it scales to the page's width
 _LEFT, _RIGHT, _TOP = 130, 24, 10
-_LANE = 34
+_LANE = 36  # a lane: a row of labels over a row of marks
+_LABEL_BASE, _MARK_TOP = 11, 15  # below the lane's top: the labels' baseline (10.5 px text), the marks' top
+_CHAR = 6.3  # a label's width a character, at most (10.5 px system-ui or DejaVu Sans)
 _AXIS = 34
 _MAX_LABELS = 10  # a lane with more marks than this names them in its tooltips and the table only
 _MAX_ROWS = 300
@@ -99,17 +101,22 @@ def svg(found: list[dict], end: float) -> str:
                 f"t = {number(e['t_start'])} to {number(e['t_end'])} s"
             tip = f"<title>{esc(e['kind'])}, {esc(when)}</title>"
             if e["t_end"] is None:
-                parts.append(f'<g class="mark"><path d="M{x0:.1f} {top + 5} l5 6 l-5 6 l-5 -6 z M{x0:.1f} {top + 17} '
-                             f'V{top + _LANE - 4}" fill="{colour}" stroke="{colour}" stroke-width="2"/>{tip}</g>')
+                parts.append(f'<g class="mark"><path d="M{x0:.1f} {top + _MARK_TOP} l5 6 l-5 6 l-5 -6 z '
+                             f'M{x0:.1f} {top + _MARK_TOP + 12} V{top + _LANE - 3}" fill="{colour}" '
+                             f'stroke="{colour}" stroke-width="2"/>{tip}</g>')
             else:
                 w = max(x(e["t_end"]) - x0, 2.0)
-                parts.append(f'<g class="mark"><rect x="{x0:.1f}" y="{top + 12}" width="{w:.1f}" height="{_LANE - 16}" '
-                             f'fill="{colour}" fill-opacity="0.75" rx="2"/>{tip}</g>')
+                parts.append(f'<g class="mark"><rect x="{x0:.1f}" y="{top + _MARK_TOP + 1}" width="{w:.1f}" '
+                             f'height="{_LANE - _MARK_TOP - 4}" fill="{colour}" fill-opacity="0.75" rx="2"/>{tip}</g>')
             label = f"{e['kind']} {number(e['t_start'], 3)} s"
-            if len(marks) <= _MAX_LABELS and x0 + 4 > last_label_end and x0 + 4 + 6.3 * len(label) < _WIDTH:
-                parts.append(f'<text x="{x0 + 4:.1f}" y="{top + 11}" font-size="10.5" fill="#1d2330">'
-                             f"{esc(label)}</text>")
-                last_label_end = x0 + 4 + 6.3 * len(label) + 6
+            width = _CHAR * len(label)
+            start = x0 - 5 + width < _WIDTH  # starting over the mark's left edge, else ending over its right one
+            left = x0 - 5 if start else x0 + 5 - width
+            if len(marks) <= _MAX_LABELS and left > last_label_end:
+                anchor, at = ("start", x0 - 5) if start else ("end", x0 + 5)
+                parts.append(f'<text class="label" x="{at:.1f}" y="{top + _LABEL_BASE}" text-anchor="{anchor}" '
+                             f'font-size="10.5" fill="#1d2330">{esc(label)}</text>')
+                last_label_end = left + width + 6
     base = _TOP + _LANE * len(lanes)
     parts.append(f'<line x1="{_LEFT}" y1="{base}" x2="{_LEFT + span}" y2="{base}" stroke="#1d2330"/>')
     for t in _ticks(end):
