@@ -1,6 +1,6 @@
 """python -m simbench: see simbench.cli. The current folder is taken off sys.path (as pip does), so that a stray
 file there (a yaml.py) is not imported in place of a dependency. Ctrl-C before main answers it (while the command
-line's modules are imported) ends as one during the command: one line, exit 130."""
+line's modules are imported, held back until they are) ends as one during the command: one line, exit 130."""
 
 import os
 import signal
@@ -10,8 +10,10 @@ if not sys.flags.safe_path and sys.path and sys.path[0] in ("", os.getcwd()):
     del sys.path[0]
 
 try:
-    from simbench.cli import main
+    from simbench import interrupts
 
+    with interrupts.held_back():  # an extension module being imported would turn Ctrl-C into an ImportError
+        from simbench.cli import main
     code = main()
 except KeyboardInterrupt:
     print("interrupted", file=sys.stderr)

@@ -15,13 +15,9 @@ from pathlib import Path
 
 from simbench import interrupts
 from simbench.bench import command as bench_command
-from simbench.destination import command_line
 from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
                              os_error_line, printable)
-from simbench.export import FORMATS as EXPORT_FORMATS
-from simbench.export import export as export_timeseries
-from simbench.planners.path_methods import METHODS as PATH_METHODS
-from simbench.plot_formats import FORMATS
+from simbench.plot_formats import FORMATS, TIMESERIES_FORMATS
 from simbench.resources import scenarios_dir, sweeps_dir
 
 
@@ -35,13 +31,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--force", action="store_true", help="replace the output folder if it exists")
     run.add_argument("--quiet", action="store_true", help="print nothing but errors")
     run.add_argument("--plot-format", choices=FORMATS, default="png", help="the plots' file format (default png)")
-    run.add_argument("--timeseries", choices=EXPORT_FORMATS, default=None,
+    run.add_argument("--timeseries", choices=TIMESERIES_FORMATS, default=None,
                      help="also write the timeseries as timeseries.csv (as `simbench export` does)")
     _allow_code(run)
     export = sub.add_parser("export", help="write a run's timeseries.npz as timeseries.csv beside it: a row a sample, "
                                            "a column a joint's or an axis's, units in the header")
     export.add_argument("run_folder", type=Path, help="a run's output folder (renders/<name>/)")
-    export.add_argument("--format", choices=EXPORT_FORMATS, default="csv", help="the file's format (default csv)")
+    export.add_argument("--format", choices=TIMESERIES_FORMATS, default="csv", help="the file's format (default csv)")
     sweep = sub.add_parser("sweep", help="run a scenario over parameter grids or random samples, into one table")
     sweep.add_argument("sweep", type=Path)
     sweep.add_argument("--out", type=Path, default=None, help="output folder (default renders/sweeps/<name>/)")
@@ -83,8 +79,7 @@ def _parser() -> argparse.ArgumentParser:
     which.add_argument("--planners", type=_names, default=None, help="comma-separated, e.g. "
                                                                     "decoupled_path,mink_baseline")
     which.add_argument("--methods", type=_names, default=None,
-                       help="a cartesian_path scenario's task.method, comma-separated, e.g. pinv,dls_adaptive (of "
-                            f"{', '.join(PATH_METHODS)})")
+                       help="a cartesian_path scenario's task.method, comma-separated, e.g. pinv,dls_adaptive")
     compare.add_argument("--controllers", type=_names, default=None,
                          help="comma-separated (default: the scenario's own)")
     compare.add_argument("--out", type=Path, default=None, help="output folder (default renders/compare/<name>/)")
@@ -290,7 +285,9 @@ def _run(args) -> int:
 
 def _export(folder: Path, fmt: str = "csv", kinds: tuple[str, ...] | None = None, quiet: bool = False) -> None:
     """Write the run folder's timeseries in `fmt` and say where, and what it left out."""
-    written = export_timeseries(folder, fmt, kinds)
+    from simbench.export import export  # imported here: the command line loads without NumPy and MuJoCo
+
+    written = export(folder, fmt, kinds)
     if not quiet:
         _say(f"{written.path}: {written.rows} rows, {len(written.columns)} columns")
         for name in written.left_out:
@@ -337,6 +334,8 @@ def main(argv: list[str] | None = None) -> int:
     with interrupts.raising_interrupted() as ctrl_c:
         try:
             args = _parser().parse_args(argv)
+            with interrupts.held_back():  # imported here, so that --help loads neither psutil nor filelock
+                from simbench.destination import command_line
         except interrupts.Interrupted:  # pressed while the command line was read
             _say("interrupted", file=sys.stderr)
             return ctrl_c.exit_code

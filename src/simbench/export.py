@@ -20,9 +20,9 @@ import numpy as np
 from simbench import api, csv_cells, destination
 from simbench.atomic import staged_file
 from simbench.errors import RunError, ScenarioError
+from simbench.plot_formats import TIMESERIES_FORMATS
 
 CSV = "timeseries.csv"
-FORMATS = ("csv",)
 BLOCK = 4096  # rows converted to Python numbers at a time: a long run's file is written without holding it all
 # The arrays with one column a joint: their unit by the joint's kind (where the kinds are unknown, either).
 _BY_KIND = {"position": {api.REVOLUTE: "rad", api.PRISMATIC: "m", None: "rad or m"},
@@ -74,8 +74,8 @@ def export(folder: str | os.PathLike, fmt: str = "csv", kinds: tuple[str, ...] |
         ScenarioError: Not a run folder, an unreadable timeseries or report, or a timeseries.csv in the way that
             simbench did not write.
     """
-    if fmt not in FORMATS:
-        raise ScenarioError("simbench.export", "fmt", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    if fmt not in TIMESERIES_FORMATS:
+        raise ScenarioError("simbench.export", "fmt", f"expected one of {', '.join(TIMESERIES_FORMATS)}, got {fmt!r}")
     folder = destination.followed(Path(folder))
     _check_folder(folder)
     path = folder / CSV

@@ -1,11 +1,13 @@
 """The file formats simbench writes plots in (`--plot-format`, `plot_format=`): PNG for the result page and the
-screen, SVG and PDF for papers."""
+screen, SVG and PDF for papers; and those it exports a run's timeseries in (`simbench export`, `--timeseries`). Kept
+apart from the writers, so that the command line names them without importing NumPy and MuJoCo."""
 
 from __future__ import annotations
 
 from simbench.errors import ScenarioError
 
 FORMATS = ("png", "svg", "pdf")
+TIMESERIES_FORMATS = ("csv",)
 
 
 def check_format(plot_format: str, source: str) -> None:
