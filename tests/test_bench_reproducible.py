@@ -1,7 +1,8 @@
 """Every bench run reproducible alone (issue 46): the bench writes each run's scenario file (scenarios/<id>.yaml,
 complete, SI) beside its row before the runs, runs.csv and index.html link each run to it, and `simbench run` of
 it gives the row's figures; a run whose plan passes the suite's max_slowdown is `too_slow`, named and counted
-apart. Truths: `simbench run` of the file in this process (the run pipeline writing every output, not the bench's
+apart, as is one still planning past its plan_seconds, cut at once; the progress line names the run and its
+stage. Truths: `simbench run` of the file in this process (the run pipeline writing every output, not the bench's
 report-only path), the documents the bench hands its runs (plan_bench), the page's links as an HTML parser reads
 them, and the folder's markers as --force reads them."""
 
@@ -136,10 +137,55 @@ def test_a_run_past_the_suites_max_slowdown_is_too_slow(tmp_path, capsys):
     assert summary["status"]["too_slow"] == 1 and summary["max_slowdown"] == 0.5
 
 
-@pytest.mark.parametrize("value, expected", [("0", "expected greater than 0, got 0"),
-                                             ("fast", "expected a valid number, got 'fast'")])
-def test_a_bad_max_slowdown_is_one_line_naming_the_file_and_field(tmp_path, capsys, value, expected):
+@pytest.mark.parametrize("field, value, expected", [("max_slowdown", "0", "expected greater than 0, got 0"),
+                                                    ("max_slowdown", "fast", "expected a valid number, got 'fast'"),
+                                                    ("plan_seconds", "-1", "expected greater than 0, got -1")])
+def test_a_bad_cost_is_one_line_naming_the_file_and_field(tmp_path, capsys, field, value, expected):
     suite = tmp_path / "suite.yaml"
-    suite.write_text(f"robots: [planar3r]\nmax_slowdown: {value}\n")
+    suite.write_text(f"robots: [planar3r]\n{field}: {value}\n")
     assert main(["bench", str(suite), "--out", str(tmp_path / "out"), "--quiet"]) == 2
-    assert capsys.readouterr().err.strip().splitlines() == [f"error: {suite}: max_slowdown: {expected}"]
+    assert capsys.readouterr().err.strip().splitlines() == [f"error: {suite}: {field}: {expected}"]
+
+
+def test_the_progress_line_names_the_run_and_what_it_is_doing(tmp_path, capsys):
+    """The bench's progress line: `<run id>: <stage>` for every stage the run pipeline goes through (its
+    stopwatch's), in that order."""
+    assert main(["bench", "planar3r", "--tasks", "1", "--methods", "dls_adaptive", "--workers", "1", "--out",
+                 str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    shown = [err.find(f"planar3r-t0000-dls_adaptive: {stage}") for stage in
+             ("loading", "planning", "simulating", "analysing")]
+    assert -1 not in shown and shown == sorted(shown), err[-2000:]
+
+
+def test_worker_processes_tell_each_runs_stages_as_they_go():
+    """Two runs on two worker processes: each run's stages come to the parent before its outcome, in the
+    pipeline's order, each under its own run."""
+    from simbench.sweep.execute import in_processes
+
+    bench = plan_bench(load_suite("planar3r").with_options(1, None, ["dls_adaptive", "pinv"]))
+    told = []
+    tasks = [(v.index, {"document": v.document, "source": v.id}) for v in bench.variants]
+    for index, outcome in in_processes(tasks, 2, lambda i, stage: told.append((i, stage))):
+        assert outcome["status"] == "ok"
+        told.append((index, "done"))
+    for index in (0, 1):
+        assert [stage for i, stage in told if i == index] == ["load", "plan", "simulate", "analyse", "done"]
+
+
+def test_a_run_planning_past_the_suites_plan_seconds_is_cut_too_slow(tmp_path):
+    """plan_seconds 0.001: time_scaling's plan of the planar 3R's first task (seconds when not cut) is cut within
+    a second of starting, too_slow, its error saying what passed which limit; the signal handler is as before."""
+    import signal
+
+    before = signal.getsignal(signal.SIGALRM)
+    suite = tmp_path / "quick.yaml"
+    suite.write_text("robots: [planar3r]\ntasks: 1\nmethods: [time_scaling]\nplan_seconds: 0.001\n")
+    out = tmp_path / "out"
+    assert main(["bench", str(suite), "--workers", "1", "--out", str(out), "--quiet"]) == 0
+    (row,) = _rows(out / "runs.csv")
+    assert row["status"] == "too_slow" and row["error"] == "planning passed the 0.001 s it may take"
+    assert float(row["wall_time"]) < 1.0 and row["deviation_max_mm"] == ""
+    (board,) = _rows(out / "leaderboard.csv")
+    assert board["too_slow"] == "1"
+    assert signal.getsignal(signal.SIGALRM) == before

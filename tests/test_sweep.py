@@ -110,7 +110,8 @@ def test_table_metrics_are_the_runs_own_numbers(tmp_path):
     assert int(row["singularity_events"]) == len(alone.analysis.singularity_events)
     report = json.loads((tmp_path / "out" / "runs" / "r0001" / "report.json").read_text())
     assert report["tracking"]["tool_rms"] == float(row["tool_rms"])
-    assert result.summary["status"] == {"ok": 2, "limits": 0, "bad_input": 0, "run_failed": 0, "crashed": 0}
+    assert result.summary["status"] == {"ok": 2, "limits": 0, "too_slow": 0, "bad_input": 0, "run_failed": 0,
+                                       "crashed": 0}
 
 
 def test_failed_runs_are_rows_not_crashes(tmp_path):

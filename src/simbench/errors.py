@@ -69,6 +69,11 @@ class RunError(Exception):
     """A valid scenario whose run failed (exit 1): an unreachable path, diverged physics."""
 
 
+class TooSlow(RunError):
+    """A run cut where it passed a time limit it was given (a bench's plan_seconds): a sweep's or bench's row
+    `too_slow`."""
+
+
 class PhysicsError(RunError):
     """The simulation failed mid-run.
 

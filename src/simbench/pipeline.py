@@ -7,15 +7,19 @@ physics fails writes the report of the failure and the timeseries up to it.
 from __future__ import annotations
 
 import os
+import signal
+import threading
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from simbench import budget, destination
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
 from simbench.atomic import staged_folder
-from simbench.errors import PhysicsError
+from simbench.errors import PhysicsError, TooSlow
 from simbench.fitting import fit
 from simbench.forked import forked
 from simbench.page import run_page, write_page
@@ -70,17 +74,76 @@ class Result:
     evaluation: Evaluation
 
 
+# Who is told of each stage a run enters (a sweep's progress line), and the seconds a stage may take, per stage.
+_LISTENER: ContextVar[Callable[[str], None] | None] = ContextVar("simbench_stage_listener", default=None)
+_LIMITS: ContextVar[dict[str, float] | None] = ContextVar("simbench_stage_limits", default=None)
+_AGAIN = 0.5  # s: how often a stage past its limit is cut again while it goes on
+
+
+@contextmanager
+def told(listener: Callable[[str], None]) -> Iterator[None]:
+    """Within the block, `listener` is told the name of each stage a run enters (`load`, `plan`, `simulate`,
+    `analyse`, ...): a sweep's or bench's progress line shows it."""
+    token = _LISTENER.set(listener)
+    try:
+        yield
+    finally:
+        _LISTENER.reset(token)
+
+
+@contextmanager
+def limited(limits: dict[str, float] | None) -> Iterator[None]:
+    """Within the block, a stage named in `limits` (`plan`: seconds) that runs longer than its seconds is cut by
+    TooSlow: on the main thread of a system with SIGALRM (Linux, macOS) alone, where a signal can cut it."""
+    token = _LIMITS.set(limits)
+    try:
+        yield
+    finally:
+        _LIMITS.reset(token)
+
+
+_DOING = {"load": "loading", "plan": "planning", "simulate": "simulating", "analyse": "analysing"}
+
+
+def doing(stage: str) -> str:
+    """A stage's name as a progress line says it (`plan` -> `planning`)."""
+    return _DOING.get(stage, stage)
+
+
+@contextmanager
+def _limited(name: str, seconds: float | None) -> Iterator[None]:
+    """Stage `name` cut by TooSlow past `seconds` (SIGALRM, the previous handler and timer restored after)."""
+    if seconds is None or not hasattr(signal, "SIGALRM") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def cut(signum, frame):
+        raise TooSlow(f"{doing(name)} passed the {seconds:g} s it may take")
+
+    previous = signal.signal(signal.SIGALRM, cut)
+    signal.setitimer(signal.ITIMER_REAL, seconds, _AGAIN)  # again and again: a library may swallow one
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
 class _Stopwatch:
-    """Wall time per stage."""
+    """Wall time per stage; each stage told to the listener and held to its limit (`watched`)."""
 
     def __init__(self):
         self.times: dict[str, float] = {}
 
     @contextmanager
     def stage(self, name: str):
+        listener = _LISTENER.get()
+        if listener is not None:
+            listener(name)
         start = time.perf_counter()
         try:
-            yield
+            with _limited(name, (_LIMITS.get() or {}).get(name)):
+                yield
         finally:
             self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
 

@@ -16,10 +16,8 @@ import numpy as np
 
 from simbench.bench.outputs import scenario_file
 from simbench.scoring import score_flat
-from simbench.sweep import table as sweep_table
 
 TOO_SLOW = "too_slow"  # a run whose plan passed a cost the suite states
-STATUSES = (*sweep_table.STATUSES, TOO_SLOW)
 PARAMS = ("robot", "task", "kind", "shape", "method", "planner", "anchor_gap", "length_mm", "duration")
 FIGURES = 6
 BOOTSTRAP = 2000
@@ -54,11 +52,6 @@ def _cut(score: dict[str, Any], max_slowdown: float) -> dict[str, Any]:
     said = (f"too_slow: the plan takes {slowdown:.4g} times the asked duration, past the suite's max_slowdown "
             f"{max_slowdown:g}")
     return {**score, "status": TOO_SLOW, "error": f"{said}; {score['error']}" if score["error"] else said}
-
-
-def status_counts(status: list[str]) -> dict[str, int]:
-    """Runs per status, every status named (a bench's: a sweep's and `too_slow`)."""
-    return {s: status.count(s) for s in STATUSES}
 
 
 def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot", "method")) -> dict[str, list]:

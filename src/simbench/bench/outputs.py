@@ -98,8 +98,9 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
                  f"(through, near and far from each robot's singular set, in turn), by {', '.join(summary['methods'])}"
                  f", on {summary['backend']}.\n\nEach run is planned, simulated and analysed as `simbench run` does, from "
                  f"its scenario file ({SCENARIOS}/, linked from its row), which `simbench run` runs alone; one whose "
-                 f"plan takes more than {summary['max_slowdown']:g} times the asked duration is too_slow. The "
-                 "leaderboard's intervals are bootstrap 95 % intervals over the tasks.")
+                 f"plan takes more than {summary['max_slowdown']:g} times the asked duration, or more than "
+                 f"{summary['plan_seconds']:g} s to make, is too_slow. The leaderboard's intervals are bootstrap 95 % "
+                 "intervals over the tasks.")
         write_page(out, page(out, f"Bench: {summary['suite']}", intro, runs, boards, plots, summary))
 
 

@@ -17,7 +17,7 @@ from simbench.bench.methods import METHODS
 from simbench.bench.suite import Suite
 from simbench.bench.tasks import draw
 from simbench.schema import SimbenchModel
-from simbench.sweep import cluster, run_remaining
+from simbench.sweep import cluster, run_remaining, table
 from simbench.sweep.spec import Sweep, Variant
 from simbench.sweep.store import Store
 
@@ -32,6 +32,7 @@ class BenchSpec(SimbenchModel):
     methods: list[str]
     robots: list[str]
     max_slowdown: float
+    plan_seconds: float
     outputs: ClassVar[str] = "none"
     video: ClassVar[bool] = False
 
@@ -73,7 +74,8 @@ def plan_bench(suite: Suite) -> Bench:
                           "length_mm": task.length * 1e3, "duration": round(task.duration, 6)}
                 variants.append(Variant(len(variants), f"{task.id}-{name}", params, document))
     spec = BenchSpec(suite=suite.name, tasks=suite.tasks, seed=suite.seed, methods=list(suite.methods),
-                     robots=[r.name for r in suite.robots], max_slowdown=suite.max_slowdown)
+                     robots=[r.name for r in suite.robots], max_slowdown=suite.max_slowdown,
+                     plan_seconds=suite.plan_seconds)
     return Bench(suite.name, suite.source, spec, Path(suite.source), tuple(variants))
 
 
@@ -103,14 +105,16 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     with Store(out, bench, force=force) as store:
         outputs.write_scenarios(store, out, bench)
         ran = run_remaining(store, workers, ray, progress, lambda v: {
-            "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none"})
+            "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none",
+            "limits": {"plan": suite.plan_seconds}})
         runs = board.runs_table(list(ran.rows.values()), suite.max_slowdown)
         leaderboard = board.leaderboard(runs, suite.seed)
         by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
         summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
                    "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
-                   "max_slowdown": suite.max_slowdown, "runs": len(bench.variants),
-                   "status": board.status_counts(runs["status"]), "resumed": ran.resumed,
+                   "max_slowdown": suite.max_slowdown, "plan_seconds": suite.plan_seconds,
+                   "runs": len(bench.variants),
+                   "status": table.status_counts(runs["status"]), "resumed": ran.resumed,
                    "backend": ran.backend, "wall_time": round(time.perf_counter() - ran.start, 3)}
         outputs.write(store, out, runs, (leaderboard, by_kind), summary, ran.workers)
     return BenchResult(out, runs, leaderboard, summary)

@@ -20,6 +20,7 @@ MAX_TASKS = 10000
 DEFAULT_TASKS = 30
 MAX_SEED = 2**63 - 1  # the tasks' seed, as a suite file gives it or --seed
 MAX_SLOWDOWN = 10.0  # a run whose plan takes longer than this times the asked duration is `too_slow` (its default)
+PLAN_SECONDS = 120.0  # s: a run still planning after this long is cut, `too_slow` (its default)
 
 
 class SuiteSpec(SimbenchModel):
@@ -32,6 +33,7 @@ class SuiteSpec(SimbenchModel):
     methods: Annotated[list[str], Field(min_length=1)] | None = None
     robots: Annotated[list[str | dict[str, Any]], Field(min_length=1)]
     max_slowdown: Annotated[float, Field(gt=0.0, le=1e6)] = MAX_SLOWDOWN
+    plan_seconds: Annotated[float, Field(gt=0.0, le=86400.0)] = PLAN_SECONDS
 
 
 class _OwnArm(SimbenchModel):
@@ -44,7 +46,7 @@ class _OwnArm(SimbenchModel):
 @dataclass(frozen=True)
 class Suite:
     """A suite ready to draw: its name, where it came from, its robots, tasks per robot, seed and methods, and the
-    cost past which a run is `too_slow` (its plan's slowdown: planned over asked duration)."""
+    costs past which a run is `too_slow` (its plan's slowdown: planned over asked duration; the seconds it plans)."""
 
     name: str
     source: str
@@ -54,6 +56,7 @@ class Suite:
     methods: tuple[str, ...]
     description: str = ""
     max_slowdown: float = MAX_SLOWDOWN
+    plan_seconds: float = PLAN_SECONDS
 
     def with_options(self, tasks: int | None = None, seed: int | None = None,
                      methods: list[str] | None = None) -> Suite:
@@ -117,7 +120,7 @@ def _load_file(path: Path) -> Suite:
     chosen = (check_methods(spec.methods, source, "methods") if spec.methods is not None
               else methods_table.installed())
     return Suite(spec.name or file_name(path.stem, source), source, tuple(robots), spec.tasks, spec.seed,
-                 tuple(chosen), spec.description, spec.max_slowdown)
+                 tuple(chosen), spec.description, spec.max_slowdown, spec.plan_seconds)
 
 
 def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:

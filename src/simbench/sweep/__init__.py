@@ -83,7 +83,8 @@ class Ran:
 def run_remaining(store: Store, workers: int | None, ray: str | None, progress: bool,
                   arguments: Callable[[Variant], dict]) -> Ran:
     """Run every variant of store.sweep (a sweep's or a bench's) that has no row yet, by
-    run_variant(**arguments(variant)), recording each row as it finishes."""
+    run_variant(**arguments(variant)), recording each row as it finishes; the progress line names the run in
+    progress longest and what it is doing (`run-id: planning`)."""
     sweep = store.sweep
     rows = store.finished()
     todo = [v for v in sweep.variants if v.index not in rows]
@@ -92,14 +93,44 @@ def run_remaining(store: Store, workers: int | None, ray: str | None, progress: 
     else:  # a cluster elsewhere has its own CPUs and memory: here the plots are drawn
         workers = min(workers or execute.cpu_count(), execute.cpu_count())
     start = time.perf_counter()
-    outcomes, backend = execute.started([(v.index, arguments(v)) for v in todo], workers, ray)
     tqdm.monitor_interval = 0  # no monitor thread: the worker processes are forked from this one
     with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,
               leave=False) as bar:
+        doing = _Doing(bar, sweep)
+        outcomes, backend = execute.started([(v.index, arguments(v)) for v in todo], workers, ray, doing.told)
         for index, outcome in outcomes:
             rows[index] = store.record(sweep.variants[index], outcome)
+            doing.done(index)
             bar.update()
     return Ran(rows, len(sweep.variants) - len(todo), backend, workers, start)
+
+
+class _Doing:
+    """What the runs in progress are doing, on the progress line: the one begun first, and how many more."""
+
+    def __init__(self, bar: tqdm, sweep: Sweep):
+        self.bar, self.sweep = bar, sweep
+        self.stages: dict[int, str] = {}  # by run index, in the order the runs began
+
+    def told(self, index: int, stage: str) -> None:
+        """Run `index` entered `stage`."""
+        self.stages[index] = stage
+        self._show()
+
+    def done(self, index: int) -> None:
+        """Run `index` ended."""
+        self.stages.pop(index, None)
+        self._show()
+
+    def _show(self) -> None:
+        from simbench.pipeline import doing  # the parent of worker processes may not have needed it yet
+
+        if not self.stages:
+            self.bar.set_postfix_str("", refresh=False)
+            return
+        index, stage = next(iter(self.stages.items()))
+        more = f" (+{len(self.stages) - 1} more)" if len(self.stages) > 1 else ""
+        self.bar.set_postfix_str(f"{self.sweep.variants[index].id}: {doing(stage)}{more}")
 
 
 def _write_results(sweep: Sweep, columns: dict[str, list], out: Path, ran: Ran) -> dict:

@@ -5,6 +5,7 @@ one-line error, a run that kills its worker a `crashed` one, so that the table h
 
 from __future__ import annotations
 
+import functools
 import ipaddress
 import multiprocessing
 import os
@@ -12,12 +13,12 @@ import signal
 import threading
 import time
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from multiprocessing import connection
-from typing import Any
+from typing import Any, NamedTuple
 
-from simbench.errors import RunError, ScenarioError, printable
+from simbench.errors import RunError, ScenarioError, TooSlow, printable
 from simbench.figures import columns
 from simbench.plant import reused_plants
 
@@ -26,21 +27,29 @@ _NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duratio
                 "samples", "plan", "waypoints", "wall_time", "outputs", "config"}
 
 Task = tuple[int, dict]  # (run index, keyword arguments of run_variant)
+OnStage = Callable[[int, str], None]  # told (run index, stage) as a run enters a stage (pipeline.watched)
 _WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 
+class Stage(NamedTuple):
+    """A worker's word that its run entered a stage, sent before its outcome."""
+
+    name: str
+
+
 def run_variant(document: dict, source: str, outputs: str = "none", out: str | None = None,
-                video: bool = False, allow_code: bool = False) -> dict:
-    """Plan, simulate and analyse one scenario document (with outputs='full' writing every output into `out`);
-    its outcome: `status`, `error`, `metrics`, `wall_time` (s) and, with outputs='report', the `report`."""
+                video: bool = False, allow_code: bool = False, limits: dict[str, float] | None = None) -> dict:
+    """Plan, simulate and analyse one scenario document (with outputs='full' writing every output into `out`; a
+    stage named in `limits` cut past its seconds, `too_slow`); its outcome: `status`, `error`, `metrics`,
+    `wall_time` (s) and, with outputs='report', the `report`."""
     start = time.perf_counter()
-    report, status, error = _attempt(document, source, outputs, out, video, allow_code)
+    report, status, error = _attempt(document, source, outputs, out, video, allow_code, limits)
     return {"status": status, "error": error, "metrics": metrics(report) if report else {},
             "wall_time": time.perf_counter() - start, "report": report if outputs == "report" else None}
 
 
 def _attempt(document: dict, source: str, outputs: str, out: str | None, video: bool,
-             allow_code: bool) -> tuple[dict | None, str, str]:
+             allow_code: bool, limits: dict[str, float] | None) -> tuple[dict | None, str, str]:
     """One run as (its report if it got that far, status, one-line error); every failure caught."""
     from simbench import pipeline
     from simbench.scenario import parse_scenario
@@ -48,13 +57,16 @@ def _attempt(document: dict, source: str, outputs: str, out: str | None, video: 
     report = None
     try:
         scenario = parse_scenario(document, source)
-        if outputs == "full":
-            report = pipeline.run(scenario, out=out, video=video, force=True, allow_code=allow_code).report
-        else:
-            report = pipeline.evaluate_report(scenario, allow_code)
+        with pipeline.limited(limits):
+            if outputs == "full":
+                report = pipeline.run(scenario, out=out, video=video, force=True, allow_code=allow_code).report
+            else:
+                report = pipeline.evaluate_report(scenario, allow_code)
         return report, report["status"], "; ".join(f"{v['kind']}: {v['message']}" for v in report["violations"])
     except ScenarioError as err:
         return report, "bad_input", err.detail
+    except TooSlow as err:
+        return report, "too_slow", str(err)
     except RunError as err:
         return report, "run_failed", str(err)
     except Exception as err:  # any other failure is this run's row, not the end of the sweep
@@ -93,16 +105,26 @@ def crashed(reason: str) -> dict:
     return {"status": "crashed", "error": reason, "metrics": {}, "wall_time": None, "report": None}
 
 
-def in_this_process(tasks: Iterable[Task]) -> Iterator[tuple[int, dict]]:
-    """Each run in turn, here, reusing the Plant of the run before when it is the same."""
+def in_this_process(tasks: Iterable[Task], on_stage: OnStage | None = None) -> Iterator[tuple[int, dict]]:
+    """Each run in turn, here, reusing the Plant of the run before when it is the same; `on_stage` told of each
+    stage each run enters."""
+    from simbench import pipeline
+
     with reused_plants():
         for index, kwargs in tasks:
-            yield index, run_variant(**kwargs)
+            with pipeline.told(functools.partial(on_stage or _ignore, index)):
+                outcome = run_variant(**kwargs)
+            yield index, outcome
 
 
-def in_processes(tasks: Iterable[Task], workers: int) -> Iterator[tuple[int, dict]]:
-    """Up to `workers` runs at a time in forked worker processes; outcomes as they finish. A worker that dies
-    takes only its own run with it (`crashed`) and is replaced; one that answers gets its next run at once."""
+def _ignore(*told) -> None:
+    """A listener that does nothing with what it is told."""
+
+
+def in_processes(tasks: Iterable[Task], workers: int, on_stage: OnStage | None = None) -> Iterator[tuple[int, dict]]:
+    """Up to `workers` runs at a time in forked worker processes; outcomes as they finish, `on_stage` told of each
+    stage a run enters as its worker says. A worker that dies takes only its own run with it (`crashed`) and is
+    replaced; one that answers gets its next run at once."""
     ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
     todo = deque(tasks)
     idle = [_Worker(ctx) for _ in range(min(workers, len(todo)))]
@@ -111,14 +133,18 @@ def in_processes(tasks: Iterable[Task], workers: int) -> Iterator[tuple[int, dic
         _dispatch(todo, idle, busy)
         while busy:
             for conn in connection.wait(list(busy)):
-                worker = busy.pop(conn)
+                worker = busy[conn]
                 index = worker.index
                 try:
                     outcome = conn.recv()
-                    idle.append(worker)
                 except EOFError:  # the worker died in the middle of its run
                     outcome = crashed(f"its worker process died (exit code {worker.stop()})")
-                    idle.append(_Worker(ctx))
+                    worker = _Worker(ctx)
+                if isinstance(outcome, Stage):  # the run goes on
+                    (on_stage or _ignore)(index, outcome.name)
+                    continue
+                del busy[conn]
+                idle.append(worker)
                 _dispatch(todo, idle, busy)
                 yield index, outcome
     finally:
@@ -182,10 +208,13 @@ def as_worker() -> None:
 
 
 def _serve(conn, parent: int) -> None:
-    """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before."""
+    """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before; each
+    stage a run enters sent before its outcome."""
     _die_with(parent)
     as_worker()
-    with reused_plants():
+    from simbench import pipeline
+
+    with reused_plants(), pipeline.told(lambda name: conn.send(Stage(name))):
         while True:
             try:
                 kwargs = conn.recv()
@@ -194,14 +223,15 @@ def _serve(conn, parent: int) -> None:
             conn.send(run_variant(**kwargs))
 
 
-def started(tasks: list[Task], workers: int, ray: str | None) -> tuple[Iterator[tuple[int, dict]], str]:
+def started(tasks: list[Task], workers: int, ray: str | None,
+            on_stage: OnStage | None = None) -> tuple[Iterator[tuple[int, dict]], str]:
     """The outcomes of `tasks` as they finish, on a Ray cluster, in this process (one worker) or in worker
-    processes, and a description of where they run."""
+    processes, and a description of where they run; `on_stage` told of each stage a run enters (not on Ray)."""
     if ray is not None:
         return on_ray(tasks, ray, workers), f"ray ({ray})"
     if workers == 1:
-        return in_this_process(tasks), "this process"
-    return in_processes(tasks, workers), f"{workers} processes"
+        return in_this_process(tasks, on_stage), "this process"
+    return in_processes(tasks, workers, on_stage), f"{workers} processes"
 
 
 def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[int, dict]]:

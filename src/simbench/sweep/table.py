@@ -19,7 +19,7 @@ from simbench.atomic import staged_file, staged_folder, write_text
 from simbench.plots import plot_text
 from simbench.sweep.execute import as_worker
 
-STATUSES = ("ok", "limits", "bad_input", "run_failed", "crashed")
+STATUSES = ("ok", "limits", "too_slow", "bad_input", "run_failed", "crashed")  # too_slow: cut past a time limit
 FINISHED = ("ok", "limits")  # runs with metrics (`limits`: ran to the end, broke a promise: simbench.verdict)
 _MAX_CATEGORIES = 20
 _MAX_PARAM_PANELS = 6
