@@ -15,6 +15,7 @@ from simbench.atomic import staged_folder, write_text
 from simbench.page import write_page
 from simbench.page.html import cell, config_section, document, esc, figure_grid, href, paragraphs
 from simbench.page.tables import MAX_ROWS
+from simbench.plots import plain_ticks
 from simbench.report import plain, write_report
 from simbench.sweep import table
 
@@ -141,6 +142,7 @@ def draw(runs: dict[str, list], folder: Path) -> list[str]:
             fig = Figure(figsize=(6.4, 4.2), layout="constrained")
             drawer(fig.add_subplot(), runs, rows, methods, robot)
             name = f"{robot}_{kind}.png"
+            plain_ticks(fig)
             fig.savefig(folder / name, dpi=100)
             names.append(name)
     return names

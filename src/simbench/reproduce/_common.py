@@ -11,6 +11,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from simbench.page import table_page, write_page
+from simbench.plots import plain_ticks
 
 TYPO = "typo in the paper"
 ERROR = "error in the paper"
@@ -102,6 +103,7 @@ def figure(nrows: int = 1, ncols: int = 1, **kwargs):
 
 def save(fig: Figure, path: Path) -> str:
     """Save a figure at the common size (no tight bounding box, so every PNG has PIXELS)."""
+    plain_ticks(fig)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     return path.name

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from simbench import csv_cells, extras
 from simbench.atomic import staged_file, staged_folder, write_text
-from simbench.plots import plot_text
+from simbench.plots import plain_ticks, plot_text
 from simbench.sweep.execute import as_worker
 
 STATUSES = ("ok", "limits", "too_slow", "bad_input", "run_failed", "crashed")  # too_slow: cut past a time limit
@@ -216,6 +216,7 @@ def _heatmap(metric: str, y: np.ndarray, ok: np.ndarray, pair: list[str], table:
 
 
 def _save(fig: Figure, folder: Path, name: str) -> str:
+    plain_ticks(fig)
     fig.tight_layout()
     fig.savefig(folder / name, dpi=100)
     return name
