@@ -9,6 +9,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+from importlib.metadata import distribution
 from pathlib import Path
 
 import pytest
@@ -69,10 +70,12 @@ def test_the_readme_shows_each_command_concretely():
 
 @pytest.fixture(scope="module")
 def fresh_root(tmp_path_factory) -> Path:
-    """A copy of the repository's tracked data (what a fresh clone holds that a command reads) with no outputs."""
+    """A copy of the repository's tracked data (what a fresh clone holds that a command reads) with no outputs, and
+    the link `erd` to example-robot-data's share folder that docs/tutorial-your-urdf.md has the reader make."""
     root = tmp_path_factory.mktemp("clone")
-    for folder in ("scenarios", "sweeps", "models", "examples"):
+    for folder in ("scenarios", "sweeps", "models", "examples", "docs/tutorial"):
         shutil.copytree(ROOT / folder, root / folder, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    (root / "erd").symlink_to(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data"))
     return root
 
 
