@@ -147,7 +147,7 @@ def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
     from simbench.robots.robot_mapping import anchored, load_robot
     from simbench.schema import Units
 
-    mapping = anchored(mapping, path.parent)
+    mapping = anchored({**mapping, "name": name}, path.parent)  # the arm's name in its runs' reports, as in the suite
     try:
         arm = load_robot(mapping, source, Units())
     except ScenarioError as err:
