@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_derived_plant import tool_pose
 
 import simbench
 from simbench.cli import main
@@ -41,20 +42,6 @@ def ur5_with_torch() -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(text.replace("</robot>", torch + "</robot>"))
 
 
-def frames(model: mujoco.MjModel, joints, q, frame) -> tuple[np.ndarray, np.ndarray]:
-    """Points (N, 3) and rotations (N, 3, 3) of `frame(data)` (a body's or site's view) at each row of q, by
-    mj_kinematics on a fresh MjData."""
-    data = mujoco.MjData(model)
-    adr = [model.joint(name).qposadr[0] for name in joints]
-    points, rotations = [], []
-    for row in np.atleast_2d(q):
-        data.qpos[adr] = row
-        mujoco.mj_kinematics(model, data)
-        points.append(frame(data).xpos.copy())
-        rotations.append(frame(data).xmat.reshape(3, 3).copy())
-    return np.array(points), np.array(rotations)
-
-
 def random_joints(robot, n: int, seed: int) -> np.ndarray:
     """n joint values uniform within the ranges (a continuous joint within a turn)."""
     return np.random.default_rng(seed).uniform(np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi),
@@ -68,8 +55,8 @@ def test_a_bodys_tool_turned_by_rpy_is_the_bodys_frame_times_urdfs_rpy():
     robot = load_robot({"model": str(UR5), "tool": {"body": "tool0", "offset": OFFSET, "rpy": RPY}}, "src", DEG)
     raw = ur5_with_torch()
     q = random_joints(robot, 50, seed=46)
-    body_points, body_rotations = frames(raw, robot.joints, q, lambda d: d.body("tool0"))
-    torch_points, torch_rotations = frames(raw, robot.joints, q, lambda d: d.body("torch"))
+    body_points, body_rotations = tool_pose(raw, {"body": "tool0"}, robot.joints, q)
+    torch_points, torch_rotations = tool_pose(raw, {"body": "torch"}, robot.joints, q)
     turn = Rotation.from_euler("xyz", RPY, degrees=True).as_matrix()
     np.testing.assert_allclose(robot.tool_rotation(q), body_rotations @ turn, rtol=0, atol=1e-9)
     np.testing.assert_allclose(robot.tool_rotation(q), torch_rotations, rtol=0, atol=1e-9)
@@ -85,7 +72,7 @@ def test_a_sites_tool_turned_by_quat_is_the_sites_frame_times_the_rotation():
                         "speed_limits": [36] * 6}, "src", DEG)
     raw = mujoco.MjModel.from_xml_path(str(JACO))
     q = random_joints(robot, 50, seed=47)
-    points, rotations = frames(raw, robot.joints, q, lambda d: d.site("wristsite"))
+    points, rotations = tool_pose(raw, {"site": "wristsite"}, robot.joints, q)
     turn = Rotation.from_quat(QUAT, scalar_first=True).as_matrix()
     assert np.abs(turn - np.eye(3)).max() > 0.5
     np.testing.assert_allclose(robot.tool_rotation(q), rotations @ turn, rtol=0, atol=1e-9)
@@ -100,7 +87,7 @@ def test_a_line_with_the_orientation_held_holds_the_turned_frame_and_the_report_
     `derived_arm` name the arm by its `name:`, the tool as turned."""
     raw = ur5_with_torch()
     joints = [raw.joint(j).name for j in range(raw.njnt)]
-    (p0,), (r0,) = frames(raw, joints, START, lambda d: d.body("torch"))
+    (p0,), (r0,) = tool_pose(raw, {"body": "torch"}, joints, START)
     end = p0 + [0.0, 0.15, 0.0]
     (tmp_path / "torch.yaml").write_text(json.dumps({"model": str(UR5), "name": "ur5-torch",
                                                      "units": {"angle": "deg", "length": "mm"},
@@ -115,7 +102,7 @@ def test_a_line_with_the_orientation_held_holds_the_turned_frame_and_the_report_
     ts = np.load(tmp_path / "out" / "timeseries.npz")
     asked = Rotation.from_quat(ts["tool_orientation_ref"], scalar_first=True).as_matrix()
     assert np.abs(asked - r0).max() < 1e-9
-    points, rotations = frames(raw, joints, ts["q"], lambda d: d.body("torch"))
+    points, rotations = tool_pose(raw, {"body": "torch"}, joints, ts["q"])
     turned = Rotation.from_matrix(np.einsum("nji,jk->nik", rotations, r0)).magnitude()
     assert np.rad2deg(turned.max()) < 0.2, f"{np.rad2deg(turned.max()):.3f} deg from the held frame"
     np.testing.assert_allclose(report["tracking"]["orientation_max"], turned.max(), atol=2e-4)
