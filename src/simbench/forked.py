@@ -4,6 +4,7 @@ os.fork, so that a sweep's daemonic worker may fork one too; without fork, it ru
 
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import signal
@@ -13,6 +14,18 @@ from typing import Any, NoReturn
 
 from simbench.errors import RunError, described
 from simbench.interrupts import deferred, held_back
+
+
+@contextmanager
+def parents_heap_frozen() -> Iterator[None]:
+    """Around a fork: the objects this process holds kept out of the child's garbage collection (gc.freeze), so
+    that the child never runs a destructor of the parent's garbage. Ray's GCS client, garbage after a Ray sweep,
+    locks in its destructor a mutex that a thread of the parent held at the fork: a child collecting it hung."""
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 @contextmanager
@@ -44,7 +57,7 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         # Ctrl-C and SIGTERM held back until the child has its own handlers (the parent's would run the parent's
         # code in it), and in the parent not handled inside the fork's at-fork hooks (interrupts.deferred); one
         # that came meanwhile is handled as the block ends, with the child to stop below.
-        with deferred(), held_back():
+        with deferred(), held_back(), parents_heap_frozen():
             pid = os.fork()
             if pid == 0:
                 _child(readable, writable, fn, args)

@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 
 from simbench.errors import RunError, ScenarioError, TooSlow, printable
 from simbench.figures import columns
+from simbench.forked import parents_heap_frozen
 from simbench.plant import reused_plants
 
 # Report keys that describe the run rather than measure it.
@@ -167,7 +168,8 @@ class _Worker:
         self.conn, theirs = ctx.Pipe()
         self.process = ctx.Process(target=_serve, args=(theirs, os.getpid()),
                                    name="simbench-sweep-worker", daemon=True)
-        self.process.start()
+        with parents_heap_frozen():
+            self.process.start()
         theirs.close()
         self.index = -1
 

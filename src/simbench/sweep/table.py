@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 
 from simbench import csv_cells, extras
 from simbench.atomic import staged_file, staged_folder, write_text
+from simbench.forked import parents_heap_frozen
 from simbench.plots import plain_ticks, plot_text
 from simbench.sweep.execute import as_worker
 
@@ -152,7 +153,9 @@ def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
     processes = min(workers, len(jobs))
     if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return [draw(*args) for draw, args in jobs]
-    with multiprocessing.get_context("fork").Pool(processes - 1, initializer=as_worker) as pool:
+    with parents_heap_frozen():
+        pool = multiprocessing.get_context("fork").Pool(processes - 1, initializer=as_worker)
+    with pool:
         theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
         mine = iter([draw(*args) for draw, args in jobs[::processes]])
         others = iter(theirs.get())
