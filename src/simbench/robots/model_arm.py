@@ -92,8 +92,17 @@ class ModelArm(Robot):
 
     def fk(self, q: Array) -> Array:
         """The tool point (N, 3) in metres at joint values q (N, dof), as MuJoCo places the tool's site."""
+        return self.pose(q)[0]
+
+    def pose(self, q: Array) -> tuple[Array, Array]:
+        """The tool point (N, 3) and its rotation (N, 3, 3) at joint values q (N, dof), from one kinematics pass a
+        row."""
         site = self._compiled()[4]
-        return np.array([data.site_xpos[site].copy() for _, data in self._posed(q)])
+        q = np.atleast_2d(q)
+        points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))
+        for k, (_, data) in enumerate(self._posed(q)):
+            points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
+        return points, rotations.reshape(-1, 3, 3)
 
     @property
     def reach(self) -> float:
@@ -102,21 +111,27 @@ class ModelArm(Robot):
 
     def tool_rotation(self, q: Array) -> Array:
         """The tool site's orientation (N, 3, 3) in the world at joint values q (N, dof): MuJoCo's site_xmat."""
-        site = self._compiled()[4]
-        return np.array([data.site_xmat[site].reshape(3, 3).copy() for _, data in self._posed(q)])
+        return self.pose(q)[1]
 
     def jacobian(self, q: Array) -> Array:
         """J = [Jp; Jr] (N, 6, dof) at joint values q (N, dof): mj_jacSite's, at the tool site."""
+        return self.pose_jacobian(q)[2]
+
+    def pose_jacobian(self, q: Array) -> tuple[Array, Array, Array]:
+        """The tool point (N, 3), its rotation (N, 3, 3) and J (N, 6, dof) at joint values q (N, dof), from one
+        kinematics pass a row: fk, tool_rotation and jacobian at once (a planner's every control sample needs all
+        three)."""
         _, _, _, dofs, site = self._compiled()
         q = np.atleast_2d(q)
-        out = np.empty((len(q), 6, len(dofs)))
+        points, rotations, out = np.empty((len(q), 3)), np.empty((len(q), 9)), np.empty((len(q), 6, len(dofs)))
         jac = None
         for k, (model, data) in enumerate(self._posed(q, com=True)):
             if jac is None:
                 jac = np.zeros((6, model.nv))
             mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
             out[k] = jac[:, dofs]
-        return out
+            points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
+        return points, rotations.reshape(-1, 3, 3), out
 
     def measures(self, rec: Recording) -> dict[str, Array]:
         """sigma_min (SI), manipulability and inverse_condition along the run (the module's docstring)."""
