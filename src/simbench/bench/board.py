@@ -2,7 +2,8 @@
 scores it (shared with `compare`), `too_slow` where its plan's slowdown passes the suite's max_slowdown, with
 its scenario file; leaderboard.csv, a row per robot and method, and leaderboard_by_kind.csv, per
 kind of task too, with percentile bootstrap intervals drawn at the suite's seed, the robot's and the method's name,
-each figure to FIGURES significant digits: the same suite at the same seed writes the same bytes.
+each figure to FIGURES significant digits: the same suite at the same seed writes the same bytes. Paired
+statistics between methods: simbench.bench.paired.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ from typing import Any
 
 import numpy as np
 
-from simbench.bench.outputs import scenario_file
 from simbench.scoring import score_flat
 
 TOO_SLOW = "too_slow"  # a run whose plan passed a cost the suite states
@@ -26,6 +26,12 @@ _P95 = partial(np.percentile, q=95.0)
 COLUMNS = {"status": "status", "error": "error", "deviation_max_mm": "deviation_max",  # runs.csv's: scoring's
            "orientation_max_deg": "orientation_max", "speed_share_max": "speed_share_max", "slowdown": "slowdown",
            "closest_approach": "closest_approach"}
+SCENARIOS = "scenarios"  # the folder of the runs' scenario files
+
+
+def scenario_file(run_id: str) -> str:
+    """Where run `run_id`'s scenario file is, relative to the bench's folder (runs.csv's `scenario`)."""
+    return f"{SCENARIOS}/{run_id}.yaml"
 
 
 def runs_table(rows: list[dict], max_slowdown: float) -> dict[str, list]:
@@ -66,29 +72,37 @@ def leaderboard(runs: dict[str, list], seed: int, by: tuple[str, ...] = ("robot"
     return {name: [row[name] for row in rows] for name in rows[0]}
 
 
+def generator(seed: int, *names: str) -> np.random.Generator:
+    """The bootstrap's generator for a row named by `names` (robot and method, say): seeded from the suite's seed
+    and each name's CRC-32, so that a row's draws depend on nothing else (not on the other rows, nor on the order
+    the runs finished in)."""
+    return np.random.default_rng([seed, *(zlib.crc32(name.encode()) for name in names)])
+
+
 def _row(runs: dict[str, list], key: dict[str, str], index: list[int], seed: int) -> dict[str, Any]:
-    rng = np.random.default_rng([seed, *(zlib.crc32(value.encode()) for value in key.values())])
+    rng = generator(seed, *key.values())
     ok = np.array([runs["status"][i] == "ok" for i in index], float)
     shares = _finite(runs["speed_share_max"], index)
     row: dict[str, Any] = {**key, "planner": runs["planner"][index[0]], "tasks": len(index), "ok": int(ok.sum()),
                            TOO_SLOW: sum(runs["status"][i] == TOO_SLOW for i in index)}
-    row.update(_estimate("ok_share", ok, np.mean, rng))
-    row.update(_estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _P95, rng))
-    row["speed_share_max"] = _round(shares.max()) if len(shares) else None
-    row.update(_estimate("slowdown_median", _finite(runs["slowdown"], index), np.median, rng))
-    row.update(_estimate("orientation_p95_deg", _finite(runs["orientation_max_deg"], index), _P95, rng))
+    row.update(estimate("ok_share", ok, np.mean, rng))
+    row.update(estimate("deviation_p95_mm", _finite(runs["deviation_max_mm"], index), _P95, rng))
+    row["speed_share_max"] = rounded(shares.max()) if len(shares) else None
+    row.update(estimate("slowdown_median", _finite(runs["slowdown"], index), np.median, rng))
+    row.update(estimate("orientation_p95_deg", _finite(runs["orientation_max_deg"], index), _P95, rng))
     return row
 
 
-def _estimate(name: str, values: np.ndarray, statistic, rng: np.random.Generator) -> dict[str, float | None]:
+def estimate(name: str, values: np.ndarray, statistic, rng: np.random.Generator) -> dict[str, float | None]:
     """`name`, `name`_lo and `name`_hi: the statistic of `values` and its bootstrap interval (None without values)."""
     if not len(values):
         return {name: None, f"{name}_lo": None, f"{name}_hi": None}
     lo, hi = bootstrap(values, statistic, rng)
-    return {name: _round(statistic(values)), f"{name}_lo": _round(lo), f"{name}_hi": _round(hi)}
+    return {name: rounded(statistic(values)), f"{name}_lo": rounded(lo), f"{name}_hi": rounded(hi)}
 
 
 def _finite(column: list, index: list[int]) -> np.ndarray:
+    """The finite values of `column` at `index` (a missing one, None, left out)."""
     values = np.array([column[i] if column[i] is not None else np.nan for i in index], float)
     return values[np.isfinite(values)]
 
@@ -103,7 +117,7 @@ def bootstrap(values: np.ndarray, statistic, rng: np.random.Generator) -> tuple[
     return float(lo), float(hi)
 
 
-def _round(value: Any) -> float | None:
+def rounded(value: Any) -> float | None:
     """`value` to FIGURES significant digits, as a float (None stays None)."""
     if value is None or not math.isfinite(float(value)):
         return None
