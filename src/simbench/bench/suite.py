@@ -153,4 +153,4 @@ def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:
     except ScenarioError as err:
         field = (err.field or "").removeprefix("robot").lstrip(".")
         raise ScenarioError(source, f"{where}.{field}" if field else where, err.message) from None
-    return custom(name, mapping, float(speed), hold=arm.dof >= 6)
+    return custom(name, mapping, arm.dof, float(speed))
