@@ -23,14 +23,18 @@ from simbench.sweep.store import Store
 
 
 class BenchSpec(SimbenchModel):
-    """What decides a bench's runs, as its folder's manifest records it; `outputs` and `video` as a sweep's spec
-    has them (a bench keeps no run's own outputs)."""
+    """What decides a bench's runs, as its folder's manifest records it (a resume into a folder whose manifest holds
+    another is refused: simbench.sweep.store): the version of the benchmark's definition and each robot's model hash
+    (bench.robots.BenchRobot.model_hash) among them; `outputs` and `video` as a sweep's spec has them (a bench keeps
+    no run's own outputs)."""
 
     suite: str
+    version: str
     tasks: int
     seed: int
     methods: list[str]
     robots: list[str]
+    models: dict[str, str]
     max_slowdown: float
     plan_seconds: float
     outputs: ClassVar[str] = "none"
@@ -63,7 +67,7 @@ def plan_bench(suite: Suite) -> Bench:
     """Every run of the suite: its tasks drawn per robot (bench.tasks), each by every method that applies."""
     variants: list[Variant] = []
     for robot in suite.robots:
-        for task in draw(robot, suite.tasks, suite.seed):
+        for task in draw(robot, suite.tasks, suite.seed, suite.version):
             for name in suite.methods:
                 method = METHODS[name]
                 document = method.document(task, robot)
@@ -73,8 +77,9 @@ def plan_bench(suite: Suite) -> Bench:
                           "method": name, "planner": document["planner"], "anchor_gap": task.anchor_gap,
                           "length_mm": task.length * 1e3, "duration": round(task.duration, 6)}
                 variants.append(Variant(len(variants), f"{task.id}-{name}", params, document))
-    spec = BenchSpec(suite=suite.name, tasks=suite.tasks, seed=suite.seed, methods=list(suite.methods),
-                     robots=[r.name for r in suite.robots], max_slowdown=suite.max_slowdown,
+    spec = BenchSpec(suite=suite.name, version=suite.version, tasks=suite.tasks, seed=suite.seed,
+                     methods=list(suite.methods), robots=[r.name for r in suite.robots],
+                     models={r.name: r.model_hash() for r in suite.robots}, max_slowdown=suite.max_slowdown,
                      plan_seconds=suite.plan_seconds)
     return Bench(suite.name, suite.source, spec, Path(suite.source), tuple(variants))
 
@@ -110,8 +115,9 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
         runs = board.runs_table(list(ran.rows.values()), suite.max_slowdown)
         leaderboard = board.leaderboard(runs, suite.seed)
         by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
-        summary = {"suite": suite.name, "source": suite.source, "tasks": suite.tasks, "seed": suite.seed,
-                   "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
+        summary = {"suite": suite.name, "version": suite.version, "source": suite.source, "tasks": suite.tasks,
+                   "seed": suite.seed, "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
+                   "models": dict(bench.spec.models),
                    "max_slowdown": suite.max_slowdown, "plan_seconds": suite.plan_seconds,
                    "runs": len(bench.variants),
                    "status": table.status_counts(runs["status"]), "resumed": ran.resumed,

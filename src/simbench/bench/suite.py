@@ -1,5 +1,6 @@
-"""Bench suites (docs/guide/bench.md): the robots, how many tasks each and at what seed, and the methods. A shipped
-suite is named by a robot (or `all`); a suite file's errors name the file and the field, as a scenario's do.
+"""Bench suites (docs/guide/bench.md): the robots, how many tasks each and at what seed, the version of the
+benchmark's definition they are drawn by (bench.tasks.VERSIONS), and the methods. A shipped suite is named by a robot
+(or `all`); a suite file's errors name the file and the field, as a scenario's do.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pydantic import Field, ValidationError
 
 from simbench.bench import methods as methods_table
 from simbench.bench.robots import SHIPPED, BenchRobot, custom
+from simbench.bench.tasks import GENERATOR, VERSIONS
 from simbench.errors import ScenarioError
 from simbench.schema import Name, SimbenchModel, file_name
 from simbench.validation import describe, read_spec
@@ -27,6 +29,7 @@ class SuiteSpec(SimbenchModel):
     """A suite file as written."""
 
     name: Name | None = None
+    version: str = GENERATOR
     description: str = ""
     tasks: Annotated[int, Field(ge=1, le=MAX_TASKS)] = DEFAULT_TASKS
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
@@ -45,8 +48,9 @@ class _OwnArm(SimbenchModel):
 
 @dataclass(frozen=True)
 class Suite:
-    """A suite ready to draw: its name, where it came from, its robots, tasks per robot, seed and methods, and the
-    costs past which a run is `too_slow` (its plan's slowdown: planned over asked duration; the seconds it plans)."""
+    """A suite ready to draw: its name, where it came from, its robots, tasks per robot, seed and methods, the costs
+    past which a run is `too_slow` (its plan's slowdown: planned over asked duration; the seconds it plans), and the
+    version of the benchmark's definition its tasks are drawn by."""
 
     name: str
     source: str
@@ -57,6 +61,7 @@ class Suite:
     description: str = ""
     max_slowdown: float = MAX_SLOWDOWN
     plan_seconds: float = PLAN_SECONDS
+    version: str = GENERATOR
 
     def with_options(self, tasks: int | None = None, seed: int | None = None,
                      methods: list[str] | None = None) -> Suite:
@@ -112,6 +117,9 @@ def load_suite(text: str | Path) -> Suite:
 def _load_file(path: Path) -> Suite:
     source = str(path)
     spec = read_spec(path, SuiteSpec, "suite")
+    if spec.version not in VERSIONS:
+        raise ScenarioError(source, "version", f"unknown benchmark version {spec.version!r} (this simbench has: "
+                                               f"{', '.join(VERSIONS)})")
     robots = [_robot(entry, i, path) for i, entry in enumerate(spec.robots)]
     names = [r.name for r in robots]
     for i, name in enumerate(names):
@@ -120,7 +128,7 @@ def _load_file(path: Path) -> Suite:
     chosen = (check_methods(spec.methods, source, "methods") if spec.methods is not None
               else methods_table.installed())
     return Suite(spec.name or file_name(path.stem, source), source, tuple(robots), spec.tasks, spec.seed,
-                 tuple(chosen), spec.description, spec.max_slowdown, spec.plan_seconds)
+                 tuple(chosen), spec.description, spec.max_slowdown, spec.plan_seconds, spec.version)
 
 
 def _robot(entry: str | dict, i: int, path: Path) -> BenchRobot:

@@ -8,11 +8,16 @@ at least the FAR percentile. A failed draw is drawn again, at most TRIES times; 
 or a continuation step between puts two of the arm's geoms, or one and the floor, in contact as the derived scene
 collides them (a pair already touching at the model's reference pose, qpos0 or a `home` keyframe, is excluded
 there: robots.model_scene).
+
+This is the benchmark's definition sb-1 (GENERATOR): a suite names the version its tasks are drawn by, and a change
+to what a seed draws (a constant here, the seeding, the shipped arms' mappings) is a new version, drawn by a
+generator of its own beside the old ones (VERSIONS), so that a leaderboard of sb-1 can be drawn again.
 """
 
 from __future__ import annotations
 
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +27,7 @@ from simbench.errors import RunError
 from simbench.paths import Arc, Line
 from simbench.rotations import matrix_to_quat
 
+GENERATOR = "sb-1"  # the newest version of the benchmark's definition: a suite's default
 KINDS = ("through", "near", "far")
 NEAR = (2.0, 10.0)  # percentiles of the robot's gap: a `near` anchor's lies between
 FAR = 50.0  # percentile of the robot's gap: a `far` anchor's is at least this
@@ -59,9 +65,9 @@ class Task:
         return f"{self.robot}-t{self.index:04d}"
 
 
-def draw(robot: BenchRobot, count: int, seed: int) -> list[Task]:
-    """The robot's first `count` tasks at `seed`."""
-    return [draw_one(robot, i, seed) for i in range(count)]
+def draw(robot: BenchRobot, count: int, seed: int, version: str = GENERATOR) -> list[Task]:
+    """The robot's first `count` tasks at `seed`, as benchmark version `version` (one of VERSIONS) draws them."""
+    return [VERSIONS[version](robot, i, seed) for i in range(count)]
 
 
 def draw_one(robot: BenchRobot, index: int, seed: int) -> Task:
@@ -73,6 +79,10 @@ def draw_one(robot: BenchRobot, index: int, seed: int) -> Task:
         if task is not None:
             return task
     raise RunError(f"no {kind} {shape} found for {robot.name} in {TRIES} draws (task {index})")
+
+
+VERSIONS: dict[str, Callable[[BenchRobot, int, int], Task]] = {"sb-1": draw_one}
+"""Each version of the benchmark's definition simbench has, and its generator of one task (robot, index, seed)."""
 
 
 def _attempt(robot: BenchRobot, index: int, kind: str, shape: str, rng: np.random.Generator) -> Task | None:
