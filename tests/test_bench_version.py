@@ -6,12 +6,15 @@ one line (exit 2), and a bench folder of one version does not resume as another.
 import hashlib
 import json
 import shutil
+from dataclasses import replace
+from importlib.metadata import version
 
 import pytest
 
 from simbench.bench import load_suite
 from simbench.bench import tasks as bench_tasks
 from simbench.bench.robots import SHIPPED, BenchRobot
+from simbench.bench.runner import plan_bench
 from simbench.cli import main
 from simbench.resources import models_dir
 
@@ -41,9 +44,12 @@ def tiny(tmp_path_factory):
 
 
 def test_summary_carries_the_version_the_seed_and_the_model_hash_of_its_files_bytes(tiny):
+    """summary.json: sb-1, seed 11, the simbench that ran it (its installed metadata's), and the spherical arm's
+    hash recomputed from its file's bytes; the folder's manifest holds the same version and hash."""
     out = tiny
     summary = json.loads((out / "summary.json").read_text())
     assert summary["version"] == "sb-1" and summary["seed"] == 11 and summary["runs"] == 1
+    assert summary["simbench"] == version("simbench")
     assert summary["models"] == {"spherical_arm": _hash(MODEL)}
     manifest = json.loads((out / "sweep.json").read_text())["spec"]
     assert manifest["version"] == "sb-1" and manifest["models"] == summary["models"]
@@ -62,6 +68,25 @@ def test_an_edited_model_has_another_hash(tmp_path):
     assert robot.model_hash() == SHIPPED["spherical_arm"]().model_hash()
     copy.write_text(copy.read_text() + "\n<!-- edited -->\n")
     assert robot.model_hash() == _hash(copy) != _hash(MODEL)
+
+
+def test_a_bench_of_an_edited_model_is_another_bench(tmp_path):
+    """The spherical arm's suite of one task on a copy of its model: the bench's fingerprint (what a folder resumes
+    by, simbench.sweep.store) changes when a byte of the copy does, though its tasks do not (a comment)."""
+    copy = tmp_path / "arm.xml"
+    shutil.copy(MODEL, copy)
+    shipped = load_suite("spherical_arm").with_options(tasks=1, methods=["dls_adaptive"])
+
+    def bench():
+        robot = replace(shipped.robots[0], mapping={**shipped.robots[0].mapping, "model": str(copy)}, cache={})
+        return plan_bench(replace(shipped, robots=(robot,)))
+
+    before = bench()
+    copy.write_text(copy.read_text() + "\n<!-- edited -->\n")
+    after = bench()
+    assert [v.document["task"] for v in after.variants] == [v.document["task"] for v in before.variants]
+    assert after.spec.models == {"spherical_arm": _hash(copy)} != before.spec.models
+    assert after.fingerprint() != before.fingerprint()
 
 
 @pytest.mark.parametrize("value, shown", [("sb-0", "'sb-0'"), ("sb-2", "'sb-2'"), ("1", None)])

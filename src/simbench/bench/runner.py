@@ -20,6 +20,7 @@ from simbench.schema import SimbenchModel
 from simbench.sweep import cluster, run_remaining, table
 from simbench.sweep.spec import Sweep, Variant
 from simbench.sweep.store import Store
+from simbench.version import __version__
 
 
 class BenchSpec(SimbenchModel):
@@ -115,9 +116,9 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
         runs = board.runs_table(list(ran.rows.values()), suite.max_slowdown)
         leaderboard = board.leaderboard(runs, suite.seed)
         by_kind = board.leaderboard(runs, suite.seed, ("robot", "method", "kind"))
-        summary = {"suite": suite.name, "version": suite.version, "source": suite.source, "tasks": suite.tasks,
-                   "seed": suite.seed, "methods": list(suite.methods), "robots": [r.name for r in suite.robots],
-                   "models": dict(bench.spec.models),
+        summary = {"suite": suite.name, "version": suite.version, "simbench": __version__, "source": suite.source,
+                   "tasks": suite.tasks, "seed": suite.seed, "methods": list(suite.methods),
+                   "robots": [r.name for r in suite.robots], "models": dict(bench.spec.models),
                    "max_slowdown": suite.max_slowdown, "plan_seconds": suite.plan_seconds,
                    "runs": len(bench.variants),
                    "status": table.status_counts(runs["status"]), "resumed": ran.resumed,
