@@ -1,12 +1,12 @@
 """Running a sweep's variants: one function per run, called in this process, in forked worker processes or on a
-Ray cluster, with the same outcomes. A run never raises: every failure is an outcome with a status and a
-one-line error, a run that kills its worker a `crashed` one, so that the table has a row for every run.
+Ray cluster (simbench.sweep.cluster), with the same outcomes. A run never raises: every failure is an outcome with
+a status and a one-line error, a run that kills its worker a `crashed` one (on Ray, after one more attempt), so
+that the table has a row for every run.
 """
 
 from __future__ import annotations
 
 import functools
-import ipaddress
 import multiprocessing
 import os
 import signal
@@ -14,11 +14,10 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from contextlib import contextmanager
 from multiprocessing import connection
 from typing import Any, NamedTuple
 
-from simbench.errors import RunError, ScenarioError, TooSlow, printable
+from simbench.errors import RunError, ScenarioError, TooSlow
 from simbench.figures import columns
 from simbench.forked import parents_heap_frozen
 from simbench.plant import reused_plants
@@ -230,88 +229,12 @@ def started(tasks: list[Task], workers: int, ray: str | None,
     """The outcomes of `tasks` as they finish, on a Ray cluster, in this process (one worker) or in worker
     processes, and a description of where they run; `on_stage` told of each stage a run enters (not on Ray)."""
     if ray is not None:
+        from simbench.sweep.cluster import on_ray  # (which runs run_variant of this module)
+
         return on_ray(tasks, ray, workers), f"ray ({ray})"
     if workers == 1:
         return in_this_process(tasks, on_stage), "this process"
     return in_processes(tasks, workers, on_stage), f"{workers} processes"
-
-
-def on_ray(tasks: Iterable[Task], address: str, workers: int) -> Iterator[tuple[int, dict]]:
-    """Every run as a Ray task; 'local' starts (and stops) a cluster here with `workers` CPUs. Every node needs
-    simbench, and with outputs: full a filesystem it shares."""
-    import ray
-    import ray.exceptions
-
-    started = _join_ray(address, workers)
-    remote = ray.remote(num_cpus=1, max_retries=0)(run_variant)
-    pending = {remote.remote(**kwargs): index for index, kwargs in tasks}
-    try:
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                index = pending.pop(ref)
-                try:
-                    outcome = ray.get(ref)
-                except ray.exceptions.RayError as err:  # a failed worker's run is `crashed`
-                    outcome = crashed(f"its Ray worker failed ({type(err).__name__})")
-                yield index, outcome
-    finally:
-        for ref in pending:
-            ray.cancel(ref, force=True)
-        if started:
-            ray.shutdown()
-
-
-def _join_ray(address: str, workers: int) -> bool:
-    """Connect to Ray unless already connected ('local': start a cluster here); whether this call connected. A
-    cluster that cannot start is a RunError, one that cannot be joined a ScenarioError naming --ray."""
-    import ray
-
-    if ray.is_initialized():
-        return False
-    options = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
-    try:
-        if address == "local":  # a new cluster whatever RAY_ADDRESS names, on this machine's loopback alone
-            with _loopback_node():
-                ray.init(address="local", num_cpus=workers, **options)
-        else:  # one attempt to join (long where a port answers that is not Ray's), not Ray's twenty
-            os.environ.setdefault("RAY_gcs_server_port_wait_time_s", "1")
-            ray.init(address=address, **options)
-    except Exception as err:  # noqa: BLE001  Ray's refusal, whatever its type, in one line
-        reason = printable(str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__)
-        if address == "local":
-            raise RunError(f"could not start a Ray cluster here: {reason}") from None
-        raise ScenarioError("--ray", None, f"could not join the Ray cluster at {address}: {reason}") from None
-    if address == "local":
-        _check_loopback(ray)
-    return True
-
-
-@contextmanager
-def _loopback_node() -> Iterator[None]:
-    """Ray's switch for a cluster of this machine alone, off while `ray.init` starts one, so that its node takes
-    the loopback address (127.0.0.1) and its services listen there alone, as on macOS and Windows; on Linux Ray
-    would take the network interface's address and open them to the network. Ray reads the switch (the variable
-    RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER) from the environment when first imported, hence its module's constant;
-    restored after, for a cluster joined later in this process."""
-    from ray._private import ray_constants
-
-    saved = ray_constants.ENABLE_RAY_CLUSTER
-    ray_constants.ENABLE_RAY_CLUSTER = False
-    try:
-        yield
-    finally:
-        ray_constants.ENABLE_RAY_CLUSTER = saved
-
-
-def _check_loopback(ray) -> None:
-    """RunError, the cluster stopped, unless every node of the cluster started here is on a loopback address (a
-    Ray whose switch no longer works)."""
-    nodes = sorted({node["NodeManagerAddress"] for node in ray.nodes()})
-    if not all(ipaddress.ip_address(node).is_loopback for node in nodes):
-        ray.shutdown()
-        raise RunError(f"the Ray cluster started here is on {', '.join(nodes)}, not on the loopback address alone: "
-                       "stopped rather than left open to the network (a Ray release simbench does not know?)")
 
 
 def cpu_count() -> int:

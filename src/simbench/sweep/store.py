@@ -111,7 +111,8 @@ class Store:
         return rows
 
     def record(self, variant: Variant, outcome: dict) -> dict:
-        """Write a finished run's row (and its report, if kept) and return the row."""
+        """Write a finished run's row (and its report, if kept) and return the row; on Ray, the row names the node
+        the run ran on (`node`, Ray's node id)."""
         with self.writing():
             row_file = self.out / "rows" / f"{variant.id}.json"
             if outcome.get("report") is not None:
@@ -119,9 +120,10 @@ class Store:
                 destination.mark_more(self.out, [(folder / "report.json").relative_to(self.out).as_posix()])
                 folder.mkdir(parents=True, exist_ok=True)
                 write_report(outcome["report"], folder / "report.json")
+            node = {"node": outcome["node"]} if "node" in outcome else {}
             row = plain({"run": variant.index, "id": variant.id, "params": variant.params,
                          "status": outcome["status"], "error": outcome["error"], "metrics": outcome["metrics"],
-                         "wall_time": outcome["wall_time"]})
+                         "wall_time": outcome["wall_time"], **node})
             destination.mark_more(self.out, [row_file.relative_to(self.out).as_posix()])
             write_text(row_file, json.dumps(row, allow_nan=False) + "\n")
         return row
