@@ -17,12 +17,13 @@ from dm_env import specs
 from simbench.api import Array, JointTrajectory, State
 from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
+from simbench.env.substeps import in_c
 from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
 from simbench.observation import observation
 from simbench.plant import Plant
 from simbench.scenario import Scenario
 from simbench.sim import Recording, Revisions, recording
-from simbench.stepping import ClosedLoop, OpenLoop, Rows, warning_rows
+from simbench.stepping import ClosedLoop, OpenLoop, Rows, state_slices, warning_rows
 from simbench.switches import apply_switch, switch_steps
 
 _REWARD_AT_TOLERANCE = 0.5  # the reward when the tool is analysis.path_tolerance off its reference
@@ -37,12 +38,15 @@ class Physics(dm_mujoco.Physics):
         counts: MuJoCo's warning counters.
         t0: The plan's start in MuJoCo's time (s).
         track: The task that records each physics step.
+        c_loop: Whether a control step's physics steps run in MuJoCo's C loop where they can (False: one at a
+            time in Python, as a control step of one physics step always does).
     """
 
     readings: Array
     counts: Array
     t0: float = 0.0
     track: Track
+    c_loop: bool = True
 
     def _reload_from_data(self, data: wrapper.MjData) -> None:
         super()._reload_from_data(data)
@@ -73,8 +77,10 @@ class Physics(dm_mujoco.Physics):
     def step(self, nstep: int = 1) -> None:
         """Step the physics as simbench's closed loop does (mj_step2, then mj_step1), the task recording each step.
 
-        No step goes past the plan's last sample; a step that fails ends the episode at the last sound state
-        (`Track.failure` says why). A copy (no task) steps as dm_control's Physics.
+        The steps up to the next planned switch run in MuJoCo's C loop (`simbench.env.substeps`) where `c_loop`
+        is set and they are more than one: the same physics, recorded alike. No step goes past the plan's last
+        sample; a step that fails ends the episode at the last sound state (`Track.failure` says why). A copy (no
+        task) steps as dm_control's Physics.
 
         Args:
             nstep: The most physics steps to take.
@@ -82,10 +88,18 @@ class Physics(dm_mujoco.Physics):
         if not hasattr(self, "track"):
             super().step(nstep)
             return
+        track = self.track
+        while nstep > 0 and track.k < track.n - 1 and track.failure is None:
+            commands = track.controls(self, track.stretch(nstep))
+            if not (self.c_loop and len(commands) > 1 and in_c(self, commands)):
+                self._in_python(commands)
+            nstep -= len(commands)
+
+    def _in_python(self, commands: Array) -> None:
+        """One physics step a command, each checked and recorded (until one fails)."""
         model, data, track = self.model.ptr, self.data.ptr, self.track
-        for _ in range(nstep):
-            if track.k >= track.n - 1 or track.failure is not None:
-                return
+        for command in commands:
+            data.ctrl[:] = command
             with quiet_mujoco():
                 try:
                     mujoco.mj_step2(model, data)
@@ -100,7 +114,7 @@ class Physics(dm_mujoco.Physics):
                     return
                 self.readings = data.sensordata.copy()
                 mujoco.mj_step1(model, data)
-            track.record(self)
+            track.record(self, command)
 
     def time(self) -> float:
         """The episode's time, as the observation's.
@@ -282,18 +296,61 @@ class Track(control.Task):
         bad = int(np.flatnonzero(~np.isfinite(action))[0])
         return f"the action for joint '{robot.joints[bad]}' is {action[bad]}"
 
-    def record(self, physics: Physics) -> None:
+    def stretch(self, nstep: int) -> int:
+        """How many of `nstep` physics steps run before the plan's end or its next switch, whichever comes first."""
+        stop = min((k for k in self._switches if k > self.k), default=self.n - 1)
+        return min(nstep, stop - self.k, self.n - 1 - self.k)
+
+    def controls(self, physics: Physics, steps: int) -> Array:
+        """The commands (steps, nu) of the next physics steps: the action before_step gave, held.
+
+        Override it for commands that change within a control step (known at its start).
+
+        Args:
+            physics: The physics.
+            steps: How many physics steps.
+
+        Returns:
+            One row of `data.ctrl` a step.
+        """
+        return np.repeat(physics.data.ptr.ctrl[None], steps, axis=0)
+
+    def record(self, physics: Physics, command: Array) -> None:
         """Record a physics step; at a planned switch's sample, apply it and the plan's feedback on it.
 
         Args:
             physics: The physics.
+            command: The step's command (nu,).
         """
-        model, data = physics.model.ptr, physics.data.ptr
-        self._readings[self.k], self._ctrl[self.k] = physics.readings, self._command
+        data = physics.data.ptr
+        self._readings[self.k], self._ctrl[self.k] = physics.readings, command
         self.k = k = self.k + 1
         self._qpos[k], self._qvel[k] = data.qpos, data.qvel
         if physics.counts.any():
             self.warnings += warning_rows(data, physics.t0)
+        self._reached(physics)
+
+    def record_steps(self, physics: Physics, states: Array, sensors: Array, commands: Array) -> None:
+        """Record physics steps that ran without a warning, as `record` records each.
+
+        Args:
+            physics: The physics.
+            states: Each step's full physics state after it (steps, nstate).
+            sensors: Each step's sensors, at the state it started from (steps, nsensordata).
+            commands: Each step's command (steps, nu).
+        """
+        qpos, qvel = state_slices(physics.model.ptr)
+        first, stop = self.k, self.k + len(commands)
+        self._readings[first:stop], self._ctrl[first:stop] = sensors, commands
+        self._qpos[first + 1:stop + 1], self._qvel[first + 1:stop + 1] = states[:, qpos], states[:, qvel]
+        self._eq[first + 1:stop] = physics.data.ptr.eq_active
+        self.k = stop
+        self._reached(physics)
+
+    def _reached(self, physics: Physics) -> None:
+        """At the sample just reached: a planned switch applied with the plan's feedback on it, and the constraints
+        in force from here on recorded."""
+        model, data, k = physics.model.ptr, physics.data.ptr, self.k
         if k in self._switches:
             for switch in self._switches[k]:
                 apply_switch(model, data, switch)

@@ -1,0 +1,76 @@
+"""A control step's physics steps in MuJoCo's C loop: `mujoco.rollout` steps them with their commands (known at
+the control step's start) and records every state and sensor reading in C, where the environment's Python loop
+pays for mj_step2, its checks, mj_step1 and the recording one step at a time.
+
+mj_step is mj_step1 then mj_step2 (MuJoCo's documentation), so the rollout takes the same steps; a stretch in
+which the Python loop would have looked closer at a step (a warning counted, a speed past MAX_SPEED or NaN) is
+stepped again in Python from its start, which finds and reports the step at fault (or records the warnings) as it
+always does.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from simbench.api import Array
+from simbench.faults import MAX_SPEED, clear_warnings, quiet_mujoco
+from simbench.stepping import FULL, state_slices
+
+if TYPE_CHECKING:
+    from simbench.env.episode import Physics
+
+_CTRL = int(mujoco.mjtState.mjSTATE_CTRL)
+_POOL: list[rollout.Rollout] = []  # one Rollout on the calling thread (nthread=0), made when first needed
+
+
+def _rollout() -> rollout.Rollout:
+    """The process's Rollout: made once (its per-call set-up is what makes mujoco.rollout.rollout slow for a few
+    steps)."""
+    if not _POOL:
+        _POOL.append(rollout.Rollout(nthread=0))
+    return _POOL[0]
+
+
+def in_c(physics: Physics, commands: Array) -> bool:
+    """Step and record the physics through `commands` (steps, nu) in MuJoCo's C loop.
+
+    Args:
+        physics: The environment's physics, its data as mj_step1 leaves it and no warning counted.
+        commands: One command a physics step, none of them past the plan's end or its next switch.
+
+    Returns:
+        Whether the steps ran and were recorded; False: the physics is back where it was, to be stepped in Python.
+    """
+    model, data = physics.model.ptr, physics.data.ptr
+    if physics.counts.any():
+        return False
+    steps = len(commands)
+    start = np.empty((1, mujoco.mj_stateSize(model, FULL)))
+    mujoco.mj_getState(model, data, start[0], FULL)
+    warmstart = data.qacc_warmstart[None].copy()
+    states = np.empty((1, steps, start.shape[1]))
+    sensors = np.empty((1, steps, model.nsensordata))
+    with quiet_mujoco():
+        try:
+            _rollout().rollout([model], [data], start, np.ascontiguousarray(commands, dtype=float)[None],
+                               control_spec=_CTRL, skip_checks=True, nstep=steps, initial_warmstart=warmstart,
+                               state=states, sensordata=sensors)
+            mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
+            # the Python loop's own test of a step (NaN fails the comparison), over every step at once
+            speed = np.abs(states[0, :, state_slices(model)[1]]).max(initial=0.0)
+            sound = not physics.counts.any() and speed <= MAX_SPEED
+        except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
+            sound = False
+        if not sound:
+            mujoco.mj_setState(model, data, start[0], FULL)
+            data.qacc_warmstart[:] = warmstart[0]
+            clear_warnings(data)
+            mujoco.mj_step1(model, data)
+            return False
+    physics.readings = sensors[0, -1].copy()
+    physics.track.record_steps(physics, states[0], sensors[0], commands)
+    return True
