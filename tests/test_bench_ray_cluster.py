@@ -10,9 +10,9 @@ import csv
 import io
 import ipaddress
 import json
-import textwrap
 import threading
 import time
+from pathlib import Path
 
 import psutil
 import pytest
@@ -23,7 +23,7 @@ from simbench.bench import load_suite, run_bench
 from simbench.sweep import load_sweep, run_sweep
 
 ray = pytest.importorskip("ray", reason="the Ray extra is part of [test]; this check needs it")
-from ray.cluster_utils import Cluster  # noqa: E402  (after the skip where Ray is not installed)
+from ray.cluster_utils import Cluster  # (after the skip where Ray is not installed)
 
 NODE = {"num_cpus": 1, "node_ip_address": "127.0.0.1"}
 
@@ -114,6 +114,11 @@ def _rows(out) -> dict[str, dict]:
     return {row["id"]: row for row in (json.loads(p.read_text()) for p in (out / "rows").glob("*.json"))}
 
 
+def _ran_on(out, node_id: str) -> bool:
+    """Whether a run of the bench in `out` has its row, run on that node."""
+    return (out / "rows").is_dir() and any(row.get("node") == node_id for row in _rows(out).values())
+
+
 def _running_on(node) -> bool:
     """Whether a Ray worker of this node is running a run now."""
     raylet = psutil.Process(node.all_processes["raylet"][0].process.pid)
@@ -145,11 +150,10 @@ def test_a_bench_on_two_nodes_losing_one_mid_run_writes_the_bytes_of_two_local_w
 
     def lose_the_worker_node() -> None:
         while not stop.is_set():
-            if any(r.get("node") == worker_id for r in _rows(out).values()) if (out / "rows").is_dir() else False:
-                if _running_on(worker):
-                    cluster.remove_node(worker)
-                    lost.set()
-                    return
+            if _ran_on(out, worker_id) and _running_on(worker):
+                cluster.remove_node(worker)
+                lost.set()
+                return
             time.sleep(0.01)
 
     watcher = threading.Thread(target=lose_the_worker_node)
@@ -175,7 +179,7 @@ def test_a_run_whose_worker_dies_runs_once_more_and_one_that_always_kills_it_is_
                                                                                         tmp_path, monkeypatch):
     """On the cluster, `dies_once`'s run runs again and has the row it has in a local worker process, once its
     marker is there; `dies_always`'s run is `crashed` after its second attempt."""
-    base = yaml.safe_load(open(LINE))
+    base = yaml.safe_load(Path(LINE).read_text())
     base["timing"]["duration"] = 1.0
     (tmp_path / "line.yaml").write_text(yaml.safe_dump(base))
     (tmp_path / "sweep.yaml").write_text(yaml.safe_dump({
