@@ -4,7 +4,7 @@ on a Ray cluster, into one table of results (file: sweep.spec; folder: sweep.sto
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,12 +97,23 @@ def run_remaining(store: Store, workers: int | None, ray: str | None, progress: 
     with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,
               leave=False) as bar:
         doing = _Doing(bar, sweep)
-        outcomes, backend = execute.started([(v.index, arguments(v)) for v in todo], workers, ray, doing.told)
+        outcomes, backend = _started([(v.index, arguments(v)) for v in todo], workers, ray, doing.told)
         for index, outcome in outcomes:
             rows[index] = store.record(sweep.variants[index], outcome)
             doing.done(index)
             bar.update()
     return Ran(rows, len(sweep.variants) - len(todo), backend, workers, start)
+
+
+def _started(tasks: list[execute.Task], workers: int, ray: str | None,
+             on_stage: execute.OnStage | None = None) -> tuple[Iterator[tuple[int, dict]], str]:
+    """The outcomes of `tasks` as they finish, on a Ray cluster, in this process (one worker) or in worker
+    processes, and a description of where they run; `on_stage` told of each stage a run enters (not on Ray)."""
+    if ray is not None:
+        return cluster.on_ray(tasks, ray, workers), f"ray ({ray})"
+    if workers == 1:
+        return execute.in_this_process(tasks, on_stage), "this process"
+    return execute.in_processes(tasks, workers, on_stage), f"{workers} processes"
 
 
 class _Doing:

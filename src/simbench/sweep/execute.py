@@ -224,19 +224,6 @@ def _serve(conn, parent: int) -> None:
             conn.send(run_variant(**kwargs))
 
 
-def started(tasks: list[Task], workers: int, ray: str | None,
-            on_stage: OnStage | None = None) -> tuple[Iterator[tuple[int, dict]], str]:
-    """The outcomes of `tasks` as they finish, on a Ray cluster, in this process (one worker) or in worker
-    processes, and a description of where they run; `on_stage` told of each stage a run enters (not on Ray)."""
-    if ray is not None:
-        from simbench.sweep.cluster import on_ray  # (which runs run_variant of this module)
-
-        return on_ray(tasks, ray, workers), f"ray ({ray})"
-    if workers == 1:
-        return in_this_process(tasks, on_stage), "this process"
-    return in_processes(tasks, workers, on_stage), f"{workers} processes"
-
-
 def cpu_count() -> int:
     """CPUs this process may use."""
     try:
