@@ -171,11 +171,38 @@ def add_cone(scene: mujoco.MjvScene, axis: np.ndarray, half_angle: float, length
         add_polyline(scene, np.array([np.zeros(3), point]), edge, 1.0)
 
 
+def egl_by_default() -> bool:
+    """Whether simbench draws through EGL (offscreen, no display needed): on Linux, unless the user chose a backend
+    with MUJOCO_GL. Elsewhere MuJoCo's and dm_control's defaults draw offscreen themselves."""
+    return sys.platform == "linux" and not os.environ.get("MUJOCO_GL")
+
+
+def choose_dm_control_backend() -> None:
+    """dm_control's Physics.render through EGL where egl_by_default, else through the user's MUJOCO_GL, whichever
+    imported dm_control first; nothing is set for the process.
+
+    dm_control picks its backend once, when first imported: with MUJOCO_GL unset, GLFW first, which cannot draw
+    without a display. Imported here first, it gets EGL; imported before (by shimmy, say), a choice other than
+    the one wanted is replaced before any context is made."""
+    if egl_by_default() and "dm_control._render" not in sys.modules:
+        os.environ["MUJOCO_GL"] = "egl"  # GLFW not even tried: it complains of the missing display
+        try:
+            import dm_control._render  # noqa: F401
+        finally:
+            del os.environ["MUJOCO_GL"]
+    from dm_control import _render
+
+    wanted = "egl" if egl_by_default() else os.environ.get("MUJOCO_GL", "").lower()
+    for names, import_renderer in _render._ALL_RENDERERS:  # (names, importer), the canonical name first
+        if wanted in names and _render.BACKEND not in names:
+            _render.Renderer, _render.BACKEND = import_renderer(), names[0]
+
+
 @contextmanager
 def _egl_unless_chosen() -> Iterator[None]:
     """MuJoCo's Renderers made within draw through EGL (offscreen, no display) unless the user chose MUJOCO_GL;
-    nothing is set for the process. Linux only: elsewhere MuJoCo's default draws offscreen itself."""
-    if os.environ.get("MUJOCO_GL") or sys.platform != "linux":
+    nothing is set for the process."""
+    if not egl_by_default():
         yield
         return
     from mujoco import egl
@@ -187,6 +214,33 @@ def _egl_unless_chosen() -> Iterator[None]:
         yield
     finally:
         gl_context.GLContext = chosen
+
+
+@contextmanager
+def _beside_dm_control() -> Iterator[None]:
+    """The video's EGL context made beside dm_control's, which draws an environment's frames on the calling thread.
+
+    The context current on this thread is made current again once the video is done: dm_control, believing its
+    own still current, would draw into the video's context, or into none once that is freed (noise). And MuJoCo
+    takes dm_control's display (the same device's, already initialised) rather than initialise it again: it would
+    end it at exit before dm_control frees its contexts on it (a traceback at exit)."""
+    chosen = os.environ.get("MUJOCO_GL", "").lower()
+    if not (egl_by_default() or (sys.platform == "linux" and chosen == "egl")):
+        yield
+        return
+    from mujoco import egl
+    from OpenGL import EGL  # PyOpenGL's EGL platform, as MuJoCo's and dm_control's EGL contexts load it
+
+    dm_control_egl = sys.modules.get("dm_control._render.pyopengl.egl_renderer")
+    if egl.EGL_DISPLAY is None and dm_control_egl is not None:
+        egl.EGL_DISPLAY = dm_control_egl.EGL_DISPLAY
+    display, context = EGL.eglGetCurrentDisplay(), EGL.eglGetCurrentContext()
+    surfaces = EGL.eglGetCurrentSurface(EGL.EGL_DRAW), EGL.eglGetCurrentSurface(EGL.EGL_READ)
+    try:
+        yield
+    finally:
+        if context:
+            EGL.eglMakeCurrent(display, *surfaces, context)
 
 
 def _open_renderer(model: mujoco.MjModel, width: int, height: int, quality: str) -> mujoco.Renderer:
@@ -286,10 +340,11 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
     camera = camera or (model.camera(0).name if model.ncam else None)
     rows = _frame_rows(rec.t, fps)
     overlay = _Overlay(planned, rec.tool if trace else None, decorations)
-    renderer = _open_renderer(model, width, height, quality)
-    try:
-        _encode(path, fps, _frames(model, renderer, rec, rows, camera, overlay, paint))
-    finally:
-        renderer.close()
+    with _beside_dm_control():
+        renderer = _open_renderer(model, width, height, quality)
+        try:
+            _encode(path, fps, _frames(model, renderer, rec, rows, camera, overlay, paint))
+        finally:
+            renderer.close()
     return {"frames": int(len(rows)), "fps": fps, "width": width, "height": height, "camera": camera or FREE_CAMERA,
             "quality": quality}

@@ -160,8 +160,23 @@ def _scenario_class(planner_name: str, controller_name: str = "servo") -> type[S
     """The schema of a scenario with this planner's `task:` and this controller's `control:` section."""
     task = registry.planners()[planner_name].task
     settings = registry.controllers()[controller_name].settings
-    return create_model(f"Scenario_{planner_name}_{controller_name}", __base__=Scenario, task=(task, ...),
+    return create_model(f"{_CLASS_PREFIX}{planner_name}_{controller_name}", __base__=Scenario, task=(task, ...),
                         control=(settings, Field(default_factory=settings)))
+
+
+_CLASS_PREFIX = "Scenario_"
+
+
+def __getattr__(name: str) -> type[Scenario]:
+    """A scenario class by the name `_scenario_class` gave it (`Scenario_<planner>_<controller>`), made anew in
+    a process that has not made it yet: pickle finds a scenario's class by its name in this module."""
+    if name.startswith(_CLASS_PREFIX):
+        parts = name[len(_CLASS_PREFIX):]
+        for cut in (i for i, char in enumerate(parts) if char == "_"):  # names may hold "_": try each split
+            planner_name, controller_name = parts[:cut], parts[cut + 1:]
+            if planner_name in registry.planners() and controller_name in registry.controllers():
+                return _scenario_class(planner_name, controller_name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -24,23 +24,19 @@ task at each reset (simbench.env.random_task); snapshot/restore replay an episod
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 
-if "MUJOCO_GL" in os.environ or sys.platform != "linux":  # the user's choice of GL backend, or the platform's
-    from dm_control.mujoco import wrapper
-else:  # dm_control picks its backend when first imported: EGL, offscreen without a display; nothing left set
-    os.environ["MUJOCO_GL"] = "egl"
-    try:
-        from dm_control.mujoco import wrapper
-    finally:
-        del os.environ["MUJOCO_GL"]
+from simbench.render import choose_dm_control_backend
+
+choose_dm_control_backend()  # before dm_control's first context: EGL, or the user's MUJOCO_GL, in any import order
+from dm_control.mujoco import wrapper  # noqa: E402
 from dm_control.rl import control  # noqa: E402
+from dm_env import TimeStep  # noqa: E402
 
 from simbench import budget  # noqa: E402
 from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track, track_of  # noqa: E402
@@ -56,17 +52,95 @@ from simbench.switches import at_start  # noqa: E402
 if TYPE_CHECKING:
     from simbench.pipeline import Evaluation, Result
 
-__all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Physics", "Snapshot", "Track", "evaluation", "load", "load_task",
-           "recording", "restore", "servo_policy", "snapshot", "write_outputs"]
+__all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Environment", "Physics", "Snapshot", "Track", "evaluation", "load",
+           "load_task", "recording", "restore", "servo_policy", "snapshot", "write_outputs"]
 
 ALL_TASKS: tuple[tuple[str, str], ...] = tuple((path.parent.name, path.stem)
                                                for path in sorted(scenarios_dir().glob("*/*.yaml")))
 """The shipped scenarios as (robot, name) pairs, as dm_control's `suite.ALL_TASKS`: what `load_task` loads."""
 
 
+HIGHLIGHT_RGBA = np.array([0.0, 0.5, 0.3, 1.0], np.float32)
+"""The arm's colour at a reward of 1 under visualize_reward: dm_control's suite's `self_highlight`
+(suite/common/materials.xml)."""
+
+
+class Environment(control.Environment):
+    """dm_control's Environment of a scenario, as `load` makes it.
+
+    With `visualize_reward`, the arm's geoms are coloured by the reward (clipped to [0, 1]) at each reset and
+    step, as dm_control's suite colours its tasks (`base.Task.after_step`, `_set_reward_colors`): each geom's own
+    colour blended toward HIGHLIGHT_RGBA by reward ** 4.
+
+    Args:
+        physics: The episode's physics.
+        task: The episode's task.
+        visualize_reward: Whether to colour the arm by the reward.
+        **kwargs: What `control.Environment` takes (`time_limit`, `control_timestep`, `n_sub_steps`,
+            `flat_observation`).
+    """
+
+    def __init__(self, physics: Physics, task: Track, visualize_reward: bool = False, **kwargs: Any):
+        super().__init__(physics, task, **kwargs)
+        self.visualize_reward = visualize_reward
+        model = physics.model.ptr
+        self._arm_geoms = arm_geoms(model, task.plant)
+        self._arm_rgba = drawn_rgba(model, self._arm_geoms)
+
+    @property
+    def visualize_reward(self) -> bool:
+        """Whether the arm is coloured by the reward (dm_control's `base.Task.visualize_reward`)."""
+        return self._visualize_reward
+
+    @visualize_reward.setter
+    def visualize_reward(self, value: bool) -> None:
+        if not isinstance(value, bool):  # a ValueError, as dm_control's
+            raise ValueError(f"visualize_reward must be a bool, got {type(value).__name__}")  # noqa: TRY004
+        self._visualize_reward = value
+
+    def reset(self) -> TimeStep:
+        """dm_control's reset, then the arm coloured by the reward at the start (as the suite's tasks do)."""
+        timestep = super().reset()
+        if self._visualize_reward:
+            self._colour(self._task.get_reward(self._physics))
+        return timestep
+
+    def step(self, action: Any) -> TimeStep:
+        """dm_control's step, then the arm coloured by its reward (after a reset: by the reward at the start)."""
+        timestep = super().step(action)
+        if self._visualize_reward and timestep.reward is not None:
+            self._colour(timestep.reward)
+        return timestep
+
+    def _colour(self, reward: float) -> None:
+        blend = float(np.clip(reward, 0.0, 1.0)) ** 4  # dm_control's: better told apart near high rewards
+        self._physics.model.ptr.geom_rgba[self._arm_geoms] = blend * HIGHLIGHT_RGBA + (1.0 - blend) * self._arm_rgba
+
+
+def arm_geoms(model: mujoco.MjModel, plant: Plant) -> np.ndarray:
+    """The geoms of the bodies the robot's actuated joints move (those bodies and all below them)."""
+    moved = np.zeros(model.nbody, bool)
+    moved[model.jnt_bodyid[model.actuator_trnid[plant.actuators, 0]]] = True
+    for body in range(1, model.nbody):  # MuJoCo numbers a body after its parent
+        moved[body] |= moved[model.body_parentid[body]]
+    return np.flatnonzero(moved[model.geom_bodyid])
+
+
+_DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0], np.float32)  # a geom's rgba where its file sets none
+
+
+def drawn_rgba(model: mujoco.MjModel, geoms: np.ndarray) -> np.ndarray:
+    """The colours MuJoCo draws the geoms in: a geom's material's unless the geom sets its own rgba."""
+    rgba = model.geom_rgba[geoms].copy()
+    matid = model.geom_matid[geoms]
+    of_material = (matid >= 0) & (rgba == _DEFAULT_RGBA).all(axis=1)
+    rgba[of_material] = model.mat_rgba[matid[of_material]]
+    return rgba
+
+
 def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None,
-         environment_kwargs: dict | None = None, *, actuation: Actuation = "position",
-         flat_observation: bool = False) -> control.Environment:
+         environment_kwargs: dict | None = None, visualize_reward: bool = False, *, actuation: Actuation = "position",
+         flat_observation: bool = False) -> Environment:
     """A scenario as a dm_control Environment, as dm_control's `suite.load` loads a task.
 
     Args:
@@ -76,6 +150,8 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
             own arguments.
         environment_kwargs: What goes to `control.Environment`: `control_timestep` or `n_sub_steps`,
             `time_limit`, `flat_observation`.
+        visualize_reward: Whether rendered frames show the reward in the arm's colour (dm_control's meaning:
+            `Environment`).
         actuation: `"position"` (targets of the position servos) or `"torque"` (forces and torques).
         flat_observation: Whether the observation is one flat array.
 
@@ -102,15 +178,18 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     if plant.model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
         raise RunError(f"the {robot.name} scene's RK4 integrator cannot be stepped as an environment steps (mj_step1, "
                        "then mj_step2); use implicitfast or Euler")
-    if task_kwargs.get("random") is not None:
-        from simbench.env.random_task import check
+    random_tasks = task_kwargs.get("random") is not None
+    if random_tasks:
+        from simbench.env.random_task import check, widen
         check(scenario)
     plan = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
     plant, plan, _ = fit(scenario, plant, plan)  # a derived arm's servos designed for the first plan
     _, data, _ = at_start(plant, plan)  # the environment's own model copy: switching edits it
     physics = Physics(wrapper.MjData(data))
-    env = control.Environment(physics, task_class(scenario, plant, plan, physics, **task_kwargs),
-                              **environment_kwargs)
+    task = task_class(scenario, plant, plan, physics, **task_kwargs)
+    if random_tasks:
+        widen(task, physics.model.ptr)
+    env = Environment(physics, task, visualize_reward, **environment_kwargs)
     if not env.control_timestep() > 0:  # dm_control takes 0: its episodes would never end
         raise ValueError("a control step must be at least one physics step: environment_kwargs' n_sub_steps is "
                          f"{environment_kwargs.get('n_sub_steps')}")
@@ -118,7 +197,8 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
 
 
 def load_task(robot: str, name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
-              *, actuation: Actuation = "position", flat_observation: bool = False) -> control.Environment:
+              visualize_reward: bool = False, *, actuation: Actuation = "position",
+              flat_observation: bool = False) -> Environment:
     """The environment of a shipped scenario, `scenarios/<robot>/<name>.yaml`.
 
     Args:
@@ -126,6 +206,7 @@ def load_task(robot: str, name: str, task_kwargs: dict | None = None, environmen
         name: The scenario's name, as in `ALL_TASKS`.
         task_kwargs: As `load`'s.
         environment_kwargs: As `load`'s.
+        visualize_reward: As `load`'s.
         actuation: As `load`'s.
         flat_observation: As `load`'s.
 
@@ -138,8 +219,8 @@ def load_task(robot: str, name: str, task_kwargs: dict | None = None, environmen
     if (robot, name) not in ALL_TASKS:
         raise ValueError(f"no shipped scenario {robot}/{name}; ALL_TASKS lists them: "
                          f"{', '.join(f'{r}/{n}' for r, n in ALL_TASKS)}")
-    return load(scenarios_dir() / robot / f"{name}.yaml", task_kwargs, environment_kwargs, actuation=actuation,
-                flat_observation=flat_observation)
+    return load(scenarios_dir() / robot / f"{name}.yaml", task_kwargs, environment_kwargs, visualize_reward,
+                actuation=actuation, flat_observation=flat_observation)
 
 
 def recording(env: control.Environment) -> Recording:

@@ -1,12 +1,17 @@
 """Random tasks for an environment's resets (task_kwargs={'random': seed}): the scenario planner's own where it
 draws them (api.Planner.random_task), else a joint move between two points drawn uniformly within the position
 targets' bounds (the position actuation's action bounds, under torque actuation too) shrunk by MARGIN. A draw the
-planner refuses is drawn again, up to TRIES times."""
+planner refuses, or whose references leave the position targets' bounds, is drawn again, up to TRIES times.
+
+The planner's own random tasks may wind a joint without a range further than the shipped plan does (the RSMG's
+rotor motions of up to 5 turns wind an arm's base joint about as many turns): `widen` makes room for them."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING, Any
 
+import mujoco
 import numpy as np
 
 from simbench import registry
@@ -16,13 +21,13 @@ from simbench.schema import Units
 from simbench.switches import at_start
 
 if TYPE_CHECKING:
-    import mujoco
-
     from simbench.env.episode import Track
     from simbench.trajectory import JointTrajectory
 
 MARGIN = 0.05  # of each joint's span, kept clear of its bounds
 TRIES = 20  # draws before giving up on a robot whose random tasks cannot be planned
+RANDOM_TURNS = 6  # how much further (turns, either side) the planner's own random tasks may take a hinge without a
+# range than the shipped plan: the RSMG's random rotor motions turn at most 5 times (rsmg_contacts.random_motion)
 
 
 def offered(scenario: Scenario) -> bool:
@@ -38,6 +43,24 @@ def check(scenario: Scenario) -> None:
     if refusal:
         raise ValueError(f"no random tasks for the {scenario.robot_def.name}: its planner "
                          f"'{scenario.planner}' draws none, and {refusal}")
+
+
+def widen(track: Track, model: mujoco.MjModel) -> None:
+    """Widen the track's bounds (actions and position targets) for the planner's own random tasks: a hinge
+    without a range by RANDOM_TURNS either side, beyond the shipped plan's span and CONTINUOUS_SPAN."""
+    from simbench.env.episode import action_bounds, joint_bounds
+
+    if not offered(track.scenario):
+        return  # random joint moves are drawn within the bounds
+    plant, plan = track.plant, track.plan
+    joints = model.actuator_trnid[plant.actuators, 0]
+    winding = (model.jnt_type[joints] == mujoco.mjtJoint.mjJNT_HINGE) & ~model.jnt_limited[joints].astype(bool)
+    reach = RANDOM_TURNS * 2 * np.pi * winding
+    # the bounds of a plan whose references reach that much further (only its q_ref's extremes are read)
+    extremes = np.stack([plan.q_ref.min(axis=0) - reach, plan.q_ref.max(axis=0) + reach])
+    span = dataclasses.replace(plan, q_ref=extremes)
+    track.bounds = action_bounds(model, plant, span)
+    track.target_bounds = track.bounds if plant.actuation == "position" else joint_bounds(model, plant, span)
 
 
 def _own(scenario: Scenario, sections: dict[str, Any]) -> Scenario:
@@ -82,7 +105,8 @@ def draw(track: Track) -> tuple[JointTrajectory, mujoco.MjData]:
             plan = drawn.planner_def.plan(drawn, robot, track.dt)
         except (RunError, ScenarioError, ValueError):
             continue
-        if np.isfinite(plan.tool_ref).all():
+        lo, hi = track.target_bounds
+        if np.isfinite(plan.tool_ref).all() and (plan.q_ref >= lo).all() and (plan.q_ref <= hi).all():
             track.scenario = drawn
             return plan, at_start(plant, plan)[1]
     raise RunError(f"no random task of the {robot.name} could be planned in {TRIES} draws")

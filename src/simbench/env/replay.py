@@ -1,8 +1,10 @@
-"""An episode's exact snapshot and replay, and the servo as a policy (simbench.env re-exports them)."""
+"""An episode's exact snapshot and replay, copies and pickles of its physics, and the servo as a policy
+(simbench.env re-exports them)."""
 
 from __future__ import annotations
 
 import copy
+import copyreg
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -12,7 +14,7 @@ import numpy as np
 from dm_control.rl import control
 
 from simbench.controllers import Servo
-from simbench.env.episode import track_of
+from simbench.env.episode import Physics, track_of
 
 # Everything that decides the next steps: the integration state (warm start included), what switches edited
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -84,6 +86,30 @@ def restore(env: control.Environment, snap: Snapshot) -> None:
     physics.t0, physics.readings = snap.physics["t0"], snap.physics["readings"].copy()
     for name, value in snap.environment.items():
         setattr(env, name, value)
+
+
+_REMADE = frozenset({"counts"})  # views of the data, made anew with it
+
+
+def _reduce_physics(physics: Physics) -> tuple:
+    """How copy.deepcopy and pickle take an episode's Physics: dm_control's keeps only the data (its
+    __getstate__), which would lose the episode (the copy then steps unrecorded, past the plan's end, its time off
+    by the settle); the attributes Physics declares beyond dm_control's go with it (the time origin, the last
+    step's sensors, the task that records each step)."""
+    own = {name: value for name, value in vars(physics).items()
+           if name in Physics.__annotations__ and name not in _REMADE}
+    return _rebuilt_physics, (physics.data, own)
+
+
+def _rebuilt_physics(data: Any, own: dict[str, Any]) -> Physics:
+    """A Physics over the data (dm_control's after_reset: mj_forward and mj_step1, which leave the state as the
+    step left it), with the episode's attributes."""
+    physics = Physics(data)
+    vars(physics).update(own)
+    return physics
+
+
+copyreg.pickle(Physics, _reduce_physics)
 
 
 def servo_policy(env: control.Environment) -> Callable[[Any], np.ndarray]:

@@ -1,0 +1,233 @@
+"""simbench.env as an RL researcher uses it: frames rendered whichever of shimmy and simbench.env is imported first,
+environments and snapshots deep-copied and pickled (the copy steps as the original, step for step), dm_control's
+`visualize_reward`, and the RSMG's random tasks within the action spec."""
+
+from __future__ import annotations
+
+import copy
+import os
+import pickle
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+from simbench import env as simbench_env
+
+linux = pytest.mark.skipif(sys.platform != "linux", reason="EGL and the MUJOCO_GL values tested are Linux's")
+
+WIDTH, HEIGHT = 80, 56  # a frame's asked size, not the model's offscreen buffer's
+
+RENDER = """
+import sys
+import numpy as np
+order, out, width, height = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+if order == "shimmy first":
+    from shimmy import DmControlCompatibilityV0
+    from simbench import env
+else:
+    from simbench import env
+env_ = env.load_task("spherical_arm", "case1")
+env_.reset()
+frames = [env_.physics.render(height=height, width=width)]
+if order == "shimmy first":  # through the Gymnasium environment too
+    gym = DmControlCompatibilityV0(env_, render_mode="rgb_array", render_kwargs={"height": height, "width": width})
+    frames.append(gym.render())
+else:  # a video drawn between two frames
+    from simbench.render import render_video
+    task = env_.task
+    render_video(task.plant.robot.scene, env.recording(env_), task.plan.tool_ref, out + ".mp4", width=64, height=48,
+                 fps=5)
+    frames.append(env_.physics.render(height=height, width=width))
+np.save(out, np.stack(frames))
+"""
+
+
+def _process_env(**chosen: str) -> dict[str, str]:
+    """This process's environment without a GL choice or a display, and with `chosen`."""
+    unset = ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY", "WAYLAND_DISPLAY")
+    return {**{k: v for k, v in os.environ.items() if k not in unset}, **chosen}
+
+
+@linux
+def test_frames_render_in_either_import_order_and_under_the_users_egl(tmp_path):
+    """Each in a fresh process: shimmy imported first (it imports dm_control, which then picked GLFW and could not
+    draw without a display), simbench.env first, and MUJOCO_GL=egl: the same non-blank frame of the asked size,
+    and a clean exit (no traceback from the GL contexts freed at exit)."""
+    pytest.importorskip("shimmy")
+    runs = {"shimmy first": _process_env(), "simbench first": _process_env(), "egl": _process_env(MUJOCO_GL="egl")}
+    procs = {name: subprocess.Popen([sys.executable, "-c", RENDER, name, str(tmp_path / name.replace(" ", "_")),
+                                     str(WIDTH), str(HEIGHT)],
+                                    env=environ, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for name, environ in runs.items()}
+    frames = {}
+    for name, proc in procs.items():
+        _, stderr = proc.communicate(timeout=300)
+        assert proc.returncode == 0, f"{name}: {stderr[-3000:]}"
+        assert "Traceback" not in stderr and "Exception ignored" not in stderr, f"{name}: {stderr[-3000:]}"
+        frames[name] = np.load(tmp_path / f"{name.replace(' ', '_')}.npy")
+    first = frames["simbench first"][0]
+    assert first.shape == (HEIGHT, WIDTH, 3) and first.dtype == np.uint8
+    assert first.std() > 10  # a scene, not a blank frame
+    for name, drawn in frames.items():
+        for frame in drawn:  # shimmy's frame; the one after a video
+            assert np.array_equal(frame, first), name
+
+
+def _servo_actions(env, steps: int, seed: int) -> np.ndarray:
+    """The servo's targets for the next control steps along the plan, with noise: actions that keep the robot on
+    its path, but not exactly."""
+    task, spec = env.task, env.action_spec()
+    policy = simbench_env.servo_policy(env)
+    stride = round(env.control_timestep() / env.physics.timestep())
+    k = np.minimum(task.k + np.arange(1, steps + 1) * stride, task.n - 1)
+    servo = np.array([policy({"q_ref": task.q_ref[i], "qd_ref": task.qd_ref[i]}) for i in k])
+    noise = np.random.default_rng(seed).normal(0.0, 0.01, servo.shape)
+    return np.clip(servo + noise, spec.minimum, spec.maximum)
+
+
+def _assert_same_steps(original, copies, actions) -> None:
+    """Each copy's time steps equal the original's, bit for bit: observations, rewards, discounts, kinds."""
+    for i, action in enumerate(actions):
+        expected = original.step(action)
+        for other in copies:
+            got = other.step(action)
+            assert (got.step_type, got.reward, got.discount) == (expected.step_type, expected.reward,
+                                                                 expected.discount), i
+            for key, value in expected.observation.items():
+                assert np.array_equal(got.observation[key], value), (i, key)
+
+
+@pytest.fixture(scope="module")
+def rsmg():
+    """The RSMG's three turns at 5 physics steps a control step, 100 control steps in: its grips switch at steps
+    525 and 1125, and the plan's feedback revises the references there."""
+    env = simbench_env.load_task("rsmg", "three_turns", environment_kwargs={"n_sub_steps": 5})
+    env.reset()
+    for action in _servo_actions(env, 100, seed=0):
+        env.step(action)
+    return env
+
+
+def test_a_deep_copy_and_an_unpickled_environment_step_as_the_original(rsmg):
+    """200 control steps with the same actions, across two switches: the same observations, rewards and discounts;
+    the copy's time is the original's (it lost the settle before), and it keeps recording into its own track."""
+    copied, unpickled = copy.deepcopy(rsmg), pickle.loads(pickle.dumps(rsmg))
+    for other in (copied, unpickled):
+        assert other.physics.time() == rsmg.physics.time() == pytest.approx(rsmg.task.plan.t[rsmg.task.k])
+        assert other.task is not rsmg.task and other.physics.track is other.task
+    k = rsmg.task.k
+    _assert_same_steps(rsmg, [copied, unpickled], _servo_actions(rsmg, 200, seed=1))
+    assert copied.task.k == unpickled.task.k == rsmg.task.k == k + 1000
+    assert np.array_equal(simbench_env.recording(copied).q, simbench_env.recording(rsmg).q)
+
+
+def test_an_episode_copied_at_its_start_ends_where_the_original_does():
+    """A copy steps no further than the plan (it ran 4,000 steps of a 2,900-step plan when it lost its track)."""
+    env = simbench_env.load_task("puma600", "line", environment_kwargs={"n_sub_steps": 50})
+    env.reset()
+    copied = copy.deepcopy(env)
+    actions = _servo_actions(env, 58, seed=2)
+    _assert_same_steps(env, [copied], actions)
+    assert env.task.k == copied.task.k == env.task.n - 1 == 2900
+    assert copied.step(actions[-1]).first()  # the episode ended: the next step starts another
+
+
+def test_a_pickled_snapshot_restores_the_episode(rsmg):
+    """restore(unpickled snapshot) then the same actions replay the episode as it went on from the snapshot."""
+    snap = pickle.loads(pickle.dumps(simbench_env.snapshot(rsmg)))
+    actions = _servo_actions(rsmg, 50, seed=3)
+    went_on = [rsmg.step(action) for action in actions]
+    simbench_env.restore(rsmg, snap)
+    for action, expected in zip(actions, went_on):
+        got = rsmg.step(action)
+        assert got.reward == expected.reward
+        for key, value in expected.observation.items():
+            assert np.array_equal(got.observation[key], value), key
+
+
+def test_the_gymnasium_environment_pickles_and_steps_as_the_original(rsmg):
+    shimmy = pytest.importorskip("shimmy")
+    original = shimmy.DmControlCompatibilityV0(copy.deepcopy(rsmg))
+    unpickled = pickle.loads(pickle.dumps(original))
+    for action in _servo_actions(rsmg, 50, seed=4):
+        expected, got = original.step(action), unpickled.step(action)
+        assert got[1:4] == expected[1:4]
+        for key, value in expected[0].items():
+            assert np.array_equal(got[0][key], value), key
+
+
+def test_a_scenario_unpickles_in_a_fresh_process():
+    """A scenario's class is made per planner and controller (pydantic's create_model); a process that has not
+    made it yet finds it by its name."""
+    scenario = simbench_env.track_of(simbench_env.load_task("spherical_arm", "case1")).scenario
+    code = ("import pickle, sys; s = pickle.loads(sys.stdin.buffer.read()); "
+            "print(type(s).__name__, s.planner, s.timing.duration)")
+    done = subprocess.run([sys.executable, "-c", code], input=pickle.dumps(scenario), capture_output=True,
+                          timeout=120, check=False)
+    assert done.returncode == 0, done.stderr.decode()[-2000:]
+    assert done.stdout.decode().split() == [type(scenario).__name__, scenario.planner, str(scenario.timing.duration)]
+
+
+def _moving_geoms(model: mujoco.MjModel, actuated_joints: np.ndarray) -> np.ndarray:
+    """The geoms MuJoCo's kinematics moves when any actuated joint turns (mj_kinematics before and after)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    before = data.geom_xpos.copy(), data.geom_xmat.copy()
+    data.qpos[model.jnt_qposadr[actuated_joints]] += 0.3
+    mujoco.mj_kinematics(model, data)
+    moved = (np.abs(data.geom_xpos - before[0]).max(axis=1) > 1e-9) | \
+        (np.abs(data.geom_xmat - before[1]).max(axis=1) > 1e-9)
+    return np.flatnonzero(moved)
+
+
+def test_visualize_reward_colours_the_arm_by_the_reward():
+    """dm_control's meaning: at each reset and step the arm's geoms (those its joints move) take their own colour
+    blended toward the suite's highlight by reward ** 4; nothing else changes colour."""
+    env = simbench_env.load_task("puma600", "line", None, {"n_sub_steps": 10}, True)
+    model = env.physics.model.ptr
+    arm = _moving_geoms(model, model.actuator_trnid[env.task.plant.actuators, 0])
+    own = model.geom_rgba.copy()  # MuJoCo draws a geom in its material's colour unless it sets its own rgba
+    of_material = (model.geom_matid >= 0) & (own == [0.5, 0.5, 0.5, 1.0]).all(axis=1)
+    own[of_material] = model.mat_rgba[model.geom_matid[of_material]]
+    others = np.setdiff1d(np.arange(model.ngeom), arm)
+    others_rgba = model.geom_rgba[others].copy()
+    highlight = np.array([0.0, 0.5, 0.3, 1.0])  # dm_control's suite/common/materials.xml, self_highlight
+    step = env.reset()
+    policy = simbench_env.servo_policy(env)
+    rewards = []
+    for offset in (0.0, 0.0, 0.05, 0.15):  # on the path, then targets further and further off it
+        step = env.step(policy(step) + offset)
+        blend = step.reward ** 4
+        np.testing.assert_allclose(model.geom_rgba[arm], blend * highlight + (1 - blend) * own[arm], atol=1e-6)
+        assert np.array_equal(model.geom_rgba[others], others_rgba)
+        rewards.append(step.reward)
+    assert rewards[1] > 0.9 and rewards[-1] < 0.1  # from near the highlight to near the arm's own colour
+    plain = simbench_env.load_task("puma600", "line", None, {"n_sub_steps": 10})
+    rgba = plain.physics.model.ptr.geom_rgba.copy()
+    plain.step(policy(plain.reset()) + 0.15)
+    assert np.array_equal(plain.physics.model.ptr.geom_rgba, rgba)
+    with pytest.raises(ValueError, match="visualize_reward must be a bool, got int"):
+        env.visualize_reward = 1
+
+
+def test_the_rsmgs_random_tasks_stay_within_the_action_spec():
+    """24 seeded draws (turns of up to 5 rotor turns, and tumbles): every reference of every task a reset draws
+    lies within the action spec, the same from reset to reset, and each is the generator's first draw (none
+    drawn again for leaving the spec; 5 of 6 left it when a joint without a range was bounded by the shipped
+    plan's span and pi)."""
+    env = simbench_env.load_task("rsmg", "three_turns", task_kwargs={"random": 0})
+    spec, generator = env.action_spec(), env.task.scenario.planner_def
+    kinds = set()
+    for seed in range(24):
+        env.task.random = np.random.RandomState(seed)
+        env.reset()
+        q_ref, drawn = env.task.plan.q_ref, env.task.scenario
+        assert (q_ref >= spec.minimum).all() and (q_ref <= spec.maximum).all(), seed
+        assert env.action_spec() == spec
+        first = generator.random_task(drawn.robot_def, np.random.RandomState(seed))
+        assert drawn.timing.duration == first["timing"]["duration"], seed
+        kinds.add(drawn.task.motion.kind)
+    assert kinds == {"turns", "tumble"}
