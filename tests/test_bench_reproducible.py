@@ -50,7 +50,7 @@ def test_each_run_has_its_scenario_file_holding_what_the_bench_ran(bench):
         run_id = f"{row['task']}-{row['method']}"
         assert row["scenario"] == f"scenarios/{run_id}.yaml"
         text = (bench / row["scenario"]).read_text()
-        assert text.startswith("# simbench bench planar3r (seed 0, 2 tasks per robot): run ")
+        assert text.startswith("# simbench bench planar3r (sb-1, seed 0, 2 tasks per robot): run ")
         document = read_yaml(bench / row["scenario"])
         assert document == plain(variants[run_id].document)
         assert {"robot", "planner", "task", "timing", "units", "sim", "analysis", "control"} <= set(document)

@@ -15,7 +15,7 @@ def add_parser(sub) -> None:
     bench = sub.add_parser("bench", help="run a suite of random tasks near singularities by several methods, into a "
                                          "leaderboard")
     bench.add_argument("suite", help="a shipped suite (a robot's name: puma600, spherical_arm, planar3r, jaco, "
-                                     "panda; or all) or a suite file")
+                                     "panda, ur3, ur5, ur10, xarm7, z1, so100; or all) or a suite file")
     bench.add_argument("--tasks", type=int, default=None, help="tasks per robot (default: the suite's, 30)")
     bench.add_argument("--seed", type=int, default=None, help="the tasks' seed (default: the suite's, 0)")
     bench.add_argument("--methods", default=None, help="methods to run, comma-separated (default: the suite's)")

@@ -36,7 +36,8 @@ def scenario_text(bench, variant) -> str:
     """Run `variant`'s scenario file: the document the bench runs (bench.methods: complete, SI) as YAML, after a
     comment saying which run of which bench it is."""
     spec = bench.spec
-    head = (f"# simbench bench {spec.suite} (seed {spec.seed}, {spec.tasks} tasks per robot): run {variant.index + 1} "
+    head = (f"# simbench bench {spec.suite} ({spec.version}, seed {spec.seed}, {spec.tasks} tasks per robot): run "
+            f"{variant.index + 1} "
             f"of {len(bench.variants)}, runs.csv's {variant.id}.\n"
             "# `simbench run` of this file plans, simulates and scores it alone, as the bench ran it.\n")
     return head + yaml.dump(plain(variant.document), Dumper=_Dumper, sort_keys=False, width=120)
@@ -114,7 +115,8 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
 def _intro(summary: dict) -> str:
     """What the bench ran and how its figures are decided."""
     counts = ", ".join(f"{n} {status}" for status, n in summary["status"].items() if n)
-    return (f"{summary['runs']} runs ({counts}): {summary['tasks']} tasks per robot at seed {summary['seed']} "
+    return (f"{summary['runs']} runs ({counts}): {summary['tasks']} tasks per robot of benchmark version "
+            f"{summary['version']} at seed {summary['seed']} "
             f"(through, near and far from each robot's singular set, in turn), by {', '.join(summary['methods'])}"
             f", on {summary['backend']}.\n\nEach run is planned, simulated and analysed as `simbench run` does, from "
             f"its scenario file ({SCENARIOS}/, linked from its row), which `simbench run` runs alone; one whose "
