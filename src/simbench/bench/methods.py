@@ -26,6 +26,7 @@ class Method:
     fields: Callable[[Task, BenchRobot], dict | None]
     planner: Callable[[BenchRobot], str | None]
     needs: str | None = None  # the optional module it plans with (simbench.extras), if any
+    default: bool = True  # a suite that names no methods runs it (else only where named)
 
     def document(self, task: Task, robot: BenchRobot) -> dict | None:
         """The scenario document of `task` by this method, or None where it does not apply: complete (every section
@@ -73,6 +74,17 @@ def _with(method: str) -> Callable[[Task, BenchRobot], dict]:
     return fields
 
 
+def _redundant(method: str) -> Callable[[Task, BenchRobot], dict | None]:
+    """A method for a redundant arm alone (gradient): more joints than the task's rows (6 where the orientation is
+    held, 3 where the tool's point alone is asked); None elsewhere."""
+    def fields(task: Task, robot: BenchRobot) -> dict | None:
+        from simbench.planners.resolved_rates import POSITION_ROWS
+
+        rows = 6 if robot.hold else POSITION_ROWS
+        return _with(method)(task, robot) if robot.model_arm().dof > rows else None
+    return fields
+
+
 def _mink(task: Task, robot: BenchRobot) -> dict | None:
     """mink's QP following the paper planner's plan where the robot's tasks ask the point alone and it has a paper
     planner; else on cartesian_path's path, written directly, the orientation's cost 0 where the point alone is
@@ -112,12 +124,19 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("mink", "mink_baseline: mink's QP under the speed limits", _mink, _every_robot("mink_baseline"),
            needs="mink"),
     Method("paper", "the paper's own planner for the robot", _paper, lambda robot: robot.paper),
+    Method("sns", "cartesian_path, joints saturated in the null space and the task scaled under the limits",
+           _with("sns"), _every_robot("cartesian_path"), default=False),
+    Method("gradient", "cartesian_path, the pseudo-inverse climbing manipulability in the null space (redundant "
+           "arms)", _redundant("gradient"), _every_robot("cartesian_path"), default=False),
+    Method("priority", "cartesian_path, the tool's point first, its orientation in the null space, damped",
+           _with("priority"), _every_robot("cartesian_path"), default=False),
 )}
 
 
 def installed() -> list[str]:
-    """The methods whose optional package (if any) is installed, in the table's order: a suite's default."""
-    return [name for name, m in METHODS.items() if m.needs is None or extras.installed(m.needs)]
+    """A suite's default: the methods run by default whose optional package (if any) is installed, in the table's
+    order (sns, gradient and priority run where a suite or --methods names them)."""
+    return [name for name, m in METHODS.items() if m.default and (m.needs is None or extras.installed(m.needs))]
 
 
 def refusal(name: str) -> str | None:

@@ -37,7 +37,10 @@ lambda (`task.damping`); `pinv` is never scaled down (the verdict reports `veloc
 pinv's joint path by TOPP-RA under the speed and acceleration limits (path_retiming; the report's `slowdown`;
 `acceleration_limit` where its exact joints still ask more, at a corner or a singularity); `mink` solves
 mink_baseline's QP per control step (its orientation cost 0 on a free task, as on an arm of fewer than six
-joints). Every method but mink holds the joint ranges as above.
+joints); `sns` saturates joints at their speed limits and ranges and scales the task's twist where it must (its
+scale is `plan_speed_scale`); `gradient` (a redundant arm's alone) climbs manipulability in the null space, in place
+of the return to the start posture; `priority` keeps the tool's point first and its orientation second, damped, and
+is scaled down as dls is. Every method but mink holds the joint ranges as above (sns within its bounds).
 
 A corner between segments (their tangents more than path_segments.CORNER apart) is a plan warning: the tool's
 velocity turns there within one control step. Where the plan's own tool leaves the path by more than the path
@@ -60,7 +63,7 @@ from simbench.analysis.path_distance import path_deviation
 from simbench.api import REVOLUTE, Planner, Violation
 from simbench.paths import Composite
 from simbench.planners.decoupled_path import join_gap, segment_waypoints
-from simbench.planners.path_methods import DAMPING, EPSILON, LAMBDA_MAX, METHODS, SCALED, rule_of
+from simbench.planners.path_methods import DAMPING, EPSILON, GRADIENT_GAIN, LAMBDA_MAX, METHODS, resolver_of
 from simbench.planners.path_reach import beyond_reach
 from simbench.planners.path_retiming import ACCEL_TIME
 from simbench.planners.path_segments import PathSegment, corner_warning, corners, place, placed_path
@@ -91,7 +94,7 @@ class Task(SimbenchModel):
         "hold", description="'hold': the tool's orientation at start, all along; 'free': the tool's point alone "
                             "follows the path, its orientation whatever the joints give; or the orientation it "
                             "turns to by slerp along the path")
-    method: Literal["dls_adaptive", "pinv", "dls", "time_scaling", "mink"] = Field(
+    method: Literal["dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradient", "priority"] = Field(
         "dls_adaptive", description="how a singularity is met: " + ", ".join(METHODS) + " (path_methods)")
     damping: Annotated[float, Field(gt=0, le=1)] | None = Field(
         None, description=f"dls's fixed lambda, dimensionless (a metre at the reach's end counts as a radian); "
@@ -174,6 +177,9 @@ class CartesianPath(Planner):
         refusal = extras.missing("mink", "the mink method") if task.method == "mink" else None
         if refusal:
             return "task.method", refusal
+        if task.method == "gradient" and robot.dof <= _rows(task):
+            return "task.method", (f"gradient moves the joints the task leaves free: it needs more joints than the "
+                                   f"task's {_rows(task)} rows, and {robot.name} has {robot.dof}")
         for i, seg in enumerate(task.path[1:], 1):
             if seg.line is not None and seg.line.start is None and seg.line.end is not None:
                 return f"task.path[{i}].line.start", ("missing: only the first line, or one placed by 'by' or "
@@ -233,8 +239,8 @@ class CartesianPath(Planner):
             lam2, scale, held = np.zeros(len(t)), np.ones(len(t)), np.zeros(q.shape, bool)
         else:
             q, qd, sigma, lam2, scale, held = integrate(robot, q0, points, rotations, twist(s, ds), dt,
-                                                              rule_of(task.method, task.damping),
-                                                              task.method in SCALED)
+                                                        resolver_of(task.method, task.damping))
+            extra = {"gradient_gain": GRADIENT_GAIN} if task.method == "gradient" else {}
             if task.method != "dls_adaptive":
                 series = {"plan_damping": np.sqrt(lam2), "plan_speed_scale": scale}
         tool = robot.fk(q)
@@ -242,7 +248,8 @@ class CartesianPath(Planner):
         turned = _angles(rotations, robot.tool_rotation(q)) if rows > POSITION_ROWS else None  # None: free
         info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
-                              "null_gain": NULL_GAIN if robot.dof > rows else None, "reach": robot.reach},
+                              "null_gain": NULL_GAIN if robot.dof > rows and task.method != "gradient" else None,
+                              "reach": robot.reach},
                 "segments": [("line" if seg.line else "arc") for seg in task.path], "path": placed_path(segments),
                 "path_length": path.length,
                 "sigma_min_least": float(sigma.min()), "damped_from": _first(t, lam2 > 0),
@@ -288,7 +295,7 @@ class CartesianPath(Planner):
         error_of = partial(task_error, robot, rows=rows)  # exact_ik's: the pose's, or a free task's point's
         points, rotations = pose(grid)
         q, _, _, _, _, held = integrate(robot, q0, points, rotations, twist(grid, np.full(n, 1 / law.duration)),
-                                             step, rule_of("pinv", None), False)
+                                        step, resolver_of("pinv", None))
         q, _ = exact_ik(robot, q, points, rotations, error_of)
         qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
                    else robot.qd_max / ACCEL_TIME)
@@ -385,6 +392,12 @@ _DESCRIPTION = {
                     "acceleration limits (Pham and Pham 2018)",
     "mink": "mink's differential-IK QP per control step along the path (joint ranges and speed limits as "
             "constraints)",
+    "sns": "pseudo-inverse resolved rates with joints saturated in the null space and the task's twist scaled "
+           "under the speed limits and ranges, closed loop (Flacco, De Luca and Khatib 2012)",
+    "gradient": "pseudo-inverse resolved rates plus manipulability's gradient in the null space, closed loop "
+                "(Liegeois 1977; Yoshikawa 1985)",
+    "priority": "task-priority resolved rates, the tool's point first and its orientation in the null space, "
+                "damped inverses, closed loop (Nakamura et al. 1987; Chiaverini 1997)",
 }
 
 

@@ -1,13 +1,21 @@
 """cartesian_path's resolved rates, a control sample at a time (the planner's module docstring states the rule and its
-references): the rates within the joint ranges, the closed loop's error, and dls_adaptive's crossing of a passage
-below EPSILON by pinv.
+references): the rates within the joint ranges, a redundant arm's null-space motion, the closed loop's error,
+sns's bounds, and dls_adaptive's crossing of a passage below EPSILON by pinv.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from simbench.planners.path_methods import EPSILON, Rule, damped_rates, pinv_rates
+from simbench.planners.path_methods import (
+    EPSILON,
+    GRADIENT_GAIN,
+    Resolver,
+    Rule,
+    damped_rates,
+    manipulability_gradient,
+    sns_rates,
+)
 from simbench.robots.rank_loss import unit_jacobian
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
@@ -16,10 +24,11 @@ _UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan
 POSITION_ROWS = 3  # a free task's rows of Ju and of the twist: the point's
 
 
-def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.ndarray, robot,
+def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preference: np.ndarray, robot,
                    dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """One sample's rates by the rule with every joint kept inside its range (cartesian_path's docstring): the rates,
-    the whole arm's sigma_min (of Ju's rows, those the task uses) and lambda^2, and which joints are held (dof,)."""
+    """One sample's rates by the rule, plus the null-space motion `preference` (_preference), with every joint kept
+    inside its range (cartesian_path's docstring): the rates, the whole arm's sigma_min (of Ju's rows, those the
+    task uses) and lambda^2, and which joints are held (dof,)."""
     held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     sigma = lam2 = 0.0
     while not held.all():
@@ -27,8 +36,7 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
         rates, s, l2, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
         if not held.any():
             sigma, lam2 = s, l2
-        if len(now) > len(ju):  # redundant for the task's rows
-            rates += null @ (NULL_GAIN * (q0 - now)[free])
+        rates += null @ preference[free]
         out = fixed.copy()
         out[free] = rates
         after = now + dt * out
@@ -40,14 +48,42 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, q0: np.nd
     return fixed, sigma, lam2, held
 
 
+def _preference(robot, q0: np.ndarray, now: np.ndarray, rows: int, resolver: Resolver) -> np.ndarray:
+    """A redundant arm's null-space motion (dof,): up manipulability's gradient (the gradient method) or back to
+    its start posture; none on an arm with no more joints than the task's rows."""
+    if robot.dof <= rows:
+        return np.zeros(robot.dof)
+    if resolver.gradient:
+        return GRADIENT_GAIN * manipulability_gradient(robot, now, rows)
+    return NULL_GAIN * (q0 - now)
+
+
+def _bounded_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preference: np.ndarray, robot,
+                   dt: float) -> tuple[np.ndarray, float, float, np.ndarray, float]:
+    """sns's rates: each joint's within its speed limit (just under it, as the scaled rules') and within its
+    range at the sample's end. Returns the rates, sigma_min, 0, the joints saturated at a range's end (held) and
+    the task's scale."""
+    to_lower, to_upper = (robot.lower - now) / dt, (robot.upper - now) / dt
+    fast = _UNDER * robot.qd_max
+    rates, sigma, scale, saturated = sns_rates(ju, twist, preference, np.maximum(-fast, to_lower),
+                                               np.minimum(fast, to_upper))
+    held = saturated & (((rates == to_lower) & (to_lower > -fast)) | ((rates == to_upper) & (to_upper < fast)))
+    return rates, sigma, 0.0, held, scale
+
+
 def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
-            dt: float, rule: Rule) -> tuple[np.ndarray, float, float, np.ndarray]:
+            dt: float, resolver: Resolver) -> tuple[np.ndarray, float, float, np.ndarray, float]:
     """One control sample at the joints `now` (cartesian_path's qd_k): the path's twist plus K times the tool's error
-    from (point, rotation), by the rule within the ranges (_clamped_rates), on the twist's rows of Ju."""
+    from (point, rotation), by the resolver's rule within the ranges (_clamped_rates; sns: _bounded_rates), on the
+    twist's rows of Ju. Returns the rates, sigma_min, lambda^2, the joints held and the task's scale (sns's; else
+    1)."""
     here, rows = now[None], len(twist)
     error = task_error(robot, point[None], rotation[None], here, rows)[0]
     ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)[:rows]
-    return _clamped_rates(ju, twist + CLIK_SHARE / dt * error, now, q0, robot, dt, rule)
+    command, preference = twist + CLIK_SHARE / dt * error, _preference(robot, q0, now, rows, resolver)
+    if resolver.bounded:
+        return _bounded_rates(ju, command, now, preference, robot, dt)
+    return *_clamped_rates(ju, command, now, preference, robot, dt, resolver.rule), 1.0
 
 
 def task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
@@ -71,7 +107,7 @@ def _crossing(robot, q0: np.ndarray, now: np.ndarray, points: np.ndarray, rotati
     limit in it (cartesian_path's docstring: dls_adaptive's damping is for such a passage only)."""
     rows = []
     for point, rotation, twist in zip(points, rotations, twists):
-        rates, sigma, _, held = _sample(robot, q0, now, point, rotation, twist, dt, pinv_rates)
+        rates, sigma, _, held, _ = _sample(robot, q0, now, point, rotation, twist, dt, Resolver())
         if sigma >= EPSILON:
             break
         if np.any(np.abs(rates) > _UNDER * robot.qd_max):
@@ -91,19 +127,20 @@ def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
-              dt: float, rule: Rule = damped_rates, scaled: bool = True) -> tuple[np.ndarray, ...]:
+              dt: float, resolver: Resolver) -> tuple[np.ndarray, ...]:
     """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of cartesian_path's integration from q0 by the
-    rate rule (path_methods), scaled down under the speed limits where `scaled`; and the held joints (N, dof).
-    dls_adaptive (`damped_rates`) crosses a passage below EPSILON by pinv where pinv keeps the speed limits
-    through it (_crossing), and damps it otherwise."""
+    method's resolver (path_methods), scaled down under the speed limits where it says (sns: its task's scale);
+    and the held joints (N, dof). dls_adaptive (`damped_rates`) crosses a passage below EPSILON by pinv where pinv
+    keeps the speed limits through it (_crossing), and damps it otherwise."""
     n = len(points)
     q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.zeros(n)
     scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
     now, k, damping = q0.copy(), 0, False
     while k < n:
-        rates, sigma[k], lam2[k], held[k] = _sample(robot, q0, now, points[k], rotations[k], twists[k], dt, rule)
+        rates, sigma[k], lam2[k], held[k], scale[k] = _sample(robot, q0, now, points[k], rotations[k], twists[k], dt,
+                                                              resolver)
         damping = damping and sigma[k] < EPSILON  # a damped passage lasts while sigma_min stays below EPSILON
-        if rule is damped_rates and sigma[k] < EPSILON and not damping:
+        if resolver.rule is damped_rates and sigma[k] < EPSILON and not damping:
             crossed = _crossing(robot, q0, now, points[k:], rotations[k:], twists[k:], dt)
             if crossed is not None:
                 rows, now = crossed
@@ -113,9 +150,10 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
                 k = end
                 continue
             damping = True
-        if scaled:
+        if resolver.scaled:
             scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
-        q[k], qd[k] = now, rates * scale[k]
+            rates = rates * scale[k]
+        q[k], qd[k] = now, rates  # sns's rates come scaled
         now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
         k += 1
     return q, qd, sigma, lam2, scale, held
