@@ -155,9 +155,15 @@ class Scenario(SimbenchModel):
         return registry.controllers()[self.control.controller]
 
 
-@cache
 def _scenario_class(planner_name: str, controller_name: str = "servo") -> type[Scenario]:
-    """The schema of a scenario with this planner's `task:` and this controller's `control:` section."""
+    """The schema of a scenario with this planner's `task:` and this controller's `control:` section: one class a
+    pair, however it is asked for (pickle checks that the class it finds by name is the scenario's)."""
+    return _made_class(planner_name, controller_name)
+
+
+@cache
+def _made_class(planner_name: str, controller_name: str) -> type[Scenario]:
+    """The class `_scenario_class` gives, made once a pair."""
     task = registry.planners()[planner_name].task
     settings = registry.controllers()[controller_name].settings
     return create_model(f"{_CLASS_PREFIX}{planner_name}_{controller_name}", __base__=Scenario, task=(task, ...),

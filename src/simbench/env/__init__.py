@@ -18,7 +18,10 @@ step's last physics step; the episode ends at the plan's last sample (timing.dur
 control step may be shorter), at time_limit (discount 1) or where the physics fails (discount 0, reward 0, the
 physics back at the last sound sample, `Track.failure` saying when and why). `evaluation` analyses every physics
 step that ran: `failed` or `truncated` where the episode ended early. task_kwargs={'random': seed} draws a random
-task at each reset (simbench.env.random_task); snapshot/restore replay an episode exactly.
+task at each reset (simbench.env.random_task, which widens the bounds of a joint without a range for the
+planner's own); snapshot/restore replay an episode exactly. copy.deepcopy and pickle take an environment (and a
+snapshot) whole: the copy steps as the original. visualize_reward colours the arm by the reward, as dm_control's
+suite does; frames render through EGL (or the user's MUJOCO_GL) whichever of dm_control's users came first.
 """
 
 from __future__ import annotations

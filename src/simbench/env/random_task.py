@@ -88,7 +88,7 @@ def _joint_move(track: Track) -> Scenario:
     fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
     fields.update(planner="joint_move", expect=None, task=registry.planners()["joint_move"].task.model_construct(
         start=tuple(start.tolist()), goal=tuple(goal.tolist())))
-    drawn = _scenario_class("joint_move").model_construct(**fields)
+    drawn = _scenario_class("joint_move", scenario.control.controller).model_construct(**fields)
     drawn._robot = scenario._robot
     return drawn
 
