@@ -3,23 +3,23 @@ generic PUMA 600 (its own MJCF, 6 joints) and example-robot-data's xArm7 (its UR
 kinematics of a plain compile of each file (test_path_methods.Mujoco, test_cartesian_path_damping.Kinematics) and
 the commanded twist recomputed here from the line, the quintic law and the closed loop's gain:
 
-  - sns: at every sample each joint within its speed limit (to 1e-9) and range; the tool's twist J qd parallel to
-    the commanded x, scaled by s in [0, 1] (|J qd - s x| under 1e-9 of |x|), s the plan's `plan_speed_scale`; where
-    the pseudo-inverse's own rates (computed here, with the redundant arm's return to its start posture) keep every
+  - sns: at every sample each joint within its speed limit (to 1e-9) and range; the tool's twist J qd the commanded
+    x scaled by s in [0, 1] (|J qd - s x| under 1e-9 of |x|: not turned), s the plan's `plan_speed_scale`; where the
+    pseudo-inverse's own rates (computed here, with the redundant arm's return to its start posture) keep every
     bound, sns's rates are those; on the xArm7 some samples keep the whole task (s = 1) only by saturating joints;
   - priority: with J1, J2 the point's and the orientation's rows, where J1 is far from its own singularity, the
-    rates (the speed scale divided out) make J1 qd = x1 as pinv on the point's rows does, and the rest is
-    the damped least-squares solution, recomputed here by least squares, of J2 N1 y = x2 - J2 J1+ x1 with the
-    documented damping of J2 N1's least singular value (none: the orientation's error is the least the point's null
-    space allows); at a PUMA wrist within 0.06 deg of its singularity the rates stay within |x1|'s pseudo-inverse
-    plus |x2 - J2 J1+ x1| / (2 LAMBDA_MAX), where pinv's pass them a hundredfold, the point's twist kept exactly;
+    rates (the speed scale divided out) make J1 qd = x1 as pinv on the point's rows does, and the rest is the
+    damped least-squares solution, recomputed here by least squares, of J2 N1 y = x2 - J2 J1+ x1 with the
+    documented damping of J2 N1's least singular value (none: the orientation's error the least the point's null
+    space allows); at a PUMA wrist within 1e-4 rad of its singularity the rule's rates stay within |J1+ x1| plus
+    |x2 - J2 J1+ x1| / (2 lambda), where pinv's are a hundred times that and more, the point's twist made exactly;
     along paper 002's wrist line the tool stays on the line within the speed limits;
   - gradient: each sample's rates are pinv's plus GRADIENT_GAIN (I - J+ J) grad w, w = sqrt(det(Ju Ju^T)) and its
     gradient by central differences here; the null-space term moves the tool by nothing (J times it under 1e-9); on
-    the lines both keep cleanly, w's mean along the plan is at least pinv's (pinv returns to the start posture
-    instead: measured 1.00 to 1.27 times it on the Panda), and w never falls while the tool holds still at the end;
-    a non-redundant arm refuses it in one line naming task.method (exit 2); the bench writes it for redundant arms
-    alone.
+    the lines both keep cleanly, w's mean along the plan is pinv's or more on the whole (not on every line: pinv
+    returns to its start posture instead, which may end higher); where the tool holds still, w never falls; an arm
+    with no joint to spare refuses it in one line naming task.method (exit 2); the bench writes it for the arms with
+    one alone.
 """
 
 import numpy as np
@@ -118,7 +118,7 @@ def _xarm(robot):
 def test_sns_keeps_every_bound_and_scales_the_commanded_twist_without_turning_it(mapping, kinematics, seed):
     rng = np.random.default_rng(seed)
     scaled = saturated_whole = equal_to_pinv = 0
-    for start, by in _lines(mapping, rng, 12):
+    for start, by in _lines(mapping, rng, 8):
         _, robot, plan = _plan(mapping, start, by, "sns")
         mj = kinematics(robot)
         tool0, r0 = mj.pose(start)
@@ -142,7 +142,7 @@ def test_sns_keeps_every_bound_and_scales_the_commanded_twist_without_turning_it
             elif scale[k] == 1.0:
                 saturated_whole += 1  # pinv's rates pass a bound, yet the whole task is made
             scaled += scale[k] < 1
-    assert equal_to_pinv > 100 and scaled > 10
+    assert equal_to_pinv > 100 and scaled > 10  # measured: 423 and 625 (PUMA), 313 and 731 (xArm7)
     if mapping is XARM:
         assert saturated_whole > 0
 
@@ -167,7 +167,7 @@ def _priority_expected(ju: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, float
 def test_priority_keeps_the_point_exactly_and_the_orientation_by_least_squares_in_what_it_leaves():
     rng = np.random.default_rng(21)
     checked = damped = 0
-    for start, by in _lines(PUMA, rng, 12):
+    for start, by in _lines(PUMA, rng, 8):
         _, robot, plan = _plan(PUMA, start, by, "priority")
         mj = Mujoco(robot.joints)
         tool0, r0 = mj.pose(start)
@@ -186,7 +186,33 @@ def test_priority_keeps_the_point_exactly_and_the_orientation_by_least_squares_i
             np.testing.assert_allclose(rates, expected, rtol=0, atol=1e-8 * (1 + np.abs(expected).max()))
             checked += 1
             damped += plan.series["plan_damping"][k] > 0
-    assert checked > 1000 and damped > 0
+    assert checked > 800 and damped > 0  # measured: 1048 and 174
+
+
+def test_priority_on_a_planar_arm_makes_the_whole_twist_as_pinv_does():
+    """The planar 3R (simbench-planar3r's MJCF), its orientation held: the point's z row and the orientation's x and
+    y rows never move, so J1 has rank 2 and J2 N1 rank 1 everywhere; priority damps neither for that (before, it
+    damped both at LAMBDA_MAX and turned the tool), and on random lines in its plane far from its stretched elbow
+    J qd is the commanded twist at every sample, as pinv's."""
+    import mujoco
+
+    from simbench.bench.robots import SHIPPED
+
+    mapping = SHIPPED["planar3r"]().mapping
+    rng = np.random.default_rng(23)
+    robot = _arm(mapping)
+    mj = Mujoco(robot.joints, mujoco.MjModel.from_xml_path(mapping["model"]))
+    for _ in range(4):
+        start = np.array([rng.uniform(-1, 1), rng.uniform(0.8, 1.8), rng.uniform(-1, 1)])
+        angle = rng.uniform(0, 2 * np.pi)
+        by = 0.05 * np.array([np.cos(angle), np.sin(angle), 0.0])
+        _, robot, plan = _plan(mapping, start, by, "priority")
+        tool0, r0 = mj.pose(start)
+        assert not plan.violations and plan.series["plan_damping"].max() == 0
+        for k in range(len(plan.t)):
+            x = _commanded(mj, robot, plan, k, tool0, by, r0)
+            made = _unit(robot, mj.jacobian(plan.q_ref[k])) @ plan.qd_ref[k] / plan.series["plan_speed_scale"][k]
+            np.testing.assert_allclose(made, x, rtol=0, atol=1e-9 * (1 + np.abs(x).max()))
 
 
 def test_priority_at_a_wrist_singularity_keeps_the_point_with_bounded_rates():
@@ -247,13 +273,14 @@ XARM_OWN = {"model": str(ARMS["xarm7"][0])}  # its URDF's speed limits
 def test_gradient_is_pinv_plus_manipulabilitys_gradient_in_the_null_space_and_moves_the_tool_by_nothing():
     """At random samples of random lines: qd - J+ x is GRADIENT_GAIN (I - J+ J) grad w, grad w by central
     differences of MuJoCo's Jacobian here, and J times it is nothing. On the lines both keep cleanly, w's mean along
-    the plan against pinv's (which returns to its start posture instead): measured 0.985 to 1.37 times, 13 of 15 at
-    least 1, their mean 1.04 (seed 32); asserted: their mean at least 1, two thirds at least 1."""
+    the plan against pinv's (which returns to its start posture instead): measured 1.0003 to 1.17 times on these 9
+    of 10 (seed 32); its next 6 lines have two at 0.985 and 0.988, pinv's posture return ending higher there, so
+    asserted: their mean at least 1, two thirds at least 1."""
     rng = np.random.default_rng(32)
     robot = _arm(XARM_OWN)
     mj = _xarm(robot)
     ratios, checked = [], 0
-    for start, by in _lines(XARM_OWN, rng, 16):
+    for start, by in _lines(XARM_OWN, rng, 10):
         _, _, plan = _plan(XARM_OWN, start, by, "gradient")
         assert plan.info["gradient_gain"] == GRADIENT_GAIN
         tool0, r0 = mj.pose(start)
@@ -272,7 +299,7 @@ def test_gradient_is_pinv_plus_manipulabilitys_gradient_in_the_null_space_and_mo
         if not any(p.violations or p.info["range_held_from"] is not None for p in (plan, pinv)):
             ratios.append(np.mean([_w(robot, mj, q) for q in plan.q_ref]) / np.mean([_w(robot, mj, q)
                                                                                      for q in pinv.q_ref]))
-    assert checked > 80 and len(ratios) >= 12
+    assert checked > 40 and len(ratios) >= 8  # measured: 57 and 9
     assert np.mean(ratios) >= 1 and np.mean(np.array(ratios) >= 1) >= 2 / 3
 
 

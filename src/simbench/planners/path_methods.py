@@ -59,19 +59,29 @@ METHODS = ("dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradie
 Rule = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, float, np.ndarray]]
 
 
-def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float]):
+def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float], rank_only: bool = False):
     """Ju^T (Ju Ju^T + lambda^2 I)^-1 twist by the SVD (V S (S^2 + lambda^2)^-1 U^T), lambda^2 = lam2_of(sigma_min);
-    sigma_min, lambda^2 and I - Ju+ Ju."""
+    sigma_min, lambda^2 and I - Ju+ Ju. Where `rank_only`, the singular values under RCOND of the largest, or of 1
+    (rows a planar arm can never move, a task's rows beyond the joints left to it), count as zero, and sigma_min is
+    the least of the others (0, undamped, where none is left)."""
     u, sv, vt = np.linalg.svd(ju, full_matrices=False)
-    sigma = float(sv[-1])
-    lam2 = lam2_of(sigma)
+    if rank_only:
+        keep = sv > RCOND * max(float(sv[0]), 1.0)
+        u, sv, vt = u[:, keep], sv[keep], vt[keep]
+    sigma = float(sv[-1]) if len(sv) else 0.0
+    lam2 = lam2_of(sigma) if len(sv) else 0.0
     rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
     return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
 
 
+def _adaptive(sigma: float) -> float:
+    """dls_adaptive's lambda^2 at the least singular value sigma."""
+    return LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0
+
+
 def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
     """dls_adaptive: the variable damping (cartesian_path applies it where pinv would pass a speed limit)."""
-    return _damped(ju, twist, lambda sigma: LAMBDA_MAX**2 * (1 - (sigma / EPSILON) ** 2) if sigma < EPSILON else 0.0)
+    return _damped(ju, twist, _adaptive)
 
 
 def _pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], float, np.ndarray, int]:
@@ -91,13 +101,14 @@ def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, fl
 
 
 def priority_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """priority (Chiaverini 1997, eq. 8, both inverses damped as dls_adaptive's): the point's rows first, the
-    orientation's in what they leave free; the first task alone where Ju has the point's rows alone. Returns the
-    rates, the whole Ju's sigma_min, the larger lambda^2 of the two inverses and I - Ju+ Ju."""
-    first, sigma, lam2, n1 = damped_rates(ju[:3], twist[:3])
+    """priority (Chiaverini 1997, eq. 8, both inverses damped as dls_adaptive's, on the singular values each task's
+    Jacobian can have: a planar arm's point has two, the orientation left to a five-joint arm two): the point's rows
+    first, the orientation's in what they leave free; the first task alone where Ju has the point's rows alone.
+    Returns the rates, the whole Ju's sigma_min, the larger lambda^2 of the two inverses and I - Ju+ Ju."""
+    first, sigma, lam2, n1 = _damped(ju[:3], twist[:3], _adaptive, rank_only=True)
     if len(ju) == 3:
         return first, sigma, lam2, n1
-    second, _, lam2_second, _ = damped_rates(ju[3:] @ n1, twist[3:] - ju[3:] @ first)
+    second, _, lam2_second, _ = _damped(ju[3:] @ n1, twist[3:] - ju[3:] @ first, _adaptive, rank_only=True)
     _, sigma, null, _ = _pseudo_inverse(ju)
     return first + second, sigma, max(lam2, lam2_second), null
 
