@@ -55,18 +55,26 @@ def test_actions_are_minus_one_to_one_mapped_onto_the_joint_ranges(float32):
     assert env.control_timestep() == pytest.approx(0.02)
 
 
-def test_the_residual_action_zero_is_simulates_servo_run():
+@pytest.mark.parametrize("robot, name, control_steps", [("puma600", "line", 1000), ("rsmg", "three_turns", 160)])
+def test_the_residual_action_zero_is_simulates_servo_run(robot, name, control_steps):
     """With residual actions of 0 at the default 20 ms control step the episode is `simulate`'s servo run of the
-    plan (every physics step of it), and its return is the gaussian reward recomputed from simulate's tool at each
-    control step's end: 0.99 of the most a step at least."""
-    env = rl_env("puma600", "line", {"residual": True})
+    plan, every physics step of it (on the RSMG past its first weld switches, the grip feedback revising the
+    references); the PUMA's return is the gaussian reward recomputed from simulate's tool at each control step's
+    end: 0.99 of the most a step at least."""
+    env = rl_env(robot, name, {"residual": True})
     task = env.task
-    steps = run(env, [np.zeros(6)] * 1000)
-    assert steps[-1].last() and len(steps) - 1 == 145
+    steps = run(env, [np.zeros(task.plant.robot.dof)] * control_steps)
     expected = simulate(task.plant, task.plan, Servo.from_scenario(task.scenario), settle=task.scenario.sim.settle)
-    rec = simbench_env.recording(env)
-    for key in ("q", "qd", "tool", "force"):
-        np.testing.assert_allclose(getattr(rec, key), getattr(expected, key), rtol=0, atol=1e-12, err_msg=key)
+    rec, rows = simbench_env.recording(env), task.k + 1
+    for key in ("q", "qd", "tool"):
+        np.testing.assert_allclose(getattr(rec, key), getattr(expected, key)[:rows], rtol=0, atol=1e-12, err_msg=key)
+    # the forces of every step taken (an episode cut short records no command after its last row)
+    np.testing.assert_allclose(rec.force[:-1], expected.force[:rows - 1], rtol=0, atol=1e-12)
+    if robot == "rsmg":
+        assert rows > 3045 and rec.q_ref is not None
+        np.testing.assert_array_equal(rec.q_ref[:rows], expected.q_ref[:rows])
+        return
+    assert steps[-1].last() and len(steps) - 1 == 145
     samples = np.minimum(np.arange(1, 146) * 20, task.n - 1)
     d = np.linalg.norm(expected.tool[samples] - task.plan.tool_ref[samples], axis=1)
     total = sum(step.reward for step in steps[1:])

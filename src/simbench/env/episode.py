@@ -89,31 +89,31 @@ class Physics(dm_mujoco.Physics):
             super().step(nstep)
             return
         track = self.track
-        while nstep > 0 and track.k < track.n - 1 and track.failure is None:
-            commands = track.controls(self, track.stretch(nstep))
-            if not (self.c_loop and len(commands) > 1 and in_c(self, commands)):
-                self._in_python(commands)
-            nstep -= len(commands)
+        with quiet_mujoco():
+            while nstep > 0 and track.k < track.n - 1 and track.failure is None:
+                commands = track.controls(self, track.stretch(nstep))
+                if not (self.c_loop and len(commands) > 1 and in_c(self, commands)):
+                    self._in_python(commands)
+                nstep -= len(commands)
 
     def _in_python(self, commands: Array) -> None:
-        """One physics step a command, each checked and recorded (until one fails)."""
+        """One physics step a command, each checked and recorded (until one fails); MuJoCo kept quiet."""
         model, data, track = self.model.ptr, self.data.ptr, self.track
         for command in commands:
             data.ctrl[:] = command
-            with quiet_mujoco():
-                try:
-                    mujoco.mj_step2(model, data)
-                    cause = None
-                except mujoco.FatalError as err:
-                    cause = fatal_cause(err)
-                # NaN fails the comparison: one reduction finds a NaN, an infinite or a diverging speed
-                if cause is None and (self.counts.any() or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED):
-                    cause = step_fault(model, data)
-                if cause:
-                    track.fail(self, self._when(cause))
-                    return
-                self.readings = data.sensordata.copy()
-                mujoco.mj_step1(model, data)
+            try:
+                mujoco.mj_step2(model, data)
+                cause = None
+            except mujoco.FatalError as err:
+                cause = fatal_cause(err)
+            # NaN fails the comparison: one reduction finds a NaN, an infinite or a diverging speed
+            if cause is None and (self.counts.any() or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED):
+                cause = step_fault(model, data)
+            if cause:
+                track.fail(self, self._when(cause))
+                return
+            self.readings = data.sensordata.copy()
+            mujoco.mj_step1(model, data)
             track.record(self, command)
 
     def time(self) -> float:

@@ -8,9 +8,10 @@ as it is: physics-step control, actions in the joints' own units, a reward 0.5 a
   steps (which run in MuJoCo's C loop, `simbench.env.substeps`). A 2.9 s line is 145 steps.
 - **Actions** in [-1, 1], one a joint (clipped there). Absolute: the joint's target (position actuation) or force
   (torque actuation) mapped linearly onto its action bounds (`Track.bounds`), -1 to the lower. Residual (`residual`,
-  position actuation): the servo's target for the plan's reference shifted by `scale * action`, `scale` per joint
-  (`residual_scale`; by default RESIDUAL_SCALE by joint type: 0.05 rad, 0.01 m), updated every physics step as the
-  servo updates it, so that the action 0 is simbench's servo exactly.
+  position actuation): the servo's target for the plan's reference (as its feedback revised it) shifted by
+  `scale * action` within the actuator's control range, `scale` per joint (`residual_scale`; by default
+  RESIDUAL_SCALE by joint type: 0.05 rad, 0.01 m), the target updated every physics step as the servo updates it,
+  so that the action 0 is simbench's servo exactly.
 - **Reward** of the tool's distance d from its reference, `width` 20 mm by default: `gaussian` (the default),
   `0.5 ** ((d / width) ** 2)`, dm_control's gaussian `rewards.tolerance` with 0.5 at d = width; `shaped`,
   `exp(-d / width)` (0.37 at d = width), dense: it still rises towards the path from afar. Either is 0 once the
@@ -175,6 +176,12 @@ class RLTrack(Track):
         self._randomiser = Randomiser(randomise, model, plant) if randomise is not None else None
         self.drawn: dict[str, Array] = {}
         self._queue: deque = deque()
+        # The servo's targets of the references (the rows from `first`), found a stretch at a time, and the control
+        # range the shifted targets are kept within
+        self._targets: tuple[Array | None, int, Array] = (None, 0, np.zeros((0, model.nu)))
+        limited = model.actuator_ctrllimited.astype(bool)
+        self._ctrl_range = (np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf),
+                            np.where(limited, model.actuator_ctrlrange[:, 1], np.inf))
 
     def _residual_scale(self, model: mujoco.MjModel, plant: Plant) -> Array:
         """Each joint's residual scale: the settings', or RESIDUAL_SCALE by joint type."""
@@ -253,7 +260,8 @@ class RLTrack(Track):
             command[self.plant.actuators] = mid + half * action
 
     def controls(self, physics: Physics, steps: int) -> Array:
-        """The command held (absolute), or the servo's targets for the next samples' references, shifted.
+        """The command held (absolute), or the servo's targets for the next samples' references, shifted and kept
+        within the control range (residual).
 
         Args:
             physics: The physics.
@@ -264,8 +272,14 @@ class RLTrack(Track):
         """
         if not self.rl.residual:
             return np.repeat(self._command[None], steps, axis=0)
-        k, act = self.k, self.plant.actuators
-        return self._servo.targets(self.q_ref[k:k + steps] + self._command[act], self.qd_ref[k:k + steps])
+        k = self.k
+        refs, first, targets = self._targets
+        if refs is not self.q_ref or not first <= k <= k + steps <= first + len(targets):
+            # up to the next switch, after which the plan's feedback may revise the references (in place)
+            stop = max(min((s for s in self._switches if s > k), default=self.n - 1), k + steps)
+            first, targets = k, self._servo.targets(self.q_ref[k:stop], self.qd_ref[k:stop])
+            self._targets = (self.q_ref, first, targets)
+        return np.clip(targets[k - first:k - first + steps] + self._command, *self._ctrl_range)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
         """One value a joint in [-1, 1], float32 where the settings say so.

@@ -17,7 +17,7 @@ import numpy as np
 from mujoco import rollout
 
 from simbench.api import Array
-from simbench.faults import MAX_SPEED, clear_warnings, quiet_mujoco
+from simbench.faults import MAX_SPEED, clear_warnings
 from simbench.stepping import FULL, state_slices
 
 if TYPE_CHECKING:
@@ -36,7 +36,8 @@ def _rollout() -> rollout.Rollout:
 
 
 def in_c(physics: Physics, commands: Array) -> bool:
-    """Step and record the physics through `commands` (steps, nu) in MuJoCo's C loop.
+    """Step and record the physics through `commands` (steps, nu) in MuJoCo's C loop (MuJoCo kept quiet by the
+    caller: Physics.step).
 
     Args:
         physics: The environment's physics, its data as mj_step1 leaves it and no warning counted.
@@ -54,23 +55,22 @@ def in_c(physics: Physics, commands: Array) -> bool:
     warmstart = data.qacc_warmstart[None].copy()
     states = np.empty((1, steps, start.shape[1]))
     sensors = np.empty((1, steps, model.nsensordata))
-    with quiet_mujoco():
-        try:
-            _rollout().rollout([model], [data], start, np.ascontiguousarray(commands, dtype=float)[None],
-                               control_spec=_CTRL, skip_checks=True, nstep=steps, initial_warmstart=warmstart,
-                               state=states, sensordata=sensors)
-            mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
-            # the Python loop's own test of a step (NaN fails the comparison), over every step at once
-            speed = np.abs(states[0, :, state_slices(model)[1]]).max(initial=0.0)
-            sound = not physics.counts.any() and speed <= MAX_SPEED
-        except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
-            sound = False
-        if not sound:
-            mujoco.mj_setState(model, data, start[0], FULL)
-            data.qacc_warmstart[:] = warmstart[0]
-            clear_warnings(data)
-            mujoco.mj_step1(model, data)
-            return False
+    try:
+        _rollout().rollout([model], [data], start, np.ascontiguousarray(commands, dtype=float)[None],
+                           control_spec=_CTRL, skip_checks=True, nstep=steps, initial_warmstart=warmstart,
+                           state=states, sensordata=sensors)
+        mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
+        # the Python loop's own test of a step (NaN fails the comparison), over every step at once
+        speed = np.abs(states[0, :, state_slices(model)[1]]).max(initial=0.0)
+        sound = not physics.counts.any() and speed <= MAX_SPEED
+    except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
+        sound = False
+    if not sound:
+        mujoco.mj_setState(model, data, start[0], FULL)
+        data.qacc_warmstart[:] = warmstart[0]
+        clear_warnings(data)
+        mujoco.mj_step1(model, data)
+        return False
     physics.readings = sensors[0, -1].copy()
     physics.track.record_steps(physics, states[0], sensors[0], commands)
     return True
