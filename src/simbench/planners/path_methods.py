@@ -115,7 +115,7 @@ def priority_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float
 
 def sns_rates(ju: np.ndarray, twist: np.ndarray, preference: np.ndarray, low: np.ndarray,
               high: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """sns (Flacco et al. 2012, Alg. 1): the rates within [low, high] (0 within each) for the twist scaled by the
+    """sns (Flacco et al. 2012, Alg. 1): the rates within [low, high] (low <= 0 <= high) for the twist scaled by the
     largest s <= 1 found, plus a redundant arm's `preference` (its null-space motion, cartesian_path's) in the free
     joints' null space, scaled with the twist. Returns the rates, Ju's sigma_min, s and the saturated joints."""
     dof = len(low)
