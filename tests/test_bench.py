@@ -91,7 +91,8 @@ def test_every_methods_document_is_a_valid_scenario():
             doc = METHODS[method].document(task, robot)
             if doc is not None:
                 parse_scenario(doc, f"{name} {method}")
-    assert set(METHODS) == {"dls_adaptive", "pinv", "dls", "time_scaling", "mink", "paper"}
+    assert set(METHODS) == {"dls_adaptive", "pinv", "dls", "time_scaling", "mink", "paper", "sns", "gradient",
+                            "priority"}
 
 
 # --- tasks: through, near, far ------------------------------------------------------------------------------------
