@@ -166,12 +166,16 @@ class Track(control.Task):
         self._model0 = (model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator))
         self._tool = plant.sensors[plant.robot.tool_sensor]
         self._tolerance = scenario.analysis.path_tolerance
-        self.bounds = action_bounds(model, plant, plan)
-        # What random joint moves are drawn within: position targets, under torque actuation too
-        self.target_bounds = self.bounds if plant.actuation == "position" else joint_bounds(model, plant, plan)
+        self.set_bounds(model, plan)
         self.failure: str | None = None
         self._use(plan, data)
         self._rows(model)
+
+    def set_bounds(self, model: mujoco.MjModel, plan: JointTrajectory) -> None:
+        """The bounds for a plan's references: the actions' (`bounds`, `action_bounds`) and what random joint moves
+        are drawn within (`target_bounds`: position targets, under torque actuation too)."""
+        self.bounds = action_bounds(model, self.plant, plan)
+        self.target_bounds = self.bounds if self.actuation == "position" else joint_bounds(model, self.plant, plan)
 
     def _use(self, plan: JointTrajectory, data: mujoco.MjData) -> None:
         """Episodes of this plan from the start state in `data` (posed by switches.at_start)."""

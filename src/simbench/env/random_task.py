@@ -48,8 +48,6 @@ def check(scenario: Scenario) -> None:
 def widen(track: Track, model: mujoco.MjModel) -> None:
     """Widen the track's bounds (actions and position targets) for the planner's own random tasks: a hinge
     without a range by RANDOM_TURNS either side, beyond the shipped plan's span and CONTINUOUS_SPAN."""
-    from simbench.env.episode import action_bounds, joint_bounds
-
     if not offered(track.scenario):
         return  # random joint moves are drawn within the bounds
     plant, plan = track.plant, track.plan
@@ -58,9 +56,7 @@ def widen(track: Track, model: mujoco.MjModel) -> None:
     reach = RANDOM_TURNS * 2 * np.pi * winding
     # the bounds of a plan whose references reach that much further (only its q_ref's extremes are read)
     extremes = np.stack([plan.q_ref.min(axis=0) - reach, plan.q_ref.max(axis=0) + reach])
-    span = dataclasses.replace(plan, q_ref=extremes)
-    track.bounds = action_bounds(model, plant, span)
-    track.target_bounds = track.bounds if plant.actuation == "position" else joint_bounds(model, plant, span)
+    track.set_bounds(model, dataclasses.replace(plan, q_ref=extremes))
 
 
 def _own(scenario: Scenario, sections: dict[str, Any]) -> Scenario:
