@@ -14,7 +14,7 @@ import pytest
 
 from simbench import env as simbench_env
 from simbench.controllers import Servo
-from simbench.env.rl_mode import RESIDUAL_SCALE, with_rl
+from simbench.env.rl_mode import RESIDUAL_SCALE, RL, with_rl
 from simbench.sim import simulate
 
 
@@ -319,6 +319,51 @@ def test_noise_is_seeded_and_of_its_stated_size():
         env.reset(seed=5)
         drawn.append(env.unwrapped._env.task.drawn["mass"].copy())
     assert np.array_equal(drawn[0], drawn[1])
+
+
+# --- through load's task_kwargs, and replayed from a snapshot ------------------------------------------------
+
+@pytest.mark.parametrize("rl, control_step", [(True, 0.02), ({"control_timestep": 0.01}, 0.01),
+                                              (RL(control_timestep=0.04), 0.04)])
+def test_task_kwargs_rl_is_the_rl_mode(rl, control_step):
+    """load_task(..., task_kwargs={"rl": ...}) (True, a dict of RL's fields, an RL): actions in [-1, 1] a joint,
+    and each env.step advances MuJoCo's data.time by the control step (20 ms by default)."""
+    env = simbench_env.load_task("puma600", "line", task_kwargs={"rl": rl})
+    spec = env.action_spec()
+    assert spec.shape == (6,) and np.all(spec.minimum == -1.0) and np.all(spec.maximum == 1.0)
+    data = env.physics.data.ptr
+    env.reset()
+    times = [data.time]
+    for action in np.random.default_rng(0).uniform(-1, 1, (5, 6)):
+        env.step(action)
+        times.append(data.time)
+    np.testing.assert_allclose(np.diff(times), control_step, rtol=0, atol=1e-9)
+
+
+def test_a_snapshot_replays_an_rl_episode_with_noise_and_a_delay():
+    """Action and observation noise, a drawn delay of 2 control steps and the default randomisation: restored at
+    a snapshot of control step 10, the same 30 actions give the same observations and rewards bit for bit (the
+    noise drawn again as it was, the delayed actions queued as they were); after a reset that drew another
+    model too (the snapshot's draw comes back)."""
+    rl = {"residual": True, "noise": {"action": 0.05}, "randomise": {"delay": (2, 2)}, "seed": 3}
+    env = simbench_env.load_task("puma600", "line", task_kwargs={"rl": rl})
+    actions = np.random.default_rng(4).uniform(-1, 1, (40, 6))
+    env.reset()
+    for action in actions[:10]:
+        env.step(action)
+    snap, mass = simbench_env.snapshot(env), env.physics.model.ptr.body_mass.copy()
+    went_on = [env.step(action) for action in actions[10:]]
+    for after_a_reset in (False, True):
+        if after_a_reset:
+            env.reset()
+            assert not np.array_equal(env.physics.model.ptr.body_mass, mass)  # another draw
+        simbench_env.restore(env, snap)
+        assert np.array_equal(env.physics.model.ptr.body_mass, mass) and len(env.task._queue) == 2
+        for i, (action, expected) in enumerate(zip(actions[10:], went_on)):
+            got = env.step(action)
+            assert got.reward == expected.reward, (after_a_reset, i)
+            for key, value in expected.observation.items():
+                assert np.array_equal(got.observation[key], value), (after_a_reset, i, key)
 
 
 # --- bad settings ----------------------------------------------------------------------------------------------

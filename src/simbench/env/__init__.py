@@ -19,9 +19,11 @@ control step may be shorter), at time_limit (discount 1) or where the physics fa
 physics back at the last sound sample, `Track.failure` saying when and why). `evaluation` analyses every physics
 step that ran: `failed` or `truncated` where the episode ended early. task_kwargs={'random': seed} draws a random
 task at each reset (simbench.env.random_task, which widens the bounds of a joint without a range for the
-planner's own); snapshot/restore replay an episode exactly. copy.deepcopy and pickle take an environment (and a
-snapshot) whole: the copy steps as the original. visualize_reward colours the arm by the reward, as dm_control's
-suite does; frames render through EGL (or the user's MUJOCO_GL) whichever of dm_control's users came first.
+planner's own); task_kwargs={'rl': True} is the RL mode (simbench.env.rl_mode: 20 ms control steps, actions
+in [-1, 1]; simbench.env.gym_ids names it in Gymnasium). snapshot/restore replay an episode exactly.
+copy.deepcopy and pickle take an environment (and a snapshot) whole: the copy steps as the original.
+visualize_reward colours the arm by the reward, as dm_control's suite does; frames render through EGL (or the
+user's MUJOCO_GL) whichever of dm_control's users came first.
 """
 
 from __future__ import annotations
@@ -150,7 +152,8 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
         scenario: A Scenario, or the path of a scenario file.
         task_kwargs: What makes the task: `random` (a seed or a RandomState: a new random task at each reset),
             `actuation`, `task` (a subclass of Track, for a reward or observation of your own) and that class's
-            own arguments.
+            own arguments, and `rl`: the RL mode (`simbench.env.rl_mode`: 20 ms control steps, actions in
+            [-1, 1]) as True (its defaults), a dict of `rl_mode.RL`'s fields or an `RL`; None or False: none.
         environment_kwargs: What goes to `control.Environment`: `control_timestep` or `n_sub_steps`,
             `time_limit`, `flat_observation`.
         visualize_reward: Whether rendered frames show the reward in the arm's colour (dm_control's meaning:
@@ -164,10 +167,14 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     Raises:
         ScenarioError: The scenario is bad input, or beyond what the machine can give.
         RunError: The scenario cannot be planned, or its scene cannot be stepped as an environment steps.
-        ValueError: A control step of no physics step (n_sub_steps < 1).
+        ValueError: A control step of no physics step (n_sub_steps < 1), or an RL setting out of its range.
     """
     scenario = as_scenario(scenario, "simbench.env.load")
     task_kwargs = dict(task_kwargs or {})
+    rl = task_kwargs.pop("rl", None)
+    if rl is not None and rl is not False:  # the RL mode
+        from simbench.env.rl_mode import with_rl
+        task_kwargs, environment_kwargs = with_rl(rl, task_kwargs, environment_kwargs)
     environment_kwargs = {"flat_observation": flat_observation, **(environment_kwargs or {})}
     actuation = task_kwargs.pop("actuation", actuation)
     task_class = task_kwargs.pop("task", Track)
@@ -207,7 +214,8 @@ def load_task(robot: str, name: str, task_kwargs: dict | None = None, environmen
     Args:
         robot: The robot's folder, as in `ALL_TASKS`.
         name: The scenario's name, as in `ALL_TASKS`.
-        task_kwargs: As `load`'s.
+        task_kwargs: As `load`'s: `random`, `actuation`, `task` and its arguments, `rl` (the RL mode: True, a
+            dict of `rl_mode.RL`'s fields or an `RL`).
         environment_kwargs: As `load`'s.
         visualize_reward: As `load`'s.
         actuation: As `load`'s.

@@ -19,16 +19,19 @@ from simbench.env.episode import Physics, track_of
 # Everything that decides the next steps: the integration state (warm start included), what switches edited
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 _ROWS = ("_qpos", "_qvel", "_readings", "_ctrl", "_eq")  # the recording, rows 0..k
-_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_settler", "_hold")
+_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_settler", "_hold",
+         "_queue", "drawn")  # the RL mode's delayed actions and what its randomisation drew
 
 
 @dataclass(frozen=True)
 class Snapshot:
-    """An episode at a control step, for `restore`: the physics, the task's episode state and the environment's
+    """An episode at a control step, for `restore`: the physics (with the model's randomised values, in the RL
+    mode), the task's episode state, its random state (random tasks, the RL mode's noise) and the environment's
     step count."""
 
     state: np.ndarray
     model: tuple
+    randomised: dict[str, np.ndarray]
     physics: dict[str, Any]
     task: dict[str, Any]
     rows: dict[str, np.ndarray]
@@ -52,11 +55,14 @@ def snapshot(env: control.Environment) -> Snapshot:
     state = np.empty(mujoco.mj_stateSize(model, _STATE))
     mujoco.mj_getState(model, data, state, _STATE)
     rows = {name: getattr(task, name)[:task.k + 1].copy() for name in _ROWS}
+    randomiser = getattr(task, "_randomiser", None)  # the RL mode's domain randomisation
+    randomised = {} if randomiser is None else {name: getattr(model, name).copy() for name in randomiser.nominal}
     return Snapshot(state=state, model=(model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator)),
+                    randomised=randomised,
                     physics={"t0": physics.t0, "readings": physics.readings.copy()},
                     task={name: copy.copy(getattr(task, name, None)) for name in _TASK},
                     rows=rows, references=copy.deepcopy(task.references), warnings=list(task.warnings),
-                    random=None if task.random is None else task.random.get_state(),
+                    random=None if task._random is None else task._random.get_state(),
                     environment={"_step_count": env._step_count, "_reset_next_step": env._reset_next_step})
 
 
@@ -69,6 +75,10 @@ def restore(env: control.Environment, snap: Snapshot) -> None:
     """
     task, physics = track_of(env), env.physics
     model, data = physics.model.ptr, physics.data.ptr
+    for name, value in snap.randomised.items():  # the draw of the snapshot's episode, as Randomiser.draw applies it
+        getattr(model, name)[:] = value
+    if snap.randomised:
+        mujoco.mj_setConst(model, data)
     model.eq_data[:], model.eq_active0[:] = snap.model[:2]
     model.opt.disableactuator = snap.model[2]
     for name, value in snap.task.items():
@@ -78,8 +88,8 @@ def restore(env: control.Environment, snap: Snapshot) -> None:
     for name, rows in snap.rows.items():
         getattr(task, name)[:len(rows)] = rows
     task.references, task.warnings = copy.deepcopy(snap.references), list(snap.warnings)
-    if snap.random is not None and task.random is not None:
-        task.random.set_state(snap.random)
+    if snap.random is not None and task._random is not None:
+        task._random.set_state(snap.random)
     mujoco.mj_resetData(model, data)
     mujoco.mj_setState(model, data, snap.state, _STATE)
     mujoco.mj_step1(model, data)  # the position- and velocity-dependent quantities the next mj_step2 uses
