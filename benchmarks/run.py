@@ -22,7 +22,7 @@ from benchmarks.common import machine, today
 MODULES = ("bench_tracking", "bench_render", "bench_sweep", "bench_planners", "bench_puma_auto",
            "bench_agile_eye_crossing", "bench_agile_eye_planning", "bench_analysis", "bench_control", "bench_run",
            "bench_plots", "bench_soak", "bench_rsmg_contacts", "bench_startup", "bench_random_lines", "bench_suite",
-           "bench_env", "bench_arms")
+           "bench_env", "bench_arms", "bench_env_step", "bench_plan_cost")
 TARGET = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
 HEADER = ("# Benchmarks\n\nWritten by `python -m benchmarks.run` (from the repository root, in the test environment):\n"
           "each module's figures between its markers, with the machine, the date, the time and the load average\n"
