@@ -100,7 +100,7 @@ def _samples(plan, rng, n=25):
 
 
 def test_pinv_rates_make_the_commanded_twist_and_break_the_wrist_speed_limits(tmp_path):
-    sc, robot, plan, mj, start, r0 = _planned(tmp_path, "pinv")
+    sc, robot, plan, mj, start, r0 = _planned(tmp_path, "pinv", knot_step=0)
     for k in _samples(plan, np.random.default_rng(1)):
         x = _commanded(mj, plan, k, start, END / 1e3, r0)
         made = mj.jacobian(plan.q_ref[k]) @ plan.qd_ref[k]
@@ -130,7 +130,7 @@ def test_dls_rates_are_damped_least_squares_with_the_recorded_lambda(tmp_path):
 
 
 def test_dls_adaptive_damps_by_mujocos_sigma_min(tmp_path):
-    sc, robot, plan, mj, start, r0 = _planned(tmp_path, "dls_adaptive")
+    sc, robot, plan, mj, start, r0 = _planned(tmp_path, "dls_adaptive", knot_step=0)
     unit = np.array([1 / robot.reach] * 3 + [1.0] * 3)
     unscaled = np.all(np.abs(plan.qd_ref) < (1 - 1e-6) * np.deg2rad(SPEED), axis=1)
     checked = damped = 0
@@ -160,7 +160,8 @@ def test_a_redundant_arm_returns_to_its_start_posture_in_the_null_space(tmp_path
     doc = {"robot": {"model": str(PANDA), "tool": {"body": "panda_link7", "offset": [0, 0, 107]},
                      "joints": [f"panda_joint{i}" for i in range(1, 8)]},
            "planner": "cartesian_path", "units": {"angle": "deg", "length": "mm"},
-           "task": {"start": start, "path": [{"line": {"end": [300.0, 250.0, 500.0]}}], "method": method},
+           "task": {"start": start, "path": [{"line": {"end": [300.0, 250.0, 500.0]}}], "method": method,
+                    "knot_step": 0},
            "timing": {"law": "quintic", "duration": 3.0, "hold": 0.2}}
     path = tmp_path / "panda.yaml"
     path.write_text(yaml.safe_dump(doc))

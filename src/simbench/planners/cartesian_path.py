@@ -69,6 +69,7 @@ from simbench.planners.path_retiming import ACCEL_TIME
 from simbench.planners.path_segments import PathSegment, corner_warning, corners, place, placed_path
 from simbench.planners.resolved_rates import (
     CLIK_SHARE,
+    KNOT_STEP,
     NULL_GAIN,
     POSITION_ROWS,
     integrate,
@@ -99,6 +100,10 @@ class Task(SimbenchModel):
     damping: Annotated[float, Field(gt=0, le=1)] | None = Field(
         None, description=f"dls's fixed lambda, dimensionless (a metre at the reach's end counts as a radian); "
                           f"default {DAMPING:g}")
+    knot_step: Annotated[float, Field(ge=0, le=1)] = Field(
+        KNOT_STEP, description="s: where the arm is clear of its singular set and its limits, the joints are put on "
+                               "the path at knots this far apart and the control samples between follow a cubic "
+                               "through them; 0: every control sample resolved alone (resolved_rates.integrate)")
     acceleration_limits: list[float] | None = Field(
         None, description="time_scaling's joint acceleration limits, the angle (or length) unit per s^2, one per "
                           f"joint; default each speed limit / {ACCEL_TIME:g} s")
@@ -239,7 +244,7 @@ class CartesianPath(Planner):
             lam2, scale, held = np.zeros(len(t)), np.ones(len(t)), np.zeros(q.shape, bool)
         else:
             q, qd, sigma, lam2, scale, held = integrate(robot, q0, points, rotations, twist(s, ds), dt,
-                                                        resolver_of(task.method, task.damping))
+                                                        resolver_of(task.method, task.damping), task.knot_step)
             extra = {"gradient_gain": GRADIENT_GAIN} if task.method == "gradient" else {}
             if task.method != "dls_adaptive":
                 series = {"plan_damping": np.sqrt(lam2), "plan_speed_scale": scale}
@@ -249,7 +254,7 @@ class CartesianPath(Planner):
         info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
                               "null_gain": NULL_GAIN if robot.dof > rows and task.method != "gradient" else None,
-                              "reach": robot.reach},
+                              "reach": robot.reach, "knot_step": task.knot_step},
                 "segments": [("line" if seg.line else "arc") for seg in task.path], "path": placed_path(segments),
                 "path_length": path.length,
                 "sigma_min_least": float(sigma.min()), "damped_from": _first(t, lam2 > 0),
@@ -295,7 +300,7 @@ class CartesianPath(Planner):
         error_of = partial(task_error, robot, rows=rows)  # exact_ik's: the pose's, or a free task's point's
         points, rotations = pose(grid)
         q, _, _, _, _, held = integrate(robot, q0, points, rotations, twist(grid, np.full(n, 1 / law.duration)),
-                                        step, resolver_of("pinv", None))
+                                        step, resolver_of("pinv", None), task.knot_step)
         q, _ = exact_ik(robot, q, points, rotations, error_of)
         qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
                    else robot.qd_max / ACCEL_TIME)

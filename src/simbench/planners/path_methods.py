@@ -45,6 +45,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg.lapack import dgesdd as _gesdd
 
 from simbench.robots.rank_loss import unit_jacobian
 
@@ -59,12 +60,22 @@ METHODS = ("dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradie
 Rule = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, float, np.ndarray]]
 
 
+def thin_svd(ju: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """U, S, V^T of one small matrix (the thin SVD), by LAPACK's dgesdd called directly: NumPy's svd wraps the same
+    routine in a batched ufunc whose call costs more than a 6 x 6 decomposition, and the rules call it at every
+    control sample. NumPy's where dgesdd does not converge (it raises LinAlgError)."""
+    u, sv, vt, info = _gesdd(ju, full_matrices=0)
+    if info != 0:
+        return np.linalg.svd(ju, full_matrices=False)
+    return u, sv, vt
+
+
 def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float], rank_only: bool = False):
     """Ju^T (Ju Ju^T + lambda^2 I)^-1 twist by the SVD (V S (S^2 + lambda^2)^-1 U^T), lambda^2 = lam2_of(sigma_min);
     sigma_min, lambda^2 and I - Ju+ Ju. Where `rank_only`, the singular values under RCOND of the largest, or of 1
     (rows a planar arm can never move, a task's rows beyond the joints left to it), count as zero, and sigma_min is
     the least of the others (0, undamped, where none is left)."""
-    u, sv, vt = np.linalg.svd(ju, full_matrices=False)
+    u, sv, vt = thin_svd(ju)
     if rank_only:
         keep = sv > RCOND * max(float(sv[0]), 1.0)
         u, sv, vt = u[:, keep], sv[keep], vt[keep]
@@ -87,7 +98,7 @@ def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, 
 def _pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], float, np.ndarray, int]:
     """x -> Ju+ x, Ju+ = V S^-1 U^T over the singular values above RCOND of the largest; Ju's least singular value,
     I - Ju+ Ju and Ju's rank."""
-    u, sv, vt = np.linalg.svd(ju, full_matrices=False)
+    u, sv, vt = thin_svd(ju)
     keep = sv > RCOND * sv[0]
     inverse = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep)
     null = np.eye(ju.shape[1]) - vt[keep].T @ vt[keep]

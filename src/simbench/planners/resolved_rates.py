@@ -14,11 +14,15 @@ from simbench.planners.path_methods import (
     Rule,
     damped_rates,
     manipulability_gradient,
+    pinv_rates,
     sns_rates,
 )
 from simbench.robots.rank_loss import unit_jacobian
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
+KNOT_STEP = 0.01  # s: integrate's default step between knots, where the arm is clear of its singular set and limits
+CLEAR_SIGMA = EPSILON  # a knot step is taken where sigma_min is at least this ...
+CLEAR_SPEED = 0.5  # ... and every joint's rate at most this share of its speed limit
 NULL_GAIN = 1.0  # 1/s: a redundant arm's return to its start posture, in the null space
 _UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan check reads strictly
 POSITION_ROWS = 3  # a free task's rows of Ju and of the twist: the point's
@@ -77,9 +81,12 @@ def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation:
     from (point, rotation), by the resolver's rule within the ranges (_clamped_rates; sns: _bounded_rates), on the
     twist's rows of Ju. Returns the rates, sigma_min, lambda^2, the joints held and the task's scale (sns's; else
     1)."""
-    here, rows = now[None], len(twist)
-    error = task_error(robot, point[None], rotation[None], here, rows)[0]
-    ju = unit_jacobian(robot.jacobian(here)[0], robot.reach)[:rows]
+    rows = len(twist)
+    at, turned, jac = pose_jacobian(robot, now[None])
+    error = (point - at[0]) / robot.reach
+    if rows > POSITION_ROWS:
+        error = np.concatenate([error, orientation_error(rotation, turned[0])])
+    ju = unit_jacobian(jac[0], robot.reach)[:rows]
     command, preference = twist + CLIK_SHARE / dt * error, _preference(robot, q0, now, rows, resolver)
     if resolver.bounded:
         return _bounded_rates(ju, command, now, preference, robot, dt)
@@ -89,10 +96,19 @@ def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation:
 def task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
     """The unit-consistent error (N, rows) of the tool at q (N, dof) from points, rotations (cartesian_path's e_k): the
     point's / L, then, on a task of 6 rows, the orientation's (eq. 3.85)."""
-    position = (points - robot.fk(q)) / robot.reach
+    at, turned = robot.pose(q) if hasattr(robot, "pose") else (robot.fk(q), robot.tool_rotation(q))
+    position = (points - at) / robot.reach
     if rows == POSITION_ROWS:
         return position
-    return np.hstack([position, orientation_error(rotations, robot.tool_rotation(q))])
+    return np.hstack([position, orientation_error(rotations, turned)])
+
+
+def pose_jacobian(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tool point (N, 3), its rotation (N, 3, 3) and J (N, 6, dof) at q (N, dof): from one kinematics pass where
+    the robot offers one (robots.model_arm.ModelArm.pose_jacobian), else from its fk, tool_rotation and jacobian."""
+    if hasattr(robot, "pose_jacobian"):
+        return robot.pose_jacobian(q)
+    return robot.fk(q), robot.tool_rotation(q), robot.jacobian(q)
 
 
 def sigma_min(robot, q: np.ndarray, rows: int) -> np.ndarray:
@@ -122,21 +138,39 @@ def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
     sin(angle) times the axis of the rotation from r to r_goal, world frame. Computed as the same sum's closed form,
     vee of the skew part of r_goal r^T (three cross products cost more at every control sample)."""
     turn = r_goal @ np.swapaxes(r, -1, -2)
-    return 0.5 * np.stack([turn[..., 2, 1] - turn[..., 1, 2], turn[..., 0, 2] - turn[..., 2, 0],
-                           turn[..., 1, 0] - turn[..., 0, 1]], axis=-1)
+    return 0.5 * (turn[..., _ROWS, _COLUMNS] - turn[..., _COLUMNS, _ROWS])
+
+
+_ROWS, _COLUMNS = np.array([2, 0, 1]), np.array([1, 2, 0])  # orientation_error's vee: (2, 1), (0, 2), (1, 0)
 
 
 def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
-              dt: float, resolver: Resolver) -> tuple[np.ndarray, ...]:
+              dt: float, resolver: Resolver, knot_step: float = KNOT_STEP) -> tuple[np.ndarray, ...]:
     """q, qd (N, dof), sigma_min, lambda^2 and the speed scale (N,) of cartesian_path's integration from q0 by the
     method's resolver (path_methods), scaled down under the speed limits where it says (sns: its task's scale);
     and the held joints (N, dof). dls_adaptive (`damped_rates`) crosses a passage below EPSILON by pinv where pinv
-    keeps the speed limits through it (_crossing), and damps it otherwise."""
+    keeps the speed limits through it (_crossing), and damps it otherwise.
+
+    Where the arm is clear of its singular set and its limits (_clear), it moves a knot step of `knot_step` at a time
+    (_knot: the joints put on the path's pose, then its rates held over the step) and the samples between are the
+    cubic Hermite curve of the knots' joints and rates (_between); elsewhere a control sample at a time. Per sample,
+    the same rule: the knots cost a control sample each, the samples between an array operation."""
     n = len(points)
     q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.zeros(n)
     scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
-    now, k, damping = q0.copy(), 0, False
+    every = max(1, int(round(knot_step / dt)))  # control samples a knot step spans
+    knots: list[int] = []
+    now, k, damping, clear = q0.copy(), 0, False, False
     while k < n:
+        if clear and every > 1 and k + every < n:
+            on, rates, sigma[k], spent = _knot(robot, q0, now, points[k], rotations[k], twists[k], resolver)
+            if not spent and _clear(robot, on, rates, sigma[k], every * dt):
+                q[k], qd[k] = on, rates
+                knots.append(k)
+                now = on + every * dt * rates
+                k += every
+                continue
+            now = on  # on the path: the samples go on from there, one at a time
         rates, sigma[k], lam2[k], held[k], scale[k] = _sample(robot, q0, now, points[k], rotations[k], twists[k], dt,
                                                               resolver)
         damping = damping and sigma[k] < EPSILON  # a damped passage lasts while sigma_min stays below EPSILON
@@ -148,12 +182,60 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
                 q[k:end], qd[k:end], sigma[k:end], held[k:end] = rows
                 lam2[k:end] = 0.0
                 k = end
+                clear = False
                 continue
             damping = True
         if resolver.scaled:
             scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
             rates = rates * scale[k]
         q[k], qd[k] = now, rates  # sns's rates come scaled
+        clear = lam2[k] == 0.0 and scale[k] == 1.0 and not held[k].any() and _clear(robot, now, rates, sigma[k],
+                                                                                      every * dt)
         now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
         k += 1
+    _between(robot, q, qd, sigma, np.array(knots, int), every, dt)
     return q, qd, sigma, lam2, scale, held
+
+
+def _knot(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: np.ndarray, twist: np.ndarray,
+          resolver: Resolver) -> tuple[np.ndarray, np.ndarray, float, bool]:
+    """A knot at the joints `now`: the joints put on the path's pose (a Newton step, q + Ju+ e, as
+    path_retiming.exact_ik's), the rule's rates for the path's twist there (the error spent: no closed-loop term),
+    sigma_min, and whether the rule damps there (a knot step is then not taken)."""
+    rows = len(twist)
+    at, turned, jac = pose_jacobian(robot, now[None])
+    error = (point - at[0]) / robot.reach
+    if rows > POSITION_ROWS:
+        error = np.concatenate([error, orientation_error(rotation, turned[0])])
+    ju = unit_jacobian(jac[0], robot.reach)[:rows]
+    step, sigma, _, _ = pinv_rates(ju, error)
+    rates, _, lam2, null = resolver.rule(ju, twist)
+    return now + step, rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
+
+
+def _clear(robot, q: np.ndarray, rates: np.ndarray, sigma: float, step: float) -> bool:
+    """Whether the arm at q, moving at `rates`, is clear enough of its singular set (sigma_min at least CLEAR_SIGMA)
+    and of its limits (rates within CLEAR_SPEED of the speed limits, twice a knot step's motion inside the ranges)
+    for a knot step of `step` seconds."""
+    reach = 2.0 * step * np.abs(rates)
+    return bool(sigma >= CLEAR_SIGMA and np.all(np.abs(rates) <= CLEAR_SPEED * robot.qd_max)
+                and np.all(q - reach > robot.lower) and np.all(q + reach < robot.upper))
+
+
+def _between(robot, q: np.ndarray, qd: np.ndarray, sigma: np.ndarray, knots: np.ndarray, every: int,
+             dt: float) -> None:
+    """Fill the samples inside each knot step (k, k + every), in place: q and qd on the cubic Hermite curve through
+    the knots' joints and rates (its basis written out, every step in one array operation), within the ranges;
+    sigma_min linear between the knots'."""
+    if not len(knots):
+        return
+    step = every * dt
+    u = (np.arange(1, every) / every)[None, :, None]  # (1, every - 1, 1): the share of the step
+    q_a, q_b = q[knots][:, None], q[knots + every][:, None]
+    m_a, m_b = step * qd[knots][:, None], step * qd[knots + every][:, None]
+    inside = (knots[:, None] + np.arange(1, every)[None]).ravel()
+    q[inside] = np.clip(((2 * u**3 - 3 * u**2 + 1) * q_a + (u**3 - 2 * u**2 + u) * m_a + (-2 * u**3 + 3 * u**2) * q_b
+                         + (u**3 - u**2) * m_b).reshape(-1, q.shape[1]), robot.lower, robot.upper)
+    qd[inside] = (((6 * u**2 - 6 * u) * q_a + (3 * u**2 - 4 * u + 1) * m_a + (-6 * u**2 + 6 * u) * q_b
+                   + (3 * u**2 - 2 * u) * m_b) / step).reshape(-1, q.shape[1])
+    sigma[inside] = (sigma[knots][:, None] * (1 - u[..., 0]) + sigma[knots + every][:, None] * u[..., 0]).ravel()

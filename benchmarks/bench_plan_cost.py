@@ -1,0 +1,69 @@
+"""A bench run's plan against its simulation, per method, and runs per second on one core (issue 47's target: the
+median run's plan at most 3 times its simulation).
+
+Each run is a bench task's scenario (simbench.bench.methods' document of a suite's task, seed SEED) evaluated as
+`simbench run` evaluates it, in this process, one after the other: the stages' wall times as report.json splits
+them (load, plan, simulate, analyse). Per robot and method: the median of the runs' plan / simulate, the median
+plan and simulate seconds, and the runs per second (runs over their summed wall time: one core, nothing else).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from simbench import pipeline
+from simbench.bench import load_suite
+from simbench.bench.methods import METHODS
+from simbench.bench.tasks import draw
+from simbench.scenario import parse_scenario
+
+ROBOTS = ("puma600", "jaco")
+TASKS = 6
+SEED = 0
+
+
+def measure(robots: tuple[str, ...] = ROBOTS, tasks: int = TASKS) -> list[dict]:
+    """A row per robot and method: runs, median plan / simulate, median plan and simulate seconds, runs/s."""
+    rows = []
+    for name in robots:
+        suite = load_suite(name)
+        robot = suite.robots[0]
+        drawn = draw(robot, tasks, SEED)
+        for method in suite.methods:
+            stages = []
+            started = time.perf_counter()
+            for task in drawn:
+                document = METHODS[method].document(task, robot)
+                if document is None:
+                    continue
+                watch = pipeline._Stopwatch()
+                try:
+                    pipeline._evaluate(parse_scenario(document, f"{task.id}-{method}"), watch=watch)
+                except Exception:  # a failed run (no plan) still counts its wall time, not its ratio
+                    continue
+                stages.append(watch.summary())
+            wall = time.perf_counter() - started
+            if not stages:
+                continue
+            plan = np.array([s["plan"] for s in stages])
+            sim = np.array([s["simulate"] for s in stages])
+            rows.append({"robot": name, "method": method, "runs": len(stages),
+                         "ratio": float(np.median(plan / sim)), "plan_s": float(np.median(plan)),
+                         "simulate_s": float(np.median(sim)), "runs_per_s": len(stages) / wall})
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    """The results as a BENCHMARKS.md section."""
+    lines = [f"### A bench run's plan against its simulation, one core ({TASKS} tasks a robot at seed {SEED})", "",
+             "| robot | method | runs | plan / simulate (median) | plan s (median) | simulate s (median) | runs/s |",
+             "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['robot']} | {r['method']} | {r['runs']} | {r['ratio']:.1f} | {r['plan_s']:.3f} | "
+              f"{r['simulate_s']:.3f} | {r['runs_per_s']:.2f} |" for r in rows]
+    return "\n".join(lines + ["", "Target: the median run's plan at most 3 times its simulation."])
+
+
+if __name__ == "__main__":
+    print(markdown(measure()))
