@@ -64,11 +64,13 @@ def _command(args: list[str], cwd: Path, timeout: float = 60) -> tuple[subproces
 
 # --- size and interruption -----------------------------------------------------------------------------------------
 
+_LOAD = max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))  # the bounds below stretched on a busy machine
+
 def test_a_million_bodies_is_refused_within_five_seconds(tmp_path):
     """Before: `inspect` ran past 600 s at 2.5 GB and answered neither SIGTERM nor Ctrl-C."""
     _planar3r(tmp_path, _bodies(1000, 1000))
     proc, took = _command(["inspect", str(_scenario(tmp_path, "arm.xml"))], tmp_path)
-    assert proc.returncode == 2 and took < 5, (took, proc.stderr)
+    assert proc.returncode == 2 and took < 5 * _LOAD, (took, proc.stderr)
     assert proc.stderr.count("\n") == 1 and "robot.model: arm.xml: loading it would need about" in proc.stderr
     assert "1,000,005 bodies" in proc.stderr and "more than the" in proc.stderr
 
@@ -92,7 +94,7 @@ def test_a_model_mujoco_reads_long_stops_within_a_second_of_a_signal(tmp_path, s
     proc = interrupt([sys.executable, "-m", "simbench", "inspect", str(_scenario(tmp_path, "arm.xml"))], ready,
                      tmp_path, signum=signum)
     assert proc.returncode == code and proc.stderr.strip() == "interrupted", proc.stderr
-    assert time.monotonic() - sent[0] < 1.0
+    assert time.monotonic() - sent[0] < 1.0 * _LOAD
 
 
 def test_bodies_past_mujocos_arena_are_given_room(tmp_path, capsys):
