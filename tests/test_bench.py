@@ -92,7 +92,7 @@ def test_every_methods_document_is_a_valid_scenario():
             if doc is not None:
                 parse_scenario(doc, f"{name} {method}")
     assert set(METHODS) == {"dls_adaptive", "pinv", "dls", "time_scaling", "mink", "paper", "sns", "gradient",
-                            "priority"}
+                            "priority", "ruckig"}
 
 
 # --- tasks: through, near, far ------------------------------------------------------------------------------------

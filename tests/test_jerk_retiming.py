@@ -130,3 +130,52 @@ def test_a_timing_past_max_slowdown_is_refused():
     with pytest.raises(RunError, match="more than 100 times the asked 1 s"):
         retime_jerk(grid, np.outer(grid, np.full(6, 3.0)), TimeLaw("quintic", 1.0), np.full(6, 0.01),
                     np.full(6, 0.1), np.full(6, 1.0), DT, HOLD)
+
+
+def test_cartesian_paths_ruckig_method_keeps_the_wrist_line_and_the_jerk_limits(tmp_path):
+    """task.method: ruckig on paper 002's wrist line (the PUMA's MJCF, its drives' speed limits): by MuJoCo's own
+    kinematics the tool stays on the line; the plan's joint speeds, accelerations and jerks (differences of its
+    samples) within the limits (jerk: the default, acceleration limit / JERK_TIME); no faster than TOPP-RA's."""
+    import mujoco
+    import yaml
+
+    from simbench.planners.jerk_retiming import JERK_TIME
+    from simbench.resources import models_dir
+    from simbench.scenario import load_scenario
+
+    model_path = models_dir() / "puma600" / "puma600.xml"
+    plans = {}
+    for method in ("time_scaling", "ruckig"):
+        doc = {"robot": {"model": str(model_path), "tool": {"site": "tool"},
+                         "speed_limits": [250, 250, 250, 300, 300, 300]},
+               "planner": "cartesian_path", "units": {"angle": "deg", "length": "mm"},
+               "timing": {"law": "quintic", "duration": 2},
+               "task": {"start": [181.8737, -117.777, -222.6356, 15.0872, 15.8376, -13.0006],
+                        "path": [{"line": {"end": [780, -149, -200]}}], "method": method}}
+        (tmp_path / f"{method}.yaml").write_text(yaml.safe_dump(doc))
+        sc = load_scenario(tmp_path / f"{method}.yaml")
+        plans[method] = sc.planner_def.plan(sc, sc.robot_def, 0.001)
+    robot, plan = sc.robot_def, plans["ruckig"]
+    model = mujoco.MjModel.from_xml_path(str(model_path))
+    data = mujoco.MjData(model)
+    adr = [model.joint(name).qposadr[0] for name in robot.joints]
+    site = model.site("tool").id
+    tool = []
+    for q in plan.q_ref:
+        data.qpos[adr] = q
+        mujoco.mj_kinematics(model, data)
+        tool.append(data.site_xpos[site].copy())
+    tool = np.array(tool)
+    start, end = tool[0], tool[-1]
+    along = np.clip((tool - start) @ (end - start) / ((end - start) @ (end - start)), 0, 1)
+    assert np.linalg.norm(tool - (start + along[:, None] * (end - start)), axis=1).max() < 1e-6
+    assert np.linalg.norm(end - np.array([0.780, -0.149, -0.200])) < 1e-6  # the line's end (the model's frame)
+    qdd_max = robot.qd_max / ACCEL_TIME
+    dt = plan.t[1] - plan.t[0]
+    assert np.all(np.abs(plan.qd_ref) <= robot.qd_max)
+    accel = np.abs(np.diff(plan.qd_ref, axis=0)) / dt
+    assert np.all(accel <= qdd_max)
+    jerk = np.abs(np.diff(plan.qd_ref, 2, axis=0)) / dt**2
+    assert np.all(jerk <= qdd_max / JERK_TIME)
+    assert plan.info["duration_planned"] >= plans["time_scaling"].info["duration_planned"]
+    assert plan.info["path_method"] == "ruckig" and plan.info["slowdown"] >= 1.0

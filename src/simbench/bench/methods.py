@@ -130,6 +130,8 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "arms)", _redundant("gradient"), _every_robot("cartesian_path"), default=False),
     Method("priority", "cartesian_path, the tool's point first, its orientation in the null space, damped",
            _with("priority"), _every_robot("cartesian_path"), default=False),
+    Method("ruckig", "cartesian_path, the path kept and retimed under the limits with jerk limits (Ruckig)",
+           _with("ruckig"), _every_robot("cartesian_path"), default=False),
 )}
 
 

@@ -83,6 +83,7 @@ from simbench.trajectory import ORIENTATION_REF, JointTrajectory, control_grid
 
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
 MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most
+RETIMED = ("time_scaling", "ruckig")  # the methods that keep pinv's exact joint path and retime it
 _NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
 
 
@@ -95,7 +96,8 @@ class Task(SimbenchModel):
         "hold", description="'hold': the tool's orientation at start, all along; 'free': the tool's point alone "
                             "follows the path, its orientation whatever the joints give; or the orientation it "
                             "turns to by slerp along the path")
-    method: Literal["dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradient", "priority"] = Field(
+    method: Literal["dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradient", "priority",
+                    "ruckig"] = Field(
         "dls_adaptive", description="how a singularity is met: " + ", ".join(METHODS) + " (path_methods)")
     damping: Annotated[float, Field(gt=0, le=1)] | None = Field(
         None, description=f"dls's fixed lambda, dimensionless (a metre at the reach's end counts as a radian); "
@@ -105,8 +107,8 @@ class Task(SimbenchModel):
                                "the path at knots this far apart and the control samples between follow a cubic "
                                "through them; 0: every control sample resolved alone (resolved_rates.integrate)")
     acceleration_limits: list[float] | None = Field(
-        None, description="time_scaling's joint acceleration limits, the angle (or length) unit per s^2, one per "
-                          f"joint; default each speed limit / {ACCEL_TIME:g} s")
+        None, description="time_scaling's and ruckig's joint acceleration limits, the angle (or length) unit per "
+                          f"s^2, one per joint; default each speed limit / {ACCEL_TIME:g} s")
 
     @field_validator("damping")
     @classmethod
@@ -120,8 +122,8 @@ class Task(SimbenchModel):
     def _per_joint(cls, value: list[float] | None, info: ValidationInfo) -> list[float] | None:
         if value is None:
             return None
-        if info.data.get("method", "time_scaling") != "time_scaling":
-            raise ValueError(f"are time_scaling's; method {info.data['method']} reads none")
+        if info.data.get("method", "time_scaling") not in RETIMED:
+            raise ValueError(f"are time_scaling's and ruckig's; method {info.data['method']} reads none")
         robot = (info.context or {}).get("robot")
         if robot is None:
             return value
@@ -233,7 +235,7 @@ class CartesianPath(Planner):
         extra: dict = {}
         series: dict = {}
         fast: tuple = ()  # time_scaling's acceleration_limit violations
-        if task.method == "time_scaling":
+        if task.method in RETIMED:
             t, s, q, qd, sigma, held, extra, fast = self._time_scaled(task, robot, law, pose, twist, q0, dt,
                                                                       scenario.timing.hold)
             points, rotations = pose(s)
@@ -289,8 +291,9 @@ class CartesianPath(Planner):
     @classmethod
     def _time_scaled(cls, task: Task, robot, law, pose, twist, q0: np.ndarray, dt: float,
                      hold: float) -> tuple:
-        """time_scaling (path_retiming: pinv's joint path retimed by TOPP-RA): t, s, q, qd, sigma_min, the joints held
-        at a limit (N, dof), the report's slowdown and durations, and the joints past their acceleration limits."""
+        """time_scaling and ruckig (pinv's joint path retimed by TOPP-RA: path_retiming; with jerk limits by Ruckig:
+        jerk_retiming): t, s, q, qd, sigma_min, the joints held at a limit (N, dof), the report's slowdown and
+        durations, and the joints past their acceleration limits."""
         from simbench.planners.path_retiming import acceleration_violations, exact_ik, retime
 
         n = max(int(round(law.duration / dt)), 2) + 1
@@ -304,7 +307,13 @@ class CartesianPath(Planner):
         q, _ = exact_ik(robot, q, points, rotations, error_of)
         qdd_max = (np.array(task.acceleration_limits) if task.acceleration_limits is not None
                    else robot.qd_max / ACCEL_TIME)
-        t, s, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
+        if task.method == "ruckig":
+            from simbench.planners.jerk_retiming import default_jerk_limits, retime_jerk
+
+            t, s, q_spline, qd, duration = retime_jerk(grid, q, law, robot.qd_max, qdd_max,
+                                                       default_jerk_limits(qdd_max), dt, hold)
+        else:
+            t, s, q_spline, qd, duration = retime(grid, q, law, robot.qd_max, qdd_max, dt, hold)
         points, rotations = pose(s)
         q_plan, residual = exact_ik(robot, np.clip(q_spline, robot.lower, robot.upper), points, rotations,
                                     error_of)  # the spline may overshoot a limit its samples hold
@@ -395,6 +404,8 @@ _DESCRIPTION = {
             "(Whitney 1969)",
     "time_scaling": "pinv's joint path solved exactly on the path, retimed by TOPP-RA under the joints' speed and "
                     "acceleration limits (Pham and Pham 2018)",
+    "ruckig": "pinv's joint path solved exactly on the path, retimed under the joints' speed, acceleration and jerk "
+              "limits by Ruckig on the path parameter (Berscheid and Kroeger 2021)",
     "mink": "mink's differential-IK QP per control step along the path (joint ranges and speed limits as "
             "constraints)",
     "sns": "pseudo-inverse resolved rates with joints saturated in the null space and the task's twist scaled "

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.errors import RunError
-from simbench.planners.path_retiming import MARGIN, MAX_SLOWDOWN, _refuse_longer
+from simbench.planners.path_retiming import MARGIN, MAX_SLOWDOWN, refuse_longer
 from simbench.trajectory import control_grid
 
 JERK_TIME = 0.1  # s: jerk limits where the task gives none, each joint's acceleration limit reached in this time
@@ -68,7 +68,7 @@ def retime_jerk(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray,
     limits = _PathLimits(spline, MARGIN * np.asarray(qd_max, float), MARGIN * np.asarray(qdd_max, float),
                          MARGIN * np.asarray(jerk_max, float), caps)
     with np.errstate(divide="ignore"):  # at most the braking curve's speed: at least its time
-        _refuse_longer(float(np.sum(np.diff(s_grid) / limits.speed)), law.duration)
+        refuse_longer(float(np.sum(np.diff(s_grid) / limits.speed)), law.duration, "ruckig")
     otg = ruckig.Ruckig(1, dt)
     follow, out = ruckig.InputParameter(1), ruckig.OutputParameter(1)
     follow.control_interface = ruckig.ControlInterface.Velocity
@@ -95,7 +95,7 @@ def retime_jerk(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray,
         states.append((follow.current_position[0], follow.current_velocity[0], follow.current_acceleration[0]))
     else:
         duration = len(states) * dt
-    _refuse_longer(duration, law.duration)
+    refuse_longer(duration, law.duration, "ruckig")
     timed = np.array(states)
     if np.diff(timed[:, 0]).min() < -EPS or timed[:, 0].max() > 1.0 + EPS:
         raise RunError(f"ruckig: the jerk-limited timing of the joint path turns back (s up to "

@@ -55,7 +55,7 @@ DAMPING = 0.05  # dls's fixed lambda where the task gives none: LAMBDA_MAX, ever
 RCOND = 1e-12  # pinv: singular values below this share of the largest count as zero
 GRADIENT_GAIN = 10.0  # rad^2/s: gradient's K_W, the null-space rate per unit of w's gradient (w per rad)
 GRADIENT_STEP = 1e-6  # rad (or m): the central differences' step of w's gradient
-METHODS = ("dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradient", "priority")
+METHODS = ("dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradient", "priority", "ruckig")
 
 Rule = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, float, np.ndarray]]
 

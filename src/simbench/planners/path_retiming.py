@@ -94,7 +94,7 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
     if timed is None:
         raise RunError("time_scaling: TOPP-RA found no timing of the joint path within the joints' speed and "
                        "acceleration limits")
-    _refuse_longer(float(timed.duration), law.duration)
+    refuse_longer(float(timed.duration), law.duration, "time_scaling")
     excess = _excess(timed, dof, qd_max, max(PROBE * len(gridpoints), 2 * int(timed.duration / dt)))
     stretch = excess / MARGIN if excess > 1.0 else 1.0  # back to MARGIN of the limit where the grid let it pass
     for _ in range(STRETCHES):  # the same for the accelerations at the plan's samples, which rise as they densen
@@ -103,7 +103,7 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
             break
         stretch *= np.sqrt(share / MARGIN)
     duration = float(timed.duration) * stretch
-    _refuse_longer(duration, law.duration)
+    refuse_longer(duration, law.duration, "time_scaling")
     t = control_grid(duration, hold, dt)
     inside = np.minimum(t, duration) / stretch
     y, yd = timed(inside), timed(inside, 1) / stretch
@@ -114,9 +114,10 @@ def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_
     return t, s, path(s)[:, :dof], rates, duration
 
 
-def _refuse_longer(duration: float, asked: float) -> None:
+def refuse_longer(duration: float, asked: float, method: str) -> None:
+    """RunError naming `method` where a timing of `duration` s passes MAX_SLOWDOWN times the asked one."""
     if duration > MAX_SLOWDOWN * asked:
-        raise RunError(f"time_scaling: the joints' limits stretch the motion to {duration:.4g} s, more than "
+        raise RunError(f"{method}: the joints' limits stretch the motion to {duration:.4g} s, more than "
                        f"{MAX_SLOWDOWN:g} times the asked {asked:g} s")
 
 

@@ -158,7 +158,7 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
     n = len(points)
     q, qd, sigma, lam2 = np.empty((n, robot.dof)), np.empty((n, robot.dof)), np.empty(n), np.zeros(n)
     scale, held = np.ones(n), np.zeros((n, robot.dof), bool)
-    every = max(1, int(round(knot_step / dt)))  # control samples a knot step spans
+    every = max(1, round(knot_step / dt))  # control samples a knot step spans
     knots: list[int] = []
     now, k, damping, clear = q0.copy(), 0, False, False
     while k < n:
