@@ -82,15 +82,22 @@ def _sample(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation:
     twist's rows of Ju. Returns the rates, sigma_min, lambda^2, the joints held and the task's scale (sns's; else
     1)."""
     rows = len(twist)
-    at, turned, jac = pose_jacobian(robot, now[None])
-    error = (point - at[0]) / robot.reach
-    if rows > POSITION_ROWS:
-        error = np.concatenate([error, orientation_error(rotation, turned[0])])
-    ju = unit_jacobian(jac[0], robot.reach)[:rows]
+    error, ju = _error_and_jacobian(robot, now, point, rotation, rows)
     command, preference = twist + CLIK_SHARE / dt * error, _preference(robot, q0, now, rows, resolver)
     if resolver.bounded:
         return _bounded_rates(ju, command, now, preference, robot, dt)
     return *_clamped_rates(ju, command, now, preference, robot, dt, resolver.rule), 1.0
+
+
+def _error_and_jacobian(robot, now: np.ndarray, point: np.ndarray, rotation: np.ndarray,
+                        rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The unit-consistent error (rows,) of the tool at the joints `now` from (point, rotation) (task_error's) and
+    the task's rows of Ju there, from one kinematics pass."""
+    at, turned, jac = pose_jacobian(robot, now[None])
+    error = (point - at[0]) / robot.reach
+    if rows > POSITION_ROWS:
+        error = np.concatenate([error, orientation_error(rotation, turned[0])])
+    return error, unit_jacobian(jac[0], robot.reach)[:rows]
 
 
 def task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
@@ -203,11 +210,7 @@ def _knot(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: n
     path_retiming.exact_ik's), the rule's rates for the path's twist there (the error spent: no closed-loop term),
     sigma_min, and whether the rule damps there (a knot step is then not taken)."""
     rows = len(twist)
-    at, turned, jac = pose_jacobian(robot, now[None])
-    error = (point - at[0]) / robot.reach
-    if rows > POSITION_ROWS:
-        error = np.concatenate([error, orientation_error(rotation, turned[0])])
-    ju = unit_jacobian(jac[0], robot.reach)[:rows]
+    error, ju = _error_and_jacobian(robot, now, point, rotation, rows)
     step, sigma, _, _ = pinv_rates(ju, error)
     rates, _, lam2, null = resolver.rule(ju, twist)
     return now + step, rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
