@@ -60,7 +60,7 @@ def snapshot(env: control.Environment) -> Snapshot:
     return Snapshot(state=state, model=(model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator)),
                     randomised=randomised,
                     physics={"t0": physics.t0, "readings": physics.readings.copy()},
-                    task={name: copy.copy(getattr(task, name, None)) for name in _TASK},
+                    task={name: copy.copy(getattr(task, name)) for name in _TASK if hasattr(task, name)},
                     rows=rows, references=copy.deepcopy(task.references), warnings=list(task.warnings),
                     random=None if task._random is None else task._random.get_state(),
                     environment={"_step_count": env._step_count, "_reset_next_step": env._reset_next_step})
