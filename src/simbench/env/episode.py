@@ -284,12 +284,17 @@ class Track(control.Task):
         Raises:
             ValueError: The action is not one finite value per joint.
         """
-        action = np.asarray(action, dtype=float)
-        if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
-            raise ValueError(self._refusal(action))
+        action = self.checked(action)
         self._command = ctrl = np.zeros(physics.model.ptr.nu)  # zero but for the joints' actuators
         ctrl[self.plant.actuators] = action
         physics.data.ptr.ctrl[:] = ctrl
+
+    def checked(self, action: Any) -> Array:
+        """The action as floats; ValueError saying what is wrong where it is not one finite value per joint."""
+        action = np.asarray(action, dtype=float)
+        if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
+            raise ValueError(self._refusal(action))
+        return action
 
     def _refusal(self, action: Array) -> str:
         """What is wrong with an action."""

@@ -242,9 +242,7 @@ class RLTrack(Track):
         Raises:
             ValueError: The action is not one finite value a joint.
         """
-        action = np.asarray(action, dtype=float)
-        if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
-            raise ValueError(self._refusal(action))
+        action = self.checked(action)
         noise: Noise | None = self.rl.noise  # type: ignore[assignment]
         if noise is not None and noise.action > 0:
             action = action + self.noise_random.normal(0.0, noise.action, action.shape)
