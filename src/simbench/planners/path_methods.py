@@ -43,9 +43,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
-from scipy.linalg.lapack import dgesdd as _gesdd
 
 from simbench.robots.rank_loss import unit_jacobian
 
@@ -60,11 +60,19 @@ METHODS = ("dls_adaptive", "pinv", "dls", "time_scaling", "mink", "sns", "gradie
 Rule = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, float, np.ndarray]]
 
 
+@cache
+def _gesdd():
+    """LAPACK's dgesdd, SciPy imported on the first plan (not by validation or `simbench list`)."""
+    from scipy.linalg.lapack import dgesdd
+
+    return dgesdd
+
+
 def thin_svd(ju: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """U, S, V^T of one small matrix (the thin SVD), by LAPACK's dgesdd called directly: NumPy's svd wraps the same
     routine in a batched ufunc whose call costs more than a 6 x 6 decomposition, and the rules call it at every
     control sample. NumPy's where dgesdd does not converge (it raises LinAlgError)."""
-    u, sv, vt, info = _gesdd(ju, full_matrices=0)
+    u, sv, vt, info = _gesdd()(ju, full_matrices=0)
     if info != 0:
         return np.linalg.svd(ju, full_matrices=False)
     return u, sv, vt
