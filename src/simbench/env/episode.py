@@ -291,19 +291,14 @@ class Track(control.Task):
 
     def checked(self, action: Any) -> Array:
         """The action as floats; ValueError saying what is wrong where it is not one finite value per joint."""
-        action = np.asarray(action, dtype=float)
-        if action.shape != (self.plant.robot.dof,) or not np.isfinite(action).all():
-            raise ValueError(self._refusal(action))
-        return action
-
-    def _refusal(self, action: Array) -> str:
-        """What is wrong with an action."""
-        robot = self.plant.robot
+        action, robot = np.asarray(action, dtype=float), self.plant.robot
         if action.shape != (robot.dof,):
-            return (f"an action has one value per joint ({', '.join(robot.joints)}): shape ({robot.dof},) "
-                    f"expected, got {action.shape}")
-        bad = int(np.flatnonzero(~np.isfinite(action))[0])
-        return f"the action for joint '{robot.joints[bad]}' is {action[bad]}"
+            raise ValueError(f"an action has one value per joint ({', '.join(robot.joints)}): shape ({robot.dof},) "
+                             f"expected, got {action.shape}")
+        if not np.isfinite(action).all():
+            bad = int(np.flatnonzero(~np.isfinite(action))[0])
+            raise ValueError(f"the action for joint '{robot.joints[bad]}' is {action[bad]}")
+        return action
 
     def stretch(self, nstep: int) -> int:
         """How many of `nstep` physics steps run before the plan's end or its next switch, whichever comes first."""
