@@ -76,6 +76,7 @@ from simbench.planners.resolved_rates import (
     orientation_error,
     sigma_min,
     task_error,
+    tool_pose,
 )
 from simbench.rotations import axis_rotation, matrix_to_quat
 from simbench.schema import JointVector, Orientation, SimbenchModel, Units
@@ -250,9 +251,9 @@ class CartesianPath(Planner):
             extra = {"gradient_gain": GRADIENT_GAIN} if task.method == "gradient" else {}
             if task.method != "dls_adaptive":
                 series = {"plan_damping": np.sqrt(lam2), "plan_speed_scale": scale}
-        tool = robot.fk(q)
+        tool, tool_rotations = tool_pose(robot, q)
         off = path_deviation(points, tool)
-        turned = _angles(rotations, robot.tool_rotation(q)) if rows > POSITION_ROWS else None  # None: free
+        turned = _angles(rotations, tool_rotations) if rows > POSITION_ROWS else None  # None: free
         info = {"method": _DESCRIPTION[task.method],
                 "constants": {"epsilon": EPSILON, "lambda_max": LAMBDA_MAX, "clik_gain": CLIK_SHARE / dt,
                               "null_gain": NULL_GAIN if robot.dof > rows and task.method != "gradient" else None,

@@ -103,11 +103,19 @@ def _error_and_jacobian(robot, now: np.ndarray, point: np.ndarray, rotation: np.
 def task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
     """The unit-consistent error (N, rows) of the tool at q (N, dof) from points, rotations (cartesian_path's e_k): the
     point's / L, then, on a task of 6 rows, the orientation's (eq. 3.85)."""
-    at, turned = robot.pose(q) if hasattr(robot, "pose") else (robot.fk(q), robot.tool_rotation(q))
+    at, turned = tool_pose(robot, q)
     position = (points - at) / robot.reach
     if rows == POSITION_ROWS:
         return position
     return np.hstack([position, orientation_error(rotations, turned)])
+
+
+def tool_pose(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The tool point (N, 3) and its rotation (N, 3, 3) at q (N, dof): from one kinematics pass where the robot offers
+    one (robots.model_arm.ModelArm.pose), else from its fk and tool_rotation."""
+    if hasattr(robot, "pose"):
+        return robot.pose(q)
+    return robot.fk(q), robot.tool_rotation(q)
 
 
 def pose_jacobian(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
