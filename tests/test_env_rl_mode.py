@@ -104,6 +104,21 @@ def test_a_residual_action_shifts_the_servos_target_by_its_scale():
         np.testing.assert_allclose(shift[:, act], per_joint * actions, rtol=0, atol=1e-12)
 
 
+def test_a_residual_of_the_reference_shifts_the_plans_reference_itself():
+    """residual_of='reference': every physics step's target is the plan's reference at that step (its sample,
+    read from the plan, not from the environment) plus scale * action."""
+    env = rl_env("puma600", "line", {"residual": True, "residual_of": "reference"})
+    plan, act = env.task.plan, env.task.plant.actuators
+    actions = np.random.default_rng(1).uniform(-1, 1, (4, 6))
+    env.reset()
+    for action in actions:
+        env.step(action)
+    ctrl = simbench_env.recording(env).ctrl
+    substeps = round(env.control_timestep() / env.physics.timestep())
+    for k in range(len(actions) * substeps):
+        np.testing.assert_allclose(ctrl[k, act], plan.q_ref[k] + 0.05 * actions[k // substeps], rtol=0, atol=1e-12)
+
+
 # --- the reward --------------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("reward, width", [("gaussian", 0.02), ("shaped", 0.02), ("gaussian", 0.01)])
@@ -371,6 +386,7 @@ def test_a_snapshot_replays_an_rl_episode_with_noise_and_a_delay():
 @pytest.mark.parametrize("rl, kwargs, message", [
     ({"control_timestep": 0.005}, {}, "rl control_timestep: 0.01 to 0.04 s expected, got 0.005"),
     ({"reward": "sparse"}, {}, "rl reward: 'gaussian' or 'shaped' expected"),
+    ({"residual": True, "residual_of": "plan"}, {}, "rl residual_of: 'servo' or 'reference' expected"),
     ({"width": 0}, {}, "rl width: a distance > 0"),
     ({"randomise": {"mass": (1.2, 0.8)}}, {}, "rl randomise.mass: a range"),
     ({"randomise": {"delay": (0, 1.5)}}, {}, "rl randomise.delay: a range (low, high) of whole numbers"),

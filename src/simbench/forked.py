@@ -8,6 +8,8 @@ import gc
 import os
 import pickle
 import signal
+import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from typing import Any, NoReturn
@@ -99,3 +101,26 @@ def _sendable(err: BaseException) -> BaseException:
     except Exception:
         return RunError(f"drawing the plots raised {described(err)}")
     return err
+
+
+_WATCH = 0.2  # s: how often a worker looks whether its parent is still there
+
+
+def die_with(parent: int) -> None:
+    """End this process as soon as its parent is gone (SIGKILL included), so that no worker outlives its sweep
+    holding the folder's lock (or its environment). A thread watches getppid(): the pipe cannot tell (later workers hold copies of its
+    parent end), and PR_SET_PDEATHSIG crashed forked workers of a threaded parent."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(_WATCH)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="simbench-parent-watch", daemon=True).start()
+
+
+def as_worker() -> None:
+    """Signals in a worker: Ctrl-C ignored (the parent answers it), SIGTERM the end at once (the inherited handler
+    would raise a traceback in a waiting worker)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -44,7 +44,8 @@ from dm_control.rl import control  # noqa: E402
 from dm_env import TimeStep  # noqa: E402
 
 from simbench import budget  # noqa: E402
-from simbench.env.episode import CONTINUOUS_SPAN, Physics, Track, track_of  # noqa: E402
+from simbench.env.bounds import CONTINUOUS_SPAN  # noqa: E402
+from simbench.env.episode import Physics, Track, track_of  # noqa: E402
 from simbench.env.replay import Snapshot, restore, servo_policy, snapshot  # noqa: E402
 from simbench.errors import RunError  # noqa: E402
 from simbench.fitting import fit  # noqa: E402
@@ -151,7 +152,8 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
     Args:
         scenario: A Scenario, or the path of a scenario file.
         task_kwargs: What makes the task: `random` (a seed or a RandomState: a new random task at each reset),
-            `actuation`, `task` (a subclass of Track, for a reward or observation of your own) and that class's
+            `pool` (with `random`: each reset takes one of this many random tasks planned ahead in a background
+            process, `simbench.env.task_pool`), `actuation`, `task` (a subclass of Track, for a reward or observation of your own) and that class's
             own arguments, and `rl`: the RL mode (`simbench.env.rl_mode`: 20 ms control steps, actions in
             [-1, 1]) as True (its defaults), a dict of `rl_mode.RL`'s fields or an `RL`; None or False: none.
         environment_kwargs: What goes to `control.Environment`: `control_timestep` or `n_sub_steps`,

@@ -9,7 +9,6 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from dm_control import mujoco as dm_mujoco
 from dm_control.mujoco import wrapper
 from dm_control.rl import control
 from dm_env import specs
@@ -17,7 +16,10 @@ from dm_env import specs
 from simbench.api import Array, JointTrajectory, State
 from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
+from simbench.env.bounds import action_bounds, joint_bounds
+from simbench.env.pixels import FittedRendering
 from simbench.env.substeps import in_c
+from simbench.env.task_pool import TaskPool
 from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
 from simbench.observation import observation
 from simbench.plant import Plant
@@ -30,8 +32,9 @@ _REWARD_AT_TOLERANCE = 0.5  # the reward when the tool is analysis.path_toleranc
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
-class Physics(dm_mujoco.Physics):
-    """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop.
+class Physics(FittedRendering):
+    """dm_control's Physics of a simbench scene, stepped and checked as simbench's closed loop, its frames at their
+    own size's cost (`simbench.env.pixels`).
 
     Attributes:
         readings: The sensors of the last step, at its start state.
@@ -142,21 +145,31 @@ class Track(control.Task):
         physics: The environment's physics.
         random: A seed or a RandomState (dm_control's `base.Task` convention): each reset then draws a new task
             for the robot from it. None: the scenario's own task every time.
+        pool: With `random`: each reset takes one of this many random tasks planned ahead in a background process
+            (`simbench.env.task_pool`) rather than planning its own. None: a plan at every reset.
 
     Attributes:
         failure: Why the physics ended the episode; None while it is sound.
+        base_scenario: The scenario the environment was made of (`scenario` is the episode's: a random task's).
+        pool: The pool of random tasks, made at the first reset (None before, and without `pool`).
 
     Raises:
         TypeError: `random` is neither a seed nor a RandomState.
+        ValueError: A `pool` without `random`, or not a count >= 1.
     """
 
     def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
-                 random: int | np.random.RandomState | None = None):
+                 random: int | np.random.RandomState | None = None, pool: int | None = None):
         super().__init__()
         if isinstance(random, bool) or not isinstance(random, (type(None), int, np.integer, np.random.RandomState)):
             raise TypeError("random must be a seed (an int) or a numpy.random.RandomState, got "
                             f"{type(random).__name__}")
-        self.scenario, self.plant, self.actuation = scenario, plant, plant.actuation
+        if pool is not None and (random is None or isinstance(pool, bool) or not isinstance(pool, (int, np.integer))
+                                 or pool < 1):
+            raise ValueError(f"pool: a number of random tasks >= 1, with random set, expected; got {pool!r}")
+        self.scenario = self.base_scenario = scenario
+        self.plant, self.actuation, self.pool_size = plant, plant.actuation, pool
+        self.pool: TaskPool | None = None
         self.random = random if random is None or isinstance(random, np.random.RandomState) \
             else np.random.RandomState(random)
         physics.track = self
@@ -226,6 +239,9 @@ class Track(control.Task):
     def _random(self, value: np.random.RandomState) -> None:
         if self.random is not None:  # a seed reseeds random tasks; without them, the scenario's task stays
             self.random = value
+            if self.pool is not None:  # its tasks were seeded by the old state
+                self.pool.close()
+                self.pool = None
 
     @property
     def q_ref(self) -> Array:
@@ -253,6 +269,9 @@ class Track(control.Task):
         model.opt.disableactuator = self._model0[2]
         if self.random is not None:
             from simbench.env.random_task import draw
+            if self.pool_size and self.pool is None:
+                self.pool = TaskPool(self.base_scenario, self.target_bounds, self.dt, self.pool_size,
+                                     int(self.random.randint(2**31)))
             self._use(*draw(self))
         mujoco.mj_resetData(model, data)
         mujoco.mj_setState(model, data, self._start, _FULL)
@@ -459,41 +478,9 @@ class Track(control.Task):
                          self._qvel[:rows], self._eq[:rows].copy(), ctrl, self.warnings, **revised)
 
 
-CONTINUOUS_SPAN = {mujoco.mjtJoint.mjJNT_HINGE: np.pi, mujoco.mjtJoint.mjJNT_SLIDE: 0.1}
-"""How far (rad for a hinge, m for a slide) a joint without a range may be commanded beyond the plan's span."""
-
-
 def track_of(env: control.Environment) -> Track:
     """The Track task of an environment of `simbench.env.load`; TypeError for any other environment."""
     task = getattr(env, "task", None)
     if not isinstance(task, Track):
         raise TypeError(f"expected an environment of simbench.env.load, got {type(env).__name__}")
     return task
-
-
-def action_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:
-    """Each joint's action bounds: under position actuation its range (a joint with none: the plan's span
-    widened by CONTINUOUS_SPAN either side), under torque +-its force limit; within the actuator's control range
-    where it has one."""
-    act = plant.actuators
-    if plant.actuation == "torque":
-        limit = plant.force_limit()
-        lo, hi = -limit, limit
-    else:
-        lo, hi = joint_bounds(model, plant, plan)
-    ctrl = model.actuator_ctrllimited[act].astype(bool)
-    lo = np.where(ctrl, np.maximum(lo, model.actuator_ctrlrange[act, 0]), lo)
-    hi = np.where(ctrl, np.minimum(hi, model.actuator_ctrlrange[act, 1]), hi)
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        raise ValueError(f"the {plant.robot.name}'s actuators have no force limits: a torque action needs them")
-    return lo.astype(float), hi.astype(float)
-
-
-def joint_bounds(model: mujoco.MjModel, plant: Plant, plan: JointTrajectory) -> tuple[Array, Array]:
-    """Each joint's range; a joint with none: the plan's span widened by CONTINUOUS_SPAN either side."""
-    jnt = model.actuator_trnid[plant.actuators, 0]
-    span = np.array([CONTINUOUS_SPAN[mujoco.mjtJoint(t)] for t in model.jnt_type[jnt]])
-    limited = model.jnt_limited[jnt].astype(bool)
-    lo = np.where(limited, model.jnt_range[jnt, 0], plan.q_ref.min(axis=0) - span)
-    hi = np.where(limited, model.jnt_range[jnt, 1], plan.q_ref.max(axis=0) + span)
-    return lo, hi

@@ -21,11 +21,13 @@ from simbench.schema import Units
 from simbench.switches import at_start
 
 if TYPE_CHECKING:
+    from simbench.api import Array
     from simbench.env.episode import Track
     from simbench.trajectory import JointTrajectory
 
 MARGIN = 0.05  # of each joint's span, kept clear of its bounds
-TRIES = 20  # draws before giving up on a robot whose random tasks cannot be planned
+TRIES = 100  # draws before giving up on a robot whose random tasks cannot be planned (a PUMA line is plannable in
+# about 1 draw of 6: 20 draws failed about 1 reset in 40)
 RANDOM_TURNS = 6  # how much further (turns, either side) the planner's own random tasks may take a hinge without a
 # range than the shipped plan: the RSMG's random rotor motions turn at most 5 times (rsmg_contacts.random_motion)
 
@@ -73,12 +75,10 @@ def _own(scenario: Scenario, sections: dict[str, Any]) -> Scenario:
     return drawn
 
 
-def _joint_move(track: Track) -> Scenario:
-    """The scenario turned into a random joint move within the position targets' bounds (under torque actuation
+def _joint_move(scenario: Scenario, bounds: tuple[Array, Array], random: np.random.RandomState) -> Scenario:
+    """The scenario turned into a random joint move within the position targets' `bounds` (under torque actuation
     too)."""
-    scenario, random = track.scenario, track.random
-    assert random is not None, "a Track made with random"
-    lo, hi = track.target_bounds
+    lo, hi = bounds
     margin = MARGIN * (hi - lo)
     start, goal = (random.uniform(lo + margin, hi - margin) for _ in range(2))
     fields = {name: getattr(scenario, name) for name in Scenario.model_fields}
@@ -89,20 +89,35 @@ def _joint_move(track: Track) -> Scenario:
     return drawn
 
 
-def draw(track: Track) -> tuple[JointTrajectory, mujoco.MjData]:
-    """A random task's plan from track.random, and the data posed at its start (switches.at_start)."""
-    scenario, plant, random = track.scenario, track.plant, track.random
-    assert random is not None, "a Track made with random"
+def plan_random(scenario: Scenario, bounds: tuple[Array, Array], dt: float,
+                random: np.random.RandomState) -> tuple[Scenario, JointTrajectory]:
+    """A random task of the scenario's robot drawn from `random` and planned at `dt`: its scenario and plan, the
+    references within the position targets' `bounds`.
+
+    Raises:
+        RunError: No draw of TRIES could be planned.
+    """
     robot = scenario.robot_def
+    lo, hi = bounds
     for _ in range(TRIES):
         sections = scenario.planner_def.random_task(robot, random)
         try:
-            drawn = _joint_move(track) if sections is None else _own(scenario, sections)
-            plan = drawn.planner_def.plan(drawn, robot, track.dt)
+            drawn = _joint_move(scenario, bounds, random) if sections is None else _own(scenario, sections)
+            plan = drawn.planner_def.plan(drawn, robot, dt)
         except (RunError, ScenarioError, ValueError):
             continue
-        lo, hi = track.target_bounds
         if np.isfinite(plan.tool_ref).all() and (plan.q_ref >= lo).all() and (plan.q_ref <= hi).all():
-            track.scenario = drawn
-            return plan, at_start(plant, plan)[1]
+            return drawn, plan
     raise RunError(f"no random task of the {robot.name} could be planned in {TRIES} draws")
+
+
+def draw(track: Track) -> tuple[JointTrajectory, mujoco.MjData]:
+    """A random task's plan from track.random (or the track's pool), and the data posed at its start
+    (switches.at_start); track.scenario becomes the task's."""
+    assert track.random is not None, "a Track made with random"
+    if track.pool is not None:
+        drawn, plan = track.pool.take(track.random)
+    else:
+        drawn, plan = plan_random(track.base_scenario, track.target_bounds, track.dt, track.random)
+    track.scenario = drawn
+    return plan, at_start(track.plant, plan)[1]

@@ -11,7 +11,8 @@ as it is: physics-step control, actions in the joints' own units, a reward 0.5 a
   position actuation): the servo's target for the plan's reference (as its feedback revised it) shifted by
   `scale * action` within the actuator's control range, `scale` per joint (`residual_scale`; by default
   RESIDUAL_SCALE by joint type: 0.05 rad, 0.01 m), the target updated every physics step as the servo updates it,
-  so that the action 0 is simbench's servo exactly.
+  so that the action 0 is simbench's servo exactly; with `residual_of="reference"`, the reference itself shifted
+  (target = reference + scale * action: the action 0 lags the path as a bare position servo does).
 - **Reward** of the tool's distance d from its reference, `width` 20 mm by default: `gaussian` (the default),
   `0.5 ** ((d / width) ** 2)`, dm_control's gaussian `rewards.tolerance` with 0.5 at d = width; `shaped`,
   `exp(-d / width)` (0.37 at d = width), dense: it still rises towards the path from afar. Either is 0 once the
@@ -54,7 +55,9 @@ class RL:
 
     Attributes:
         control_timestep: The control step (s), within CONTROL_TIMESTEPS.
-        residual: Whether an action shifts the servo's target (else it is the target or force itself).
+        residual: Whether an action shifts a target (else it is the target or force itself).
+        residual_of: What a residual action shifts: `servo`, the servo's target (the action 0 is simbench's servo),
+            or `reference`, the plan's reference itself (the action 0 lags it as a bare position servo does).
         residual_scale: The shift at an action of 1, one a joint or one for all (rad or m); None: RESIDUAL_SCALE.
         reward: `gaussian` or `shaped`.
         width: The reward's width (m).
@@ -67,6 +70,7 @@ class RL:
 
     control_timestep: float = 0.02
     residual: bool = False
+    residual_of: Literal["servo", "reference"] = "servo"
     residual_scale: float | tuple[float, ...] | None = None
     reward: Literal["gaussian", "shaped"] = "gaussian"
     width: float = 0.02
@@ -79,6 +83,8 @@ class RL:
         lo, hi = CONTROL_TIMESTEPS
         if not (isinstance(self.control_timestep, (int, float)) and lo - 1e-12 <= self.control_timestep <= hi + 1e-12):
             raise ValueError(f"rl control_timestep: {lo:g} to {hi:g} s expected, got {self.control_timestep!r}")
+        if self.residual_of not in ("servo", "reference"):
+            raise ValueError(f"rl residual_of: 'servo' or 'reference' expected, got {self.residual_of!r}")
         if self.reward not in ("gaussian", "shaped"):
             raise ValueError(f"rl reward: 'gaussian' or 'shaped' expected, got {self.reward!r}")
         if not (isinstance(self.width, (int, float)) and np.isfinite(self.width) and self.width > 0):
@@ -149,6 +155,7 @@ class RLTrack(Track):
         physics: The environment's physics.
         random: As Track's: a seed or a RandomState for random tasks at each reset.
         rl: The settings; None: the defaults.
+        pool: As Track's: random tasks planned ahead.
 
     Attributes:
         rl: The settings.
@@ -160,12 +167,12 @@ class RLTrack(Track):
     """
 
     def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
-                 random: int | np.random.RandomState | None = None, rl: RL | None = None):
+                 random: int | np.random.RandomState | None = None, rl: RL | None = None, pool: int | None = None):
         self.rl = rl = rl if rl is not None else RL()
         if rl.residual and plant.actuation != "position":
             raise ValueError("rl residual: a residual action shifts the servo's position target; load the task "
                              "with position actuation")
-        super().__init__(scenario, plant, plan, physics, random)
+        super().__init__(scenario, plant, plan, physics, random, pool)
         model = physics.model.ptr
         self._tolerance = rl.width  # Track.get_reward's width: the gaussian reward
         self._scale = self._residual_scale(model, plant)
@@ -202,8 +209,7 @@ class RLTrack(Track):
     @_random.setter
     def _random(self, value: np.random.RandomState) -> None:
         self.noise_random = value
-        if self.random is not None:
-            self.random = value
+        Track._random.fset(self, value)  # type: ignore[attr-defined]
 
     def initialize_episode(self, physics: Physics) -> None:
         """Draw the randomisation (if any), start the episode as Track does, and fill the delay with the action
@@ -275,9 +281,18 @@ class RLTrack(Track):
         if refs is not self.q_ref or not first <= k <= k + steps <= first + len(targets):
             # up to the next switch, after which the plan's feedback may revise the references (in place)
             stop = max(min((s for s in self._switches if s > k), default=self.n - 1), k + steps)
-            first, targets = k, self._servo.targets(self.q_ref[k:stop], self.qd_ref[k:stop])
+            first, targets = k, self._residual_base(k, stop)
             self._targets = (self.q_ref, first, targets)
         return np.clip(targets[k - first:k - first + steps] + self._command, *self._ctrl_range)
+
+    def _residual_base(self, start: int, stop: int) -> Array:
+        """What a residual action shifts at samples start to stop (stop - start, nu): the servo's targets for the
+        references, or the references themselves (`residual_of`)."""
+        if self.rl.residual_of == "servo":
+            return self._servo.targets(self.q_ref[start:stop], self.qd_ref[start:stop])
+        base = np.zeros((stop - start, self.plant.model.nu))
+        base[:, self.plant.actuators] = self.q_ref[start:stop]
+        return base
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
         """One value a joint in [-1, 1], float32 where the settings say so.

@@ -9,8 +9,6 @@ from __future__ import annotations
 import functools
 import multiprocessing
 import os
-import signal
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
@@ -19,7 +17,7 @@ from typing import Any, NamedTuple
 
 from simbench.errors import RunError, ScenarioError, TooSlow
 from simbench.figures import columns
-from simbench.forked import parents_heap_frozen
+from simbench.forked import as_worker, die_with, parents_heap_frozen
 from simbench.plant import reused_plants
 
 # Report keys that describe the run rather than measure it.
@@ -28,7 +26,6 @@ _NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duratio
 
 Task = tuple[int, dict]  # (run index, keyword arguments of run_variant)
 OnStage = Callable[[int, str], None]  # told (run index, stage) as a run enters a stage (pipeline.watched)
-_WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 
 class Stage(NamedTuple):
@@ -188,30 +185,10 @@ class _Worker:
         return self.process.exitcode
 
 
-def _die_with(parent: int) -> None:
-    """End this process as soon as its parent is gone (SIGKILL included), so that no worker outlives its sweep
-    holding the folder's lock. A thread watches getppid(): the pipe cannot tell (later workers hold copies of its
-    parent end), and PR_SET_PDEATHSIG crashed forked workers of a threaded parent."""
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(_WATCH)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="simbench-parent-watch", daemon=True).start()
-
-
-def as_worker() -> None:
-    """Signals in a worker: Ctrl-C ignored (the parent answers it), SIGTERM the end at once (the inherited handler
-    would raise a traceback in a waiting worker)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def _serve(conn, parent: int) -> None:
     """A worker's loop: run each variant received until the pipe closes, reusing the Plant of the run before; each
     stage a run enters sent before its outcome."""
-    _die_with(parent)
+    die_with(parent)
     as_worker()
     from simbench import pipeline
 

@@ -1,0 +1,49 @@
+"""Frames of an environment at the cost of their own size: the GL buffers sized to the largest frame asked so far,
+not to the scene file's (simbench's scenes ask for a 1920x1080 buffer and a 4096 shadow map, for videos).
+
+dm_control makes a physics' GL context once, with the model's `offwidth` x `offheight` offscreen buffer and its
+`shadowsize` shadow map; on a CPU renderer (Mesa llvmpipe) both cost time in every frame, however small the frame
+(an 84x84 frame of the PUMA about 2.5 times its fitted cost). Here the context is made for the frames asked: the
+buffer as large as the largest frame so far, the shadow map SHADOW_TEXELS texels a pixel of its longer side (a
+power of two), each at most the file's; a larger frame remakes the context. The model's own settings are left as
+the file has them (a video made from the same model renders as before).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from dm_control.mujoco import engine
+
+SHADOW_TEXELS = 3
+"""Shadow-map texels a pixel of the largest frame's longer side (dm_control's reacher: 2048 for 640x480)."""
+
+
+class FittedRendering(engine.Physics):
+    """dm_control's Physics whose GL context fits the frames it renders (the module's docstring says how)."""
+
+    _fitted: tuple[int, int, int] | None = None  # the buffer's width and height and the shadow map's size
+
+    def render(self, height: int = 240, width: int = 320, *args: Any, **kwargs: Any):
+        """dm_control's render (same arguments), the GL context first fitted to the frame."""
+        self._fit(int(width), int(height))
+        return super().render(height, width, *args, **kwargs)
+
+    def _fit(self, width: int, height: int) -> None:
+        """Remake the GL context if this frame needs a larger buffer or shadow map than the one it has."""
+        vis = self.model.ptr.vis
+        ceiling = (vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize)
+        old = self._fitted or (0, 0, 0)
+        wide, high = min(max(width, old[0]), ceiling[0]), min(max(height, old[1]), ceiling[1])
+        shadow = min(ceiling[2], 1 << max(0, SHADOW_TEXELS * max(wide, high) - 1).bit_length()) if ceiling[2] else 0
+        if self._fitted is not None and (wide, high, shadow) == old:
+            return
+        with self._contexts_lock:
+            if self._contexts:
+                self._free_rendering_contexts()
+            vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize = wide, high, shadow
+            try:
+                self._make_rendering_contexts()
+            finally:
+                vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize = ceiling
+        self._fitted = (wide, high, shadow)
