@@ -5,8 +5,6 @@ fatal warnings (a state blown up, a buffer overflowed) and any speed above MAX_S
 
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import mujoco
 import numpy as np
 
@@ -24,15 +22,20 @@ class Fault(Exception):
         self.cause = cause
 
 
-@contextmanager
-def quiet_mujoco():
-    """Silence MuJoCo's printing of warnings (and its MUJOCO_LOG.TXT): simbench reads them from the data."""
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda message: None)
-    try:
-        yield
-    finally:
-        mujoco.set_mju_user_warning(previous)
+def _ignore(message: str) -> None:
+    """MuJoCo's warning printer while it is kept quiet."""
+
+
+class quiet_mujoco:  # used as a function: `with quiet_mujoco():`
+    """Silence MuJoCo's printing of warnings (and its MUJOCO_LOG.TXT) inside a `with` block: simbench reads them
+    from the data. A class, not a generator: an environment enters one every control step."""
+
+    def __enter__(self) -> None:
+        self._previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(_ignore)
+
+    def __exit__(self, *exc: object) -> None:
+        mujoco.set_mju_user_warning(self._previous)
 
 
 def warnings_raised(data: mujoco.MjData) -> list[int]:

@@ -50,18 +50,16 @@ def in_c(physics: Physics, commands: Array) -> bool:
     if physics.counts.any():
         return False
     steps = len(commands)
-    start = np.empty((1, mujoco.mj_stateSize(model, FULL)))
+    start, states, sensors, speeds = _buffers(physics, steps)
     mujoco.mj_getState(model, data, start[0], FULL)
     warmstart = data.qacc_warmstart[None].copy()
-    states = np.empty((1, steps, start.shape[1]))
-    sensors = np.empty((1, steps, model.nsensordata))
     try:
         _rollout().rollout([model], [data], start, np.ascontiguousarray(commands, dtype=float)[None],
                            control_spec=_CTRL, skip_checks=True, nstep=steps, initial_warmstart=warmstart,
                            state=states, sensordata=sensors)
         mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
         # the Python loop's own test of a step (NaN fails the comparison), over every step at once
-        speed = np.abs(states[0, :, state_slices(model)[1]]).max(initial=0.0)
+        speed = np.abs(states[0, :, speeds]).max(initial=0.0)
         sound = not physics.counts.any() and speed <= MAX_SPEED
     except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
         sound = False
@@ -74,3 +72,15 @@ def in_c(physics: Physics, commands: Array) -> bool:
     physics.readings = sensors[0, -1].copy()
     physics.track.record_steps(physics, states[0], sensors[0], commands)
     return True
+
+
+def _buffers(physics: Physics, steps: int) -> tuple[Array, Array, Array, slice]:
+    """What a rollout of `steps` writes into (the start state, the states, the sensors), made once a stretch
+    length and kept on the physics (what it records is copied out of them), and where the speeds sit in a state."""
+    made = physics.__dict__.setdefault("_c_buffers", {})
+    if steps not in made:
+        model = physics.model.ptr
+        size = mujoco.mj_stateSize(model, FULL)
+        made[steps] = (np.empty((1, size)), np.empty((1, steps, size)), np.empty((1, steps, model.nsensordata)),
+                       state_slices(model)[1])
+    return made[steps]

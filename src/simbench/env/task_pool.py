@@ -64,6 +64,15 @@ class TaskPool:
         assert task is not None
         return task
 
+    def fill(self) -> None:
+        """Wait until every task is planned (a reset then never waits).
+
+        Raises:
+            RunError: As `take`.
+        """
+        while None in self._tasks:
+            self._receive()
+
     def _receive(self) -> None:
         """Wait for the next task the process sends, starting the process if none is planning."""
         if self._process is None:
