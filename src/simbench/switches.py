@@ -47,6 +47,13 @@ def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoc
     """The model (a copy if the plan switches), data posed at the plan's start, and each switch's step."""
     model = copy.copy(plant.model) if traj.switches else plant.model
     data = mujoco.MjData(model)
+    return model, data, pose_start(plant, traj, model, data)
+
+
+def pose_start(plant: Plant, traj: JointTrajectory, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """Pose `data` (reset first) at the plan's start, the switches of its step 0 applied to `model` (the plant's
+    model or a copy of it, edited in place); each switch's step."""
+    mujoco.mj_resetData(model, data)
     data.qpos[:] = plant.initial_qpos(traj.q_ref[0])
     for name, value in traj.initial.items():
         adr = model.joint(name).qposadr[0]
@@ -54,4 +61,4 @@ def at_start(plant: Plant, traj: JointTrajectory) -> tuple[mujoco.MjModel, mujoc
     steps = switch_steps(model, traj)
     for switch in (w for w, k in zip(traj.switches, steps) if k == 0):
         apply_switch(model, data, switch)
-    return model, data, steps
+    return steps

@@ -272,7 +272,7 @@ class Track(control.Task):
             if self.pool_size and self.pool is None:
                 self.pool = TaskPool(self.base_scenario, self.target_bounds, self.dt, self.pool_size,
                                      int(self.random.randint(2**31)))
-            self._use(*draw(self))
+            self._use(*draw(self, model, data))
         mujoco.mj_resetData(model, data)
         mujoco.mj_setState(model, data, self._start, _FULL)
         data.eq_active[:] = self._eq_active

@@ -18,7 +18,7 @@ from simbench import registry
 from simbench.errors import RunError, ScenarioError
 from simbench.scenario import Scenario, _scenario_class
 from simbench.schema import Units
-from simbench.switches import at_start
+from simbench.switches import pose_start
 
 if TYPE_CHECKING:
     from simbench.api import Array
@@ -111,13 +111,14 @@ def plan_random(scenario: Scenario, bounds: tuple[Array, Array], dt: float,
     raise RunError(f"no random task of the {robot.name} could be planned in {TRIES} draws")
 
 
-def draw(track: Track) -> tuple[JointTrajectory, mujoco.MjData]:
-    """A random task's plan from track.random (or the track's pool), and the data posed at its start
-    (switches.at_start); track.scenario becomes the task's."""
+def draw(track: Track, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[JointTrajectory, mujoco.MjData]:
+    """A random task's plan from track.random (or the track's pool), and `data` posed at its start, the switches
+    of its step 0 applied to `model` (the environment's: switches.pose_start); track.scenario becomes the task's."""
     assert track.random is not None, "a Track made with random"
     if track.pool is not None:
         drawn, plan = track.pool.take(track.random)
     else:
         drawn, plan = plan_random(track.base_scenario, track.target_bounds, track.dt, track.random)
     track.scenario = drawn
-    return plan, at_start(track.plant, plan)[1]
+    pose_start(track.plant, plan, model, data)
+    return plan, data
