@@ -353,7 +353,8 @@ class Track(control.Task):
             self.warnings += warning_rows(data, physics.t0)
         self._reached(physics)
 
-    def record_steps(self, physics: Physics, states: Array, sensors: Array, commands: Array) -> None:
+    def record_steps(self, physics: Physics, states: Array, sensors: Array, commands: Array,
+                     slices: tuple[slice, slice] | None = None) -> None:
         """Record physics steps that ran without a warning, as `record` records each.
 
         Args:
@@ -361,8 +362,9 @@ class Track(control.Task):
             states: Each step's full physics state after it (steps, nstate).
             sensors: Each step's sensors, at the state it started from (steps, nsensordata).
             commands: Each step's command (steps, nu).
+            slices: Where qpos and qvel sit in a state (stepping.state_slices), if the caller has them.
         """
-        qpos, qvel = state_slices(physics.model.ptr)
+        qpos, qvel = slices or state_slices(physics.model.ptr)
         first, stop = self.k, self.k + len(commands)
         self._readings[first:stop], self._ctrl[first:stop] = sensors, commands
         self._qpos[first + 1:stop + 1], self._qvel[first + 1:stop + 1] = states[:, qpos], states[:, qvel]
