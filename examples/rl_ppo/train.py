@@ -2,21 +2,23 @@
 
     pip install -e '.[rl,train]'
     python examples/rl_ppo/train.py                                   # puma600/line, seed 0, 300k steps
-    python examples/rl_ppo/train.py --task agile_eye/through_singularity --seeds 0 1 2 --out renders/rl_ppo_eye
+    python examples/rl_ppo/train.py --task agile_eye/avoidance --seeds 0 1 2 --out renders/rl_ppo_eye
 
-The environment is `gymnasium.make("simbench/<robot>-<task>-v0", rl=...)`: 20 ms control steps, residual actions
-in [-1, 1] (the servo's target shifted by 0.05 rad at an action of 1, so that the action 0 is simbench's own
-servo), the gaussian reward of the tool's distance from its reference (0.5 at 20 mm), float32, the observation
-flattened (Gymnasium's FlattenObservation). PPO runs with stable-baselines3's defaults but for the policy's initial spread (`--log-std-init`),
-behind VecNormalize (observations only). Every `--eval-every` steps the policy, made deterministic, runs one
-episode on an evaluation copy; its return is the curve.
+The environment is `gymnasium.make("simbench/<robot>-<task>-v0", rl=RL)`: 20 ms control steps, residual actions in
+[-1, 1] of the plan's reference (each joint's target is its reference shifted by 0.05 rad at an action of 1: the
+action 0 is a bare position servo, which lags the path), the gaussian reward of the tool's distance from its
+reference (0.5 at 5 mm), float32, the observation flattened (Gymnasium's FlattenObservation); `--rl` takes other
+settings. PPO runs with stable-baselines3's defaults but for the policy's initial spread (`--log-std-init`) and a
+learning rate falling linearly to 0 over the run (`--learning-rate` at the start; at a constant rate, PPO drifted
+off the servo's return after 200k steps), behind VecNormalize (observations only). Every `--eval-every` steps the
+policy, made deterministic, runs one episode on an evaluation copy; its return is the curve.
 
-Beside the curve, two references on the same reward: the servo's return (the action 0 throughout: the shipped
-controller) and a random policy's (uniform actions, the mean of `--random-episodes` episodes).
+Beside the curve, on the same reward: the servo's return (simbench's servo: the residual of the servo's target at
+0), the action 0's, and a random policy's (uniform actions, the mean of `--random-episodes` episodes).
 
 Writes into --out (default renders/rl_ppo/<robot>-<task>/): curve.csv (seed, steps, return), references.json (the
-servo's and the random policy's returns, the settings, each seed's best return and the first step it reached
-0.8 of the servo's), curve.png (every seed's curve with the two references).
+settings, the three returns, the target: 0.8 of the servo's, and each seed's best and final returns, the first
+step at the target and its wall time), curve.png (every seed's curve with the references).
 """
 
 from __future__ import annotations
@@ -70,7 +72,8 @@ def references(task: str, rl: dict, episodes: int) -> dict[str, float]:
                                      for k in range(episodes)]))}
 
 
-def train(task: str, rl: dict, seed: int, steps: int, eval_every: int, log_std_init: float) -> list[tuple[int, float]]:
+def train(task: str, rl: dict, seed: int, steps: int, eval_every: int, log_std_init: float,
+          learning_rate: float) -> list[tuple[int, float]]:
     """PPO on the task from `seed`: (steps, deterministic return) every `eval_every` steps, from step 0."""
     import torch
     from stable_baselines3 import PPO
@@ -80,7 +83,8 @@ def train(task: str, rl: dict, seed: int, steps: int, eval_every: int, log_std_i
     torch.set_num_threads(1)
     venv = VecNormalize(DummyVecEnv([lambda: make_env(task, rl)]), norm_reward=False)
     venv.seed(seed)
-    model = PPO("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs={"log_std_init": log_std_init})
+    model = PPO("MlpPolicy", venv, seed=seed, device="cpu", policy_kwargs={"log_std_init": log_std_init},
+                learning_rate=lambda remaining: learning_rate * remaining)  # to 0 at the end (rl-zoo's lin_)
     evaluation = make_env(task, rl)
     curve: list[tuple[int, float]] = []
 
@@ -150,6 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--eval-every", type=int, default=10_000)
     parser.add_argument("--log-std-init", type=float, default=-1.0, help="the policy's initial log spread")
+    parser.add_argument("--learning-rate", type=float, default=3e-4, help="at the start, falling linearly to 0")
     parser.add_argument("--random-episodes", type=int, default=5)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
@@ -167,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds: dict[int, dict] = {}
     for seed in args.seeds:
         start = time.perf_counter()
-        curve = train(args.task, args.rl, seed, args.steps, args.eval_every, args.log_std_init)
+        curve = train(args.task, args.rl, seed, args.steps, args.eval_every, args.log_std_init, args.learning_rate)
         rows += [(seed, s, g) for s, g in curve]
         reached = [s for s, g in curve if g >= TARGET_SHARE * refs["servo"]]
         seeds[seed] = {"best": max(g for _, g in curve), "final": curve[-1][1],
@@ -179,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         writer.writerow(["seed", "steps", "return"])
         writer.writerows(rows)
     summary = {"task": args.task, "rl": args.rl, "steps": args.steps, "log_std_init": args.log_std_init,
+               "learning_rate": args.learning_rate,
                "references": refs, "target": TARGET_SHARE * refs["servo"], "seeds": seeds}
     (out / "references.json").write_text(json.dumps(summary, indent=2) + "\n")
     plot(out / "curve.png", args.task, rows, refs)
