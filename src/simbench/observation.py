@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
+import mujoco
 import numpy as np
 
 from simbench.api import Array, State
@@ -12,6 +13,7 @@ from simbench.plant import Plant
 
 AHEAD = (1, 5, 20)
 """The samples ahead of now at which the observation shows the references."""
+_AHEAD = np.array(AHEAD)
 
 
 def observation(plant: Plant, state: State, q_ref: Array, qd_ref: Array, tool_ref: Array) -> OrderedDict:
@@ -29,13 +31,18 @@ def observation(plant: Plant, state: State, q_ref: Array, qd_ref: Array, tool_re
         and `q_ref_ahead` (len(AHEAD) * dof,), the references AHEAD samples on (the last sample past the end).
     """
     assert state.data is not None, "an observation needs the live data"
-    k, last = state.k, len(q_ref) - 1
-    ahead = [min(k + h, last) for h in AHEAD]
+    return observe(plant, state.k, state.t, state.q, state.qd, state.data, q_ref, qd_ref, tool_ref)
+
+
+def observe(plant: Plant, k: int, t: float, q: Array, qd: Array, data: mujoco.MjData, q_ref: Array, qd_ref: Array,
+            tool_ref: Array) -> OrderedDict:
+    """`observation`'s, from the state's parts (an environment's step makes no State: a few microseconds a step)."""
+    ahead = np.minimum(k + _AHEAD, len(q_ref) - 1)
     return OrderedDict(
-        time=np.array([state.t]),
-        q=np.array(state.q, dtype=float),
-        qd=np.array(state.qd, dtype=float),
-        tool=state.data.sensordata[plant.sensors[plant.robot.tool_sensor]].copy(),
+        time=np.array([t]),
+        q=np.array(q, dtype=float),
+        qd=np.array(qd, dtype=float),
+        tool=data.sensordata[plant.sensors[plant.robot.tool_sensor]].copy(),
         q_ref=q_ref[k].copy(),
         qd_ref=qd_ref[k].copy(),
         tool_ref=tool_ref[k].copy(),

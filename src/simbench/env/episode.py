@@ -13,7 +13,7 @@ from dm_control.mujoco import wrapper
 from dm_control.rl import control
 from dm_env import specs
 
-from simbench.api import Array, JointTrajectory, State
+from simbench.api import Array, JointTrajectory
 from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.controllers import Servo
 from simbench.env.bounds import action_bounds, joint_bounds
@@ -21,7 +21,7 @@ from simbench.env.pixels import FittedRendering
 from simbench.env.substeps import in_c
 from simbench.env.task_pool import TaskPool
 from simbench.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
-from simbench.observation import observation
+from simbench.observation import observe
 from simbench.plant import Plant
 from simbench.scenario import Scenario
 from simbench.sim import Recording, Revisions, recording
@@ -420,10 +420,9 @@ class Track(control.Task):
         Returns:
             The observation.
         """
-        data = physics.data.ptr
-        state = State(k=self.k, t=float(self.plan.t[self.k]), q=data.qpos[self.plant.qpos_adr],
-                      qd=data.qvel[self.plant.dof_adr], qpos=data.qpos, qvel=data.qvel, data=data)
-        return observation(self.plant, state, self.q_ref, self.qd_ref, self.plan.tool_ref)
+        data, plant = physics.data.ptr, self.plant
+        return observe(plant, self.k, float(self.plan.t[self.k]), data.qpos[plant.qpos_adr], data.qvel[plant.dof_adr],
+                       data, self.q_ref, self.qd_ref, self.plan.tool_ref)
 
     def get_reward(self, physics: Physics) -> float:
         """The step's reward: dm_control's gaussian `rewards.tolerance` of the tool's tracking error.

@@ -328,7 +328,8 @@ class RLTrack(Track):
         if randomise is not None and randomise.observe:
             obs["randomised"] = np.concatenate([self.drawn[name] for name in DRAWN if name in self.drawn])
         if self.rl.float32:
-            obs = OrderedDict((name, value.astype(np.float32)) for name, value in obs.items())
+            for name, value in obs.items():  # the values replaced in place, the order kept
+                obs[name] = value.astype(np.float32)
         return obs
 
     def get_reward(self, physics: Physics) -> float:
