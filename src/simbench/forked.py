@@ -108,8 +108,9 @@ _WATCH = 0.2  # s: how often a worker looks whether its parent is still there
 
 def die_with(parent: int) -> None:
     """End this process as soon as its parent is gone (SIGKILL included), so that no worker outlives its sweep
-    holding the folder's lock (or its environment). A thread watches getppid(): the pipe cannot tell (later workers hold copies of its
-    parent end), and PR_SET_PDEATHSIG crashed forked workers of a threaded parent."""
+    holding the folder's lock, nor its environment's task pool. A thread watches getppid(): the pipe cannot tell
+    (later workers hold copies of its parent end), and PR_SET_PDEATHSIG crashed forked workers of a threaded
+    parent."""
 
     def watch() -> None:
         while os.getppid() == parent:

@@ -153,9 +153,10 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
         scenario: A Scenario, or the path of a scenario file.
         task_kwargs: What makes the task: `random` (a seed or a RandomState: a new random task at each reset),
             `pool` (with `random`: each reset takes one of this many random tasks planned ahead in a background
-            process, `simbench.env.task_pool`), `actuation`, `task` (a subclass of Track, for a reward or observation of your own) and that class's
-            own arguments, and `rl`: the RL mode (`simbench.env.rl_mode`: 20 ms control steps, actions in
-            [-1, 1]) as True (its defaults), a dict of `rl_mode.RL`'s fields or an `RL`; None or False: none.
+            process, `simbench.env.task_pool`), `actuation`, `task` (a subclass of Track, for a reward or
+            observation of your own) and that class's own arguments, and `rl`: the RL mode
+            (`simbench.env.rl_mode`: 20 ms control steps, actions in [-1, 1]) as True (its defaults), a dict of
+            `rl_mode.RL`'s fields or an `RL`; None or False: none.
         environment_kwargs: What goes to `control.Environment`: `control_timestep` or `n_sub_steps`,
             `time_limit`, `flat_observation`.
         visualize_reward: Whether rendered frames show the reward in the arm's colour (dm_control's meaning:

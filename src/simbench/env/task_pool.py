@@ -9,8 +9,9 @@ process plans them in index order, so only the first resets may wait). A reseed 
 the pool; the next reset makes a new one from the new seed.
 
 The process is a fresh interpreter, not a fork (a training process holds threads: a fork may copy a held lock),
-and ends with this one (it watches its parent, as a sweep's workers do) and when the pool is dropped. A pool pickles (and deep-copies)
-as the tasks planned so far; its copy plans the rest in a process of its own when a reset asks for one of them.
+and ends with this one (it watches its parent, as a sweep's workers do) and when the pool is dropped. A pool
+pickles (and deep-copies) as the tasks planned so far; its copy plans the rest in a process of its own when a reset
+asks for one of them.
 """
 
 from __future__ import annotations
