@@ -110,3 +110,17 @@ def test_the_planning_process_ends_with_its_parent_killed_and_with_the_pool_clos
     assert process.poll() is None
     pool.close()
     assert process.poll() is not None
+
+
+def test_the_planning_process_imports_from_the_folders_this_one_added(tmp_path, monkeypatch):
+    """A module beside the user's script (a folder on sys.path at run time, not on the interpreter's own path) is
+    importable in the planning process's environment, as it is not in a bare one."""
+    from simbench.env.task_pool import child_environ
+
+    (tmp_path / "beside_the_script.py").write_text("ANSWER = 42\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    command = [sys.executable, "-c", "import beside_the_script; print(beside_the_script.ANSWER)"]
+    bare = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    assert subprocess.run(command, env=bare, cwd="/", capture_output=True, text=True).returncode != 0
+    done = subprocess.run(command, env=child_environ(), cwd="/", capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == "42"

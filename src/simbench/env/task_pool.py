@@ -94,13 +94,7 @@ class TaskPool:
         module (multiprocessing's spawn would run the user's script again in it, unless guarded by __main__)."""
         readable, writable = os.pipe()
         missing = [i for i, task in enumerate(self._tasks) if task is None]
-        # the folders this process imports from beyond the interpreter's own (the script's, any added at run time),
-        # so that the planner, the robot and their plugins import there as here
-        own = tuple({sys.prefix, sys.base_prefix})
-        added = [p for p in sys.path if p and not os.path.abspath(p).startswith(own)]
-        path = os.pathsep.join([*added, os.environ.get("PYTHONPATH", "")]).strip(os.pathsep)
-        environ = {**os.environ, "PYTHONPATH": path}
-        process = subprocess.Popen([sys.executable, "-c", _SERVE, str(writable), str(os.getpid())], env=environ,
+        process = subprocess.Popen([sys.executable, "-c", _SERVE, str(writable), str(os.getpid())], env=child_environ(),
                                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, pass_fds=(writable,))
         os.close(writable)
         conn = connection.Connection(readable, writable=False)
@@ -119,6 +113,15 @@ class TaskPool:
 
     def __getstate__(self) -> dict:
         return {"size": self.size, "_job": self._job, "_tasks": self._tasks, "_process": None}
+
+
+def child_environ() -> dict[str, str]:
+    """The planning process's environment: this one's, with the folders this process imports from beyond the
+    interpreter's own (the script's, any added at run time) on PYTHONPATH, so that the planner, the robot and their
+    plugins import there as here."""
+    own = tuple({sys.prefix, sys.base_prefix})
+    added = [p for p in sys.path if p and not os.path.abspath(p).startswith(own)]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([*added, os.environ.get("PYTHONPATH", "")]).strip(os.pathsep)}
 
 
 def _stop(process: subprocess.Popen, conn: connection.Connection) -> None:
