@@ -50,7 +50,7 @@ def in_c(physics: Physics, commands: Array) -> bool:
     if physics.counts.any():
         return False
     steps = len(commands)
-    start, states, sensors, speeds, positions = _buffers(physics, steps)
+    start, states, sensors, slices = _buffers(physics, steps)
     mujoco.mj_getState(model, data, start[0], FULL)
     warmstart = data.qacc_warmstart[None].copy()
     try:
@@ -59,7 +59,7 @@ def in_c(physics: Physics, commands: Array) -> bool:
                            state=states, sensordata=sensors)
         mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
         # the Python loop's own test of a step (NaN fails either comparison), over every step at once, on a view
-        velocities = states[0, :, speeds]
+        velocities = states[0, :, slices[1]]
         sound = not physics.counts.any() and velocities.max() <= MAX_SPEED and velocities.min() >= -MAX_SPEED
     except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
         sound = False
@@ -70,19 +70,18 @@ def in_c(physics: Physics, commands: Array) -> bool:
         mujoco.mj_step1(model, data)
         return False
     physics.readings = sensors[0, -1].copy()
-    physics.track.record_steps(physics, states[0], sensors[0], commands, (positions, speeds))
+    physics.track.record_steps(physics, states[0], sensors[0], commands, slices)
     return True
 
 
-def _buffers(physics: Physics, steps: int) -> tuple[Array, Array, Array, slice, slice]:
+def _buffers(physics: Physics, steps: int) -> tuple[Array, Array, Array, tuple[slice, slice]]:
     """What a rollout of `steps` writes into (the start state, the states, the sensors), made once a stretch
-    length and kept on the physics (what it records is copied out of them), and where the positions and speeds
-    sit in a state."""
+    length and kept on the physics (what it records is copied out of them), and where qpos and qvel sit in a
+    state (stepping.state_slices)."""
     made = physics.__dict__.setdefault("_c_buffers", {})
     if steps not in made:
         model = physics.model.ptr
         size = mujoco.mj_stateSize(model, FULL)
-        qpos, qvel = state_slices(model)
         made[steps] = (np.empty((1, size)), np.empty((1, steps, size)), np.empty((1, steps, model.nsensordata)),
-                       qvel, qpos)
+                       state_slices(model))
     return made[steps]

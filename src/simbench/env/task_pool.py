@@ -87,7 +87,7 @@ class TaskPool:
         if why is not None:
             self.close()
             raise RunError(f"random task {index} of the pool could not be planned: {why}")
-        self._tasks[index] = pickle.loads(task)
+        self._tasks[index] = task
 
     def _start(self) -> None:
         """Start the process that plans the tasks not planned yet, in index order: a fresh interpreter running this
@@ -137,8 +137,8 @@ _SERVE = "import sys; from simbench.env.task_pool import serve; serve(int(sys.ar
 
 
 def serve(writable: int, parent: int) -> None:
-    """The planning process: the job from stdin, then each task of it planned from its own seed and sent (pickled),
-    or why not."""
+    """The planning process: the job from stdin, then each task of it planned from its own seed and sent, or why
+    not."""
     from simbench.env.random_task import plan_random
 
     die_with(parent)
@@ -149,7 +149,7 @@ def serve(writable: int, parent: int) -> None:
     for index in indices:
         random = np.random.RandomState(np.random.MT19937(seeds[index]))
         try:
-            conn.send((index, pickle.dumps(plan_random(scenario, bounds, dt, random)), None))
+            conn.send((index, plan_random(scenario, bounds, dt, random), None))
         except RunError as err:
             conn.send((index, None, str(err)))
             return
