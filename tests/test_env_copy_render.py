@@ -199,19 +199,25 @@ import sys
 import numpy as np
 from dm_control.mujoco import Physics
 from simbench import env
+from simbench.drawn_planes import planes_drawn_finite
 env_ = env.load_task("puma600", "line")
 env_.reset()
-vis = env_.physics.model.ptr.vis
+model = env_.physics.model.ptr
+vis, floor = model.vis, model.geom_size.copy()
 file = (vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize)
-plain = Physics.from_model(env_.physics.model)  # dm_control's own, its context made as the file says
-plain.data.qpos[:] = env_.physics.data.qpos
-plain.forward()
+plain, endless = (Physics.from_model(env_.physics.model) for _ in range(2))  # dm_control's own, as the file says
+for physics in (plain, endless):
+    physics.data.qpos[:] = env_.physics.data.qpos
+    physics.forward()
 out = {}
 for i, (width, height) in enumerate(((84, 84), (640, 480), (84, 84))):
     ours = env_.physics.render(height, width, camera_id=0)
-    out[f"{i}"] = np.stack([ours, plain.render(height, width, camera_id=0)])
+    with planes_drawn_finite(model):
+        finite = plain.render(height, width, camera_id=0)
+    out[f"{i}"] = np.stack([ours, finite, endless.render(height, width, camera_id=0)])
     out[f"{i} fitted"] = np.array(env_.physics._fitted)
     assert (vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize) == file, "the model's own changed"
+    assert (model.geom_size == floor).all(), "the floor's size changed"
 np.savez(sys.argv[1], **out)
 """
 
@@ -221,16 +227,19 @@ def test_frames_are_fitted_to_their_size_and_look_as_dm_controls(tmp_path):
     """An 84x84 frame is drawn in an 84x84 buffer with a 256 shadow map (SHADOW_TEXELS a pixel of its longer side),
     a later 640x480 one in a remade 640x480 buffer with a 2048 map (kept for the 84x84 frame after it), the model's
     own settings left as the file has them; the frames are dm_control's own render of the same state with the
-    file's 1920x1080 buffer and 4096 map but for the shadows' resolution (a mean difference under 1 of 255)."""
+    file's 1920x1080 buffer and 4096 map, the floor drawn finite, but for the shadows' resolution (a mean difference
+    under 1 of 255); and the floor drawn finite looks as MuJoCo's endless one (a mean difference under 4 of 255,
+    seen: 1.7 at 84x84, 3.0 at 640x480, where the checker's edge lines fall a pixel apart)."""
     done = subprocess.run([sys.executable, "-c", FITTED, str(tmp_path / "frames.npz")], env=_process_env(),
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     frames = np.load(tmp_path / "frames.npz")
     assert [frames[f"{i} fitted"].tolist() for i in range(3)] == [[84, 84, 256], [640, 480, 2048], [640, 480, 2048]]
     for i, shape in enumerate(((84, 84, 3), (480, 640, 3), (84, 84, 3))):
-        ours, theirs = frames[f"{i}"].astype(float)
+        ours, theirs, endless = frames[f"{i}"].astype(float)
         assert ours.shape == theirs.shape == shape and ours.std() > 10  # a picture, not a blank
         assert np.abs(ours - theirs).mean() < 1.0
+        assert np.abs(theirs - endless).mean() < 4.0
 
 
 def test_visualize_reward_colours_the_arm_by_the_reward():

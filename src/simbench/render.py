@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from simbench.api import Decoration
+from simbench.drawn_planes import planes_drawn_finite
 from simbench.errors import RunError
 from simbench.interrupts import held_back
 from simbench.plant import compiled_scene
@@ -340,7 +341,7 @@ def render_video(scene: Path, rec: Recording, planned: np.ndarray, path: Path, *
     camera = camera or (model.camera(0).name if model.ncam else None)
     rows = _frame_rows(rec.t, fps)
     overlay = _Overlay(planned, rec.tool if trace else None, decorations)
-    with _beside_dm_control():
+    with _beside_dm_control(), planes_drawn_finite(model):  # the GL context draws the planes as they are now
         renderer = _open_renderer(model, width, height, quality)
         try:
             _encode(path, fps, _frames(model, renderer, rec, rows, camera, overlay, paint))

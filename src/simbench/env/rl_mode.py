@@ -186,6 +186,7 @@ class RLTrack(Track):
         # The servo's targets of the references (the rows from `first`), found a stretch at a time, and the control
         # range the shifted targets are kept within
         self._targets: tuple[Array | None, int, Array] = (None, 0, np.zeros((0, model.nu)))
+        self._joints_only = np.array_equal(plant.actuators, np.arange(model.nu))  # the joints' actuators, in order
         limited = model.actuator_ctrllimited.astype(bool)
         self._ctrl_range = (np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf),
                             np.where(limited, model.actuator_ctrlrange[:, 1], np.inf))
@@ -256,12 +257,15 @@ class RLTrack(Track):
         if self._queue:
             self._queue.append(action)
             action = self._queue.popleft()
-        self._command = command = np.zeros(physics.model.ptr.nu)  # residual: the joints' shifts; else the ctrl
-        if self.rl.residual:
-            command[self.plant.actuators] = self._scale * action
-        else:
+        if self.rl.residual:  # the joints' shifts
+            command = self._scale * action
+        else:  # their targets
             mid, half = self._mid_half()
-            command[self.plant.actuators] = mid + half * action
+            command = mid + half * action
+        if not self._joints_only:  # a row of data.ctrl: zero but for the joints' actuators
+            command, joints = np.zeros(physics.model.ptr.nu), command
+            command[self.plant.actuators] = joints
+        self._command = command
 
     def controls(self, physics: Physics, steps: int) -> Array:
         """The command held (absolute), or the servo's targets for the next samples' references, shifted and kept

@@ -47,7 +47,7 @@ def in_c(physics: Physics, commands: Array) -> bool:
         Whether the steps ran and were recorded; False: the physics is back where it was, to be stepped in Python.
     """
     model, data = physics.model.ptr, physics.data.ptr
-    if physics.counts.any():
+    if np.count_nonzero(physics.counts):  # (a tenth of ndarray.any's time: an environment's every control step)
         return False
     steps = len(commands)
     start, states, sensors, slices = _buffers(physics, steps)
@@ -58,9 +58,9 @@ def in_c(physics: Physics, commands: Array) -> bool:
                            control_spec=_CTRL, skip_checks=True, nstep=steps, initial_warmstart=warmstart,
                            state=states, sensordata=sensors)
         mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
-        # the Python loop's own test of a step (NaN fails either comparison), over every step at once, on a view
-        velocities = states[0, :, slices[1]]
-        sound = not physics.counts.any() and velocities.max() <= MAX_SPEED and velocities.min() >= -MAX_SPEED
+        # the Python loop's own test of a step (NaN fails the comparison), over every step at once, on a view
+        speed = np.maximum.reduce(np.abs(states[0, :, slices[1]]), axis=None)
+        sound = not np.count_nonzero(physics.counts) and speed <= MAX_SPEED
     except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
         sound = False
     if not sound:
