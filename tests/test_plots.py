@@ -91,7 +91,7 @@ def test_the_page_shows_svg_plots_and_links_pdf_ones(runs):
 
 def band_plot(self, traj, rec, analysis):
     """A robot's own plot through calls simbench's imitation Axes lacked: fill_between, set_xlim, text."""
-    from simbench.plots import time_panels
+    from simbench.api.panels import time_panels
 
     fig, axes = time_panels(1, 6, 3)
     ax = axes[0, 0]

@@ -22,11 +22,11 @@ import numpy as np
 
 from simbench import api, budget, csv_cells, destination, registry
 from simbench.atomic import staged_folder
-from simbench.plot_formats import check_format
-from simbench.page import table_page, write_page
-from simbench.planners.path_methods import METHODS
 from simbench.errors import PhysicsError, RunError, ScenarioError, printable
 from simbench.figures import columns
+from simbench.page import table_page, write_page
+from simbench.planners.path_methods import METHODS
+from simbench.plot_formats import check_format
 from simbench.policy import refuse_code
 from simbench.scenario import Scenario, load_scenario, parse_scenario
 from simbench.scoring import score
@@ -373,7 +373,8 @@ def _plots(folder: Path, base: Scenario, runs: tuple[MethodRun, ...], plot_forma
     """The methods overlaid against time: tool error, joint speeds, distance to each singular set."""
     from matplotlib import rcParams
 
-    from simbench.plots import plot_text, save, time_panels
+    from simbench.api.panels import plot_text, time_panels
+    from simbench.plots import save
 
     folder.mkdir(parents=True, exist_ok=True)
     ran = [r for r in runs if r.evaluation is not None]

@@ -8,6 +8,10 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
+         "goal_missed", "singular_crossing", "clearance_margin", "acceleration_limit", "force_limit", "contact")
+"""The kinds of violation a verdict finds (simbench.verdict); a robot adds its own (Robot.breaking)."""
+
 
 class _Entries(Mapping):
     """A record that reads as the dict of its report.json entries (`event["kind"]`, `.get`, `dict(event)`)."""

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simbench.analysis import Analysis
-from simbench.errors import printable
+from simbench.api.panels import figure, plot_text, time_panels
 from simbench.robots import REVOLUTE, Robot
 from simbench.sim import Recording
 from simbench.trajectory import JointTrajectory
@@ -18,20 +18,9 @@ from simbench.trajectory import JointTrajectory
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-DPI = 110  # a PNG's pixels an inch
-_MARGINS = (1.0, 0.15, 0.36, 0.59)  # in: left (tick labels and y label), right, top (title), bottom (x label)
-_GAP = 0.22  # in: between panels that share their time axis
-_COLUMN_GAP = 1.05  # in: between columns of panels (the next column's tick labels and y label)
 _LABEL_SIZE = 7  # pt: an event's name in a panel
 _LABEL_ROWS = 3  # rows of event names at a panel's top
 MIN_SPAN = 1e-4  # an axis's least span, of its values' size (plain_ticks)
-
-
-def plot_text(text: str) -> str:
-    """A name (a model's joint, say) as a figure's label or title draws it as written: control characters and line
-    breaks escaped (an SVG copies the text into an XML comment, where they are not allowed, and the fonts have no
-    glyph for them) and '$' escaped (two would start mathtext, and a formula matplotlib cannot parse fails the save)."""
-    return printable(text).replace("$", r"\$")
 
 
 def _display(kind: str) -> tuple[float, str]:
@@ -45,45 +34,6 @@ def _shade(ax, events: list[dict], kinds: set[str] | None, color: str, joint: st
             continue
         if kinds is None or e["kind"] in kinds:
             ax.axvspan(e["t_start"], max(e["t_end"], e["t_start"] + 1e-3), color=color, alpha=0.25, lw=0)
-
-
-def figure(width: float, height: float) -> Figure:
-    """An empty figure at simbench's resolution (matplotlib imported here: a run without plots skips it).
-
-    Args:
-        width: Its width (inches).
-        height: Its height (inches).
-
-    Returns:
-        The figure.
-    """
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=(width, height), dpi=DPI)
-
-
-def time_panels(rows: int, width: float, height: float, cols: int = 1, gap: float = _GAP,
-                top: float = _MARGINS[2]) -> tuple[Figure, np.ndarray]:
-    """Panels over one shared time axis, laid out as simbench's own plots (fixed margins).
-
-    Args:
-        rows: Panels in a column.
-        width: The figure's width (inches).
-        height: The figure's height (inches).
-        cols: Columns of panels.
-        gap: Between rows (inches).
-        top: Over the first row, for a title (inches).
-
-    Returns:
-        The figure and its matplotlib Axes (rows, cols).
-    """
-    left, right, _, bottom = _MARGINS
-    panel = (height - top - bottom - (rows - 1) * gap) / rows
-    column = (width - left - right - (cols - 1) * _COLUMN_GAP) / cols
-    fig = figure(width, height)
-    fig.subplots_adjust(left=left / width, right=1 - right / width, top=1 - top / height, bottom=bottom / height,
-                        hspace=gap / panel, wspace=_COLUMN_GAP / column)
-    return fig, fig.subplots(rows, cols, sharex=True, squeeze=False)
 
 
 def plain_ticks(fig: Figure) -> None:

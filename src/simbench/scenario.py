@@ -12,11 +12,11 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import (Field, PrivateAttr, ValidationError, ValidationInfo, create_model, field_validator,
-                      model_validator)
+from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, create_model, field_validator, model_validator
 
-from simbench import api, registry, verdict
+from simbench import api, registry
 from simbench.errors import ScenarioError
+from simbench.events import KINDS
 from simbench.robots import robot_mapping
 from simbench.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
 from simbench.timing import TimeLaw
@@ -75,7 +75,7 @@ class Render(SimbenchModel):
 
 
 class Expect(SimbenchModel):
-    """A scenario meant to show a failure says which: the status and the kinds of violation (simbench.verdict)
+    """A scenario meant to show a failure says which: the status and the kinds of violation (simbench.events.KINDS)
     the run must end with, and why. The run's status stays what it is; the CLI exits 0 if it is as expected."""
 
     status: Literal["ok", "limits"] = "limits"
@@ -86,7 +86,7 @@ class Expect(SimbenchModel):
     @classmethod
     def _known(cls, kinds: list[str], info: ValidationInfo) -> list[str]:
         robot = (info.context or {}).get("robot")
-        known = list(verdict.KINDS) + list(robot.breaking if robot is not None else ())
+        known = list(KINDS) + list(robot.breaking if robot is not None else ())
         for kind in kinds:
             if kind not in known:
                 raise ValueError(f"unknown violation {kind!r} (expected one of: {', '.join(known)})"

@@ -1,7 +1,7 @@
 """Whether a run kept every promise its report makes: the status, and each promise broken, in one line.
 
 A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked;
-otherwise `limits`, with one Violation per broken promise: a kind of KINDS (planners report `goal_missed`,
+otherwise `limits`, with one Violation per broken promise: a kind of events.KINDS (planners report `goal_missed`,
 `singular_crossing`, `clearance_margin` and `acceleration_limit` in `JointTrajectory.violations`) or an event the
 robot declares breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says whether it met it.
 An episode that ended early (simbench.env) is `failed` where its physics failed, else `truncated`: never `ok`.
@@ -20,8 +20,6 @@ from simbench.trajectory import JointTrajectory
 OK, LIMITS = "ok", "limits"
 FAILED, TRUNCATED = "failed", "truncated"  # a run cut short: its physics failed, or it was stopped
 # Violation kinds every robot can have (besides its own `breaking` events and its planner's).
-KINDS = ("joint_limit", "velocity_limit", "reference_jump", "actuator_saturation", "off_path", "orientation_error",
-         "goal_missed", "singular_crossing", "clearance_margin", "acceleration_limit", "force_limit", "contact")
 
 
 @dataclass(frozen=True)

@@ -368,7 +368,7 @@ class Robot(ABC):
         """
 
     def plots(self, traj: JointTrajectory, rec: Recording, analysis: Any) -> dict[str, Figure]:
-        """This mechanism's own plots, laid out as simbench's own with `simbench.plots.time_panels`, say.
+        """This mechanism's own plots, laid out as simbench's own with `simbench.api.panels.time_panels`, say.
 
         Args:
             traj: The plan.

@@ -12,6 +12,7 @@ import numpy as np
 import yaml
 from matplotlib.figure import Figure
 
+from simbench.api.panels import plot_text
 from simbench.atomic import staged_folder, write_text
 from simbench.bench.allarms import arm_page, grid, of_robot
 from simbench.bench.board import SCENARIOS, scenario_file
@@ -19,7 +20,7 @@ from simbench.bench.paired import paired
 from simbench.page import write_page
 from simbench.page.html import cell, config_section, document, esc, figure_grid, href, paragraphs
 from simbench.page.tables import MAX_ROWS
-from simbench.plots import plain_ticks, plot_text
+from simbench.plots import plain_ticks
 from simbench.report import plain, write_report
 from simbench.sweep import table
 

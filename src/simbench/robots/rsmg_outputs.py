@@ -128,7 +128,7 @@ def paint(model, rec, row: int) -> None:
 
 def plots(traj, rec, result) -> dict[str, Figure]:
     """gamma of every arm against time with its switches (paper 001's Fig. 11 is arm 1's)."""
-    from simbench.plots import time_panels
+    from simbench.api.panels import time_panels
 
     engaged = gripping(rec)
     fig, axes = time_panels(ARMS, 8, 7)

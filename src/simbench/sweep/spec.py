@@ -153,7 +153,7 @@ class Sweep:
 
     def fingerprint(self) -> str:
         """A hash of everything that decides the results: a sweep resumes only into a folder with the same one."""
-        from simbench import __version__
+        from simbench.version import __version__
 
         blob = json.dumps({"simbench": __version__, self._SPEC_KEY: self.spec.model_dump(mode="json"),
                            "runs": [v.document for v in self.variants]}, sort_keys=True)

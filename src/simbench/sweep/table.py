@@ -15,9 +15,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from simbench import csv_cells, extras
+from simbench.api.panels import plot_text
 from simbench.atomic import staged_file, staged_folder, write_text
 from simbench.forked import as_worker, parents_heap_frozen
-from simbench.plots import plain_ticks, plot_text
+from simbench.plots import plain_ticks
 
 STATUSES = ("ok", "limits", "too_slow", "bad_input", "run_failed", "crashed")  # too_slow: cut past a time limit
 FINISHED = ("ok", "limits")  # runs with metrics (`limits`: ran to the end, broke a promise: simbench.verdict)
