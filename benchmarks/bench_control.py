@@ -2,7 +2,7 @@
 controller, and the dm_control environment's step rate, on the same model in the same run.
 
 - `simulate` with computed_torque (`control: {controller: computed_torque}`, a closed-loop controller: asked for
-  every step's command from the measured state, simbench.stepping.ClosedLoop: mj_step1, the command, mj_step2,
+  every step's command from the measured state, simbench.physics.stepping.ClosedLoop: mj_step1, the command, mj_step2,
   every step checked and recorded), against a bare Python loop of `mujoco.mj_step` that asks the same
   controller for each command (a State of the data, `commands`, `data.ctrl`, `mj_step`: no checks, no
   recording). Both bind the controller first (computed torque's inverse dynamics of the plan) and start from
@@ -26,13 +26,13 @@ import yaml
 from benchmarks.common import interleaved
 from simbench import env as simbench_env
 from simbench.api import JointTrajectory, State
-from simbench.computed_torque import ComputedTorque, ComputedTorqueSettings
-from simbench.controllers import Servo
-from simbench.plant import Plant
-from simbench.resources import scenarios_dir
+from simbench.physics.computed_torque import ComputedTorque, ComputedTorqueSettings
+from simbench.physics.controllers import Servo
+from simbench.core.plant import Plant
+from simbench.core.resources import scenarios_dir
 from simbench.scenario import parse_scenario
-from simbench.sim import simulate
-from simbench.switches import at_start
+from simbench.physics.sim import simulate
+from simbench.physics.switches import at_start
 
 REPEATS = 7
 CASES = (("spherical_arm", "case1"), ("puma600", "weld_seam"))

@@ -27,7 +27,7 @@ from dm_control.rl import control
 
 from simbench import env as simbench_env
 from simbench.env.rl_mode import with_rl
-from simbench.switches import apply_switch
+from simbench.physics.switches import apply_switch
 
 REPEATS = 7
 FRAMES = 30  # 84x84 frames rendered a round

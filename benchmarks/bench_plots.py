@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import shipped
-from simbench.plot_formats import FORMATS
-from simbench.plots import write_plots
+from simbench.outputs.plot_formats import FORMATS
+from simbench.outputs.plots import write_plots
 
 REPEATS = 6
 PLOT_REPEATS = 5

@@ -13,9 +13,9 @@ from collections import Counter
 
 import numpy as np
 
-from simbench.errors import RunError
-from simbench.pipeline import check_plan, evaluate
-from simbench.random_tasks import puma_lines
+from simbench.core.errors import RunError
+from simbench.commands.pipeline import check_plan, evaluate
+from simbench.planners.random_tasks import puma_lines
 from simbench.scenario import parse_scenario
 
 DRAWS = 50

@@ -38,9 +38,9 @@ import yaml  # noqa: E402
 import simbench  # noqa: E402
 from benchmarks.bench_arms import CAUSES  # noqa: E402
 from benchmarks.common import segment_distance  # noqa: E402
-from simbench.errors import ScenarioError  # noqa: E402
-from simbench.robots.robot_mapping import load_robot  # noqa: E402
-from simbench.schema import Units  # noqa: E402
+from simbench.core.errors import ScenarioError  # noqa: E402
+from simbench.scenario.robot_mapping import load_robot  # noqa: E402
+from simbench.scenario.schema import Units  # noqa: E402
 
 LINES = 100
 SEED = 35

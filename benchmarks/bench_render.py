@@ -17,7 +17,7 @@ import numpy as np
 
 import simbench
 from benchmarks.common import interleaved, shipped
-from simbench.render import render_video
+from simbench.outputs.render import render_video
 
 REPEATS = 3
 CASES = (("spherical_arm", "demo"), ("puma600", "weld_seam"), ("rsmg", "three_turns"))

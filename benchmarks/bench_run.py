@@ -23,9 +23,9 @@ import numpy as np
 
 import simbench
 from benchmarks.common import interleaved, shipped
-from simbench.plant import Plant, compiled_scene
-from simbench.render import _frame_rows
-from simbench.sim import simulate
+from simbench.core.plant import Plant, compiled_scene
+from simbench.outputs.render import _frame_rows
+from simbench.physics.sim import simulate
 
 REPEATS = 5
 

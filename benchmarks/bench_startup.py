@@ -17,7 +17,7 @@ import sys
 import numpy as np
 
 from benchmarks.common import CHILD_PEAK_BYTES
-from simbench.resources import scenarios_dir
+from simbench.core.resources import scenarios_dir
 
 REPEATS = 9
 HEAVY = ("matplotlib", "scipy.optimize", "scipy.spatial", "ompl")
@@ -31,7 +31,7 @@ print(json.dumps({{"seconds": time.perf_counter() - start, "peak_mib": {peak} / 
 """
 _KINDS = {
     "bare": "import numpy, mujoco",
-    "import": "import simbench, simbench.cli, simbench.pipeline",
+    "import": "import simbench, simbench.cli, simbench.commands.pipeline",
     "validate": ("from simbench.cli import main\ntry:\n    main(['validate', {scenario!r}])\n"
                  "except SystemExit:\n    pass"),
 }

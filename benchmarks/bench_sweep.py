@@ -1,7 +1,7 @@
 """A sweep on 2 worker processes against the same sweep in 1 process, in one run.
 
 The sweep is 100 variants of paper 000's case 1 with random durations (outputs: none, so each run's work is
-planning, simulation and analysis), timed whole through `simbench.sweep.run_sweep`: the table, summary and
+planning, simulation and analysis), timed whole through `simbench.commands.sweep.run_sweep`: the table, summary and
 plots included. Target (issue 6): at least 1.8.
 
 Two figures say what limits the ratio, both measured in the same run:
@@ -32,10 +32,10 @@ import yaml
 from mujoco import rollout
 
 from benchmarks.common import interleaved
-from simbench import pipeline
-from simbench.plant import Plant
+from simbench.commands import pipeline
+from simbench.core.plant import Plant
 from simbench.scenario import parse_scenario
-from simbench.sweep import load_sweep, run_sweep
+from simbench.commands.sweep import load_sweep, run_sweep
 
 REPEATS = 7
 EFFICIENCY_REPEATS = 5

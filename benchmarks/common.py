@@ -11,7 +11,7 @@ from datetime import date
 import numpy as np
 
 import simbench
-from simbench.resources import scenarios_dir
+from simbench.core.resources import scenarios_dir
 
 
 def segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 import simbench
-from simbench.resources import scenarios_dir
+from simbench.core.resources import scenarios_dir
 
 
 def digest(path: Path) -> dict:

@@ -13,7 +13,7 @@ import pytest  # noqa: E402
 
 import simbench  # noqa: E402
 from benchmarks.common import segment_distance  # noqa: E402,F401  # the truth of a path that is a line
-from simbench.resources import scenarios_dir  # noqa: E402
+from simbench.core.resources import scenarios_dir  # noqa: E402
 
 
 def scenario_file(robot: str, name: str):
@@ -84,7 +84,7 @@ class PeakSpeed(Metric):
 @pytest.fixture
 def peak_speed(monkeypatch):
     """The PEAK_SPEED metric registered for one test (as simbench.register_metric would), its class."""
-    from simbench import registry
+    from simbench.api import registry
 
     namespace: dict = {}
     exec(PEAK_SPEED, namespace)

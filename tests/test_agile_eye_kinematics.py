@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from simbench.planners import learnt_fk
 from simbench.robots import agile_eye as E
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 
 
 def random_rotations(n: int, seed: int, min_gap_deg: float = 1.0) -> np.ndarray:

@@ -11,7 +11,7 @@ from simbench.planners.avoidance_4567.estimators import Estimator
 from simbench.planners.avoidance_4567.path import plain_plan
 from simbench.planners.avoidance_4567.windows import WindowFit
 from simbench.robots import agile_eye as E
-from simbench.timing import TimeLaw
+from simbench.maths.timing import TimeLaw
 
 
 @pytest.mark.parametrize("order", range(4))

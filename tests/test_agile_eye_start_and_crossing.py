@@ -9,12 +9,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import simbench
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.robots import agile_eye as E
 from simbench.scenario import parse_scenario
-from simbench.plant import Plant
-from simbench.sim import simulate
-from simbench.switches import at_start
+from simbench.core.plant import Plant
+from simbench.physics.sim import simulate
+from simbench.physics.switches import at_start
 
 DT = 0.0005
 

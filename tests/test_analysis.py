@@ -5,12 +5,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simbench import windowed
+from simbench.core import windowed
 from simbench.analysis import along_path, deviation_near_reference, path_deviation
 from simbench.analysis.limit_events import PlanLimits
-from simbench.analysis.path_distance import _capsules, _nearest
-from simbench.render import simplify
-from simbench.windowed import spans
+from simbench.maths.path_distance import _capsules, _nearest
+from simbench.outputs.render import simplify
+from simbench.core.windowed import spans
 
 coords = st.floats(-1.0, 1.0, allow_nan=False)
 point = st.tuples(coords, coords, coords).map(np.array)
@@ -197,8 +197,8 @@ def test_the_plans_limit_events_a_window_at_a_time_are_those_of_the_whole_plan(s
     window edges (windows of 1 to 40 rows): `joint_limit` and `velocity_limit` events found a window at a time are
     those found from the whole plan at once, and each is a span of the references beyond the bound, with its worst
     value, checked here sample by sample."""
-    from simbench import registry
-    from simbench.trajectory import JointTrajectory
+    from simbench.api import registry
+    from simbench.api.trajectory import JointTrajectory
 
     robot = registry.robots()["spherical_arm"]
     rng = np.random.default_rng(seed)

@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from simbench.cli import main
-from simbench.resources import sweeps_dir
+from simbench.core.resources import sweeps_dir
 
 CORPUS = Path(__file__).parent / "bad_scenarios"
 EXPECTED = dict(line.split(": ", 1) for line in (CORPUS / "EXPECTED.txt").read_text().splitlines()

@@ -16,17 +16,17 @@ import numpy as np
 import pytest
 
 from conftest import interrupt
-from simbench import pipeline
-from simbench.bench import board, load_suite, run_bench
-from simbench.bench.methods import METHODS
-from simbench.bench.robots import SHIPPED
-from simbench.bench.tasks import bands, draw
+from simbench.commands import pipeline
+from simbench.commands.bench import board, load_suite, run_bench
+from simbench.commands.bench.methods import METHODS
+from simbench.commands.bench.robots import SHIPPED
+from simbench.commands.bench.tasks import bands, draw
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
 from simbench.scenario import parse_scenario
-from simbench.sweep import table
+from simbench.commands.sweep import table
 
 METHODS_2 = ["dls_adaptive", "mink"]
 
@@ -281,7 +281,7 @@ def test_a_fresh_process_run_reports_the_shipped_metric_by_mujocos_jacobian(tmp_
 def test_compare_and_bench_agree_on_the_shared_figures(planar, tmp_path):
     """comparison.csv's row of a bench scenario's own method (planar 3R, task 0, dls_adaptive) and runs.csv's row
     of that task and method give the same status, deviation (m against mm), speed share, slowdown and closest
-    approach: two separate runs of the same document, scored by simbench.scoring."""
+    approach: two separate runs of the same document, scored by simbench.analysis.scoring."""
     import yaml
 
     (tmp_path / "task.yaml").write_text(yaml.safe_dump(_bench_document("dls_adaptive")))
@@ -301,7 +301,7 @@ def test_the_shipped_metric_never_fails_a_run_of_a_robot_without_speed_limits():
     """A robot with no qd_max and a plan with no rates: the figures are None or 1, not an exception."""
     from types import SimpleNamespace
 
-    from simbench.singularity_handling import SingularityHandling
+    from simbench.analysis.singularity_handling import SingularityHandling
 
     robot = SimpleNamespace(dof=2)
     traj = SimpleNamespace(info=None, qd_ref=None)

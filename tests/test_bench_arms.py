@@ -27,10 +27,10 @@ import mujoco
 import numpy as np
 from test_derived_plant import ROBOTS, raw_model, tool_pose
 
-from simbench.bench import load_suite
-from simbench.bench.methods import METHODS
-from simbench.bench.robots import SHIPPED, SINGULAR_TOL
-from simbench.bench.tasks import draw_one
+from simbench.commands.bench import load_suite
+from simbench.commands.bench.methods import METHODS
+from simbench.commands.bench.robots import SHIPPED, SINGULAR_TOL
+from simbench.commands.bench.tasks import draw_one
 from simbench.cli import main
 
 UR = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]

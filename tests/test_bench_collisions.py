@@ -7,8 +7,8 @@ from importlib.metadata import distribution
 import mujoco
 import numpy as np
 
-from simbench.bench import load_suite
-from simbench.bench.tasks import draw
+from simbench.commands.bench import load_suite
+from simbench.commands.bench.tasks import draw
 
 PACKAGE = distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
 UR5 = PACKAGE / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from simbench import destination
-from simbench.bench import board, load_suite, outputs, run_bench
+from simbench.core import destination
+from simbench.commands.bench import board, load_suite, outputs, run_bench
 
 SEED = 7
 

@@ -19,8 +19,8 @@ import pytest
 import yaml
 from simbench_planar3r import control as planar3r_control
 
-from simbench.bench import load_suite, run_bench
-from simbench.sweep import load_sweep, run_sweep
+from simbench.commands.bench import load_suite, run_bench
+from simbench.commands.sweep import load_sweep, run_sweep
 
 ray = pytest.importorskip("ray", reason="the Ray extra is part of [test]; this check needs it")
 from ray.cluster_utils import Cluster  # (after the skip where Ray is not installed)

@@ -13,12 +13,12 @@ from html.parser import HTMLParser
 
 import pytest
 
-from simbench import destination
-from simbench.bench import load_suite
-from simbench.bench.runner import plan_bench
+from simbench.core import destination
+from simbench.commands.bench import load_suite
+from simbench.commands.bench.runner import plan_bench
 from simbench.cli import main
-from simbench.report import plain
-from simbench.validation import read_yaml
+from simbench.outputs.report import plain
+from simbench.scenario.validation import read_yaml
 
 METHODS = "dls_adaptive,pinv"
 COMMAND = ["bench", "planar3r", "--tasks", "2", "--methods", METHODS, "--workers", "1", "--quiet"]
@@ -161,7 +161,7 @@ def test_the_progress_line_names_the_run_and_what_it_is_doing(tmp_path, capsys):
 def test_worker_processes_tell_each_runs_stages_as_they_go():
     """Two runs on two worker processes: each run's stages come to the parent before its outcome, in the
     pipeline's order, each under its own run."""
-    from simbench.sweep.execute import in_processes
+    from simbench.commands.sweep.execute import in_processes
 
     bench = plan_bench(load_suite("planar3r").with_options(1, None, ["dls_adaptive", "pinv"]))
     told = []

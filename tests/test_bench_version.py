@@ -11,12 +11,12 @@ from importlib.metadata import version
 
 import pytest
 
-from simbench.bench import load_suite
-from simbench.bench import tasks as bench_tasks
-from simbench.bench.robots import SHIPPED, BenchRobot
-from simbench.bench.runner import plan_bench
+from simbench.commands.bench import load_suite
+from simbench.commands.bench import tasks as bench_tasks
+from simbench.commands.bench.robots import SHIPPED, BenchRobot
+from simbench.commands.bench.runner import plan_bench
 from simbench.cli import main
-from simbench.resources import models_dir
+from simbench.core.resources import models_dir
 
 MODEL = models_dir() / "spherical_arm" / "spherical_arm.xml"  # one file: it includes none
 
@@ -72,7 +72,7 @@ def test_an_edited_model_has_another_hash(tmp_path):
 
 def test_a_bench_of_an_edited_model_is_another_bench(tmp_path):
     """The spherical arm's suite of one task on a copy of its model: the bench's fingerprint (what a folder resumes
-    by, simbench.sweep.store) changes when a byte of the copy does, though its tasks do not (a comment)."""
+    by, simbench.commands.sweep.store) changes when a byte of the copy does, though its tasks do not (a comment)."""
     copy = tmp_path / "arm.xml"
     shutil.copy(MODEL, copy)
     shipped = load_suite("spherical_arm").with_options(tasks=1, methods=["dls_adaptive"])

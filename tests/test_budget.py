@@ -1,4 +1,4 @@
-"""The run budget (simbench.budget): the estimate against what runs really allocate, and the refusal of runs the
+"""The run budget (simbench.core.budget): the estimate against what runs really allocate, and the refusal of runs the
 machine cannot afford, before anything big is allocated: exit 2, one line naming the field, nothing written, a
 small process; a large but possible run says what it will cost."""
 
@@ -14,13 +14,14 @@ import pytest
 import yaml
 from conftest import SHIPPED, scenario_file
 
-from simbench import budget, pipeline, windowed
+from simbench.core import budget, windowed
+from simbench.commands import pipeline
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 from simbench.planners import rsmg_lazy
 from simbench.scenario import load_scenario, parse_scenario
-from simbench.plant import compiled_scene
-from simbench.sweep import load_sweep, run_sweep
+from simbench.core.plant import compiled_scene
+from simbench.commands.sweep import load_sweep, run_sweep
 
 # Runs long enough that the per-sample terms dominate, short enough for the test suite (about 1 s each).
 CALIBRATION = [("spherical_arm", "case1", 40.0), ("rsmg", "three_turns", 30.0),
@@ -78,7 +79,7 @@ def test_estimate_is_within_a_factor_of_what_a_run_allocates(monkeypatch, robot,
                                                             ("rsmg", "three_turns", 100.0, 20)])
 def test_a_run_analysed_as_it_is_simulated_is_estimated_by_its_window(monkeypatch, robot, name, duration, every):
     """A strided run of several windows, analysed as it is simulated: the estimate against tracemalloc's peak of
-    evaluate() (every step's readings held a window at a time among them: simbench.buffers; the RSMG search's
+    evaluate() (every step's readings held a window at a time among them: simbench.core.buffers; the RSMG search's
     cache traced too: `on_heap`), within 1/1.5 to 2; and below what the model of a run held whole estimates for
     it."""
     path = scenario_file(robot, name)

@@ -14,7 +14,7 @@ from conftest import segment_distance
 
 from simbench.cli import main
 from simbench.planners.cartesian_path import PLANNER
-from simbench.registry import robots
+from simbench.api.registry import robots
 from simbench.scenario import load_scenario
 
 JACO = os.path.join(os.path.dirname(dm_control.__file__), "third_party", "kinova", "jaco_arm.xml")

@@ -28,9 +28,9 @@ import yaml
 from test_derived_plant import SO100, SO100_JOINTS, raw_model, tool_pose
 
 import simbench
-from simbench.bench import load_suite
-from simbench.bench.runner import plan_bench
-from simbench.resources import models_dir
+from simbench.commands.bench import load_suite
+from simbench.commands.bench.runner import plan_bench
+from simbench.core.resources import models_dir
 from simbench.robots.spherical_arm import QD_MAX
 from simbench.scenario import load_scenario, parse_scenario
 

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation, Slerp
 import simbench.planners.cartesian_path as cartesian_path
 import simbench.planners.resolved_rates as resolved_rates
 from simbench.cli import main
-from simbench.pipeline import check_plan
+from simbench.commands.pipeline import check_plan
 from simbench.scenario import load_scenario
 
 JACO = os.path.join(os.path.dirname(dm_control.__file__), "third_party", "kinova", "jaco_arm.xml")

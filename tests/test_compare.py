@@ -1,4 +1,4 @@
-"""The mink baseline (simbench.planners.mink_baseline) and methods compared side by side (simbench.compare).
+"""The mink baseline (simbench.planners.mink_baseline) and methods compared side by side (simbench.commands.compare).
 
 The baseline is checked against the robots' analytic kinematics (robots/puma600.py, robots/spherical_arm.py), not
 against its own report: on random straight lines the tool stays on the line, every joint within its range and
@@ -14,16 +14,17 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import simbench
-from simbench import api, random_tasks
-from simbench.compare import compare
-from simbench.errors import RunError, ScenarioError
+from simbench import api
+from simbench.planners import random_tasks
+from simbench.commands.compare import compare
+from simbench.core.errors import RunError, ScenarioError
 from simbench.scenario import parse_scenario
 from simbench.planners import mink_baseline
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
-from simbench.resources import models_dir
+from simbench.core.resources import models_dir
 from simbench.scenario import parse_scenario
-from simbench.singularity_handling import SingularityHandling
+from simbench.analysis.singularity_handling import SingularityHandling
 from conftest import scenario_file, segment_distance
 
 DT = 0.01  # s: the random lines' control grid (100 Hz; the shipped scenarios run at 1 kHz: the same method)

@@ -17,8 +17,8 @@ from conftest import scenario_file
 
 import simbench
 from simbench.cli import main
-from simbench.computed_torque import ComputedTorque, effective_inertia
-from simbench.plant import Plant
+from simbench.physics.computed_torque import ComputedTorque, effective_inertia
+from simbench.core.plant import Plant
 from simbench.scenario import parse_scenario
 from simbench_planar3r import control as planar3r_control
 
@@ -178,7 +178,7 @@ def test_the_servo_follows_the_revised_rows_and_a_controller_without_revise_rows
     from dataclasses import replace
 
     from simbench.api import Controller
-    from simbench.controllers import Servo
+    from simbench.physics.controllers import Servo
 
     scenario = simbench.load_scenario(scenario_file("rsmg", "three_turns"))
     plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
@@ -217,7 +217,7 @@ def test_the_servo_follows_the_revised_rows_and_a_controller_without_revise_rows
 def _line_servo():
     """The servo bound to the PUMA's line plan: (plant, plan, servo, its open-loop commands, Servo.targets of the
     whole plan)."""
-    from simbench.controllers import Servo
+    from simbench.physics.controllers import Servo
 
     scenario = simbench.load_scenario(scenario_file("puma600", "line"))
     plant = Plant.load(scenario.robot_def, scenario.sim.timestep)
@@ -234,7 +234,7 @@ def test_the_servos_commands_found_as_asked_are_the_whole_plans_however_indexed(
     targets for the whole plan at once (Servo.targets of every reference), and np.asarray gives them all; the
     run's recorded commands are those rows, at a recording stride too."""
     from simbench.api import Commands
-    from simbench.sim import simulate
+    from simbench.physics.sim import simulate
 
     plant, traj, servo, commands, whole = _line_servo()
     assert isinstance(commands, Commands) and commands.shape == whole.shape and len(commands) == len(traj.t)

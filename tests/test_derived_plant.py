@@ -14,7 +14,7 @@ import pytest
 
 import simbench
 from simbench.cli import main
-from simbench.servo_design import STABLE, stable_bandwidth
+from simbench.robots.servo_design import STABLE, stable_bandwidth
 
 PACKAGE = Path(str(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")))
 ROBOTS = PACKAGE / "robots"
@@ -221,7 +221,7 @@ def test_a_plan_that_needs_more_than_a_force_limit_is_a_violation_naming_the_joi
     path.write_text(f"robot: {json.dumps(robot)}\nplanner: cartesian_path\ntask:\n  start: {start}\n  path:\n"
                     f"    - line: {{end: {(p0 + [0, 0, 0.2]).tolist()}}}\ntiming: {{duration: 1.0}}\n")
     scenario = simbench.load_scenario(path)
-    traj, verdict = simbench.pipeline.check_plan(scenario)
+    traj, verdict = simbench.commands.pipeline.check_plan(scenario)
     found = [v for v in verdict.violations if v.kind == "force_limit"]
     assert found and verdict.status == "limits"
     joint = found[0].detail["joint"]

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from simbench import env as simbench_env
-from simbench.plant import compiled_scene
+from simbench.core.plant import compiled_scene
 from simbench.robots.model_stage import CAMERA, FLOOR
-from simbench.robots.robot_mapping import load_robot
-from simbench.schema import Units
+from simbench.scenario.robot_mapping import load_robot
+from simbench.scenario.schema import Units
 
 ERD = distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data") / "robots"
 UR5 = ERD / "ur_description" / "urdf" / "ur5_robot.urdf"

@@ -13,7 +13,7 @@ import yaml
 from conftest import interrupt, scenario_file
 
 from simbench.cli import main
-from simbench.destination import locked
+from simbench.core.destination import locked
 
 
 def _workspace(tmp_path, monkeypatch):

@@ -1,11 +1,11 @@
-"""Infinite planes drawn finite (simbench.drawn_planes): which sizes change inside the block, and that all come back.
+"""Infinite planes drawn finite (simbench.outputs.drawn_planes): which sizes change inside the block, and that all come back.
 How the drawn floor looks against MuJoCo's endless one: test_env_copy_render."""
 
 import mujoco
 import numpy as np
 import pytest
 
-from simbench.drawn_planes import TILES, planes_drawn_finite
+from simbench.outputs.drawn_planes import TILES, planes_drawn_finite
 
 SCENE = """
 <mujoco>

@@ -22,13 +22,13 @@ from simbench_planar3r import control as planar3r_control
 
 import simbench
 from simbench import env as simbench_env
-from simbench import pipeline
+from simbench.commands import pipeline
 from simbench.api import State
-from simbench.computed_torque import ComputedTorque
-from simbench.controllers import Servo
-from simbench.policy import make
+from simbench.physics.computed_torque import ComputedTorque
+from simbench.physics.controllers import Servo
+from simbench.physics.policy import make
 from simbench.scenario import parse_scenario
-from simbench.sim import simulate
+from simbench.physics.sim import simulate
 
 PLANAR3R = planar3r_control.__file__.rsplit("/", 1)[0] + "/scenarios"
 SERIAL = [task for task in simbench_env.ALL_TASKS if task[0] != "rsmg"]

@@ -36,7 +36,7 @@ if order == "shimmy first":  # through the Gymnasium environment too
     gym = DmControlCompatibilityV0(env_, render_mode="rgb_array", render_kwargs={"height": height, "width": width})
     frames.append(gym.render())
 else:  # a video drawn between two frames
-    from simbench.render import render_video
+    from simbench.outputs.render import render_video
     task = env_.task
     render_video(task.plant.robot.scene, env.recording(env_), task.plan.tool_ref, out + ".mp4", width=64, height=48,
                  fps=5)
@@ -199,7 +199,7 @@ import sys
 import numpy as np
 from dm_control.mujoco import Physics
 from simbench import env
-from simbench.drawn_planes import planes_drawn_finite
+from simbench.outputs.drawn_planes import planes_drawn_finite
 env_ = env.load_task("puma600", "line")
 env_.reset()
 model = env_.physics.model.ptr

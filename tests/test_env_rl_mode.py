@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from simbench import env as simbench_env
-from simbench.controllers import Servo
+from simbench.physics.controllers import Servo
 from simbench.env.rl_mode import RESIDUAL_SCALE, RL, with_rl
-from simbench.sim import simulate
+from simbench.physics.sim import simulate
 
 
 def rl_env(robot: str, name: str, rl=True, task_kwargs=None, environment_kwargs=None, **kwargs):

@@ -12,8 +12,8 @@ from dm_control.rl import control
 
 import simbench
 from simbench import env as simbench_env
-from simbench.controllers import Servo
-from simbench.sim import simulate
+from simbench.physics.controllers import Servo
+from simbench.physics.sim import simulate
 
 TASKS = simbench_env.ALL_TASKS
 
@@ -133,7 +133,7 @@ def test_a_snapshot_replays_bit_for_bit(robot, name, k):
 
 def test_the_servo_policy_reproduces_simulate_on_a_flat_observation():
     """With flat observations the policy reads the task's public references: simulate()'s run, exactly."""
-    scenario = simbench.load_scenario(simbench.resources.scenarios_dir() / "spherical_arm" / "case1.yaml")
+    scenario = simbench.load_scenario(simbench.core.resources.scenarios_dir() / "spherical_arm" / "case1.yaml")
     env = simbench_env.load(scenario, environment_kwargs={"flat_observation": True})
     run(env, simbench_env.servo_policy(env))
     task = env.task
@@ -247,7 +247,7 @@ def test_the_benchmarks_draw_their_tasks_from_simbench():
     """The benchmarks whose generators moved into simbench draw the same tasks as those generators."""
     from benchmarks import bench_agile_eye_planning, bench_rsmg_contacts
     from simbench.planners.rsmg_contacts import random_motions
-    from simbench.random_tasks import agile_eye_tasks
+    from simbench.planners.random_tasks import agile_eye_tasks
 
     assert bench_agile_eye_planning.tasks(2) == agile_eye_tasks(2, bench_agile_eye_planning.SEED)
     assert bench_rsmg_contacts.random_motions is random_motions

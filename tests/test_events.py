@@ -7,8 +7,8 @@ from types import SimpleNamespace
 import pytest
 
 from simbench.api import Event, Violation
-from simbench.report import plain
-from simbench.verdict import _planner_violations
+from simbench.outputs.report import plain
+from simbench.analysis.verdict import _planner_violations
 
 
 def test_an_event_is_written_and_read_as_its_dict():

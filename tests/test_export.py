@@ -1,4 +1,4 @@
-"""A run's timeseries as CSV (simbench.export; `simbench export RUN_FOLDER`, `simbench run --timeseries csv`).
+"""A run's timeseries as CSV (simbench.outputs.export; `simbench export RUN_FOLDER`, `simbench run --timeseries csv`).
 
 Every per-sample array of timeseries.npz is read back from the CSV, by the csv module and float(), equal to the
 npz's to the last bit; the header's units are checked against the model file's own joint types (a URDF's
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from test_reliability import stiff_puma
 
-from simbench import destination
+from simbench.core import destination
 from simbench.cli import main
-from simbench.csv_cells import FORMULA_STARTS
+from simbench.outputs.csv_cells import FORMULA_STARTS
 
 PACKAGE = Path(str(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")))
 UR5 = PACKAGE / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"

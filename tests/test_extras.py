@@ -1,4 +1,4 @@
-"""What needs an optional package (simbench.extras) is refused in one line naming the extra that installs it, as
+"""What needs an optional package (simbench.core.extras) is refused in one line naming the extra that installs it, as
 bad input (exit 2), with the package made unimportable as Python makes a blocked import (None in sys.modules);
 what needs none runs without any: the demo, in a fresh interpreter whose import system refuses them all."""
 
@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from conftest import scenario_file
-from simbench import extras
+from simbench.core import extras
 from simbench.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,7 +91,7 @@ def test_cartesian_paths_mink_method_is_refused_naming_the_mink_extra(tmp_path, 
 def test_the_bench_refuses_the_mink_method_named_and_leaves_it_out_by_default(capsys, monkeypatch):
     _says(_refused(capsys, monkeypatch, "mink", ["bench", "puma600", "--methods", "paper,mink", "--tasks", "1"]),
           "mink")
-    from simbench.bench import load_suite
+    from simbench.commands.bench import load_suite
 
     assert "mink" not in load_suite("puma600").methods  # still refused: sys.modules['mink'] is None
     monkeypatch.delitem(sys.modules, "mink")

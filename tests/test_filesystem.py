@@ -1,5 +1,5 @@
 """What the file system refuses (issue 11): an input simbench may not read, a destination it may not write, a disk
-that fills up mid-run. Each ends with one line naming the path and saying the problem in words (simbench.errors),
+that fills up mid-run. Each ends with one line naming the path and saying the problem in words (simbench.core.errors),
 no traceback; exit 2 before the run, 1 once outputs are being written; nothing half-written: no staging folder
 or lock left beside the output, the previous output as it was, the input untouched.
 
@@ -32,12 +32,15 @@ from conftest import scenario_file
 from matplotlib.figure import Figure
 
 import simbench
-from simbench import atomic, destination, pipeline, report, validation
+from simbench.core import atomic, destination
+from simbench.commands import pipeline
+from simbench.outputs import report
+from simbench.scenario import validation
 from simbench.cli import main
-from simbench.errors import (OutputError, PhysicsError, RunError, ScenarioError, name_max, os_words, printable,
+from simbench.core.errors import (OutputError, PhysicsError, RunError, ScenarioError, name_max, os_words, printable,
                              shown)
-from simbench.sweep import store as sweep_store
-from simbench.sweep import table as sweep_table
+from simbench.commands.sweep import store as sweep_store
+from simbench.commands.sweep import table as sweep_table
 
 
 def _chmod_binds() -> bool:

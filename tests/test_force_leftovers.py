@@ -14,10 +14,10 @@ import yaml
 from conftest import scenario_file
 
 import simbench
-from simbench import destination
-from simbench.bench import load_suite, run_bench
+from simbench.core import destination
+from simbench.commands.bench import load_suite, run_bench
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 
 CASE1 = str(scenario_file("spherical_arm", "case1"))
 BENCH = ["bench", "planar3r", "--tasks", "1", "--methods", "dls_adaptive", "--workers", "1", "--quiet"]
@@ -33,8 +33,8 @@ def _dead_pid() -> int:
 _KILLED = """
 import os, signal, sys
 from pathlib import Path
-from simbench import destination
-from simbench.atomic import staged_file, staged_folder
+from simbench.core import destination
+from simbench.core.atomic import staged_file, staged_folder
 what, path = sys.argv[1], Path(sys.argv[2])
 if what == "lock":  # holding the lock of `path`
     with destination.locked(path):
@@ -171,7 +171,7 @@ def test_a_sweep_whose_full_output_runs_were_killed_resumes_or_is_replaced(tmp_p
     """Ctrl-C or SIGTERM ends a sweep's busy workers at once, mid-run: with outputs: full they leave their run's
     lock and staging folder in runs/ (`.r0001.lock`, `.r0001.partial-PID/...`). Those are simbench's own: the
     same command resumes over them, and --force replaces them, leaving none behind."""
-    from simbench.sweep import load_sweep, run_sweep
+    from simbench.commands.sweep import load_sweep, run_sweep
 
     path = tmp_path / "sweep.yaml"
     path.write_text(yaml.safe_dump({"base": "spherical_arm/case1", "outputs": "full",
@@ -195,7 +195,7 @@ def test_a_sweep_whose_full_output_runs_were_killed_resumes_or_is_replaced(tmp_p
 def test_reproduce_into_the_root_is_refused_before_anything_is_written(monkeypatch, capsys):
     """`--out /` would write /000 (and a lock and a staging folder beside it): refused in one line before the
     folder is locked (a lock taken here fails the test instead of writing into /)."""
-    from simbench import reproduce
+    from simbench.commands import reproduce
 
     def never(out):
         raise AssertionError(f"would lock {out}")

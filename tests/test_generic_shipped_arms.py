@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from simbench.cli import main
-from simbench.resources import models_dir
+from simbench.core.resources import models_dir
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
 from simbench.robots.rank_loss import rank_loss_detail

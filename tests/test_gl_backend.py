@@ -18,7 +18,7 @@ pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="EGL and the MUJ
 
 PROBE = """
 import os
-import simbench, simbench.cli, simbench.pipeline, simbench.render, simbench.env
+import simbench, simbench.cli, simbench.commands.pipeline, simbench.outputs.render, simbench.env
 from dm_control import _render
 print("MUJOCO_GL" in os.environ, _render.BACKEND)
 """

@@ -1,14 +1,21 @@
-"""One direction of imports (project issue 34): no simbench module imports another that imports it back, counting
-imports inside functions and by name (`importlib.import_module`: every literal naming a module), not counting
-those under `typing.TYPE_CHECKING` (annotations only, never run); and simbench's own plugins load through entry
-points, as an outside package's do."""
+"""One direction of imports (project issues 34 and 49): no simbench module imports another that imports it back, and
+no stage folder imports a later stage, counting imports inside functions and by name (`importlib.import_module`:
+every literal naming a module), not counting those under `typing.TYPE_CHECKING` (annotations only, never run);
+simbench's own plugins load through entry points, as an outside package's do; the module paths before the stage
+folders still import, with a warning."""
 
 import ast
+import importlib
 import importlib.metadata
+import sys
+import warnings
 from pathlib import Path
 
+import pytest
+
 import simbench
-from simbench import registry
+from simbench.api import registry
+from simbench.core.moved import MOVED
 
 PACKAGE = Path(simbench.__file__).parent
 
@@ -64,7 +71,7 @@ def _imported(name: str, path: Path) -> set[str]:
             targets += [f"{base}.{alias.name}" if f"{base}.{alias.name}" in MODULES else base for alias in node.names]
     if "import_module" in ast.unparse(tree):  # imports by name: every literal that names a simbench module
         targets += [node.value for node in ast.walk(tree) if isinstance(node, ast.Constant)
-                    and isinstance(node.value, str) and node.value in MODULES]
+                    and isinstance(node.value, str) and node.value in MODULES and node.value != "simbench"]
     return {m for t in targets if t.startswith("simbench") and (m := _module_of(t)) and m != name}
 
 
@@ -107,7 +114,7 @@ def test_the_graph_sees_imports_inside_functions_and_by_name():
     """The finder itself: a function-level import and an import by name both count."""
     graph = {name: _imported(name, path) for name, path in MODULES.items()}
     assert "simbench.api" in graph["simbench.planners.joint_move"]
-    assert "simbench.pipeline" in graph["simbench"]  # the package's lazy names, by import_module
+    assert "simbench.commands.pipeline" in graph["simbench"]  # the package's lazy names, by import_module
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
@@ -126,7 +133,7 @@ def test_the_public_api_is_a_leaf_of_simbench_s_own_modules():
         if m not in closure:
             closure.add(m)
             todo += graph[m]
-    assert not any(m.startswith(("simbench.robots", "simbench.planners", "simbench.registry")) for m in closure)
+    assert not any(m.startswith(("simbench.robots", "simbench.planners", "simbench.api.registry")) for m in closure)
     assert "simbench.api" not in closure
 
 
@@ -144,3 +151,50 @@ def test_simbench_s_own_plugins_load_through_its_entry_points():
     assert {"spherical_arm", "puma600", "agile_eye", "rsmg"} <= set(kinds["simbench.robots"])
     assert {"servo", "computed_torque", "policy"} <= set(kinds["simbench.controllers"])
     assert "tracking" in kinds["simbench.metrics"]
+
+
+STAGES = ("core", "maths", "api", "robots", "scenario", "planners", "physics", "analysis", "outputs", "commands")
+"""simbench's folders in the pipeline's order (docs/architecture.md): a module imports its own folder's modules and
+those of the folders before it, never a later one's. What a user imports stands above them all: TOP."""
+TOP = ("simbench", "simbench.__main__", "simbench.cli", "simbench.env")
+
+
+def _stage(module: str) -> int:
+    """A module's place in the order: its folder's index in STAGES, or past them all for TOP."""
+    if module in TOP or module.startswith("simbench.env."):
+        return len(STAGES)
+    return STAGES.index(module.split(".")[1])
+
+
+def test_every_module_lies_in_a_stage_folder_or_is_what_a_user_imports():
+    """A new module or folder must be given its place (outside the stages only the package's face, the CLI and
+    simbench.env)."""
+    unplaced = [m for m in MODULES if not (m in TOP or m.startswith("simbench.env.") or m.split(".")[1] in STAGES)]
+    assert not unplaced
+
+
+def test_each_stage_imports_only_itself_and_the_stages_before_it():
+    graph = {name: _imported(name, path) for name, path in MODULES.items()}
+    against = sorted(f"{m} -> {t}" for m, targets in graph.items() for t in targets if _stage(t) > _stage(m))
+    assert not against, "imports against the stages' order: " + "; ".join(against)
+
+
+def test_the_direction_test_sees_a_later_stage_imported_inside_a_function(tmp_path):
+    """The check itself: a physics module importing the outputs inside a function is against the order."""
+    module = tmp_path / "late.py"
+    module.write_text("def f():\n    from simbench.outputs import plots\n", encoding="utf-8")
+    imported = _imported("simbench.physics.late", module)
+    assert imported == {"simbench.outputs.plots"}
+    assert _stage("simbench.outputs.plots") > _stage("simbench.physics.late")
+
+
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_a_module_path_from_before_the_stage_folders_imports_with_a_warning(old):
+    """The old path gives the very module at its new path, and a DeprecationWarning naming that path."""
+    new = importlib.import_module(f"simbench.{MOVED[old]}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sys.modules.pop(f"simbench.{old}", None)
+        assert importlib.import_module(f"simbench.{old}") is new
+    assert any(issubclass(w.category, DeprecationWarning) and f"simbench.{MOVED[old]}" in str(w.message)
+               for w in caught)

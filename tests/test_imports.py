@@ -11,7 +11,7 @@ HEAVY = ("matplotlib", "scipy", "scipy.optimize", "scipy.spatial", "ompl")
 
 _PROBE = """
 import sys
-import simbench, simbench.cli, simbench.pipeline
+import simbench, simbench.cli, simbench.commands.pipeline
 loaded = lambda: sorted(m for m in {heavy!r} if m in sys.modules)
 print(loaded())
 simbench.evaluate({scenario!r})

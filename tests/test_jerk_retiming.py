@@ -22,11 +22,11 @@ import toppra.algorithm
 import toppra.constraint
 from scipy.interpolate import CubicSpline
 
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners.jerk_retiming import default_jerk_limits, retime_jerk
 from simbench.planners.path_retiming import ACCEL_TIME, MARGIN, retime
-from simbench.timing import LAWS, TimeLaw
-from simbench.trajectory import control_grid
+from simbench.maths.timing import LAWS, TimeLaw
+from simbench.api.trajectory import control_grid
 
 DT, HOLD = 0.004, 0.1
 ROUNDING = 1e-9  # relative: floating-point room in the finite differences
@@ -140,7 +140,7 @@ def test_cartesian_paths_ruckig_method_keeps_the_wrist_line_and_the_jerk_limits(
     import yaml
 
     from simbench.planners.jerk_retiming import JERK_TIME
-    from simbench.resources import models_dir
+    from simbench.core.resources import models_dir
     from simbench.scenario import load_scenario
 
     model_path = models_dir() / "puma600" / "puma600.xml"

@@ -9,7 +9,7 @@ import numpy as np
 import yaml
 
 import simbench
-from simbench.pipeline import check_plan
+from simbench.commands.pipeline import check_plan
 from simbench.planners import safe_straight_path as ssp
 from simbench.robots.spherical_arm import fk
 

@@ -11,14 +11,16 @@ from conftest import scenario_file
 from test_sim import planned, shipped
 
 import simbench
-from simbench import analysis, sim, windowed
-from simbench.errors import RunError
+from simbench import analysis
+from simbench.physics import sim
+from simbench.core import windowed
+from simbench.core.errors import RunError
 from simbench.planners.round_robin import feedback, paths
 from simbench.planners.round_robin.paths import Orientations
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 from simbench.robots import rsmg as S
 from simbench.robots import Tolerance, rsmg_outputs
-from simbench.rotations import quat_to_matrix, rotation_angle
+from simbench.maths.rotations import quat_to_matrix, rotation_angle
 from simbench.scenario import parse_scenario
 
 
@@ -224,7 +226,7 @@ def _streamed_peak(duration: float, every: int) -> tuple[int, int]:
 
 def test_a_long_strided_run_holds_every_steps_readings_a_window_at_a_time():
     """A run analysed as it is simulated holds every step's sensors, joint positions and constraints in buffers of a
-    window's size (simbench.buffers): its peak memory grows with the samples by what it keeps of them (the kept
+    window's size (simbench.core.buffers): its peak memory grows with the samples by what it keeps of them (the kept
     rows, the analysis' series at them), less than a sensor row a sample, where whole-run arrays would take more."""
     (short, n_short), (long, n_long) = (_streamed_peak(duration, 20) for duration in (40.0, 160.0))
     assert n_long - n_short > 3 * windowed.WINDOW

@@ -13,7 +13,7 @@ import yaml
 
 import simbench
 from conftest import PEAK_SPEED, scenario_file
-from simbench.compare import MethodRun, row, table_csv
+from simbench.commands.compare import MethodRun, row, table_csv
 
 CASE1 = scenario_file("spherical_arm", "case1")
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from simbench.cli import main
-from simbench.render import render_video
+from simbench.outputs.render import render_video
 from simbench.scenario import load_scenario
 
 KINOVA = os.path.join(os.path.dirname(dm_control.__file__), "third_party", "kinova")

@@ -17,8 +17,8 @@ from conftest import interrupt
 
 import simbench
 from simbench.cli import main
-from simbench.plant import compiled_scene
-from simbench.robots.robot_mapping import anchored
+from simbench.core.plant import compiled_scene
+from simbench.scenario.robot_mapping import anchored
 
 PLANAR3R = Path(simbench_planar3r.__file__).parent / "models" / "planar3r.xml"
 

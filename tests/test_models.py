@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from simbench import registry
+from simbench.api import registry
 
 ROBOTS = sorted(registry.robots())
 

@@ -10,7 +10,7 @@ import yaml
 from conftest import SHIPPED, scenario_file
 
 from simbench.cli import main
-from simbench.report import write_timeseries
+from simbench.outputs.report import write_timeseries
 
 
 @pytest.fixture(scope="module")
@@ -163,7 +163,7 @@ def test_every_shipped_scenario_runs_to_complete_and_bit_for_bit_repeatable_outp
 def test_the_fast_npz_writer_round_trips_through_np_load(tmp_path):
     """report.savez_fast writes what np.load reads back bit for bit, as np.savez_compressed's file: floats of
     any shape, integers, booleans, strings, empty arrays."""
-    from simbench.report import savez_fast
+    from simbench.outputs.report import savez_fast
 
     rng = np.random.default_rng(11)
     arrays = {"t": np.linspace(0, 1, 1001), "q": rng.normal(size=(1001, 7)), "flags": rng.random(50) < 0.5,

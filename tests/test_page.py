@@ -1,4 +1,4 @@
-"""The pages (simbench.page) in a real headless browser, Debian's chromium driven over its DevTools protocol: a
+"""The pages (simbench.outputs.page) in a real headless browser, Debian's chromium driven over its DevTools protocol: a
 run's page and a failed run's load with no console error and no request outside their folder, their images and
 video load, a screenshot shows the figures where the page puts them, the report's text is escaped, the timeline
 marks every event at its time; a sweep's page (the sweep's own CSV and plots) shows its tables and figures.
@@ -27,10 +27,10 @@ from conftest import scenario_file
 from PIL import Image
 
 import simbench
-from simbench.errors import PhysicsError
-from simbench.page import run_page, table_page, write_page
+from simbench.core.errors import PhysicsError
+from simbench.outputs.page import run_page, table_page, write_page
 from simbench.scenario import parse_scenario
-from simbench.sweep import table as sweep_table
+from simbench.commands.sweep import table as sweep_table
 
 CHROMIUM = Path("/usr/bin/chromium")
 needs_browser = pytest.mark.skipif(not CHROMIUM.exists(),
@@ -375,7 +375,7 @@ def test_a_failed_runs_page_says_when_and_why(failed_out, open_page):
 
 
 def sweep_folder(out: Path) -> tuple[dict, list[str]]:
-    """What a sweep writes, by its own functions (simbench.sweep.table): results.csv and plots/, for six runs
+    """What a sweep writes, by its own functions (simbench.commands.sweep.table): results.csv and plots/, for six runs
     over two timesteps and three durations, one a `limits` run and one a `bad_input` row."""
     rows = []
     for k, (dt, duration) in enumerate(itertools.product([0.001, 0.002], [1, 2, 4])):
@@ -431,7 +431,7 @@ def test_a_listed_output_missing_from_the_folder_is_named_not_shown(tmp_path):
 def test_a_figure_has_its_pictures_size_and_a_file_that_is_not_one_none(tmp_path):
     """Each figure's width and height are those of the array written as its PNG (a wide one spans the page); a
     file named .png that is not a picture is shown without them."""
-    from simbench.page.html import figure_grid
+    from simbench.outputs.page.html import figure_grid
 
     for name, (height, width) in {"tall.png": (301, 200), "wide.png": (90, 500)}.items():
         imageio.imwrite(tmp_path / name, np.zeros((height, width, 3), np.uint8))

@@ -1,9 +1,9 @@
-"""The data file of paper 000's Table 2 (simbench/reproduce/data/paper000_table2.yaml) holds the values the paper
+"""The data file of paper 000's Table 2 (simbench/commands/reproduce/data/paper000_table2.yaml) holds the values the paper
 prints: the same as they were first typed from the paper's text into
-simbench.reproduce.paper000, copied here once as the independent record of the paper's numbers."""
+simbench.commands.reproduce.paper000, copied here once as the independent record of the paper's numbers."""
 
-from simbench.reproduce import paper000
-from simbench.reproduce.paper000 import Case
+from simbench.commands.reproduce import paper000
+from simbench.commands.reproduce.paper000 import Case
 
 TYPED = (
     Case("case 1", (120, 10, 120, 5), (120, 75, 5, 90), (

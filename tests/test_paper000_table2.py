@@ -1,16 +1,16 @@
 """Paper 000's generation method against its Table 2 (nd = 11), with the typos its Errata list
 (docs/papers/000-spherical-arm.md).
 
-Rows are x, y, z (mm), q1 (deg), q2 (mm), q3 (deg), q4 (mm) as printed (simbench.reproduce.paper000.PRINTED),
+Rows are x, y, z (mm), q1 (deg), q2 (mm), q3 (deg), q4 (mm) as printed (simbench.commands.reproduce.paper000.PRINTED),
 corrected where that module classifies a typo or an error; case 3's q1 is 120 deg, as its x and y say.
 """
 
 import numpy as np
 import pytest
 
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners import safe_straight_path as method
-from simbench.reproduce import paper000
+from simbench.commands.reproduce import paper000
 from simbench.robots import spherical_arm
 
 TOL = 1e-3  # deg or mm: the table prints four decimals
@@ -22,7 +22,7 @@ def si(row_deg_mm):
     return np.array([np.deg2rad(q1), q2 / 1e3, np.deg2rad(q3), q4 / 1e3])
 
 
-# The printed Table 2 lives in one place, simbench.reproduce.paper000 (copied from the paper's text); the rows
+# The printed Table 2 lives in one place, simbench.commands.reproduce.paper000 (copied from the paper's text); the rows
 # here are its path rows with the typos and errors that module classifies applied (paper 000's Errata).
 TABLE2 = {case.name: case for case in paper000.PRINTED}
 CASE1, CASE2, CASE3, CASE4 = (paper000.corrected_rows(TABLE2[f"case {k}"]) for k in (1, 2, 3, 4))

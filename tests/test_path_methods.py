@@ -22,11 +22,11 @@ import pytest
 import yaml
 
 from simbench.cli import main
-from simbench.pipeline import check_plan
+from simbench.commands.pipeline import check_plan
 from simbench.planners.resolved_rates import CLIK_SHARE, NULL_GAIN
-from simbench.plant import compiled_scene
+from simbench.core.plant import compiled_scene
 from simbench.planners.path_methods import EPSILON, LAMBDA_MAX
-from simbench.resources import models_dir
+from simbench.core.resources import models_dir
 from simbench.scenario import load_scenario
 
 XML = models_dir() / "puma600" / "puma600.xml"
@@ -321,10 +321,10 @@ def test_time_scaling_never_asks_past_a_speed_limit_between_toppras_gridpoints()
     q2's limit."""
     import json
 
-    from simbench.bench.methods import METHODS
-    from simbench.bench.robots import SHIPPED
-    from simbench.bench.tasks import draw
-    from simbench.errors import RunError
+    from simbench.commands.bench.methods import METHODS
+    from simbench.commands.bench.robots import SHIPPED
+    from simbench.commands.bench.tasks import draw
+    from simbench.core.errors import RunError
     from simbench.scenario import parse_scenario
 
     robot = SHIPPED["planar3r"]()

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from simbench.paths import Arc, Composite, Line
+from simbench.maths.paths import Arc, Composite, Line
 
 S = np.linspace(0, 1, 1001)
 

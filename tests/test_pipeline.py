@@ -1,4 +1,4 @@
-"""One run end to end through the Python API (simbench.pipeline): what `run` writes and what it says it wrote,
+"""One run end to end through the Python API (simbench.commands.pipeline): what `run` writes and what it says it wrote,
 the report a sweep keeps, the stopwatch, a run whose physics fails, `check_plan`, and outputs that appear
 whole or not at all. (What the CLI prints and every shipped scenario's outputs: test_outputs.py; file-system
 refusals: test_filesystem.py; faults in the physics: test_reliability.py.)"""
@@ -14,9 +14,9 @@ import yaml
 from conftest import scenario_file
 
 import simbench
-from simbench import pipeline
-from simbench.destination import MARKER
-from simbench.errors import PhysicsError, ScenarioError
+from simbench.commands import pipeline
+from simbench.core.destination import MARKER
+from simbench.core.errors import PhysicsError, ScenarioError
 from simbench.scenario import load_scenario, parse_scenario
 
 TIMING = {"law": "quintic", "duration": 1.5, "hold": 0.2}

@@ -18,7 +18,7 @@ simbench_planar3r = pytest.importorskip("simbench_planar3r", reason="pip install
 
 from simbench.api import REVOLUTE, Tolerance  # noqa: E402
 from simbench.scenario import Thresholds, Timing, load_scenario  # noqa: E402
-from simbench.schema import Units  # noqa: E402
+from simbench.scenario.schema import Units  # noqa: E402
 from simbench_planar3r.planner import PLANNER  # noqa: E402
 from simbench_planar3r.robot import L1, L2, L3, ROBOT  # noqa: E402
 from conftest import segment_distance  # noqa: E402
@@ -205,7 +205,7 @@ def test_planner_reports_the_deviation_near_the_stretched_elbow():
 
 @pytest.mark.parametrize("name", ["line", "near_stretch"])
 def test_packaged_scenarios_load(name):
-    from simbench.errors import ScenarioError
+    from simbench.core.errors import ScenarioError
 
     path = ROBOT.scene.parent.parent / "scenarios" / f"{name}.yaml"
     try:

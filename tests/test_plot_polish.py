@@ -16,11 +16,11 @@ from test_docs import site  # noqa: F401  (the docs site, built once by test_doc
 from test_page import Page, browser  # noqa: F401  (headless chromium: getfixturevalue)
 
 import simbench
-from simbench import plots
+from simbench.outputs import plots
 from simbench.api import Event
-from simbench.page import run_page
-from simbench.pipeline import thinned
-from simbench.report import build_report
+from simbench.outputs.page import run_page
+from simbench.commands.pipeline import thinned
+from simbench.outputs.report import build_report
 from simbench.scenario import load_scenario, parse_scenario
 
 

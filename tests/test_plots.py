@@ -11,9 +11,9 @@ from conftest import scenario_file
 from PIL import Image
 
 import simbench
-from simbench import registry
+from simbench.api import registry
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 
 STEMS = ["joints", "joint_speeds", "tool_deviation", "singularity", "path"]
 FORMATS = ["png", "svg", "pdf"]

@@ -14,9 +14,9 @@ from scipy.spatial.transform import Rotation, Slerp
 from test_verdict import BEYOND
 
 from simbench.cli import main
-from simbench.errors import RunError, ScenarioError
-from simbench.pipeline import check_plan, evaluate
-from simbench.random_tasks import puma_lines
+from simbench.core.errors import RunError, ScenarioError
+from simbench.commands.pipeline import check_plan, evaluate
+from simbench.planners.random_tasks import puma_lines
 from simbench.robots import puma600 as P
 from simbench.scenario import parse_scenario
 

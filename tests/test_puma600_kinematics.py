@@ -8,7 +8,7 @@ import pytest
 
 from simbench.robots import Tolerance
 from simbench.robots import puma600 as P
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 
 ROBOT = P.ROBOT
 

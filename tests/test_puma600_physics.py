@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from simbench.robots import puma600 as P
-from simbench.plant import Plant
-from simbench.sim import simulate
-from simbench.trajectory import JointTrajectory
+from simbench.core.plant import Plant
+from simbench.physics.sim import simulate
+from simbench.api.trajectory import JointTrajectory
 
 
 @pytest.mark.parametrize("name", ["line", "circle", "weld_seam"])

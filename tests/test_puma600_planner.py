@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from simbench.paths import Arc, Line
+from simbench.maths.paths import Arc, Line
 from simbench.planners import decoupled_path as method
 from simbench.robots import puma600 as P
 

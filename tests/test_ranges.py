@@ -19,11 +19,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel
 
-from simbench import pipeline
+from simbench.commands import pipeline
 from simbench.cli import main
-from simbench.errors import RunError, ScenarioError
-from simbench.scenario import _scenario_class, load_scenario, parse_scenario
-from simbench.schema import MAX_ANGLE, MAX_LENGTH
+from simbench.core.errors import RunError, ScenarioError
+from simbench.scenario.document import _scenario_class, load_scenario, parse_scenario
+from simbench.scenario.schema import MAX_ANGLE, MAX_LENGTH
 
 HUGE = [1e308, -1e308, 2.0**70, 2**70, 10**5000, -(10**5000), math.inf, -math.inf, math.nan, 1e30]
 SMALL = [0.0, -0.0, 1e-308, -1e-308, 1e-12, -1.0, 0, -1]

@@ -30,8 +30,8 @@ import numpy as np
 import pytest
 
 from simbench.robots.rank_loss import rank_loss_detail
-from simbench.robots.robot_mapping import load_robot
-from simbench.schema import Units
+from simbench.scenario.robot_mapping import load_robot
+from simbench.scenario.schema import Units
 
 PACKAGE = distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
 UR5 = PACKAGE / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"

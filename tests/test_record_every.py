@@ -11,15 +11,18 @@ import yaml
 from test_sim import ClosedServo, Scripted, planned, shipped
 
 import simbench
-from simbench import registry
+from simbench.api import registry
 from conftest import scenario_file
-from simbench import analysis, pipeline, stepping, windowed
+from simbench import analysis
+from simbench.commands import pipeline
+from simbench.physics import stepping
+from simbench.core import windowed
 from simbench.robots import Tolerance
-from simbench.verdict import run_verdict
-from simbench.controllers import Servo
-from simbench.errors import ControlError
+from simbench.analysis.verdict import run_verdict
+from simbench.physics.controllers import Servo
+from simbench.core.errors import ControlError
 from simbench.scenario import parse_scenario
-from simbench.sim import simulate
+from simbench.physics.sim import simulate
 
 _HEAVY = ("qpos", "qd", "ctrl")  # the columns a stride thins in the Recording itself
 _EVERY_ROW = ("t", "q", "tool", "force")  # and those the analysis reads at every row

@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 import yaml
 
-from simbench import api, pipeline, registry
+from simbench import api
+from simbench.commands import pipeline
+from simbench.api import registry
 from simbench.cli import main
-from simbench.errors import RegistryError, ScenarioError
+from simbench.core.errors import RegistryError, ScenarioError
 from simbench.scenario import parse_scenario
-from simbench.plant import Plant, compiled_scene
+from simbench.core.plant import Plant, compiled_scene
 
 ROBOTS = sorted(registry.robots())
 PLANNERS = sorted(registry.planners())

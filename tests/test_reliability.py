@@ -17,10 +17,11 @@ import yaml
 from conftest import interrupt, scenario_file
 
 import simbench
-from simbench import plant as plants, sim, switches
+from simbench.core import plant as plants
+from simbench.physics import sim, switches
 from simbench.cli import main
-from simbench.errors import PhysicsError
-from simbench.faults import MAX_SPEED
+from simbench.core.errors import PhysicsError
+from simbench.core.faults import MAX_SPEED
 
 
 def stiff_puma(tmp_path) -> Path:
@@ -168,7 +169,7 @@ def test_ctrl_c_leaves_the_previous_output_or_none(tmp_path):
 
 CTRL_C_PROBE = """
 import os, signal, time
-from simbench import interrupts
+from simbench.core import interrupts
 
 def ctrl_c():
     os.kill(os.getpid(), signal.SIGINT)
@@ -206,7 +207,7 @@ def test_a_signal_in_a_deferred_block_is_handled_after_it_and_not_inside():
     import logging
     import os
 
-    from simbench import interrupts
+    from simbench.core import interrupts
 
     reached_end = False
     with pytest.raises(KeyboardInterrupt):
@@ -253,7 +254,7 @@ def test_a_ctrl_c_handled_as_the_staging_folder_is_made_leaves_nothing(tmp_path,
     then, on a loaded machine): made here deterministic, an interrupt raised just after the folder is made."""
     from pathlib import Path
 
-    from simbench import atomic
+    from simbench.core import atomic
 
     made = Path.mkdir
 

@@ -108,7 +108,7 @@ def _needs_in_code() -> dict[str, set[str]]:
     extras.missing call with a module's name in the planner's module or package."""
     import ast
 
-    from simbench import registry
+    from simbench.api import registry
 
     planners = ROOT / "src" / "simbench" / "planners"
     found: dict[str, set[str]] = {}
@@ -124,7 +124,7 @@ def _needs_in_code() -> dict[str, set[str]]:
 def test_list_marks_each_planner_that_needs_an_extra(capsys, monkeypatch):
     """Each planner whose code calls for an optional package is marked in `simbench list` with that package,
     installed, or not installed and the pip command (the package made unimportable); the others are not marked."""
-    from simbench import extras
+    from simbench.core import extras
 
     needs = _needs_in_code()
     assert needs.keys() >= {"mink_baseline", "avoidance_4567", "cartesian_path"}, needs
@@ -146,14 +146,14 @@ def test_list_marks_each_planner_that_needs_an_extra(capsys, monkeypatch):
 
 # --- Ctrl-C while `python -m simbench` imports ----------------------------------------------------------------------
 
-# Ctrl-C pressed (SIGINT raised) the moment the command line's modules import simbench.plot_formats, before main can
+# Ctrl-C pressed (SIGINT raised) the moment the command line's modules import simbench.outputs.plot_formats, before main can
 # answer it; then `python -m simbench list` as the interpreter runs it.
 PRESSED_WHILE_IMPORTING = """
 import importlib.abc, runpy, signal, sys
 
 class Press(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
-        if name == "simbench.plot_formats":
+        if name == "simbench.outputs.plot_formats":
             signal.raise_signal(signal.SIGINT)
         return None
 

@@ -1,4 +1,4 @@
-"""The video (simbench.render), read back from the MP4 by imageio's ffmpeg reader, as a viewer would see it:
+"""The video (simbench.outputs.render), read back from the MP4 by imageio's ffmpeg reader, as a viewer would see it:
 one frame every 1/fps s at the size asked, each the recorded pose drawn as MuJoCo draws it through the camera
 with the preset's settings, and the plan, the trace and the decorations where the camera's own projection puts
 them (a pinhole model built here from the camera's pose and field of view)."""
@@ -20,7 +20,7 @@ from conftest import scenario_file
 
 import simbench
 from simbench.api import Decoration
-from simbench.render import _check_finished, add_polyline, render_video
+from simbench.outputs.render import _check_finished, add_polyline, render_video
 from simbench.scenario import parse_scenario
 
 DURATION, HOLD = 0.5, 0.12  # s: case 1's line, fast, so that a video is a handful of frames

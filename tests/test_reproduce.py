@@ -1,4 +1,4 @@
-"""simbench.reproduce: every paper regenerated beside its printed values, every difference classified (issue 15).
+"""simbench.commands.reproduce: every paper regenerated beside its printed values, every difference classified (issue 15).
 
 Paper 000's Table 2 is checked against truths that do not come from the planner: the arm's forward kinematics
 (a printed row, corrected as classified, must put the tool at its own printed x, y, z) and the geometry of
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from simbench.errors import ScenarioError
-from simbench.reproduce import CLASSES, ERROR, OURS, PAPERS, TYPO, paper000, reproduce
-from simbench.reproduce._common import PIXELS
+from simbench.core.errors import ScenarioError
+from simbench.commands.reproduce import CLASSES, ERROR, OURS, PAPERS, TYPO, paper000, reproduce
+from simbench.commands.reproduce._common import PIXELS
 from simbench.robots.spherical_arm import D4, fk
 
 CELLS = paper000.compare()

@@ -1,4 +1,4 @@
-"""simbench.rotations and the RSMG's commanded rotor motion, in NumPy, against scipy's Rotation (the
+"""simbench.maths.rotations and the RSMG's commanded rotor motion, in NumPy, against scipy's Rotation (the
 independent truth: a library of its own, which a run of the RSMG no longer loads)."""
 
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from simbench.planners.round_robin import Motion
-from simbench.rotations import canonical, matrix_to_quat, quat_to_matrix
+from simbench.maths.rotations import canonical, matrix_to_quat, quat_to_matrix
 
 
 def scipy_quat(rot: np.ndarray) -> np.ndarray:

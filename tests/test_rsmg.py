@@ -9,14 +9,14 @@ from conftest import scenario_file
 from scipy.spatial.transform import Rotation
 
 import simbench
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners import round_robin
 from simbench.planners.round_robin.feedback import EASE
 from simbench.planners.round_robin.schedule import gammas
 from simbench.robots import rsmg as S
-from simbench.plant import Plant
-from simbench.switches import apply_switch
-from simbench.trajectory import Switch
+from simbench.core.plant import Plant
+from simbench.physics.switches import apply_switch
+from simbench.api.trajectory import Switch
 
 V = Rotation.random(3000, random_state=0).as_matrix()[:, :, 0]  # unit vectors all over the sphere
 

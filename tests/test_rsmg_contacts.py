@@ -16,8 +16,8 @@ from scipy.spatial.transform import Rotation
 from test_rsmg_schedule import axes, check_plan, grips, largest_minor
 
 import simbench
-from simbench.errors import RunError
-from simbench.pipeline import check_plan as plan_and_verdict
+from simbench.core.errors import RunError
+from simbench.commands.pipeline import check_plan as plan_and_verdict
 from simbench.planners import round_robin, rsmg_contacts
 from simbench.robots import rsmg as S
 from simbench.scenario import parse_scenario

@@ -10,12 +10,12 @@ from conftest import scenario_file
 from scipy.spatial.transform import Rotation
 
 import simbench
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners import round_robin
 from simbench.planners.round_robin import paths
 from simbench.robots import rsmg as S
-from simbench.rotations import matrix_to_quat
-from simbench.trajectory import PER_SAMPLE
+from simbench.maths.rotations import matrix_to_quat
+from simbench.api.trajectory import PER_SAMPLE
 
 DT = 0.002  # s: the control grid the plans are checked on
 BASE = simbench.load_scenario(scenario_file("rsmg", "three_turns"))

@@ -12,14 +12,14 @@ import yaml
 from conftest import scenario_file
 
 import simbench
-from simbench import registry
+from simbench.api import registry
 from simbench.api import Controller, State
-from simbench.controllers import Servo
-from simbench.errors import ControlError, PhysicsError, RegistryError
-from simbench.faults import MAX_SPEED
-from simbench.plant import Plant, scene_spec
+from simbench.physics.controllers import Servo
+from simbench.core.errors import ControlError, PhysicsError, RegistryError
+from simbench.core.faults import MAX_SPEED
+from simbench.core.plant import Plant, scene_spec
 from simbench.scenario import parse_scenario
-from simbench.sim import simulate
+from simbench.physics.sim import simulate
 
 
 def shipped(robot: str, name: str, duration: float | None = None, **sections) -> simbench.Scenario:

@@ -29,12 +29,12 @@ from test_cartesian_path_damping import ARMS, Kinematics
 from test_path_methods import SPEED, START, XML, Mujoco, _line_distance
 
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 from simbench.planners.path_methods import EPSILON, GRADIENT_GAIN, LAMBDA_MAX
 from simbench.planners.resolved_rates import CLIK_SHARE, NULL_GAIN
-from simbench.robots.robot_mapping import load_robot
+from simbench.scenario.robot_mapping import load_robot
 from simbench.scenario import parse_scenario
-from simbench.schema import Units
+from simbench.scenario.schema import Units
 
 DT, HOLD = 0.01, 0.3  # s: a coarse control step keeps dozens of plans quick
 SLOW = 0.5  # rad/s: the xArm7's speed limits here (its URDF's 3.14 would seldom bind)
@@ -196,7 +196,7 @@ def test_priority_on_a_planar_arm_makes_the_whole_twist_as_pinv_does():
     J qd is the commanded twist at every sample, as pinv's."""
     import mujoco
 
-    from simbench.bench.robots import SHIPPED
+    from simbench.commands.bench.robots import SHIPPED
 
     mapping = SHIPPED["planar3r"]().mapping
     rng = np.random.default_rng(23)
@@ -338,9 +338,9 @@ def test_the_bench_writes_gradient_for_redundant_arms_alone_and_sns_and_priority
     """gradient where the arm has more joints than its tasks' rows (the Panda's 7 for 6; the spherical arm's 4 for
     the tool's point's 3), none on the PUMA and the planar 3R; sns and priority for every arm, each a valid scenario;
     none of the three in a suite's default methods (they run where named)."""
-    from simbench.bench.methods import METHODS, installed
-    from simbench.bench.robots import SHIPPED
-    from simbench.bench.tasks import Task
+    from simbench.commands.bench.methods import METHODS, installed
+    from simbench.commands.bench.robots import SHIPPED
+    from simbench.commands.bench.tasks import Task
 
     assert not {"sns", "gradient", "priority"} & set(installed())
 

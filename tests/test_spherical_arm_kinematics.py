@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from simbench.robots import Tolerance, spherical_arm
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 
 ROBOT = spherical_arm.ROBOT
 

@@ -6,13 +6,13 @@ from conftest import segment_distance
 
 import simbench
 from simbench.analysis import path_deviation
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.scenario import parse_scenario
 from simbench.robots import spherical_arm
-from simbench.plant import Plant
-from simbench.controllers import Servo
-from simbench.sim import simulate
-from simbench.trajectory import JointTrajectory
+from simbench.core.plant import Plant
+from simbench.physics.controllers import Servo
+from simbench.physics.sim import simulate
+from simbench.api.trajectory import JointTrajectory
 
 ROBOT = spherical_arm.ROBOT
 

@@ -16,12 +16,12 @@ from conftest import interrupt, scenario_file
 
 import simbench
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 from simbench.scenario import parse_scenario
-from simbench.resources import sweeps_dir
-from simbench.sweep import execute, load_sweep, run_sweep
-from simbench.sweep.spec import assign, parse_path
-from simbench.sweep.store import Store
+from simbench.core.resources import sweeps_dir
+from simbench.commands.sweep import execute, load_sweep, run_sweep
+from simbench.commands.sweep.spec import assign, parse_path
+from simbench.commands.sweep.store import Store
 
 CASE1 = "spherical_arm/case1"
 

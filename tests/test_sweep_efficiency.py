@@ -1,5 +1,5 @@
 """What a sweep does to go faster changes none of its results. Its runs reuse the Plant of the run before in
-their process (simbench.plant.reused_plants): the table must be the one that a Plant built for each run alone
+their process (simbench.core.plant.reused_plants): the table must be the one that a Plant built for each run alone
 gives, metric for metric, with model-affecting settings swept and with switches that edit the running model. Its
 plots are drawn at once in forked processes: the same files, byte for byte, as drawn one after another."""
 
@@ -7,12 +7,12 @@ import numpy as np
 import yaml
 from conftest import scenario_file
 
-from simbench.plant import Plant, reused_plants
-from simbench.report import plain
+from simbench.core.plant import Plant, reused_plants
+from simbench.outputs.report import plain
 from simbench.robots import rsmg
 from simbench.robots.spherical_arm import ROBOT
 from simbench.scenario import parse_scenario
-from simbench.sweep import execute, load_sweep, run_sweep, table
+from simbench.commands.sweep import execute, load_sweep, run_sweep, table
 
 
 _build = Plant._build

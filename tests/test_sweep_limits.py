@@ -14,9 +14,9 @@ import sys
 import pytest
 import yaml
 
-from simbench import budget, interrupts
+from simbench.core import budget, interrupts
 from simbench.cli import main
-from simbench.sweep import execute, load_sweep, run_sweep, table
+from simbench.commands.sweep import execute, load_sweep, run_sweep, table
 
 CASE1 = "spherical_arm/case1"
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from simbench.timing import LAWS, TimeLaw
+from simbench.maths.timing import LAWS, TimeLaw
 
 T = 2.5
 

@@ -17,8 +17,8 @@ from test_derived_plant import tool_pose
 
 import simbench
 from simbench.cli import main
-from simbench.robots.robot_mapping import load_robot
-from simbench.schema import Units
+from simbench.scenario.robot_mapping import load_robot
+from simbench.scenario.schema import Units
 
 ROBOTS = Path(str(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data"))) / "robots"
 UR5 = ROBOTS / "ur_description" / "urdf" / "ur5_robot.urdf"

@@ -1,4 +1,4 @@
-"""The shipped metric `tracking` (simbench.tracking): report.json's tracking figures, against NumPy's reductions of
+"""The shipped metric `tracking` (simbench.analysis.tracking): report.json's tracking figures, against NumPy's reductions of
 the whole run's arrays (the recording, the plan and the analysis' per-sample series) at once."""
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 import yaml
 
 from conftest import SHIPPED
-from simbench import registry
-from simbench.tracking import Tracking
+from simbench.api import registry
+from simbench.analysis.tracking import Tracking
 
 _WHOLE = [p for p in SHIPPED if yaml.safe_load(p.read_text()).get("sim", {}).get("record_every", 1) == 1]
 

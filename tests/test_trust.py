@@ -10,7 +10,7 @@ import yaml
 from conftest import SHIPPED, scenario_file
 
 from simbench.cli import main
-from simbench.errors import ScenarioError
+from simbench.core.errors import ScenarioError
 from simbench.scenario import parse_scenario
 
 ESCAPES = "\x1b[31mRED\x1b[0m\x07\x1b]0;title\x07"
@@ -135,7 +135,7 @@ def test_an_unknown_field_anywhere_in_a_shipped_scenario_says_what_the_mapping_t
 def test_an_exit_raised_by_outside_code_simbench_calls_is_a_failed_run(monkeypatch, capsys, raised):
     """An outside planner, robot or controller calling sys.exit (or raising KeyboardInterrupt) where no policy
     guard stands: exit 1 and one line, never exit 0 with nothing said, nor 'interrupted'."""
-    from simbench import pipeline
+    from simbench.commands import pipeline
 
     def plan_that_exits(*args, **kwargs):
         raise raised
@@ -153,7 +153,7 @@ def test_comparison_csv_quotes_text_a_spreadsheet_would_run_and_leaves_numbers()
     import csv
     import io
 
-    from simbench.compare import table_csv
+    from simbench.commands.compare import table_csv
 
     rows = ({"method": "a", "status": "run_failed", "error": '=HYPERLINK("http://127.0.0.1:1","x")'},
             {"method": "b", "status": "ok", "error": "", "tool_error_max_m": -0.5})

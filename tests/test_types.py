@@ -11,9 +11,9 @@ MYPY = [sys.executable, "-m", "mypy", "--ignore-missing-imports", "--follow-impo
 
 
 def test_the_public_api_and_the_example_type_check():
-    files = [ROOT / "src/simbench/api", ROOT / "src/simbench/controllers.py", ROOT / "src/simbench/tracking.py",
-             ROOT / "src/simbench/singularity_handling.py",
-             ROOT / "src/simbench/computed_torque.py", ROOT / "src/simbench/policy.py",
+    files = [ROOT / "src/simbench/api", ROOT / "src/simbench/physics/controllers.py",
+             ROOT / "src/simbench/analysis/tracking.py", ROOT / "src/simbench/analysis/singularity_handling.py",
+             ROOT / "src/simbench/physics/computed_torque.py", ROOT / "src/simbench/physics/policy.py",
              ROOT / "examples/planar3r/src/simbench_planar3r"]
     done = subprocess.run(MYPY + [str(f) for f in files], capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
@@ -23,7 +23,8 @@ def test_a_wrong_plugin_is_caught_by_the_type_checker(tmp_path):
     bad = tmp_path / "bad_plugin.py"
     bad.write_text(textwrap.dedent('''
         import numpy as np
-        from simbench import api, registry
+        from simbench import api
+        from simbench.api import registry
 
         class Arm(api.Robot):
             def fk(self, q: np.ndarray) -> str:                  # a string where points are due
@@ -48,7 +49,7 @@ def test_a_wrong_plugin_is_caught_by_the_type_checker(tmp_path):
     done = subprocess.run(MYPY + [str(bad)], capture_output=True, text=True)
     out = done.stdout
     assert done.returncode == 1
-    for line in (":6: error: Return type \"str\" of \"fk\" incompatible", ":18: error: Incompatible types in "
-                 "assignment", ":20: error: Signature of \"plan\" incompatible", ":23: error: Argument 1 to "
+    for line in (":7: error: Return type \"str\" of \"fk\" incompatible", ":19: error: Incompatible types in "
+                 "assignment", ":21: error: Signature of \"plan\" incompatible", ":24: error: Argument 1 to "
                  "\"register_planner\" has incompatible type"):
         assert line in out, out

@@ -21,7 +21,8 @@ import yaml
 from conftest import interrupt
 
 import simbench
-from simbench import api, registry
+from simbench import api
+from simbench.api import registry
 from simbench.cli import main
 from simbench_planar3r import control as planar3r_control
 

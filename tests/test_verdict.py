@@ -13,7 +13,7 @@ import simbench
 from simbench.cli import EXIT_LIMITS, main
 from simbench.robots import puma600
 from simbench.scenario import parse_scenario
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 
 # A torch line that in righty / up / noflip needs q4 beyond its range; righty / up / flip keeps 22 deg inside
 # every range (found with Craig's IK, puma600.ik, over the 8 configurations).

@@ -1,4 +1,4 @@
-"""The analysis a window of samples at a time (simbench.windowed, analysis.analyse's `window`): a long run's
+"""The analysis a window of samples at a time (simbench.core.windowed, analysis.analyse's `window`): a long run's
 analysis holds a window's arrays, and must say what the analysis of the whole run at once says. The truths: the
 whole arrays' own reductions (brute force), and the same run analysed as one window."""
 
@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from simbench import windowed
+from simbench.core import windowed
 from simbench.analysis import analyse, along_path
 from simbench.analysis.tangents import Tangents
-from simbench.report import plain
+from simbench.outputs.report import plain
 from simbench.robots import Tolerance
-from simbench.windowed import Departure, Rises, Spans, Sums, spans
+from simbench.core.windowed import Departure, Rises, Spans, Sums, spans
 
 _RNG = np.random.default_rng(20261123)
 

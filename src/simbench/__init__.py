@@ -10,12 +10,16 @@ cleanly from its first moment.
 
 import importlib
 
-from simbench.errors import OutputError, PhysicsError, RunError, ScenarioError
-from simbench.version import __version__
+from simbench.core import moved
+from simbench.core.errors import OutputError, PhysicsError, RunError, ScenarioError
+from simbench.core.version import __version__
 
-_LAZY = {"Evaluation": "simbench.pipeline", "Result": "simbench.pipeline", "evaluate": "simbench.pipeline",
-         "run": "simbench.pipeline", "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario",
-         **{name: "simbench.registry" for name in ("register_robot", "register_planner", "register_controller",
+moved.install()  # the module paths before the stage folders, for one release
+
+_PIPELINE = "simbench.commands.pipeline"
+_LAZY = {"Evaluation": _PIPELINE, "Result": _PIPELINE, "evaluate": _PIPELINE, "run": _PIPELINE,
+         "Scenario": "simbench.scenario", "load_scenario": "simbench.scenario",
+         **{name: "simbench.api.registry" for name in ("register_robot", "register_planner", "register_controller",
                                                     "register_policy", "register_metric")}}
 
 __all__ = ["Evaluation", "OutputError", "PhysicsError", "Result", "RunError", "Scenario", "ScenarioError",

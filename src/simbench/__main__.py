@@ -10,7 +10,7 @@ if not sys.flags.safe_path and sys.path and sys.path[0] in ("", os.getcwd()):
     del sys.path[0]
 
 try:
-    from simbench import interrupts
+    from simbench.core import interrupts
 
     with interrupts.held_back():  # an extension module being imported would turn Ctrl-C into an ImportError
         from simbench.cli import main

@@ -13,12 +13,12 @@ import os
 import sys
 from pathlib import Path
 
-from simbench import interrupts
-from simbench.bench import command as bench_command
-from simbench.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
+from simbench.core import interrupts
+from simbench.commands.bench import command as bench_command
+from simbench.core.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
                              os_error_line, printable)
-from simbench.plot_formats import FORMATS, TIMESERIES_FORMATS
-from simbench.resources import scenarios_dir, sweeps_dir
+from simbench.outputs.plot_formats import FORMATS, TIMESERIES_FORMATS
+from simbench.core.resources import scenarios_dir, sweeps_dir
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -149,7 +149,7 @@ def _status_lines(status: str, violations: list[dict], expected: dict | None) ->
 
 def _sweep(args) -> None:
     """The sweep command: run (or with --dry-run, list) the sweep's runs."""
-    from simbench.sweep import cluster, load_sweep, run_sweep
+    from simbench.commands.sweep import cluster, load_sweep, run_sweep
 
     cluster.check_where(args.workers, args.ray)
     sweep = load_sweep(args.sweep)
@@ -182,7 +182,7 @@ def _refuse_all_bad_input(sweep, refused: list[tuple[str, str]]) -> None:
 
 def _compare(args) -> None:
     """The compare command: the table and plots of every method, and the table on screen."""
-    from simbench.compare import compare
+    from simbench.commands.compare import compare
     from simbench.scenario import load_scenario
 
     out = args.out or Path("renders") / "compare" / load_scenario(args.scenario).name  # as run's renders/<name>/
@@ -196,7 +196,7 @@ def _compare(args) -> None:
 def _dry_run(sweep, allow_code: bool) -> tuple[str, list[tuple[str, str]]]:
     """The listing of a sweep's runs and parameters, and the (run id, reason) of those the sweep would refuse: the
     schema's, and without `allow_code` a policy that names a module."""
-    from simbench.policy import refuse_code
+    from simbench.physics.policy import refuse_code
     from simbench.scenario import parse_scenario
 
     lines = [f"{sweep.name}: {len(sweep.variants)} runs of {sweep.base}"]
@@ -230,7 +230,8 @@ def _validate(paths: list[Path], plan: bool, failed) -> int:
 
 def _validate_one(path: Path, plan: bool) -> int:
     """Check one scenario and, if `plan`, plan it; EXIT_LIMITS if its plan breaks an unexpected promise."""
-    from simbench import pipeline, scenario
+    from simbench.commands import pipeline
+    from simbench import scenario
 
     sc = scenario.load_scenario(path)
     valid = f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)"
@@ -251,7 +252,7 @@ def _validate_one(path: Path, plan: bool) -> int:
 
 def _note_code(sc) -> None:
     """A note where the scenario's policy names a module, which run refuses without --allow-code."""
-    from simbench.policy import is_code
+    from simbench.physics.policy import is_code
 
     target = getattr(sc.control, "policy", None)
     if target is not None and is_code(target):
@@ -261,7 +262,8 @@ def _note_code(sc) -> None:
 
 def _run(args) -> int:
     """The run command: run the scenario and print its summary."""
-    from simbench import pipeline, scenario
+    from simbench.commands import pipeline
+    from simbench import scenario
 
     sc = scenario.load_scenario(args.scenario)
     out = args.out if args.out is not None else Path("renders") / sc.name
@@ -285,7 +287,7 @@ def _run(args) -> int:
 
 def _export(folder: Path, fmt: str = "csv", kinds: tuple[str, ...] | None = None, quiet: bool = False) -> None:
     """Write the run folder's timeseries in `fmt` and say where, and what it left out."""
-    from simbench.export import export  # imported here: the command line loads without NumPy and MuJoCo
+    from simbench.outputs.export import export  # imported here: the command line loads without NumPy and MuJoCo
 
     written = export(folder, fmt, kinds)
     if not quiet:
@@ -297,7 +299,8 @@ def _export(folder: Path, fmt: str = "csv", kinds: tuple[str, ...] | None = None
 def _list() -> str:
     """The registered plugins with their origins and broken entry points (a planner's robots, and the extra it
     needs, if any), then the shipped scenarios and sweeps."""
-    from simbench import extras, registry
+    from simbench.core import extras
+    from simbench.api import registry
 
     lines = []
     for kind, found, width in (("robot", registry.robots, 16), ("planner", registry.planners, 20),
@@ -335,7 +338,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             args = _parser().parse_args(argv)
             with interrupts.held_back():  # imported here, so that --help loads neither psutil nor filelock
-                from simbench.destination import command_line
+                from simbench.core.destination import command_line
         except interrupts.Interrupted:  # pressed while the command line was read
             _say("interrupted", file=sys.stderr)
             return ctrl_c.exit_code
@@ -350,7 +353,7 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         if args.command == "list":
             _say(_list())
         elif args.command == "inspect":
-            from simbench.robots.inspect_arm import inspect
+            from simbench.commands.inspect_arm import inspect
 
             _say(inspect(args.model, args.at, args.units, args.json))
         elif args.command == "train-fk":
@@ -362,7 +365,7 @@ def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:
         elif args.command == "bench":
             bench_command.run(args, _say)
         elif args.command == "reproduce":
-            from simbench.reproduce import reproduce
+            from simbench.commands.reproduce import reproduce
 
             _say("\n".join(reproduce(args.paper, args.out, force=args.force).lines()))
         elif args.command == "compare":
@@ -387,7 +390,9 @@ def _preload(ctrl_c: interrupts.CtrlC) -> None:
     """Import simbench's own modules with Ctrl-C held back (extension modules would swallow it), then outside
     entry points with it deliverable, so that a hanging one can be stopped."""
     with interrupts.held_back():
-        from simbench import pipeline, registry, scenario  # noqa: F401
+        from simbench.commands import pipeline
+        from simbench.api import registry
+        from simbench import scenario  # noqa: F401
 
         registry.load_shipped()
     registry.robots(), registry.planners(), registry.controllers(), registry.policies(), registry.metrics()

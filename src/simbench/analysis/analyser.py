@@ -9,16 +9,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simbench import windowed
+from simbench.core import windowed
 from simbench.analysis.limit_events import Bounds, Jump, PlanLimits, event, jump_events, plan_jumps
-from simbench.analysis.path_distance import deviation_near_reference
+from simbench.maths.path_distance import deviation_near_reference
 from simbench.analysis.tangents import Tangents
 from simbench.api import Event, Metric
-from simbench.recording import Recording
-from simbench.registry import metrics_for
+from simbench.api.recording import Recording
+from simbench.api.registry import metrics_for
 from simbench.robots import Robot, Tolerance
-from simbench.trajectory import JointTrajectory, joined
-from simbench.windowed import Departure, Rises, Spans, norms
+from simbench.api.trajectory import JointTrajectory, joined
+from simbench.core.windowed import Departure, Rises, Spans, norms
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario
@@ -65,7 +65,7 @@ def analyse(robot: Robot, traj: JointTrajectory, rec: Recording, near: Tolerance
 
 
 class Analyser:
-    """The analysis of a run, fed its samples a window at a time, in order (as simbench.sim simulates them). A
+    """The analysis of a run, fed its samples a window at a time, in order (as simbench.physics.sim simulates them). A
     window's plan is final: the plan's feedback revises the references of samples still to come only.
 
     Tracking series: joint errors; the tool's distance from the planned path near its reference (within

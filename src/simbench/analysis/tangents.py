@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench import windowed
-from simbench.trajectory import gradient_rows
-from simbench.windowed import norms
+from simbench.core import windowed
+from simbench.api.trajectory import gradient_rows
+from simbench.core.windowed import norms
 
 
 def along_path(points: np.ndarray) -> np.ndarray:

@@ -6,6 +6,8 @@ PolicyFactory), on which the shipped plugins are built too.
 A leaf of simbench's imports: it imports no plugin. Plugins are registered at run time (simbench.register_robot)
 or by entry points (groups simbench.robots, .planners, .controllers, .policies, .metrics). `Scenario` is named
 for annotations only: the scenario schema is built from the registries, which import this module.
+
+Holds the contract's types, the registry of plugins and the plot layout plugins draw with; imports only simbench.core.
 """
 
 from __future__ import annotations
@@ -17,11 +19,11 @@ from simbench.api.metric import Figures, Metric
 from simbench.api.planner import Decoration, Planner
 from simbench.api.robot import (PRISMATIC, REVOLUTE, Array, PlantFit, Robot, SingularSet, Summariser, Summary,
                                 Tolerance)
-from simbench.errors import RunError
-from simbench.events import Event, Violation
-from simbench.plant import Plant
-from simbench.recording import Recording
-from simbench.trajectory import JointTrajectory, Switch
+from simbench.core.errors import RunError
+from simbench.api.events import Event, Violation
+from simbench.core.plant import Plant
+from simbench.api.recording import Recording
+from simbench.api.trajectory import JointTrajectory, Switch
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario

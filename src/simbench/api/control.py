@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simbench.api.robot import Array
-from simbench.frozen import SimbenchModel
-from simbench.plant import Plant
-from simbench.trajectory import JointTrajectory
+from simbench.core.frozen import SimbenchModel
+from simbench.core.plant import Plant
+from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
     import mujoco
@@ -196,7 +196,7 @@ class PolicyFactory:
     Attributes:
         name: Its name.
         description: One line for `simbench list`.
-        make: `make(scenario)` returns the callable from each step's observation (`simbench.observation`) to
+        make: `make(scenario)` returns the callable from each step's observation (`simbench.physics.observation`) to
             one action per joint.
     """
 

@@ -6,8 +6,8 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, ClassVar
 
 from simbench.api.robot import Array, Robot
-from simbench.recording import Recording
-from simbench.trajectory import JointTrajectory
+from simbench.api.recording import Recording
+from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario

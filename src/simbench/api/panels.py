@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simbench.errors import printable
+from simbench.core.errors import printable
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

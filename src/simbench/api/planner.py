@@ -9,7 +9,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from simbench.api.robot import Robot
-from simbench.trajectory import JointTrajectory
+from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario
@@ -43,7 +43,7 @@ class Planner(ABC, Generic[TaskT]):
     Attributes:
         name: The name scenarios give (`planner:`).
         description: One line for `simbench list`.
-        task: The schema of the scenario's `task:`, built from `simbench.schema`'s types so that units convert
+        task: The schema of the scenario's `task:`, built from `simbench.scenario.schema`'s types so that units convert
             at load time.
         robots: The robots it is written for; None: any robot that has what `needs` names.
         needs: What it needs of a robot: `"fk"`, forward kinematics of the joints alone.

@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from simbench.errors import RegistryError
-from simbench.events import Event, Violation
-from simbench.plant import Plant, compiled_scene
-from simbench.recording import Recording
-from simbench.trajectory import JointTrajectory
+from simbench.core.errors import RegistryError
+from simbench.api.events import Event, Violation
+from simbench.core.plant import Plant, compiled_scene
+from simbench.api.recording import Recording
+from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
     import mujoco
@@ -291,7 +291,7 @@ class Robot(ABC):
     def plant_fit(self, plant: Plant, trajectory: JointTrajectory, analysis: Any) -> PlantFit | None:
         """What the plant needs for this plan, before it is simulated: servo gains designed for it, the contacts
         at its start (refused) and along it, the forces it needs beyond the limits. An arm derived from its model
-        has it (simbench.servo_design, robots.contacts).
+        has it (simbench.robots.servo_design, robots.contacts).
 
         Args:
             plant: The plant as loaded for the scenario.

@@ -7,12 +7,12 @@
         step = env.step(policy(step.observation))
     simbench.env.write_outputs(env, "renders/weld_seam_mine")     # report.json, timeseries.npz, plots, video
 
-An episode is the scenario's run as `simbench.sim.simulate` makes it: reset settles at the plan's start as
+An episode is the scenario's run as `simbench.physics.sim.simulate` makes it: reset settles at the plan's start as
 `simulate` settles (physics.time() and the observed time are 0 after it); an action is one value per joint
 (position targets within the joint ranges, a joint with none the plan's span +- CONTINUOUS_SPAN; or torques and
 forces within the force limits), held for the control step's physics steps (environment_kwargs' n_sub_steps or
 control_timestep; 1 by default), each split as simbench's closed loop splits MuJoCo's step, applying planned
-switches and the plan's feedback, and recorded; the observation is simbench.observation's and the reward
+switches and the plan's feedback, and recorded; the observation is simbench.physics.observation's and the reward
 dm_control's gaussian tolerance of the tool's error (0.5 at `analysis.path_tolerance`), both at the control
 step's last physics step; the episode ends at the plan's last sample (timing.duration + timing.hold; the last
 control step may be shorter), at time_limit (discount 1) or where the physics fails (discount 0, reward 0, the
@@ -36,27 +36,27 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
-from simbench.render import choose_dm_control_backend
+from simbench.outputs.render import choose_dm_control_backend
 
 choose_dm_control_backend()  # before dm_control's first context: EGL, or the user's MUJOCO_GL, in any import order
 from dm_control.mujoco import wrapper  # noqa: E402
 from dm_control.rl import control  # noqa: E402
 from dm_env import TimeStep  # noqa: E402
 
-from simbench import budget  # noqa: E402
+from simbench.core import budget  # noqa: E402
 from simbench.env.bounds import CONTINUOUS_SPAN  # noqa: E402
 from simbench.env.episode import Physics, Track, track_of  # noqa: E402
 from simbench.env.replay import Snapshot, restore, servo_policy, snapshot  # noqa: E402
-from simbench.errors import RunError  # noqa: E402
-from simbench.fitting import fit  # noqa: E402
-from simbench.plant import Actuation, Plant  # noqa: E402
-from simbench.resources import scenarios_dir  # noqa: E402
+from simbench.core.errors import RunError  # noqa: E402
+from simbench.physics.fitting import fit  # noqa: E402
+from simbench.core.plant import Actuation, Plant  # noqa: E402
+from simbench.core.resources import scenarios_dir  # noqa: E402
 from simbench.scenario import Scenario, as_scenario  # noqa: E402
-from simbench.sim import Recording  # noqa: E402
-from simbench.switches import at_start  # noqa: E402
+from simbench.physics.sim import Recording  # noqa: E402
+from simbench.physics.switches import at_start  # noqa: E402
 
 if TYPE_CHECKING:
-    from simbench.pipeline import Evaluation, Result
+    from simbench.commands.pipeline import Evaluation, Result
 
 __all__ = ["ALL_TASKS", "CONTINUOUS_SPAN", "Environment", "Physics", "Snapshot", "Track", "evaluation", "load",
            "load_task", "recording", "restore", "servo_policy", "snapshot", "write_outputs"]
@@ -266,10 +266,10 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
         RuntimeError: The episode has taken no sound step since its reset.
     """
     from simbench.analysis import analyse
-    from simbench.pipeline import Evaluation
+    from simbench.commands.pipeline import Evaluation
     from simbench.robots import Tolerance
-    from simbench.sim import commanded
-    from simbench.verdict import FAILED, TRUNCATED, cut_short, run_verdict
+    from simbench.physics.sim import commanded
+    from simbench.analysis.verdict import FAILED, TRUNCATED, cut_short, run_verdict
 
     task = track_of(env)
     if task.k == 0 and task.failure is not None:
@@ -308,8 +308,8 @@ def write_outputs(env: control.Environment, out: str | Path | None = None, video
     Returns:
         The result: where the outputs are, and what they say.
     """
-    from simbench import destination
-    from simbench.pipeline import write_outputs as write
+    from simbench.core import destination
+    from simbench.commands.pipeline import write_outputs as write
 
     task = track_of(env)
     scenario = task.scenario

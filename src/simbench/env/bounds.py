@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 
 from simbench.api import Array, JointTrajectory
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 
 CONTINUOUS_SPAN = {mujoco.mjtJoint.mjJNT_HINGE: np.pi, mujoco.mjtJoint.mjJNT_SLIDE: 0.1}
 """How far (rad for a hinge, m for a slide) a joint without a range may be commanded beyond the plan's span."""

@@ -18,7 +18,7 @@ import gymnasium
 
 from simbench.env import ALL_TASKS, load_task
 from simbench.env.rl_mode import RL, with_rl
-from simbench.plant import Actuation
+from simbench.core.plant import Actuation
 
 VERSION = 0
 

@@ -15,7 +15,7 @@ from typing import Any
 
 from dm_control.mujoco import engine
 
-from simbench.drawn_planes import planes_drawn_finite
+from simbench.outputs.drawn_planes import planes_drawn_finite
 
 SHADOW_TEXELS = 3
 """Shadow-map texels a pixel of the largest frame's longer side (dm_control's reacher: 2048 for 640x480)."""
@@ -28,7 +28,7 @@ class FittedRendering(engine.Physics):
 
     def render(self, height: int = 240, width: int = 320, *args: Any, **kwargs: Any):
         """dm_control's render (same arguments), the GL context first fitted to the frame, infinite planes drawn
-        finite (simbench.drawn_planes)."""
+        finite (simbench.outputs.drawn_planes)."""
         with planes_drawn_finite(self.model.ptr):  # both where the GL context is made and in the frame
             self._fit(int(width), int(height))
             return super().render(height, width, *args, **kwargs)

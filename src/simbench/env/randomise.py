@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from simbench.api import Array
-from simbench.plant import Plant
+from simbench.core.plant import Plant
 
 DRAWN = ("mass", "damping", "friction", "contact_friction", "gain", "delay")
 """What a Randomisation may draw, in the order of the observation's `randomised` entry."""

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 from dm_control.rl import control
 
-from simbench.controllers import Servo
+from simbench.physics.controllers import Servo
 from simbench.env.episode import Physics, track_of
 
 # Everything that decides the next steps: the integration state (warm start included), what switches edited

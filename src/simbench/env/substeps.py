@@ -17,8 +17,8 @@ import numpy as np
 from mujoco import rollout
 
 from simbench.api import Array
-from simbench.faults import MAX_SPEED, clear_warnings
-from simbench.stepping import FULL, state_slices
+from simbench.core.faults import MAX_SPEED, clear_warnings
+from simbench.physics.stepping import FULL, state_slices
 
 if TYPE_CHECKING:
     from simbench.env.episode import Physics

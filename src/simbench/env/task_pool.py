@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from simbench.api import Array, JointTrajectory
-from simbench.errors import RunError
-from simbench.forked import as_worker, die_with
+from simbench.core.errors import RunError
+from simbench.core.forked import as_worker, die_with
 from simbench.scenario import Scenario
 
 Task = tuple[Scenario, JointTrajectory]

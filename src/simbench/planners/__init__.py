@@ -1,4 +1,6 @@
-"""The shipped planners (simbench.api.Planner), one module each, and what they share."""
+"""The shipped planners (simbench.api.Planner), one module each, what they share, and random tasks for them.
+
+Imports the stages before it: core, maths, api, robots and scenario."""
 
 from __future__ import annotations
 

@@ -38,13 +38,14 @@ import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from simbench import extras, registry
+from simbench.core import extras
+from simbench.api import registry
 from simbench.api import Planner, Robot
-from simbench.errors import RunError
-from simbench.plant import compiled_scene
-from simbench.schema import SimbenchModel, Weight
-from simbench.trajectory import JointTrajectory
-from simbench.validation import describe
+from simbench.core.errors import RunError
+from simbench.core.plant import compiled_scene
+from simbench.scenario.schema import SimbenchModel, Weight
+from simbench.api.trajectory import JointTrajectory
+from simbench.scenario.validation import describe
 
 NAME = "mink_baseline"
 DIRECT = "cartesian_path"  # the planner that plans a path written directly in the task
@@ -262,7 +263,7 @@ class MinkBaseline(Planner[Task]):
 
     def plan(self, scenario, robot: Robot, dt: float) -> JointTrajectory:
         """The followed planner's plan, then mink along its poses, on the same time grid and with its tool_ref."""
-        from simbench.analysis import path_deviation  # the analysis's own measure of distance from a sampled path
+        from simbench.maths.path_distance import path_deviation  # the analysis's measure of distance from a path
 
         task: Task = scenario.task
         inner = followed(scenario)

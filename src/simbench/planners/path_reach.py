@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.paths import Arc
+from simbench.maths.paths import Arc
 
 _ROUNDING = 1e-9  # m: a path point past the reach by this much at most is not refused
 

@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.api import REVOLUTE
-from simbench.paths import Arc, Composite, Line
+from simbench.maths.paths import Arc, Composite, Line
 from simbench.planners.decoupled_path import ArcSpec, LineSpec, Segment
-from simbench.schema import Angle, Position, PositiveLength
+from simbench.scenario.schema import Angle, Position, PositiveLength
 
 CORNER = np.deg2rad(1.0)  # rad: a join whose tangents differ by more is a corner the plan warns of
 _PLANE_TOL = 1e-6  # m: a relative arc's first point must lie this near its plane (decoupled_path's join tolerance)

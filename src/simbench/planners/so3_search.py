@@ -22,8 +22,8 @@ from ompl import geometric as og
 from ompl import util as ou
 from scipy.spatial.transform import Rotation
 
-from simbench.rotations import axis_rotation, matrix_to_quat, quat_to_matrix
-from simbench.timing import TimeLaw
+from simbench.maths.rotations import axis_rotation, matrix_to_quat, quat_to_matrix
+from simbench.maths.timing import TimeLaw
 
 Slack = Callable[[np.ndarray], np.ndarray]
 _SEED = 1  # OMPL's random seed, set before every search: the same task gives the same path, run after run

@@ -1,6 +1,8 @@
 """The mechanisms simbench ships: each an analytic kinematics module over an MJCF model, its simbench.api.Robot
 subclass at its end (serial arms through serial.SerialArm; closed chains, whose measures need a whole Recording,
-subclass Robot themselves)."""
+subclass Robot themselves), arms derived from a user's MJCF or URDF, and the servos designed for a plan.
+
+Imports core, maths and api."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from simbench.api import PRISMATIC, REVOLUTE, Robot, SingularSet, Tolerance
-from simbench.resources import models_dir
+from simbench.core.resources import models_dir
 
 __all__ = ["PRISMATIC", "REVOLUTE", "Robot", "SingularSet", "Tolerance", "joint_set", "scene"]
 

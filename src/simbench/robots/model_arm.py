@@ -11,7 +11,7 @@ with L the arm's reach (robots.chain.Chain.reach), so that a metre of tool motio
 a radian. The singular set `rank_loss` is where Ju loses rank; its gap, Ju's least singular value, grows near it as
 the joint angle away from it (rad), so it is near below the analysis' `near_angle` (robots.rank_loss).
 
-Its plant is fitted to each plan (plant_fit): the added servos designed for it (simbench.servo_design), a start
+Its plant is fitted to each plan (plant_fit): the added servos designed for it (simbench.robots.servo_design), a start
 whose geoms touch refused, contacts along the plan and forces past the limits reported before any physics. Its run
 adds the tool's orientation error, `tool_orientation_error` (rad): the angle from the orientation the plan asks
 (its `tool_orientation_ref`, else the tool's at q_ref) to the tool's at the recorded joints, a promise where the plan
@@ -29,14 +29,14 @@ import numpy as np
 
 from simbench.api import (Array, JointTrajectory, PlantFit, Recording, Robot, SingularSet, Summariser, Summary,
                           Tolerance, Violation)
-from simbench.events import Event
-from simbench.plant import register_scene
+from simbench.api.events import Event
+from simbench.core.plant import register_scene
 from simbench.robots.contacts import Contacts, Touch, checked_rows
 from simbench.robots.model_scene import TOOL_SENSOR, DerivedArm
 from simbench.robots.rank_loss import closest_sample, rank_loss_detail, unit_jacobian
-from simbench.rotations import quat_to_matrix, rotation_angle
-from simbench.servo_design import design, force_violations, plan_dynamics
-from simbench.trajectory import ORIENTATION_REF
+from simbench.maths.rotations import quat_to_matrix, rotation_angle
+from simbench.robots.servo_design import design, force_violations, plan_dynamics
+from simbench.api.trajectory import ORIENTATION_REF
 
 ORIENTATION_ERROR = "tool_orientation_error"
 CONTACT_STEP = {"revolute": np.deg2rad(0.5), "prismatic": 1e-3}  # joint motion between contact checks (rad, m)
@@ -166,7 +166,7 @@ class ModelArm(Robot):
         return np.array([CONTACT_STEP[kind] for kind in self.kinds])
 
     def plant_fit(self, plant, trajectory: JointTrajectory, analysis) -> PlantFit:
-        """The added servos designed for the plan (simbench.servo_design), the contacts at its start and along it
+        """The added servos designed for the plan (simbench.robots.servo_design), the contacts at its start and along it
         (robots.contacts), and the forces it needs past the limits."""
         dynamics = plan_dynamics(plant, trajectory)
         options = self.arm.options

@@ -25,7 +25,7 @@ from typing import Any
 
 import mujoco
 
-from simbench.faults import quiet_mujoco
+from simbench.core.faults import quiet_mujoco
 from simbench.robots import model_size
 from simbench.robots.chain import ArmError
 from simbench.robots.model_xml import read_xml

@@ -3,7 +3,7 @@ engineer would sign off, the model's kinematics and inertias untouched.
 
 Every chain joint (robots.chain) ends with exactly one position servo of unit gear: the model's own, kept; else one
 added (no control range: the joint's own range holds the joint, and the servo's feed-forward may command past it).
-A run designs the added servos' gains for its plan (simbench.servo_design); the scene's own, used where no plan
+A run designs the added servos' gains for its plan (simbench.robots.servo_design); the scene's own, used where no plan
 is given (`inspect`), are Kp = I w^2, Kd = 2 zeta I w, I the joint's inertia at the reference pose (qpos0 clipped
 into the ranges), w the `bandwidth` (DEFAULT_BANDWIDTH unless asked) and zeta the `damping_ratio`. Any other
 actuator on a chain joint is replaced by such a servo, its force bound carried over (a motor's control range times
@@ -32,12 +32,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simbench.faults import quiet_mujoco
+from simbench.core.faults import quiet_mujoco
 from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
 from simbench.robots.contacts import Contacts
 from simbench.robots.model_file import compiled, read_spec
 from simbench.robots.model_stage import stage, staging
-from simbench.servo_design import DEFAULT_BANDWIDTH, pd_gains
+from simbench.robots.servo_design import DEFAULT_BANDWIDTH, pd_gains
 
 TOOL_SITE = "simbench/tool"  # the site added at a tool given by body and offset, or turned
 TOOL_SENSOR = "simbench/tool_pos"
@@ -81,7 +81,7 @@ class Drive:
     def describe(self) -> str:
         bound = "no force limit" if np.isinf(self.force_limit) else f"force limit {self.force_limit:g}"
         if self.keep is None:
-            servo = f"position servo ({bound}; its gains designed for each plan: simbench.servo_design)"
+            servo = f"position servo ({bound}; its gains designed for each plan: simbench.robots.servo_design)"
             return f"no actuator: added a {servo}" if self.action == "added" else f"{self.found} replaced by a {servo}"
         servo = f"position servo kp {self.kp:.4g}, kv {self.kv:.4g} ({bound})"
         return f"kept its {servo}" if self.action == "kept" else f"kept its {servo}; removed its {self.found}"

@@ -34,9 +34,9 @@ from pathlib import Path
 
 import mujoco
 
-from simbench.budget import machine_limits
-from simbench.budget import size as in_words
-from simbench.errors import os_words
+from simbench.core.budget import machine_limits
+from simbench.core.budget import size as in_words
+from simbench.core.errors import os_words
 from simbench.robots.chain import ArmError
 from simbench.robots.model_xml import check_numbers, numbers, read_xml, urdf_limits, where
 

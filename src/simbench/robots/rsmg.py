@@ -27,7 +27,7 @@ from simbench.robots import Robot, SingularSet, Tolerance, rsmg_outputs, scene
 from simbench.robots.rsmg_geometry import (ALPHA, ARMS, BETA, CANDIDATES, CHUNK, DET_A_MIN, GAMMA_BAND,  # noqa: F401
                                           JOINTS, KINDS, LOWER, POINTS, QD_MAX, RADIUS, UPPER, U, X_REF, Y_REF,
                                           gripping)
-from simbench.vectors import cross, triple
+from simbench.maths.vectors import cross, triple
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

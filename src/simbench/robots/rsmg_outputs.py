@@ -9,7 +9,7 @@ import numpy as np
 
 from simbench import api
 from simbench.robots.rsmg_geometry import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
-from simbench.rotations import quat_to_matrix, rotation_angle
+from simbench.maths.rotations import quat_to_matrix, rotation_angle
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

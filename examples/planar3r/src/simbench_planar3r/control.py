@@ -18,7 +18,7 @@ import numpy as np
 from pydantic import Field
 
 from simbench.api import Array, Controller, ControlSettings, Plant, PolicyFactory, State
-from simbench.trajectory import JointTrajectory
+from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:  # simbench.api names the scenario's type for annotations; at run time it is simbench.Scenario
     from simbench.api import Scenario

@@ -8,7 +8,7 @@ import numpy as np
 
 from simbench.planners.avoidance_4567.task import Task
 from simbench.robots import agile_eye
-from simbench.timing import TimeLaw
+from simbench.maths.timing import TimeLaw
 
 
 def bump(tau: np.ndarray, order: int = 0) -> np.ndarray:

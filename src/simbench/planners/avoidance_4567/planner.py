@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from simbench.api import Decoration, Planner
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners import learnt_fk
 from simbench.planners.avoidance_4567.checks import Checked, accepted, check_path, refusal
 from simbench.planners.avoidance_4567.path import Plan
@@ -16,9 +16,9 @@ from simbench.planners.avoidance_4567.search import global_search
 from simbench.planners.avoidance_4567.task import Task, clearances, margins
 from simbench.planners.avoidance_4567.windows import optimise
 from simbench.robots import agile_eye
-from simbench.rotations import matrix_to_quat
-from simbench.timing import TimeLaw
-from simbench.trajectory import JointTrajectory, control_grid
+from simbench.maths.rotations import matrix_to_quat
+from simbench.maths.timing import TimeLaw
+from simbench.api.trajectory import JointTrajectory, control_grid
 
 
 def _choose(task: Task, law: TimeLaw, t: np.ndarray,
@@ -112,7 +112,7 @@ class Avoidance4567(Planner):
 
     def random_task(self, robot, random: np.random.RandomState) -> dict | None:
         """A random start and goal whose plain path runs into 1 or 2 obstacles (random_tasks.agile_eye_task)."""
-        from simbench import random_tasks  # imported when drawn, not when registered
+        from simbench.planners import random_tasks  # imported when drawn, not when registered
 
         count = 1 + int(random.randint(2))
         return {"task": random_tasks.first(lambda: random_tasks.agile_eye_task(random, count), "Agile Eye task")}

@@ -7,11 +7,11 @@ import time
 
 import numpy as np
 
-from simbench import extras
+from simbench.core import extras
 from simbench.planners.avoidance_4567.checks import Checked, check_path
 from simbench.planners.avoidance_4567.task import Task, clearances, margins
 from simbench.robots import agile_eye
-from simbench.timing import TimeLaw
+from simbench.maths.timing import TimeLaw
 
 _SEARCH_STEP = np.deg2rad(0.5)  # rotation angle between the states the global search checks along a motion
 

@@ -9,8 +9,8 @@ import numpy as np
 from pydantic import Field
 
 from simbench.robots import agile_eye
-from simbench.rotations import rotation_angle
-from simbench.schema import NonNegativeAngle, Orientation, PositiveAngle, SimbenchModel, Weight, seconds
+from simbench.maths.rotations import rotation_angle
+from simbench.scenario.schema import NonNegativeAngle, Orientation, PositiveAngle, SimbenchModel, Weight, seconds
 
 
 class Obstacle(SimbenchModel):

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.api import Planner
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners.round_robin.checks import refusal
 from simbench.planners.round_robin.feedback import RegripFeedback
 from simbench.planners.round_robin.paths import engaged_arms, grip_switches, joint_paths, joint_rates, rotor_references
 from simbench.planners.round_robin.schedule import Stuck, schedule_grips
 from simbench.planners.round_robin.task import Task
 from simbench.robots import rsmg
-from simbench.trajectory import JointTrajectory, control_grid
+from simbench.api.trajectory import JointTrajectory, control_grid
 
 
 class RoundRobin(Planner):

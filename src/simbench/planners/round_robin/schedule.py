@@ -7,12 +7,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from simbench.errors import RunError
+from simbench.core.errors import RunError
 from simbench.planners.round_robin.search import SEARCH, STEP, Hold, Scheduler
 from simbench.planners.round_robin.task import Task, band
 from simbench.planners.rsmg_contacts import FIRM_CAP, FIRM_SPEED, SPEED_SHARE, FixedContacts, GeneralContacts, Swing
 from simbench.robots import rsmg
-from simbench.timing import TimeLaw
+from simbench.maths.timing import TimeLaw
 
 
 def gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,8 +9,8 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from simbench.robots import rsmg
-from simbench.rotations import axis_rotation
-from simbench.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
+from simbench.maths.rotations import axis_rotation
+from simbench.scenario.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 
 # The default floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01); general contacts raise it with the
 # rotor's speed (GeneralContacts.floor).
