@@ -29,12 +29,12 @@ import numpy as np  # noqa: E402
 from scipy.spatial.transform import Rotation, Slerp  # noqa: E402
 
 from simbench.core.errors import RunError  # noqa: E402
+from simbench.core.plant import Plant  # noqa: E402
+from simbench.maths.rotations import rotation_angle  # noqa: E402
 from simbench.planners.random_tasks import orientation_doc as _quat  # noqa: E402
 from simbench.planners.random_tasks import plain_path_crosses  # noqa: E402
 from simbench.robots import agile_eye  # noqa: E402
-from simbench.maths.rotations import rotation_angle  # noqa: E402
 from simbench.scenario import parse_scenario  # noqa: E402
-from simbench.core.plant import Plant  # noqa: E402
 
 TASKS = 40
 SEED = 19

@@ -38,13 +38,17 @@ import numpy as np  # noqa: E402
 from benchmarks.bench_agile_eye_crossing import task_scenario, verify  # noqa: E402
 from benchmarks.common import interleaved, shipped  # noqa: E402
 from simbench.core.errors import RunError  # noqa: E402
+from simbench.core.plant import Plant  # noqa: E402
+from simbench.physics.sim import commanded, simulate  # noqa: E402
 from simbench.planners import avoidance_4567  # noqa: E402
 from simbench.planners.avoidance_4567 import windows  # noqa: E402
-from simbench.core.plant import Plant  # noqa: E402
-from simbench.planners.random_tasks import AGILE_EYE_CLEARANCE, AGILE_EYE_KCI_MIN, AGILE_EYE_MARGIN  # noqa: E402
-from simbench.planners.random_tasks import agile_eye_tasks  # noqa: E402
+from simbench.planners.random_tasks import (  # noqa: E402
+    AGILE_EYE_CLEARANCE,
+    AGILE_EYE_KCI_MIN,
+    AGILE_EYE_MARGIN,
+    agile_eye_tasks,  # noqa: E402
+)
 from simbench.robots import agile_eye  # noqa: E402
-from simbench.physics.sim import commanded, simulate  # noqa: E402
 
 REPEATS = 7
 TASKS = 20

@@ -13,11 +13,11 @@ import numpy as np
 
 from benchmarks.common import interleaved, shipped
 from simbench.analysis import analyse
+from simbench.analysis.verdict import run_verdict
 from simbench.core.plant import Plant
 from simbench.core.resources import scenarios_dir
-from simbench.robots import Tolerance
 from simbench.physics.sim import commanded, simulate
-from simbench.analysis.verdict import run_verdict
+from simbench.robots import Tolerance
 
 REPEATS = 15  # pairs a scenario: with 5, one loaded run swung the ratio by +-0.05
 # Commit 0ca0635 (BENCHMARKS.md says when and where): scenario -> (simulate ms, analyse ms, median ratio).

@@ -1,7 +1,9 @@
 """`simbench bench` on seven arms nobody here modelled (issue 44): example-robot-data's UR5, UR10, Panda, xArm7, Z1 and
 SO-100, read from their installs untouched, and dm-control's Jaco, TASKS tasks each at seed SEED by METHODS, through
-the whole pipeline (`simbench.commands.bench.run_bench`, WORKERS worker processes). time_scaling is left out: its exact inverse
-kinematics takes minutes a run on these arms (a UR5 line's Newton steps), an hour for the suite on two cores. Each arm is mapped as a
+the whole pipeline (`simbench.commands.bench.run_bench`, WORKERS worker processes). time_scaling is left out: its
+exact inverse
+kinematics takes minutes a run on these arms (a UR5 line's Newton steps), an hour for the suite on two cores. Each arm
+is mapped as a
 user maps it: its URDF and a tool (the UR's `tool0` flange, the Panda's `panda_link8`, the Z1's gripper stator with
 its six arm joints, the SO-100's gripper body with its five arm joints), nothing else.
 

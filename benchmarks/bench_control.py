@@ -26,13 +26,13 @@ import yaml
 from benchmarks.common import interleaved
 from simbench import env as simbench_env
 from simbench.api import JointTrajectory, State
-from simbench.physics.computed_torque import ComputedTorque, ComputedTorqueSettings
-from simbench.physics.controllers import Servo
 from simbench.core.plant import Plant
 from simbench.core.resources import scenarios_dir
-from simbench.scenario import parse_scenario
+from simbench.physics.computed_torque import ComputedTorque, ComputedTorqueSettings
+from simbench.physics.controllers import Servo
 from simbench.physics.sim import simulate
 from simbench.physics.switches import at_start
+from simbench.scenario import parse_scenario
 
 REPEATS = 7
 CASES = (("spherical_arm", "case1"), ("puma600", "weld_seam"))

@@ -1,7 +1,8 @@
 """A bench run's plan against its simulation, per method, and runs per second on one core (issue 47's target: the
 median run's plan at most 3 times its simulation).
 
-Each run is a bench task's scenario (simbench.commands.bench.methods' document of a suite's task, seed SEED) evaluated as
+Each run is a bench task's scenario (simbench.commands.bench.methods' document of a suite's task, seed SEED) evaluated
+as
 `simbench run` evaluates it, in this process, one after the other: the stages' wall times as report.json splits
 them (load, plan, simulate, analyse). Per robot and method: the median of the runs' plan / simulate, the median
 plan and simulate seconds, and the runs per second (runs over their summed wall time: one core, nothing else).

@@ -19,10 +19,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.common import shipped  # noqa: E402
+from simbench.core.plant import Plant  # noqa: E402
 from simbench.maths.paths import Arc  # noqa: E402
 from simbench.planners import decoupled_path, safe_straight_path  # noqa: E402
 from simbench.robots import puma600  # noqa: E402
-from simbench.core.plant import Plant  # noqa: E402
 
 REPEATS = 5
 PLANS = (("safe_straight_path", "spherical_arm/case1"), ("joint_move", "spherical_arm/case1_joint_move"),

@@ -13,8 +13,8 @@ from collections import Counter
 
 import numpy as np
 
-from simbench.core.errors import RunError
 from simbench.commands.pipeline import check_plan, evaluate
+from simbench.core.errors import RunError
 from simbench.planners.random_tasks import puma_lines
 from simbench.scenario import parse_scenario
 

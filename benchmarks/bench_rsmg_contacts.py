@@ -21,8 +21,8 @@ from collections import Counter
 
 import numpy as np
 
-from simbench.core.errors import RunError
 from simbench.commands.pipeline import check_plan, evaluate
+from simbench.core.errors import RunError
 from simbench.planners.rsmg_contacts import random_motions
 from simbench.scenario import parse_scenario
 

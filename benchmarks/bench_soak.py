@@ -99,8 +99,8 @@ def stage_peaks(resident: list, stages: dict) -> dict[str, float]:
 def kinetic_energy(qpos: np.ndarray, dt: float) -> np.ndarray:
     """MuJoCo's kinetic energy of the RSMG at every _STRIDE-th recorded state (velocities from each state and
     the one before it, by mj_differentiatePos, since the recording keeps only the actuated joints' rates)."""
-    from simbench.robots import rsmg
     from simbench.core.plant import Plant
+    from simbench.robots import rsmg
 
     model = Plant.load(rsmg.ROBOT).model
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY

@@ -2,7 +2,8 @@
 1.6 times as fast).
 
 The bench is the shipped `puma600` suite at seed 0, TASKS tasks by each of its methods, timed whole through
-`simbench.commands.bench.run_bench` (the runs, then runs.csv, the leaderboards, the plots and index.html), each time into
+`simbench.commands.bench.run_bench` (the runs, then runs.csv, the leaderboards, the plots and index.html), each time
+into
 a fresh folder so that nothing resumes. The two are timed in turn, REPEATS rounds after one warm-up of each; the
 speed-up is the median of the rounds' ratios. Beside it, the same two-against-one speed-up of pure CPU work
 (bench_sweep's reference: forked processes, nothing shared), measured in the same rounds: how far this machine's

@@ -33,9 +33,9 @@ from mujoco import rollout
 
 from benchmarks.common import interleaved
 from simbench.commands import pipeline
+from simbench.commands.sweep import load_sweep, run_sweep
 from simbench.core.plant import Plant
 from simbench.scenario import parse_scenario
-from simbench.commands.sweep import load_sweep, run_sweep
 
 REPEATS = 7
 EFFICIENCY_REPEATS = 5

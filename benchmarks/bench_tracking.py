@@ -1,6 +1,7 @@
 """Steps per second of simbench's tracking loop against raw MuJoCo stepping, on the same model in the same run.
 
-The tracking loop is `simbench.physics.sim.simulate`: controls from the plan (simbench.physics.controllers.Servo), stepping, and recording of state and
+The tracking loop is `simbench.physics.sim.simulate`: controls from the plan (simbench.physics.controllers.Servo),
+stepping, and recording of state and
 tool position at every step, with no Python in the loop between switches (`mujoco.rollout` over precomputed
 controls, one call per stretch between electromagnet switches). It is compared, pair by pair in alternation,
 with
@@ -17,8 +18,8 @@ import numpy as np
 from mujoco import rollout
 
 from benchmarks.common import interleaved, shipped
-from simbench.physics.controllers import Servo
 from simbench.core.plant import Plant
+from simbench.physics.controllers import Servo
 from simbench.physics.sim import simulate
 from simbench.physics.switches import apply_switch, at_start
 

@@ -13,9 +13,9 @@ try:
     from simbench.core import interrupts
 
     with interrupts.held_back():  # an extension module being imported would turn Ctrl-C into an ImportError
-        from simbench.cli import main
+        from simbench.cli import exit_with, main
     code = main()
 except KeyboardInterrupt:
     print("interrupted", file=sys.stderr)
-    code = 128 + signal.SIGINT
-raise SystemExit(code)
+    raise SystemExit(128 + signal.SIGINT) from None
+exit_with(code)

@@ -10,15 +10,25 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 from pathlib import Path
+from typing import NoReturn
 
-from simbench.core import interrupts
 from simbench.commands.bench import command as bench_command
-from simbench.core.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
-                             os_error_line, printable)
-from simbench.outputs.plot_formats import FORMATS, TIMESERIES_FORMATS
+from simbench.core import interrupts
+from simbench.core.errors import (
+    NO_SPACE,
+    OutputError,
+    PhysicsError,
+    RunError,
+    ScenarioError,
+    described,
+    os_error_line,
+    printable,
+)
 from simbench.core.resources import scenarios_dir, sweeps_dir
+from simbench.outputs.plot_formats import FORMATS, TIMESERIES_FORMATS
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -230,8 +240,8 @@ def _validate(paths: list[Path], plan: bool, failed) -> int:
 
 def _validate_one(path: Path, plan: bool) -> int:
     """Check one scenario and, if `plan`, plan it; EXIT_LIMITS if its plan breaks an unexpected promise."""
-    from simbench.commands import pipeline
     from simbench import scenario
+    from simbench.commands import pipeline
 
     sc = scenario.load_scenario(path)
     valid = f"{path}: valid ({sc.robot}, {sc.planner}, {sc.timing.duration:g} s)"
@@ -262,8 +272,8 @@ def _note_code(sc) -> None:
 
 def _run(args) -> int:
     """The run command: run the scenario and print its summary."""
-    from simbench.commands import pipeline
     from simbench import scenario
+    from simbench.commands import pipeline
 
     sc = scenario.load_scenario(args.scenario)
     out = args.out if args.out is not None else Path("renders") / sc.name
@@ -299,8 +309,8 @@ def _export(folder: Path, fmt: str = "csv", kinds: tuple[str, ...] | None = None
 def _list() -> str:
     """The registered plugins with their origins and broken entry points (a planner's robots, and the extra it
     needs, if any), then the shipped scenarios and sweeps."""
-    from simbench.core import extras
     from simbench.api import registry
+    from simbench.core import extras
 
     lines = []
     for kind, found, width in (("robot", registry.robots, 16), ("planner", registry.planners, 20),
@@ -330,6 +340,23 @@ def _interrupted(args, ctrl_c: interrupts.CtrlC) -> int:
               if args.command in ("sweep", "bench") else "")
     _say(f"interrupted{resume}", file=sys.stderr)
     return ctrl_c.exit_code
+
+
+def exit_with(code: int) -> NoReturn:
+    """End the `simbench` process with main's exit code. An interrupted command (130, 143) ends here, its clean-up
+    done and its output flushed, without Python's finalization: an interrupt can leave MuJoCo's objects half made
+    (a model read on a thread of its own: robots.model_file.interruptible), and finalizing them crashed the process
+    now and then (SIGSEGV after its last line: tests/core/test_model_hardening.py's signals while a model loads)."""
+    if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
+def entry() -> NoReturn:
+    """The `simbench` command (the console script): main, then exit_with its code."""
+    exit_with(main())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -390,9 +417,9 @@ def _preload(ctrl_c: interrupts.CtrlC) -> None:
     """Import simbench's own modules with Ctrl-C held back (extension modules would swallow it), then outside
     entry points with it deliverable, so that a hanging one can be stopped."""
     with interrupts.held_back():
-        from simbench.commands import pipeline
-        from simbench.api import registry
         from simbench import scenario  # noqa: F401
+        from simbench.api import registry
+        from simbench.commands import pipeline
 
         registry.load_shipped()
     registry.robots(), registry.planners(), registry.controllers(), registry.policies(), registry.metrics()

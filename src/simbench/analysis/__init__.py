@@ -20,8 +20,8 @@ Imports the stages before it (core to physics), never outputs or commands.
 
 from simbench.analysis.analyser import Analyser, Analysis, analyse
 from simbench.analysis.limit_events import plan_limit_events
-from simbench.maths.path_distance import deviation_near_reference, path_deviation
 from simbench.analysis.tangents import along_path
+from simbench.maths.path_distance import deviation_near_reference, path_deviation
 
 __all__ = ["Analyser", "Analysis", "along_path", "analyse", "deviation_near_reference", "path_deviation",
            "plan_limit_events"]

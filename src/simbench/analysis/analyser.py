@@ -9,16 +9,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simbench.core import windowed
 from simbench.analysis.limit_events import Bounds, Jump, PlanLimits, event, jump_events, plan_jumps
-from simbench.maths.path_distance import deviation_near_reference
 from simbench.analysis.tangents import Tangents
 from simbench.api import Event, Metric
 from simbench.api.recording import Recording
 from simbench.api.registry import metrics_for
-from simbench.robots import Robot, Tolerance
 from simbench.api.trajectory import JointTrajectory, joined
+from simbench.core import windowed
 from simbench.core.windowed import Departure, Rises, Spans, norms
+from simbench.maths.path_distance import deviation_near_reference
+from simbench.robots import Robot, Tolerance
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from simbench.api import Event
-from simbench.robots import Robot
 from simbench.api.trajectory import JointTrajectory
 from simbench.core.windowed import Departure, Spans
+from simbench.robots import Robot
 
 _JUMP_FACTOR = 10.0  # a plan's step farther than this many samples at a joint's speed limit is a jump
 

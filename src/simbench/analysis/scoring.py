@@ -1,6 +1,7 @@
 """What a method's row says, decided in one place for `compare` (comparison.csv) and `simbench bench` (runs.csv):
 status, error, deviation_max (report.json's tracking.tool_max, m), orientation_max (its tracking.orientation_max,
-rad: the tool's orientation error, where the robot has one) and simbench.analysis.singularity_handling's figures; None for
+rad: the tool's orientation error, where the robot has one) and simbench.analysis.singularity_handling's figures; None
+for
 each where a run got none.
 """
 

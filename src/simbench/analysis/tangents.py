@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.core import windowed
 from simbench.api.trajectory import gradient_rows
+from simbench.core import windowed
 from simbench.core.windowed import norms
 
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from simbench.api import Event, Violation
-from simbench.robots import REVOLUTE, Robot
 from simbench.api.trajectory import JointTrajectory
+from simbench.robots import REVOLUTE, Robot
 
 OK, LIMITS = "ok", "limits"
 FAILED, TRUNCATED = "failed", "truncated"  # a run cut short: its physics failed, or it was stopped

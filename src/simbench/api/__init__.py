@@ -14,16 +14,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from simbench.api.control import Commands, ControlSettings, Controller, PolicyFactory, State
+from simbench.api.control import Commands, Controller, ControlSettings, PolicyFactory, State
+from simbench.api.events import Event, Violation
 from simbench.api.metric import Figures, Metric
 from simbench.api.planner import Decoration, Planner
-from simbench.api.robot import (PRISMATIC, REVOLUTE, Array, PlantFit, Robot, SingularSet, Summariser, Summary,
-                                Tolerance)
-from simbench.core.errors import RunError
-from simbench.api.events import Event, Violation
-from simbench.core.plant import Plant
 from simbench.api.recording import Recording
+from simbench.api.robot import PRISMATIC, REVOLUTE, Array, PlantFit, Robot, SingularSet, Summariser, Summary, Tolerance
 from simbench.api.trajectory import JointTrajectory, Switch
+from simbench.core.errors import RunError
+from simbench.core.plant import Plant
 
 if TYPE_CHECKING:
     from simbench.scenario import Scenario

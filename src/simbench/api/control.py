@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simbench.api.robot import Array
+from simbench.api.trajectory import JointTrajectory
 from simbench.core.frozen import SimbenchModel
 from simbench.core.plant import Plant
-from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:
     import mujoco

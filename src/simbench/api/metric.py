@@ -5,8 +5,8 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, ClassVar
 
-from simbench.api.robot import Array, Robot
 from simbench.api.recording import Recording
+from simbench.api.robot import Array, Robot
 from simbench.api.trajectory import JointTrajectory
 
 if TYPE_CHECKING:

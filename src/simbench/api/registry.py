@@ -12,8 +12,8 @@ import importlib.metadata
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
-from simbench.core import interrupts
 from simbench.api import Controller, JointTrajectory, Metric, Planner, PolicyFactory, Robot
+from simbench.core import interrupts
 from simbench.core.errors import RegistryError, described
 
 if TYPE_CHECKING:

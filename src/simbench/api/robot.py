@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from simbench.core.errors import RegistryError
 from simbench.api.events import Event, Violation
-from simbench.core.plant import Plant, compiled_scene
 from simbench.api.recording import Recording
 from simbench.api.trajectory import JointTrajectory
+from simbench.core.errors import RegistryError
+from simbench.core.plant import Plant, compiled_scene
 
 if TYPE_CHECKING:
     import mujoco

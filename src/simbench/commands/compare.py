@@ -21,19 +21,19 @@ from typing import Any
 import numpy as np
 
 from simbench import api
-from simbench.core import budget, destination
-from simbench.outputs import csv_cells
-from simbench.api import registry
-from simbench.core.atomic import staged_folder
-from simbench.core.errors import PhysicsError, RunError, ScenarioError, printable
-from simbench.outputs.figures import columns
-from simbench.outputs.page import table_page, write_page
-from simbench.planners.path_methods import METHODS
-from simbench.outputs.plot_formats import check_format
-from simbench.physics.policy import refuse_code
-from simbench.scenario import Scenario, load_scenario, parse_scenario
 from simbench.analysis.scoring import score
 from simbench.analysis.singularity_handling import SingularityHandling
+from simbench.api import registry
+from simbench.core import budget, destination
+from simbench.core.atomic import staged_folder
+from simbench.core.errors import PhysicsError, RunError, ScenarioError, printable
+from simbench.outputs import csv_cells
+from simbench.outputs.figures import columns
+from simbench.outputs.page import table_page, write_page
+from simbench.outputs.plot_formats import check_format
+from simbench.physics.policy import refuse_code
+from simbench.planners.path_methods import METHODS
+from simbench.scenario import Scenario, load_scenario, parse_scenario
 from simbench.scenario.validation import read_yaml
 
 MINK = "mink_baseline"
@@ -110,7 +110,8 @@ def compare(scenario_path: str | os.PathLike, planners: list[str] | None, contro
         refuse_code(scenario, allow_code)
     with destination.locked(out):
         destination.check(out, [source], force)
-        from simbench.commands.pipeline import evaluate  # the pipeline (MuJoCo, SciPy) once the arguments are known good
+        # the pipeline (MuJoCo, SciPy) once the arguments are known good
+        from simbench.commands.pipeline import evaluate
 
         runs = tuple(_run(partial(evaluate, allow_code=allow_code), *variant, progress) for variant in variants)
         rows = tuple(row(run) for run in runs)

@@ -15,14 +15,14 @@ import mujoco
 import numpy as np
 from pydantic import ValidationError
 
+from simbench.api.recording import Recording
 from simbench.core.errors import ScenarioError, printable
 from simbench.core.frozen import SimbenchModel
-from simbench.api.recording import Recording
-from simbench.scenario import robot_mapping
 from simbench.robots.chain import ArmError, SeveralEnds, Tool, chain_of
 from simbench.robots.model_arm import ModelArm
 from simbench.robots.model_file import compiled, is_urdf, read_spec, urdf_limits
 from simbench.robots.model_scene import ArmOptions, DerivedArm
+from simbench.scenario import robot_mapping
 from simbench.scenario.schema import JointVector, Units
 from simbench.scenario.validation import describe as describe_error
 from simbench.scenario.validation import read_yaml
@@ -371,10 +371,10 @@ def _drive(drive, servo) -> str:
 def rest_design(arm: DerivedArm) -> list:
     """The added servos as servo_design designs them for a plan that holds the reference pose (qpos0 clipped into
     the ranges), under the default tolerances: what `inspect` shows before any plan."""
-    from simbench.core.plant import Plant
-    from simbench.scenario import Thresholds
-    from simbench.robots.servo_design import design, plan_dynamics
     from simbench.api.trajectory import JointTrajectory
+    from simbench.core.plant import Plant
+    from simbench.robots.servo_design import design, plan_dynamics
+    from simbench.scenario import Thresholds
 
     robot = ModelArm(arm, np.ones(len(arm.chain.joints)))
     plant = Plant.load(robot)

@@ -16,25 +16,25 @@ from contextvars import ContextVar
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from simbench.core import budget, destination
 from simbench.analysis import Analyser, Analysis, analyse, plan_limit_events
+from simbench.analysis.verdict import Verdict, plan_verdict, run_verdict
+from simbench.api.trajectory import JointTrajectory
+from simbench.core import budget, destination
 from simbench.core.atomic import staged_folder
 from simbench.core.errors import PhysicsError, TooSlow
-from simbench.physics.fitting import fit
 from simbench.core.forked import forked
+from simbench.core.plant import Plant
 from simbench.outputs.page import run_page, write_page
 from simbench.outputs.plot_formats import check_format
 from simbench.outputs.plots import write_plots
 from simbench.outputs.render import render_video
 from simbench.outputs.report import build_failure_report, build_report, write_report, write_timeseries
-from simbench.robots import Tolerance
-from simbench.scenario import Scenario, as_scenario
-from simbench.core.plant import Plant
+from simbench.physics.fitting import fit
 from simbench.physics.policy import refuse_code
 from simbench.physics.sim import Recording, commanded, simulate
 from simbench.physics.stepping import kept_rows
-from simbench.api.trajectory import JointTrajectory
-from simbench.analysis.verdict import Verdict, plan_verdict, run_verdict
+from simbench.robots import Tolerance
+from simbench.scenario import Scenario, as_scenario
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""A long run's every-step rows held a window at a time (simbench.physics.sim's run analysed as it is simulated): the run
+"""A long run's every-step rows held a window at a time (simbench.physics.sim's run analysed as it is simulated): the
+run
 then holds a window and a chunk of every step's rows, however long it is.
 """
 

@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from simbench.physics.sim import Recording
     from simbench.api.trajectory import JointTrajectory
+    from simbench.physics.sim import Recording
 
 
 class ScenarioError(Exception):

@@ -23,8 +23,9 @@ EXTRAS: dict[str, tuple[str, str]] = {
 }
 
 # simbench's own planners that need an extra, for `simbench list`: planner -> (the module, the part of the planner
-# that needs it; None: the planner itself). Each refuses without it where it plans (tests/test_extras.py); the table
-# is held to the planners' calls of require and missing by tests/test_reliability_round4.py.
+# that needs it; None: the planner itself). Each refuses without it where it plans (tests/core/test_extras.py); the
+# table
+# is held to the planners' calls of require and missing by tests/commands/test_reliability_round4.py.
 PLANNERS: dict[str, tuple[str, str | None]] = {
     "avoidance_4567": ("ompl", "its global search in SO(3)"),
     "cartesian_path": ("mink", "its mink method"),

@@ -1,4 +1,5 @@
-"""The base of every model a scenario is read into (simbench.scenario.schema, a controller's settings in simbench.api)."""
+"""The base of every model a scenario is read into (simbench.scenario.schema, a controller's settings in
+simbench.api)."""
 
 from __future__ import annotations
 

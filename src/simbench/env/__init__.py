@@ -44,16 +44,16 @@ from dm_control.rl import control  # noqa: E402
 from dm_env import TimeStep  # noqa: E402
 
 from simbench.core import budget  # noqa: E402
+from simbench.core.errors import RunError  # noqa: E402
+from simbench.core.plant import Actuation, Plant  # noqa: E402
+from simbench.core.resources import scenarios_dir  # noqa: E402
 from simbench.env.bounds import CONTINUOUS_SPAN  # noqa: E402
 from simbench.env.episode import Physics, Track, track_of  # noqa: E402
 from simbench.env.replay import Snapshot, restore, servo_policy, snapshot  # noqa: E402
-from simbench.core.errors import RunError  # noqa: E402
 from simbench.physics.fitting import fit  # noqa: E402
-from simbench.core.plant import Actuation, Plant  # noqa: E402
-from simbench.core.resources import scenarios_dir  # noqa: E402
-from simbench.scenario import Scenario, as_scenario  # noqa: E402
 from simbench.physics.sim import Recording  # noqa: E402
 from simbench.physics.switches import at_start  # noqa: E402
+from simbench.scenario import Scenario, as_scenario  # noqa: E402
 
 if TYPE_CHECKING:
     from simbench.commands.pipeline import Evaluation, Result
@@ -266,10 +266,10 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
         RuntimeError: The episode has taken no sound step since its reset.
     """
     from simbench.analysis import analyse
-    from simbench.commands.pipeline import Evaluation
-    from simbench.robots import Tolerance
-    from simbench.physics.sim import commanded
     from simbench.analysis.verdict import FAILED, TRUNCATED, cut_short, run_verdict
+    from simbench.commands.pipeline import Evaluation
+    from simbench.physics.sim import commanded
+    from simbench.robots import Tolerance
 
     task = track_of(env)
     if task.k == 0 and task.failure is not None:
@@ -308,8 +308,8 @@ def write_outputs(env: control.Environment, out: str | Path | None = None, video
     Returns:
         The result: where the outputs are, and what they say.
     """
-    from simbench.core import destination
     from simbench.commands.pipeline import write_outputs as write
+    from simbench.core import destination
 
     task = track_of(env)
     scenario = task.scenario

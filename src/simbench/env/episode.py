@@ -14,19 +14,19 @@ from dm_control.rl import control
 from dm_env import specs
 
 from simbench.api import Array, JointTrajectory
-from simbench.physics.computed_torque import ComputedTorque, ComputedTorqueSettings
-from simbench.physics.controllers import Servo
+from simbench.core.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
+from simbench.core.plant import Plant
 from simbench.env.bounds import action_bounds, joint_bounds
 from simbench.env.pixels import FittedRendering
 from simbench.env.substeps import in_c
 from simbench.env.task_pool import TaskPool
-from simbench.core.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
+from simbench.physics.computed_torque import ComputedTorque, ComputedTorqueSettings
+from simbench.physics.controllers import Servo
 from simbench.physics.observation import observe
-from simbench.core.plant import Plant
-from simbench.scenario import Scenario
 from simbench.physics.sim import Recording, Revisions, recording
 from simbench.physics.stepping import ClosedLoop, OpenLoop, Rows, state_slices, warning_rows
 from simbench.physics.switches import apply_switch, switch_steps
+from simbench.scenario import Scenario
 
 _REWARD_AT_TOLERANCE = 0.5  # the reward when the tool is analysis.path_tolerance off its reference
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS

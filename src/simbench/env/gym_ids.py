@@ -16,9 +16,9 @@ from typing import Any
 
 import gymnasium
 
+from simbench.core.plant import Actuation
 from simbench.env import ALL_TASKS, load_task
 from simbench.env.rl_mode import RL, with_rl
-from simbench.core.plant import Actuation
 
 VERSION = 0
 

@@ -16,14 +16,14 @@ import numpy as np
 
 from simbench.api import registry
 from simbench.core.errors import RunError, ScenarioError
+from simbench.physics.switches import pose_start
 from simbench.scenario.document import Scenario, _scenario_class
 from simbench.scenario.schema import Units
-from simbench.physics.switches import pose_start
 
 if TYPE_CHECKING:
     from simbench.api import Array
-    from simbench.env.episode import Track
     from simbench.api.trajectory import JointTrajectory
+    from simbench.env.episode import Track
 
 MARGIN = 0.05  # of each joint's span, kept clear of its bounds
 TRIES = 100  # draws before giving up on a robot whose random tasks cannot be planned (a PUMA line is plannable in

@@ -13,8 +13,8 @@ import mujoco
 import numpy as np
 from dm_control.rl import control
 
-from simbench.physics.controllers import Servo
 from simbench.env.episode import Physics, track_of
+from simbench.physics.controllers import Servo
 
 # Everything that decides the next steps: the integration state (warm start included), what switches edited
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION

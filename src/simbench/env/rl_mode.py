@@ -37,10 +37,10 @@ import numpy as np
 from dm_env import specs
 
 from simbench.api import Array, JointTrajectory
-from simbench.physics.controllers import Servo
+from simbench.core.plant import Plant
 from simbench.env.episode import Physics, Track
 from simbench.env.randomise import DRAWN, Noise, Randomisation, Randomiser, as_settings
-from simbench.core.plant import Plant
+from simbench.physics.controllers import Servo
 from simbench.scenario import Scenario
 
 RESIDUAL_SCALE = {mujoco.mjtJoint.mjJNT_HINGE: 0.05, mujoco.mjtJoint.mjJNT_SLIDE: 0.01}

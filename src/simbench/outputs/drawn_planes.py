@@ -4,7 +4,8 @@ MuJoCo draws a plane whose size is 0 in x or y (a floor, in simbench's scenes an
 grid, which Mesa's llvmpipe renders at about twice the cost of the rest of a scene (an 84x84 frame of the PUMA;
 BENCHMARKS.md, bench_env_step). A square reaching the far clipping distance (`vis.map.zfar` times `stat.extent`)
 in each infinite direction, in TILES x TILES quads, shows the same floor up to the haze at the horizon. The sizes
-are put back when the block ends, so the physics never sees them. MuJoCo reads them twice: where a GL context is made (its plane grids)
+are put back when the block ends, so the physics never sees them. MuJoCo reads them twice: where a GL context is made
+(its plane grids)
 and where a frame's scene is updated (the texture's repeats), so both must happen inside the block.
 """
 

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from simbench import api
-from simbench.outputs import csv_cells
 from simbench.core import destination
 from simbench.core.atomic import staged_file
 from simbench.core.errors import RunError, ScenarioError
+from simbench.outputs import csv_cells
 from simbench.outputs.plot_formats import TIMESERIES_FORMATS
 
 CSV = "timeseries.csv"
@@ -77,7 +77,8 @@ def export(folder: str | os.PathLike, fmt: str = "csv", kinds: tuple[str, ...] |
             simbench did not write.
     """
     if fmt not in TIMESERIES_FORMATS:
-        raise ScenarioError("simbench.outputs.export", "fmt", f"expected one of {', '.join(TIMESERIES_FORMATS)}, got {fmt!r}")
+        raise ScenarioError("simbench.outputs.export", "fmt",
+                            f"expected one of {', '.join(TIMESERIES_FORMATS)}, got {fmt!r}")
     folder = destination.followed(Path(folder))
     _check_folder(folder)
     path = folder / CSV

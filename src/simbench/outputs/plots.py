@@ -11,9 +11,9 @@ import numpy as np
 
 from simbench.analysis import Analysis
 from simbench.api.panels import figure, plot_text, time_panels
-from simbench.robots import REVOLUTE, Robot
-from simbench.physics.sim import Recording
 from simbench.api.trajectory import JointTrajectory
+from simbench.physics.sim import Recording
+from simbench.robots import REVOLUTE, Robot
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

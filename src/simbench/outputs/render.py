@@ -22,10 +22,10 @@ import mujoco
 import numpy as np
 
 from simbench.api import Decoration
-from simbench.outputs.drawn_planes import planes_drawn_finite
 from simbench.core.errors import RunError
 from simbench.core.interrupts import held_back
 from simbench.core.plant import compiled_scene
+from simbench.outputs.drawn_planes import planes_drawn_finite
 from simbench.physics.sim import Recording
 
 _PLAN_RGBA = np.array([0.1, 0.45, 1.0, 1.0], np.float32)

@@ -13,10 +13,10 @@ import mujoco
 import numpy as np
 
 from simbench.analysis import Analysis
-from simbench.core.atomic import staged_file, write_text
-from simbench.physics.sim import Recording
 from simbench.api.trajectory import JointTrajectory
+from simbench.core.atomic import staged_file, write_text
 from simbench.core.version import __version__
+from simbench.physics.sim import Recording
 
 
 def plain(value):

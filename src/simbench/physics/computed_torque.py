@@ -7,7 +7,8 @@ For a serial arm tau_ff is `mj_inverse` at the planned q_ref, qd_ref, qdd_ref, c
 an equality constraint in the scene (a closed chain, a gripped part) the plan fixes only the actuated joints, so
 tau_ff is the effective inertia (a diagonal approximation) times qdd_ref plus the bias force at the measured state.
 Default gains per joint: Kp = I w^2, Kd = 2 zeta I w, zeta `damping_ratio`. For a serial arm they are designed for
-the plan (simbench.robots.servo_design): I the largest inertia over the planned motion, w `bandwidth` (rad/s) capped where
+the plan (simbench.robots.servo_design): I the largest inertia over the planned motion, w `bandwidth` (rad/s) capped
+where
 the explicit PD would not be stable at the timestep. With a constraint, I is the effective inertia at the plan's
 start and w `bandwidth`. MuJoCo clamps the commands to the
 actuators' force ranges.
@@ -22,11 +23,11 @@ import numpy as np
 from pydantic import Field
 
 from simbench.api import Array, Controller, ControlSettings, State
-from simbench.core.plant import Plant
-from simbench.scenario.schema import Gains
-from simbench.robots.servo_design import design, pd_gains, plan_dynamics
-from simbench.physics.switches import at_start
 from simbench.api.trajectory import JointTrajectory, gradient_rows
+from simbench.core.plant import Plant
+from simbench.physics.switches import at_start
+from simbench.robots.servo_design import design, pd_gains, plan_dynamics
+from simbench.scenario.schema import Gains
 
 
 class ComputedTorqueSettings(ControlSettings):

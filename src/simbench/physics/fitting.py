@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from simbench.api.trajectory import JointTrajectory
 from simbench.core.errors import ScenarioError
 from simbench.core.plant import Plant
-from simbench.api.trajectory import JointTrajectory
 
 
 def fit(scenario, plant: Plant, traj: JointTrajectory) -> tuple[Plant, JointTrajectory, tuple[dict, ...]]:

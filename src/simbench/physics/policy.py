@@ -17,14 +17,13 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field, field_validator
 
-from simbench.core import interrupts
-from simbench.api import registry
-from simbench.api import Array, Controller, ControlSettings, State
-from simbench.core.errors import ScenarioError, described
-from simbench.physics.observation import observation
-from simbench.core.plant import Plant
-from simbench.scenario import Scenario
+from simbench.api import Array, Controller, ControlSettings, State, registry
 from simbench.api.trajectory import JointTrajectory
+from simbench.core import interrupts
+from simbench.core.errors import ScenarioError, described
+from simbench.core.plant import Plant
+from simbench.physics.observation import observation
+from simbench.scenario import Scenario
 
 _IDENTIFIER = r"[A-Za-z_][A-Za-z0-9_]*"
 # A registered name, or a module path: package.module:factory.

@@ -18,14 +18,14 @@ import numpy as np
 from tqdm import tqdm
 
 from simbench.api import Commands, Controller
-from simbench.physics.controllers import Servo
+from simbench.api.recording import Recording
+from simbench.api.trajectory import JointTrajectory, joined, revise
 from simbench.core.errors import ControlError, PhysicsError, RunError
 from simbench.core.faults import Fault, fatal_cause, quiet_mujoco
 from simbench.core.plant import Plant
-from simbench.api.recording import Recording
+from simbench.physics.controllers import Servo
 from simbench.physics.stepping import CHUNK, ClosedLoop, CommandFault, OpenLoop, Rows, state_slices
 from simbench.physics.switches import apply_switch, at_start
-from simbench.api.trajectory import JointTrajectory, joined, revise
 
 if TYPE_CHECKING:
     from simbench.analysis import Analyser

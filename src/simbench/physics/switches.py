@@ -8,8 +8,8 @@ import copy
 import mujoco
 import numpy as np
 
-from simbench.core.plant import Plant
 from simbench.api.trajectory import JointTrajectory, Switch
+from simbench.core.plant import Plant
 
 
 def relative_pose(model: mujoco.MjModel, data: mujoco.MjData, eq: int) -> np.ndarray:

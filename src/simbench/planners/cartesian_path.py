@@ -58,10 +58,12 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, field_validator
 
+from simbench.api import REVOLUTE, Planner, Violation
+from simbench.api.trajectory import ORIENTATION_REF, JointTrajectory, control_grid
 from simbench.core import extras
 from simbench.maths.path_distance import path_deviation
-from simbench.api import REVOLUTE, Planner, Violation
 from simbench.maths.paths import Composite
+from simbench.maths.rotations import axis_rotation, matrix_to_quat
 from simbench.planners.decoupled_path import join_gap, segment_waypoints
 from simbench.planners.path_methods import DAMPING, EPSILON, GRADIENT_GAIN, LAMBDA_MAX, METHODS, resolver_of
 from simbench.planners.path_reach import beyond_reach
@@ -78,9 +80,7 @@ from simbench.planners.resolved_rates import (
     task_error,
     tool_pose,
 )
-from simbench.maths.rotations import axis_rotation, matrix_to_quat
 from simbench.scenario.schema import JointVector, Orientation, SimbenchModel, Units
-from simbench.api.trajectory import ORIENTATION_REF, JointTrajectory, control_grid
 
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
 MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most

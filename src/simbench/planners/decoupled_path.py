@@ -23,13 +23,13 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from simbench.api import Planner
+from simbench.api.trajectory import JointTrajectory, control_grid
 from simbench.core.errors import RunError
 from simbench.maths.paths import Arc, Composite, Line
 from simbench.planners import rate
 from simbench.robots import puma600
 from simbench.robots.puma600 import A2, A3, D3, D4, JOINTS, LOWER, QD_MAX, TOOL, UPPER
 from simbench.scenario.schema import Angle, Direction, Orientation, Position, PositiveLength, SimbenchModel
-from simbench.api.trajectory import JointTrajectory, control_grid
 
 # Eq. 9 corrected: |P|^2 = C + A cos q3 + B sin q3 (eq. 12's A, B, C).
 COEF_A = 2 * A2 * A3

@@ -30,9 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from simbench.api.trajectory import control_grid
 from simbench.core.errors import RunError
 from simbench.planners.path_retiming import MARGIN, MAX_SLOWDOWN, refuse_longer
-from simbench.api.trajectory import control_grid
 
 JERK_TIME = 0.1  # s: jerk limits where the task gives none, each joint's acceleration limit reached in this time
 # (as path_retiming's ACCEL_TIME for the acceleration: dozens of control steps, an industrial arm's order)

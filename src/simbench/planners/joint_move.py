@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.api import Planner
-from simbench.scenario.schema import JointVector, SimbenchModel
 from simbench.api.trajectory import JointTrajectory, control_grid
+from simbench.scenario.schema import JointVector, SimbenchModel
 
 
 class Task(SimbenchModel):

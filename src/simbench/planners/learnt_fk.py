@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from simbench.core import extras
-from simbench.robots import agile_eye
 from simbench.maths.rotations import axis_rotation, rotation_angle
+from simbench.robots import agile_eye
 
 WEIGHTS = Path(__file__).resolve().parent.parent / "data" / "agile_eye_fk.npz"
 CONE = np.deg2rad(75.0)

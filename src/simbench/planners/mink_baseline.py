@@ -38,13 +38,12 @@ import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
+from simbench.api import Planner, Robot, registry
+from simbench.api.trajectory import JointTrajectory
 from simbench.core import extras
-from simbench.api import registry
-from simbench.api import Planner, Robot
 from simbench.core.errors import RunError
 from simbench.core.plant import compiled_scene
 from simbench.scenario.schema import SimbenchModel, Weight
-from simbench.api.trajectory import JointTrajectory
 from simbench.scenario.validation import describe
 
 NAME = "mink_baseline"

@@ -22,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.api import REVOLUTE, Violation
+from simbench.api.trajectory import control_grid
 from simbench.core.errors import RunError
 from simbench.planners.path_methods import RCOND
 from simbench.robots.rank_loss import unit_jacobian
-from simbench.api.trajectory import control_grid
 
 ACCEL_TIME = 0.1  # s: acceleration limits where the task gives none, each joint's speed limit reached in this time
 MARGIN = 0.98  # share of the speed and acceleration limits TOPP-RA plans for

@@ -11,10 +11,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from simbench.core.errors import RunError
-from simbench.planners import learnt_fk
-from simbench.robots import agile_eye, puma600
 from simbench.maths.rotations import rotation_angle
 from simbench.maths.timing import TimeLaw
+from simbench.planners import learnt_fk
+from simbench.robots import agile_eye, puma600
 
 Random = Union[np.random.Generator, np.random.RandomState]
 ATTEMPTS = 10_000  # draws before a generator gives up (none comes near it on the shipped robots)

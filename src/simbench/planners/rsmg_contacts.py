@@ -18,9 +18,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from simbench.maths.vectors import cross
 from simbench.planners.rsmg_lazy import CACHE_FLOATS, BoundedCache, Lazy, LazyExit, first_false, first_out
 from simbench.robots import rsmg
-from simbench.maths.vectors import cross
 
 _DENSE = 400  # points of the dense candidate set: neighbours about 10 deg apart
 _SHORTLIST = 4  # points tried a re-grip, best first

@@ -16,11 +16,11 @@ import numpy as np
 from pydantic import Field
 
 from simbench.api import REVOLUTE, Planner
+from simbench.api.trajectory import JointTrajectory, control_grid
 from simbench.core.errors import RunError
 from simbench.planners import rate
 from simbench.robots.spherical_arm import D1, D4, KINDS, LOWER, UPPER, fk
 from simbench.scenario.schema import JointVector, SimbenchModel
-from simbench.api.trajectory import JointTrajectory, control_grid
 
 _AXIS_TOL = 1e-9  # m: a line passing this close to the lift axis crosses it (q1 keeps its value across)
 _LIMIT_TOL = 1e-12

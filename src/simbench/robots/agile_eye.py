@@ -27,10 +27,10 @@ import numpy as np
 
 from simbench import api
 from simbench.api import Summary
-from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
+from simbench.core.windowed import BlockSum
 from simbench.maths.rotations import axis_rotation, canonical, quat_to_matrix, rotation_angle
 from simbench.maths.vectors import cross, triple
-from simbench.core.windowed import BlockSum
+from simbench.robots import REVOLUTE, Robot, SingularSet, Tolerance, scene
 
 U = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # rows: u1, u2, u3
 LINE_OF_SIGHT = np.ones(3) / np.sqrt(3.0)

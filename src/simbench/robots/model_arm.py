@@ -27,16 +27,26 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simbench.api import (Array, JointTrajectory, PlantFit, Recording, Robot, SingularSet, Summariser, Summary,
-                          Tolerance, Violation)
+from simbench.api import (
+    Array,
+    JointTrajectory,
+    PlantFit,
+    Recording,
+    Robot,
+    SingularSet,
+    Summariser,
+    Summary,
+    Tolerance,
+    Violation,
+)
 from simbench.api.events import Event
+from simbench.api.trajectory import ORIENTATION_REF
 from simbench.core.plant import register_scene
+from simbench.maths.rotations import quat_to_matrix, rotation_angle
 from simbench.robots.contacts import Contacts, Touch, checked_rows
 from simbench.robots.model_scene import TOOL_SENSOR, DerivedArm
 from simbench.robots.rank_loss import closest_sample, rank_loss_detail, unit_jacobian
-from simbench.maths.rotations import quat_to_matrix, rotation_angle
 from simbench.robots.servo_design import design, force_violations, plan_dynamics
-from simbench.api.trajectory import ORIENTATION_REF
 
 ORIENTATION_ERROR = "tool_orientation_error"
 CONTACT_STEP = {"revolute": np.deg2rad(0.5), "prismatic": 1e-3}  # joint motion between contact checks (rad, m)

@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simbench import api
-from simbench.robots.rsmg_geometry import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 from simbench.maths.rotations import quat_to_matrix, rotation_angle
+from simbench.robots.rsmg_geometry import ARMS, CHUNK, GAMMA_BAND, POINTS, RADIUS, gripping
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -16,11 +16,20 @@ from pydantic import Field, PrivateAttr, ValidationError, ValidationInfo, create
 
 from simbench import api
 from simbench.api import registry
-from simbench.core.errors import ScenarioError
 from simbench.api.events import KINDS
-from simbench.scenario import robot_mapping
-from simbench.scenario.schema import Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name, seconds
+from simbench.core.errors import ScenarioError
 from simbench.maths.timing import TimeLaw
+from simbench.scenario import robot_mapping
+from simbench.scenario.schema import (
+    Gains,
+    Name,
+    PositiveAngle,
+    PositiveLength,
+    SimbenchModel,
+    Units,
+    file_name,
+    seconds,
+)
 from simbench.scenario.validation import describe, did_you_mean, kind_of, read_yaml
 
 

@@ -30,12 +30,12 @@ import numpy as np
 from pydantic import AfterValidator, Field, ValidationError, model_validator
 
 from simbench.core.errors import ScenarioError, os_words
+from simbench.maths.rotations import axis_rotation, matrix_to_quat
 from simbench.robots.chain import IDENTITY, ArmError, Tool
 from simbench.robots.model_arm import ModelArm
 from simbench.robots.model_file import fingerprint, is_urdf, urdf_limits
 from simbench.robots.model_scene import ArmOptions, DerivedArm, derive
 from simbench.robots.model_size import file_problem
-from simbench.maths.rotations import axis_rotation, matrix_to_quat
 from simbench.scenario.schema import Angle, Name, Position, SimbenchModel, Units, _finite_norm
 from simbench.scenario.validation import describe, kind_of, read_yaml
 

@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 from pydantic import Field
-
 from simbench.api import Array, Controller, ControlSettings, Plant, PolicyFactory, State
 from simbench.api.trajectory import JointTrajectory
 

@@ -19,11 +19,11 @@ from typing import Annotated
 
 import numpy as np
 from pydantic import AfterValidator, Field, ValidationInfo
-
 from simbench.api import Planner, Robot, Violation
+from simbench.api.trajectory import JointTrajectory, control_grid
 from simbench.core.errors import RunError
 from simbench.scenario.schema import MAX_LENGTH, Angle, JointVector, SimbenchModel
-from simbench.api.trajectory import JointTrajectory, control_grid
+
 from simbench_planar3r.robot import L1, L2, L3, UPPER, Z, elbow_gaps, pose
 
 

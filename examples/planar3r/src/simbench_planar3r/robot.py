@@ -17,7 +17,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
 from simbench.api import REVOLUTE, Robot, SingularSet, Tolerance
 
 L1, L2, L3 = 0.4, 0.3, 0.2  # link lengths (m), as in the MJCF

@@ -11,9 +11,9 @@ from functools import cache
 
 import numpy as np
 
-from simbench.core import extras
 from simbench.commands.bench.robots import BenchRobot
 from simbench.commands.bench.tasks import HOLD, Task
+from simbench.core import extras
 
 
 @dataclass(frozen=True)

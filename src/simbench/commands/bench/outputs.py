@@ -1,5 +1,6 @@
 """A bench's files beside its rows: every run's scenario file (scenarios/<id>.yaml, before the runs), then the
-tables (simbench.commands.bench.board, simbench.commands.bench.paired), plots/ (a Pareto plot per robot among them), summary.json,
+tables (simbench.commands.bench.board, simbench.commands.bench.paired), plots/ (a Pareto plot per robot among them),
+summary.json,
 index.html and, for several arms, a page per arm (simbench.commands.bench.allarms), each claimed in the folder's marker
 before it is written (simbench.core.destination).
 """
@@ -13,16 +14,16 @@ import yaml
 from matplotlib.figure import Figure
 
 from simbench.api.panels import plot_text
-from simbench.core.atomic import staged_folder, write_text
 from simbench.commands.bench.allarms import arm_page, grid, of_robot
 from simbench.commands.bench.board import SCENARIOS, scenario_file
 from simbench.commands.bench.paired import paired
+from simbench.commands.sweep import table
+from simbench.core.atomic import staged_folder, write_text
 from simbench.outputs.page import write_page
 from simbench.outputs.page.html import cell, config_section, document, esc, figure_grid, href, paragraphs
 from simbench.outputs.page.tables import MAX_ROWS
 from simbench.outputs.plots import plain_ticks
 from simbench.outputs.report import plain, write_report
-from simbench.commands.sweep import table
 
 try:  # libyaml's emitter where PyYAML has it: a scenario file in 1 ms rather than 4
     from yaml import CSafeDumper as _SafeDumper

@@ -11,21 +11,22 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
-from simbench.core import destination
 from simbench.commands.bench import board, outputs
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.suite import Suite
 from simbench.commands.bench.tasks import draw
-from simbench.scenario.schema import SimbenchModel
 from simbench.commands.sweep import cluster, run_remaining, table
 from simbench.commands.sweep.spec import Sweep, Variant
 from simbench.commands.sweep.store import Store
+from simbench.core import destination
 from simbench.core.version import __version__
+from simbench.scenario.schema import SimbenchModel
 
 
 class BenchSpec(SimbenchModel):
     """What decides a bench's runs, as its folder's manifest records it (a resume into a folder whose manifest holds
-    another is refused: simbench.commands.sweep.store): the version of the benchmark's definition and each robot's model hash
+    another is refused: simbench.commands.sweep.store): the version of the benchmark's definition and each robot's
+    model hash
     (bench.robots.BenchRobot.model_hash) among them; `outputs` and `video` as a sweep's spec has them (a bench keeps
     no run's own outputs)."""
 

@@ -15,10 +15,10 @@ from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from simbench.commands.reproduce._common import CLASSES, ERROR, OURS, TYPO, Difference, PaperSummary
 from simbench.core import destination
 from simbench.core.atomic import staged_folder
 from simbench.core.errors import STAGED, ScenarioError
-from simbench.commands.reproduce._common import CLASSES, ERROR, OURS, TYPO, Difference, PaperSummary
 from simbench.core.resources import scenarios_dir
 
 __all__ = ["CLASSES", "ERROR", "OURS", "PAPERS", "TYPO", "Difference", "PaperSummary", "Summary", "reproduce"]

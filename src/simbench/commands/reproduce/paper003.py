@@ -15,14 +15,23 @@ from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
 from simbench.commands.pipeline import evaluate
-from simbench.planners import avoidance_4567, learnt_fk
-from simbench.commands.reproduce._common import (CHECKS_HEADER, OURS, Difference, PaperSummary, figure, finish, fmt, save,
-                                        write_table)
+from simbench.commands.reproduce._common import (
+    CHECKS_HEADER,
+    OURS,
+    Difference,
+    PaperSummary,
+    figure,
+    finish,
+    fmt,
+    save,
+    write_table,
+)
 from simbench.core.resources import scenarios_dir
-from simbench.robots import agile_eye
 from simbench.maths.rotations import quat_to_matrix, rotation_angle
-from simbench.scenario import load_scenario
 from simbench.maths.timing import TimeLaw
+from simbench.planners import avoidance_4567, learnt_fk
+from simbench.robots import agile_eye
+from simbench.scenario import load_scenario
 
 TITLE = "trajectory optimisation of the Agile Eye with a learnt forward kinematics"
 SCENARIO = "avoidance"

@@ -10,13 +10,13 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from simbench.core import destination
-from simbench.outputs.page import table_page, write_page
-from simbench.outputs.report import write_report
 from simbench.commands.sweep import cluster, execute, table
 from simbench.commands.sweep.spec import Sweep, Variant, load_sweep
 from simbench.commands.sweep.store import RESULTS, Store, run_folder
 from simbench.commands.sweep.workers import count as worker_count
+from simbench.core import destination
+from simbench.outputs.page import table_page, write_page
+from simbench.outputs.report import write_report
 
 __all__ = ["Sweep", "SweepResult", "load_sweep", "run_sweep"]
 

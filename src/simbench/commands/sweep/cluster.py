@@ -23,9 +23,9 @@ from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, nullcontext
 
+from simbench.commands.sweep.execute import Task, crashed, run_variant
 from simbench.core import extras
 from simbench.core.errors import RunError, ScenarioError, os_words, printable
-from simbench.commands.sweep.execute import Task, crashed, run_variant
 
 CONNECT_TIMEOUT = 5.0  # s
 NODE_RERUNS = 3  # times a run lost with its node runs again

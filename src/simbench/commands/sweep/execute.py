@@ -1,5 +1,6 @@
 """Running a sweep's variants: one function per run, called in this process, in forked worker processes or on a
-Ray cluster (simbench.commands.sweep.cluster), with the same outcomes. A run never raises: every failure is an outcome with
+Ray cluster (simbench.commands.sweep.cluster), with the same outcomes. A run never raises: every failure is an outcome
+with
 a status and a one-line error, a run that kills its worker a `crashed` one (on Ray, after one more attempt), so
 that the table has a row for every run.
 """
@@ -16,9 +17,9 @@ from multiprocessing import connection
 from typing import Any, NamedTuple
 
 from simbench.core.errors import RunError, ScenarioError, TooSlow
-from simbench.outputs.figures import columns
 from simbench.core.forked import as_worker, die_with, parents_heap_frozen
 from simbench.core.plant import reused_plants
+from simbench.outputs.figures import columns
 
 # Report keys that describe the run rather than measure it.
 _NOT_METRICS = {"scenario", "robot", "planner", "versions", "timestep", "duration", "hold", "settle", "time_law",

@@ -18,13 +18,12 @@ from typing import Annotated, Any, ClassVar, Literal
 import numpy as np
 from pydantic import AfterValidator, Field, model_validator
 
-from simbench.core.errors import ScenarioError
-from simbench.core.resources import scenarios_dir
-from simbench.scenario import robot_mapping
-from simbench.scenario import parse_scenario
-from simbench.scenario.schema import MAX_NAME, Name, SimbenchModel, file_name
 from simbench.commands.sweep import size
 from simbench.commands.sweep.size import MAX_RUNS
+from simbench.core.errors import ScenarioError
+from simbench.core.resources import scenarios_dir
+from simbench.scenario import parse_scenario, robot_mapping
+from simbench.scenario.schema import MAX_NAME, Name, SimbenchModel, file_name
 from simbench.scenario.validation import kind_of, read_spec, read_yaml
 
 _PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")

@@ -11,12 +11,11 @@ from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
+from simbench.commands.sweep.spec import Sweep, Variant
 from simbench.core import destination
 from simbench.core.atomic import write_text
 from simbench.core.errors import OutputError, ScenarioError, destination_error, output_error
 from simbench.outputs.report import plain, write_report
-from simbench.commands.sweep.spec import Sweep, Variant
-
 
 # What a sweep that cannot write a row keeps.
 _KEPT = "the rows of the finished runs are kept: run the same command again to resume"

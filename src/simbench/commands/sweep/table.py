@@ -14,11 +14,11 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from simbench.outputs import csv_cells
-from simbench.core import extras
 from simbench.api.panels import plot_text
+from simbench.core import extras
 from simbench.core.atomic import staged_file, staged_folder, write_text
 from simbench.core.forked import as_worker, parents_heap_frozen
+from simbench.outputs import csv_cells
 from simbench.outputs.plots import plain_ticks
 
 STATUSES = ("ok", "limits", "too_slow", "bad_input", "run_failed", "crashed")  # too_slow: cut past a time limit

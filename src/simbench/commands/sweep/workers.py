@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import sys
 
-from simbench.core import budget
 from simbench.commands.sweep import execute
 from simbench.commands.sweep.spec import Sweep, Variant
+from simbench.core import budget
 
 WORKER_BYTES = 64 * 10**6
 

@@ -13,9 +13,9 @@ from pathlib import Path
 from urllib.parse import quote
 from xml.etree import ElementTree
 
-from simbench.core.version import __version__
-
 from PIL import Image
+
+from simbench.core.version import __version__
 
 _STYLE = """
 :root { --ink: #1d2330; --muted: #5b6475; --rule: #d9dde5; --band: #f4f6f9; --ok: #1e7b34; --limits: #b35c00;

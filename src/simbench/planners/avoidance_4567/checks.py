@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simbench.maths.rotations import rotation_angle
 from simbench.planners.avoidance_4567.estimators import platform
 from simbench.planners.avoidance_4567.task import Task, clearances, margins
 from simbench.robots import agile_eye
-from simbench.maths.rotations import rotation_angle
 
 ENDS = 1e-6  # rad: how near the exact FK of the last joint sample must come to the goal orientation
 _ON_CURVE = 1e-6  # rad: a platform axis this near its base axis is on a singular curve

@@ -6,9 +6,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from simbench.maths.timing import TimeLaw
 from simbench.planners.avoidance_4567.task import Task
 from simbench.robots import agile_eye
-from simbench.maths.timing import TimeLaw
 
 
 def bump(tau: np.ndarray, order: int = 0) -> np.ndarray:

@@ -8,7 +8,10 @@ import time
 import numpy as np
 
 from simbench.api import Decoration, Planner
+from simbench.api.trajectory import JointTrajectory, control_grid
 from simbench.core.errors import RunError
+from simbench.maths.rotations import matrix_to_quat
+from simbench.maths.timing import TimeLaw
 from simbench.planners import learnt_fk
 from simbench.planners.avoidance_4567.checks import Checked, accepted, check_path, refusal
 from simbench.planners.avoidance_4567.path import Plan
@@ -16,9 +19,6 @@ from simbench.planners.avoidance_4567.search import global_search
 from simbench.planners.avoidance_4567.task import Task, clearances, margins
 from simbench.planners.avoidance_4567.windows import optimise
 from simbench.robots import agile_eye
-from simbench.maths.rotations import matrix_to_quat
-from simbench.maths.timing import TimeLaw
-from simbench.api.trajectory import JointTrajectory, control_grid
 
 
 def _choose(task: Task, law: TimeLaw, t: np.ndarray,

@@ -8,10 +8,10 @@ import time
 import numpy as np
 
 from simbench.core import extras
+from simbench.maths.timing import TimeLaw
 from simbench.planners.avoidance_4567.checks import Checked, check_path
 from simbench.planners.avoidance_4567.task import Task, clearances, margins
 from simbench.robots import agile_eye
-from simbench.maths.timing import TimeLaw
 
 _SEARCH_STEP = np.deg2rad(0.5)  # rotation angle between the states the global search checks along a motion
 

@@ -8,8 +8,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field
 
-from simbench.robots import agile_eye
 from simbench.maths.rotations import rotation_angle
+from simbench.robots import agile_eye
 from simbench.scenario.schema import NonNegativeAngle, Orientation, PositiveAngle, SimbenchModel, Weight, seconds
 
 

@@ -7,12 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simbench.maths.timing import TimeLaw
 from simbench.planners import learnt_fk
 from simbench.planners.avoidance_4567.estimators import Estimator
 from simbench.planners.avoidance_4567.path import Plan, Window, bump, plain_plan
 from simbench.planners.avoidance_4567.task import Task, centers, clearances, margins, obstacle_names
 from simbench.robots import agile_eye
-from simbench.maths.timing import TimeLaw
 
 _COARSE = 201  # samples of the whole path on which violations are found
 _WINDOW_SAMPLES = 101  # samples of a window on which SLSQP judges a candidate

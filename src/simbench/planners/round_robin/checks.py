@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.core.errors import RunError
+from simbench.maths.timing import TimeLaw
 from simbench.planners.round_robin.paths import joint_paths
 from simbench.planners.round_robin.schedule import Stuck, grid_orientations, schedule_grips, unkept_limits
 from simbench.planners.round_robin.search import STEP
 from simbench.planners.round_robin.task import Task
 from simbench.planners.rsmg_contacts import SPEED_SHARE, angular_speed
 from simbench.robots import rsmg
-from simbench.maths.timing import TimeLaw
 
 _SLOWER = (1.25, 1.5, 2.0, 3.0, 4.0)  # a refused motion's durations tried, as multiples of the task's
 

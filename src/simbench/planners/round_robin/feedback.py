@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from simbench.api.trajectory import Switch
+from simbench.maths.timing import TimeLaw
 from simbench.planners.round_robin.paths import BLOCK, Orientations
 from simbench.planners.round_robin.search import Hold
 from simbench.planners.round_robin.task import Motion
 from simbench.robots import rsmg
-from simbench.maths.timing import TimeLaw
-from simbench.api.trajectory import Switch
 
 EASE = 0.1  # s: a grip's revised hold blends in from the old one over this time
 _QUINTIC = TimeLaw("quintic", 1.0)  # a 0-to-1 blend: 0 before 0, 1 after 1, zero rate and acceleration at both

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from simbench.api.trajectory import Switch, gradient_rows
+from simbench.maths.rotations import matrix_to_quat
 from simbench.planners.round_robin.schedule import ScheduleGrid
 from simbench.planners.round_robin.search import FIT, Hold
 from simbench.planners.round_robin.task import Motion
 from simbench.planners.rsmg_contacts import FixedContacts, GeneralContacts, quintic
 from simbench.robots import rsmg
-from simbench.maths.rotations import matrix_to_quat
-from simbench.api.trajectory import Switch, gradient_rows
 
 # control samples whose orientations and rates are found at a time, in planning (rotor_references, joint_rates)
 # and during the run (Orientations), so that their temporaries stay small

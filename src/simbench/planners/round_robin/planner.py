@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.api import Planner
+from simbench.api.trajectory import JointTrajectory, control_grid
 from simbench.core.errors import RunError
 from simbench.planners.round_robin.checks import refusal
 from simbench.planners.round_robin.feedback import RegripFeedback
@@ -12,7 +13,6 @@ from simbench.planners.round_robin.paths import engaged_arms, grip_switches, joi
 from simbench.planners.round_robin.schedule import Stuck, schedule_grips
 from simbench.planners.round_robin.task import Task
 from simbench.robots import rsmg
-from simbench.api.trajectory import JointTrajectory, control_grid
 
 
 class RoundRobin(Planner):

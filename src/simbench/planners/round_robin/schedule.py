@@ -8,11 +8,11 @@ from typing import NamedTuple
 import numpy as np
 
 from simbench.core.errors import RunError
+from simbench.maths.timing import TimeLaw
 from simbench.planners.round_robin.search import SEARCH, STEP, Hold, Scheduler
 from simbench.planners.round_robin.task import Task, band
 from simbench.planners.rsmg_contacts import FIRM_CAP, FIRM_SPEED, SPEED_SHARE, FixedContacts, GeneralContacts, Swing
 from simbench.robots import rsmg
-from simbench.maths.timing import TimeLaw
 
 
 def gammas(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -10,10 +10,10 @@ from typing import NamedTuple
 import numpy as np
 
 from simbench.core.errors import RunError
+from simbench.maths.vectors import triple
 from simbench.planners.rsmg_contacts import FixedContacts, GeneralContacts
 from simbench.planners.rsmg_lazy import CACHE_FLOATS, BoundedCache, Lazy, LazyExit, exit_upto, first_false, first_out
 from simbench.robots import rsmg
-from simbench.maths.vectors import triple
 
 STEP = 0.005  # s: the schedule's time step
 FIT = 4  # schedule steps on each side of a swing from which its end states are fitted; a hold is longer

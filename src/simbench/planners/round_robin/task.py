@@ -8,8 +8,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from simbench.robots import rsmg
 from simbench.maths.rotations import axis_rotation
+from simbench.robots import rsmg
 from simbench.scenario.schema import Direction, NonNegativeAngle, SimbenchModel, seconds
 
 # The default floor on the holding arms' |det A| (eq. 46 puts rank loss at 0.01); general contacts raise it with the

@@ -1,0 +1,1 @@
+"""simbench's tests, a folder a stage as the package's (tests/<stage>/), shared fixtures in conftest."""
