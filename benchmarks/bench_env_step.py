@@ -11,7 +11,9 @@ MuJoCo and dm_control's reacher (`suite.load('reacher', 'easy')`, also 20 ms a c
   against dm_control's own Physics of the same scene with the GL context its file sets (`simbench.env.pixels`).
 
 Precomputed actions (residual 0 for simbench, uniform random for the reacher), so no policy is counted. Each case
-and its loops are timed in turn, the cases round-robin, REPEATS rounds after one warm-up; figures are medians.
+and its loops are timed in turn, the cases round-robin, REPEATS rounds after one warm-up; figures are each loop's
+least time over the rounds (the machine's other work only adds time: on a shared machine its pace changes by half
+within seconds, which moved medians more than the differences measured).
 """
 
 from __future__ import annotations
@@ -150,16 +152,16 @@ def measure() -> dict:
                     times[case.name].setdefault(key, []).append(value)
     rows = []
     for case in cases:
-        median = {key: float(np.median(values)) for key, values in times[case.name].items()}
+        least = {key: float(np.min(values)) for key, values in times[case.name].items()}
         steps, physics_steps = len(case.actions), len(case.ctrls)
         rows.append({"case": case.name, "control_steps": steps, "substeps": case.substeps,
-                     "env_step_us": 1e6 * median["c"] / steps,
-                     "physics_c_us": 1e6 * median["c"] / physics_steps,
-                     "physics_python_us": 1e6 * median["python"] / physics_steps if "python" in median else None,
-                     "bare_us": 1e6 * median["bare"] / physics_steps,
-                     "overhead_us": 1e6 * (median["c"] - median["bare"]) / steps,
-                     "reset_ms": 1e3 * median["reset"], "pixels_ms": 1e3 * median["pixels"] / FRAMES,
-                     **{key: 1e3 * median[key] / (FRAMES if key == "file_pixels" else 1) if key in median else None
+                     "env_step_us": 1e6 * least["c"] / steps,
+                     "physics_c_us": 1e6 * least["c"] / physics_steps,
+                     "physics_python_us": 1e6 * least["python"] / physics_steps if "python" in least else None,
+                     "bare_us": 1e6 * least["bare"] / physics_steps,
+                     "overhead_us": 1e6 * (least["c"] - least["bare"]) / steps,
+                     "reset_ms": 1e3 * least["reset"], "pixels_ms": 1e3 * least["pixels"] / FRAMES,
+                     **{key: 1e3 * least[key] / (FRAMES if key == "file_pixels" else 1) if key in least else None
                         for key in ("random_reset", "pooled_reset", "file_pixels")}})
     return {"rows": rows}
 
@@ -183,7 +185,7 @@ def markdown(results: dict) -> str:
         "",
         ("An episode's `env.step`s with precomputed actions (20 ms control steps), per control step and per physics "
          "step (substeps in MuJoCo's C loop, the default, and in the Python loop), against bare `mj_step` through "
-         "the same commands; the overhead is env.step less its physics steps' bare time. Medians over interleaved "
+         "the same commands; the overhead is env.step less its physics steps' bare time. The least of interleaved "
          "rounds:"),
         "",
         ("| environment | control steps x physics steps | env.step (us) | overhead a step (us) | a physics step, "
