@@ -46,6 +46,7 @@ from simbench.api import Array, Violation
 from simbench.api.trajectory import JointTrajectory
 
 SAMPLES = 200  # plan rows whose inertias and levers are read, evenly (the first and the last among them)
+CHUNK = 4096  # plan rows whose torques are found at once (memory: a few arrays of CHUNK x nv floats)
 ERROR_SHARE = 0.05  # of the path and orientation tolerances: a designed joint's steady error budget
 STABLE = 0.5  # share of the timestep's stability bound a designed joint may use (the module's docstring)
 DEFAULT_BANDWIDTH = 50.0  # rad/s: w0 where the robot mapping gives none
@@ -111,17 +112,37 @@ def plan_dynamics(plant, traj: JointTrajectory) -> PlanDynamics:
         lever = np.maximum(lever, np.linalg.norm(jacp[:, dofs], axis=0))
         turn = np.maximum(turn, np.linalg.norm(jacr[:, dofs], axis=0))
     whole = np.empty((n, len(dofs)))  # M qdd + c - passive at every row
-    inverse = np.zeros(model.nv)
-    for k in range(n):
-        _pose(plant, data, traj, qdd, k)
-        mujoco.mj_comVel(model, data)
-        mujoco.mj_passive(model, data)
-        mujoco.mj_rne(model, data, 1, inverse)
-        whole[k] = (inverse - data.qfrc_passive)[dofs]
+    for start in range(0, n, CHUNK):
+        whole[start:start + CHUNK] = _torques(plant, data, traj, qdd, slice(start, min(n, start + CHUNK)))
     friction = model.dof_frictionloss[dofs]
     beyond = np.abs(whole - model.dof_damping[dofs] * traj.qd_ref).max(axis=0) + friction
     return PlanDynamics(diag.max(axis=0), fastest.min(axis=0), beyond, lever, turn,
                         whole + friction * np.sign(traj.qd_ref))
+
+
+def _torques(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray, rows: slice) -> np.ndarray:
+    """M qdd + c - passive of the designed joints at the plan's `rows` (rows, dof): each row posed as `_pose` poses
+    it, its full qpos, qvel and qacc made for all the rows at once and MuJoCo's results written into row views
+    (the Python between MuJoCo's calls was most of a row's time)."""
+    model, dofs = plant.model, plant.dof_adr
+    q = traj.q_ref[rows]
+    qpos = np.repeat(model.qpos0[None], len(q), axis=0)
+    qpos[:, plant.qpos_adr] = q
+    for i, q_row in enumerate(q):  # passive joints of a closed chain (none for a serial arm)
+        for name, value in plant.robot.assemble(q_row).items():
+            qpos[i, model.joint(name).qposadr[0]] = value
+    qvel, qacc = np.zeros((len(q), model.nv)), np.zeros((len(q), model.nv))
+    qvel[:, dofs], qacc[:, dofs] = traj.qd_ref[rows], qdd[rows]
+    inverse, passive = np.empty((len(q), model.nv)), np.empty((len(q), model.nv))
+    for i in range(len(q)):
+        data.qpos[:], data.qvel[:], data.qacc[:] = qpos[i], qvel[i], qacc[i]
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_passive(model, data)
+        mujoco.mj_rne(model, data, 1, inverse[i])
+        passive[i] = data.qfrc_passive
+    return (inverse - passive)[:, dofs]
 
 
 def _pose(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray, k: int) -> None:
