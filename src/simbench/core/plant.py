@@ -126,16 +126,18 @@ class Plant:
         """The full qpos of actuated joint values: the model's reference pose, q, and any passive joints assembled.
 
         Args:
-            q: The actuated joints' values (dof,).
+            q: The actuated joints' values (dof,), or rows of them (N, dof).
 
         Returns:
-            MuJoCo's qpos (nq,).
+            MuJoCo's qpos (nq,), or a row each (N, nq).
         """
-        qpos = self.model.qpos0.copy()
-        qpos[self.qpos_adr] = q
-        for name, value in self.robot.assemble(q).items():
-            qpos[self.model.joint(name).qposadr[0]] = value
-        return qpos
+        rows = np.atleast_2d(q)
+        qpos = np.repeat(self.model.qpos0[None], len(rows), axis=0)
+        qpos[:, self.qpos_adr] = rows
+        for pose, row in zip(qpos, rows):  # a closed chain's passive joints (none for a serial arm)
+            for name, value in self.robot.assemble(row).items():
+                pose[self.model.joint(name).qposadr[0]] = value
+        return qpos if np.ndim(q) == 2 else qpos[0]
 
     def gains(self) -> dict[str, list[float]]:
         """The position servos' gains as the model holds them.

@@ -126,11 +126,7 @@ def _torques(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray,
     (the Python between MuJoCo's calls was most of a row's time)."""
     model, dofs = plant.model, plant.dof_adr
     q = traj.q_ref[rows]
-    qpos = np.repeat(model.qpos0[None], len(q), axis=0)
-    qpos[:, plant.qpos_adr] = q
-    for i, q_row in enumerate(q):  # passive joints of a closed chain (none for a serial arm)
-        for name, value in plant.robot.assemble(q_row).items():
-            qpos[i, model.joint(name).qposadr[0]] = value
+    qpos = plant.initial_qpos(q)
     qvel, qacc = np.zeros((len(q), model.nv)), np.zeros((len(q), model.nv))
     qvel[:, dofs], qacc[:, dofs] = traj.qd_ref[rows], qdd[rows]
     inverse, passive = np.empty((len(q), model.nv)), np.empty((len(q), model.nv))
