@@ -42,12 +42,8 @@ from simbench.core.plant import Plant  # noqa: E402
 from simbench.physics.sim import commanded, simulate  # noqa: E402
 from simbench.planners import avoidance_4567  # noqa: E402
 from simbench.planners.avoidance_4567 import windows  # noqa: E402
-from simbench.planners.random_tasks import (  # noqa: E402
-    AGILE_EYE_CLEARANCE,
-    AGILE_EYE_KCI_MIN,
-    AGILE_EYE_MARGIN,
-    agile_eye_tasks,  # noqa: E402
-)
+from simbench.planners.random_tasks import (AGILE_EYE_CLEARANCE, AGILE_EYE_KCI_MIN,  # noqa: E402
+                                             AGILE_EYE_MARGIN, agile_eye_tasks)
 from simbench.robots import agile_eye  # noqa: E402
 
 REPEATS = 7

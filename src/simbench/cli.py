@@ -17,16 +17,8 @@ from typing import NoReturn
 
 from simbench.commands.bench import command as bench_command
 from simbench.core import interrupts
-from simbench.core.errors import (
-    NO_SPACE,
-    OutputError,
-    PhysicsError,
-    RunError,
-    ScenarioError,
-    described,
-    os_error_line,
-    printable,
-)
+from simbench.core.errors import (NO_SPACE, OutputError, PhysicsError, RunError, ScenarioError, described,
+                                  os_error_line, printable)
 from simbench.core.resources import scenarios_dir, sweeps_dir
 from simbench.outputs.plot_formats import FORMATS, TIMESERIES_FORMATS
 
@@ -419,7 +411,7 @@ def _preload(ctrl_c: interrupts.CtrlC) -> None:
     with interrupts.held_back():
         from simbench import scenario  # noqa: F401
         from simbench.api import registry
-        from simbench.commands import pipeline
+        from simbench.commands import pipeline  # noqa: F401
 
         registry.load_shipped()
     registry.robots(), registry.planners(), registry.controllers(), registry.policies(), registry.metrics()

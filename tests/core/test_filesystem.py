@@ -36,16 +36,8 @@ from simbench.commands import pipeline
 from simbench.commands.sweep import store as sweep_store
 from simbench.commands.sweep import table as sweep_table
 from simbench.core import atomic, destination
-from simbench.core.errors import (
-    OutputError,
-    PhysicsError,
-    RunError,
-    ScenarioError,
-    name_max,
-    os_words,
-    printable,
-    shown,
-)
+from simbench.core.errors import (OutputError, PhysicsError, RunError, ScenarioError, name_max, os_words, printable,
+                                  shown)
 from simbench.outputs import report
 from simbench.scenario import validation
 from tests.conftest import scenario_file

@@ -20,16 +20,8 @@ from simbench.api import Commands, Controller, State
 from simbench.core import interrupts
 from simbench.core.buffers import WindowBuffer
 from simbench.core.errors import RunError, described
-from simbench.core.faults import (
-    FATAL,
-    MAX_SPEED,
-    Fault,
-    clear_warnings,
-    fatal_cause,
-    step_fault,
-    unsound,
-    warnings_raised,
-)
+from simbench.core.faults import (FATAL, MAX_SPEED, Fault, clear_warnings, fatal_cause, step_fault, unsound,
+                                  warnings_raised)
 from simbench.core.plant import Plant
 
 CHUNK = 5000  # steps stepped at a time (and an open loop's commands found at a time for them)

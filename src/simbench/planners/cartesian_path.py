@@ -69,17 +69,8 @@ from simbench.planners.path_methods import DAMPING, EPSILON, GRADIENT_GAIN, LAMB
 from simbench.planners.path_reach import beyond_reach
 from simbench.planners.path_retiming import ACCEL_TIME
 from simbench.planners.path_segments import PathSegment, corner_warning, corners, place, placed_path
-from simbench.planners.resolved_rates import (
-    CLIK_SHARE,
-    KNOT_STEP,
-    NULL_GAIN,
-    POSITION_ROWS,
-    integrate,
-    orientation_error,
-    sigma_min,
-    task_error,
-    tool_pose,
-)
+from simbench.planners.resolved_rates import (CLIK_SHARE, KNOT_STEP, NULL_GAIN, POSITION_ROWS, integrate,
+                                              orientation_error, sigma_min, task_error, tool_pose)
 from simbench.scenario.schema import JointVector, Orientation, SimbenchModel, Units
 
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`

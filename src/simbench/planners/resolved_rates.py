@@ -7,16 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbench.planners.path_methods import (
-    EPSILON,
-    GRADIENT_GAIN,
-    Resolver,
-    Rule,
-    damped_rates,
-    manipulability_gradient,
-    pinv_rates,
-    sns_rates,
-)
+from simbench.planners.path_methods import (EPSILON, GRADIENT_GAIN, Resolver, Rule, damped_rates,
+                                            manipulability_gradient, pinv_rates, sns_rates)
 from simbench.robots.rank_loss import unit_jacobian
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)

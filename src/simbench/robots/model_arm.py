@@ -27,18 +27,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simbench.api import (
-    Array,
-    JointTrajectory,
-    PlantFit,
-    Recording,
-    Robot,
-    SingularSet,
-    Summariser,
-    Summary,
-    Tolerance,
-    Violation,
-)
+from simbench.api import (Array, JointTrajectory, PlantFit, Recording, Robot, SingularSet, Summariser, Summary,
+                          Tolerance, Violation)
 from simbench.api.events import Event
 from simbench.api.trajectory import ORIENTATION_REF
 from simbench.core.plant import register_scene

@@ -25,26 +25,9 @@ import numpy as np
 from simbench.api import Summary
 from simbench.maths.vectors import cross, triple
 from simbench.robots import Robot, SingularSet, Tolerance, rsmg_outputs, scene
-from simbench.robots.rsmg_geometry import (  # noqa: F401
-    ALPHA,
-    ARMS,
-    BETA,
-    CANDIDATES,
-    CHUNK,
-    DET_A_MIN,
-    GAMMA_BAND,
-    JOINTS,
-    KINDS,
-    LOWER,
-    POINTS,
-    QD_MAX,
-    RADIUS,
-    UPPER,
-    X_REF,
-    Y_REF,
-    U,
-    gripping,
-)
+from simbench.robots.rsmg_geometry import (ALPHA, ARMS, BETA, CANDIDATES, CHUNK, DET_A_MIN, GAMMA_BAND,  # noqa: F401
+                                          JOINTS, KINDS, LOWER, POINTS, QD_MAX, RADIUS, UPPER, U, X_REF, Y_REF,
+                                          gripping)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -20,16 +20,8 @@ from simbench.api.events import KINDS
 from simbench.core.errors import ScenarioError
 from simbench.maths.timing import TimeLaw
 from simbench.scenario import robot_mapping
-from simbench.scenario.schema import (
-    Gains,
-    Name,
-    PositiveAngle,
-    PositiveLength,
-    SimbenchModel,
-    Units,
-    file_name,
-    seconds,
-)
+from simbench.scenario.schema import (Gains, Name, PositiveAngle, PositiveLength, SimbenchModel, Units, file_name,
+                                      seconds)
 from simbench.scenario.validation import describe, did_you_mean, kind_of, read_yaml
 
 

@@ -17,19 +17,8 @@ import numpy as np
 import yaml
 
 from simbench.commands.pipeline import evaluate
-from simbench.commands.reproduce._common import (
-    ERROR,
-    OURS,
-    TYPO,
-    Difference,
-    PaperSummary,
-    figure,
-    finish,
-    fmt,
-    markdown_table,
-    save,
-    write_table,
-)
+from simbench.commands.reproduce._common import (ERROR, OURS, TYPO, Difference, PaperSummary, figure, finish, fmt,
+                                                 markdown_table, save, write_table)
 from simbench.core.resources import scenarios_dir
 from simbench.planners import safe_straight_path as method
 from simbench.robots.spherical_arm import D4, fk

@@ -13,17 +13,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from simbench.commands.pipeline import evaluate
-from simbench.commands.reproduce._common import (
-    CHECKS_HEADER,
-    OURS,
-    Difference,
-    PaperSummary,
-    figure,
-    finish,
-    fmt,
-    save,
-    write_table,
-)
+from simbench.commands.reproduce._common import (CHECKS_HEADER, OURS, Difference, PaperSummary, figure, finish, fmt,
+                                                 save, write_table)
 from simbench.core.resources import scenarios_dir
 from simbench.maths.rotations import quat_to_matrix
 from simbench.robots import rsmg

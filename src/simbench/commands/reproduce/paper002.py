@@ -14,17 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from simbench.commands.pipeline import check_plan
-from simbench.commands.reproduce._common import (
-    ERROR,
-    TYPO,
-    Difference,
-    PaperSummary,
-    figure,
-    finish,
-    fmt,
-    save,
-    write_table,
-)
+from simbench.commands.reproduce._common import (ERROR, TYPO, Difference, PaperSummary, figure, finish, fmt, save,
+                                                 write_table)
 from simbench.core.resources import scenarios_dir
 from simbench.robots import puma600
 from simbench.robots.puma600 import A2, A3, D3, D4, JOINTS, QD_MAX

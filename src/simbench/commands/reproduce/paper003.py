@@ -15,17 +15,8 @@ from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
 from simbench.commands.pipeline import evaluate
-from simbench.commands.reproduce._common import (
-    CHECKS_HEADER,
-    OURS,
-    Difference,
-    PaperSummary,
-    figure,
-    finish,
-    fmt,
-    save,
-    write_table,
-)
+from simbench.commands.reproduce._common import (CHECKS_HEADER, OURS, Difference, PaperSummary, figure, finish, fmt,
+                                                 save, write_table)
 from simbench.core.resources import scenarios_dir
 from simbench.maths.rotations import quat_to_matrix, rotation_angle
 from simbench.maths.timing import TimeLaw

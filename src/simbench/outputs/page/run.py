@@ -7,20 +7,8 @@ import math
 from pathlib import Path
 
 from simbench.outputs.page import timeline
-from simbench.outputs.page.html import (
-    cards,
-    config_section,
-    document,
-    esc,
-    figure_grid,
-    flatten,
-    href,
-    inside,
-    number,
-    paragraphs,
-    scaled,
-    table,
-)
+from simbench.outputs.page.html import (cards, config_section, document, esc, figure_grid, flatten, href, inside,
+                                        number, paragraphs, scaled, table)
 
 _MM, _DEG = 1e3, 180 / math.pi
 _STATUS_TEXT = {"ok": "kept every promise its report makes", "limits": "broke a promise (below)",
