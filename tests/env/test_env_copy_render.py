@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from simbench import env as simbench_env
+from simbench.env.pixels import OUTLINE_SHARE, facets
 
 linux = pytest.mark.skipif(sys.platform != "linux", reason="EGL and the MUJOCO_GL values tested are Linux's")
 
@@ -222,19 +223,30 @@ np.savez(sys.argv[1], **out)
 """
 
 
+def test_round_geoms_get_the_fewest_facets_that_keep_their_outline_within_half_a_pixel():
+    """facets(n): the polygon's sagitta for a geom OUTLINE_SHARE of the frame across is at most half a pixel, and one
+    facet fewer would exceed it (the chord's distance from its arc, r (1 - cos(pi / n)))."""
+    for longer in (16, 48, 84, 100, 240, 480, 640, 1080, 1920):
+        radius = OUTLINE_SHARE * longer / 2
+        n = facets(longer)
+        assert radius * (1 - np.cos(np.pi / n)) <= 0.5 < radius * (1 - np.cos(np.pi / (n - 1)))
+
+
 @linux
 def test_frames_are_fitted_to_their_size_and_look_as_dm_controls(tmp_path):
-    """An 84x84 frame is drawn in an 84x84 buffer with a 256 shadow map (SHADOW_TEXELS a pixel of its longer side),
-    a later 640x480 one in a remade 640x480 buffer with a 2048 map (kept for the 84x84 frame after it), the model's
-    own settings left as the file has them; the frames are dm_control's own render of the same state with the
-    file's 1920x1080 buffer and 4096 map, the floor drawn finite, but for the shadows' resolution (a mean difference
-    under 1 of 255); and the floor drawn finite looks as MuJoCo's endless one (a mean difference under 4 of 255,
+    """An 84x84 frame is drawn in an 84x84 buffer with a 256 shadow map (SHADOW_TEXELS a pixel of its longer side) and
+    round geoms of 11 x 7 facets, a later 640x480 one in a remade 640x480 buffer with a 2048 map and the file's 28 x 16
+    facets (kept for the 84x84 frame after it), the model's own settings left as the file has them; the frames are
+    dm_control's own render of the same state with the file's 1920x1080 buffer, 4096 map and facets, the floor drawn
+    finite, but for the shadows' resolution and the outlines (a mean difference under 1 of 255, seen: 0.62 at 84x84
+    with 11 facets, 0.07 with 28); and the floor drawn finite looks as MuJoCo's endless one (a mean difference under 4 of 255,
     seen: 1.7 at 84x84, 3.0 at 640x480, where the checker's edge lines fall a pixel apart)."""
     done = subprocess.run([sys.executable, "-c", FITTED, str(tmp_path / "frames.npz")], env=_process_env(),
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     frames = np.load(tmp_path / "frames.npz")
-    assert [frames[f"{i} fitted"].tolist() for i in range(3)] == [[84, 84, 256], [640, 480, 2048], [640, 480, 2048]]
+    assert [frames[f"{i} fitted"].tolist() for i in range(3)] == [[84, 84, 256, 11, 7], [640, 480, 2048, 28, 16],
+                                                                   [640, 480, 2048, 28, 16]]
     for i, shape in enumerate(((84, 84, 3), (480, 640, 3), (84, 84, 3))):
         ours, theirs, endless = frames[f"{i}"].astype(float)
         assert ours.shape == theirs.shape == shape and ours.std() > 10  # a picture, not a blank

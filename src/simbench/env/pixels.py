@@ -1,16 +1,20 @@
 """Frames of an environment at the cost of their own size: the GL buffers sized to the largest frame asked so far,
 not to the scene file's (simbench's scenes ask for a 1920x1080 buffer and a 4096 shadow map, for videos).
 
-dm_control makes a physics' GL context once, with the model's `offwidth` x `offheight` offscreen buffer and its
-`shadowsize` shadow map; on a CPU renderer (Mesa llvmpipe) both cost time in every frame, however small the frame
-(an 84x84 frame of the PUMA about 2.5 times its fitted cost). Here the context is made for the frames asked: the
-buffer as large as the largest frame so far, the shadow map SHADOW_TEXELS texels a pixel of its longer side (a
-power of two), each at most the file's; a larger frame remakes the context. The model's own settings are left as
-the file has them (a video made from the same model renders as before).
+dm_control makes a physics' GL context once, with the model's `offwidth` x `offheight` offscreen buffer, its
+`shadowsize` shadow map and its round geoms cut into `numslices` x `numstacks` facets (28 x 16 by default, made for
+full-size videos); on a CPU renderer (Mesa llvmpipe) all three cost time in every frame, however small the frame
+(an 84x84 frame of the PUMA about 2.5 times its fitted cost; the RSMG's 78 round geoms about 4 times). Here the
+context is made for the frames asked: the buffer as large as the largest frame so far, the shadow map SHADOW_TEXELS
+texels a pixel of its longer side (a power of two), round geoms with as many facets as keep the outline of one a
+quarter of that side across within half a pixel of the true circle (`facets`), each at most the file's; a larger
+frame remakes the context. The model's own settings are left as the file has them (a video made from the same model
+renders as before).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from dm_control.mujoco import engine
@@ -21,10 +25,22 @@ SHADOW_TEXELS = 3
 """Shadow-map texels a pixel of the largest frame's longer side (dm_control's reacher: 2048 for 640x480)."""
 
 
+OUTLINE_SHARE = 1 / 4
+"""The widest round geom drawn true to half a pixel, as a share of the frame's longer side."""
+
+
+def facets(longer: int) -> int:
+    """Slices of a round geom whose polygonal outline stays within half a pixel of its circle, for a geom
+    OUTLINE_SHARE of a frame `longer` pixels wide: a chord's sagitta r (1 - cos(pi / n)) at most 0.5 px (28, MuJoCo's
+    default, at 640 pixels; 11 at 84)."""
+    radius = max(1.0, OUTLINE_SHARE * longer / 2)
+    return math.ceil(math.pi / math.acos(1 - 0.5 / radius))
+
+
 class FittedRendering(engine.Physics):
     """dm_control's Physics whose GL context fits the frames it renders (the module's docstring says how)."""
 
-    _fitted: tuple[int, int, int] | None = None  # the buffer's width and height and the shadow map's size
+    _fitted: tuple[int, int, int, int, int] | None = None  # buffer width, height, shadow map size, slices, stacks
 
     def render(self, height: int = 240, width: int = 320, *args: Any, **kwargs: Any):
         """dm_control's render (same arguments), the GL context first fitted to the frame, infinite planes drawn
@@ -36,18 +52,28 @@ class FittedRendering(engine.Physics):
     def _fit(self, width: int, height: int) -> None:
         """Remake the GL context if this frame needs a larger buffer or shadow map than the one it has."""
         vis = self.model.ptr.vis
-        ceiling = (vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize)
-        old = self._fitted or (0, 0, 0)
+        ceiling = (vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize, vis.quality.numslices,
+                   vis.quality.numstacks)
+        old = self._fitted or (0, 0, 0, 0, 0)
         wide, high = min(max(width, old[0]), ceiling[0]), min(max(height, old[1]), ceiling[1])
         shadow = min(ceiling[2], 1 << max(0, SHADOW_TEXELS * max(wide, high) - 1).bit_length()) if ceiling[2] else 0
-        if self._fitted is not None and (wide, high, shadow) == old:
+        slices = min(ceiling[3], facets(max(wide, high)))
+        stacks = min(ceiling[4], math.ceil(slices * ceiling[4] / max(1, ceiling[3])))  # the file's proportion
+        fitted = (wide, high, shadow, slices, stacks)
+        if self._fitted is not None and fitted == old:
             return
         with self._contexts_lock:
             if self._contexts:
                 self._free_rendering_contexts()
-            vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize = wide, high, shadow
+            self._set_quality(fitted)
             try:
                 self._make_rendering_contexts()
             finally:
-                vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize = ceiling
-        self._fitted = (wide, high, shadow)
+                self._set_quality(ceiling)
+        self._fitted = fitted
+
+    def _set_quality(self, settings: tuple[int, int, int, int, int]) -> None:
+        """The model's buffer size, shadow map size, slices and stacks (the order of `_fitted`)."""
+        vis = self.model.ptr.vis
+        (vis.global_.offwidth, vis.global_.offheight, vis.quality.shadowsize, vis.quality.numslices,
+         vis.quality.numstacks) = settings
