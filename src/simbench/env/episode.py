@@ -321,8 +321,9 @@ class Track(control.Task):
 
     def stretch(self, nstep: int) -> int:
         """How many of `nstep` physics steps run before the plan's end or its next switch, whichever comes first."""
-        stop = min((k for k in self._switches if k > self.k), default=self.n - 1)
-        return min(nstep, stop - self.k, self.n - 1 - self.k)
+        last = self.n - 1
+        stop = min((k for k in self._switches if k > self.k), default=last) if self._switches else last
+        return min(nstep, stop - self.k)  # a switch is before the last sample (`_use`)
 
     def controls(self, physics: Physics, steps: int) -> Array:
         """The commands (steps, nu) of the next physics steps: the action before_step gave, held.
@@ -368,9 +369,10 @@ class Track(control.Task):
         first, stop = self.k, self.k + len(commands)
         self._readings[first:stop], self._ctrl[first:stop] = sensors, commands
         self._qpos[first + 1:stop + 1], self._qvel[first + 1:stop + 1] = states[:, qpos], states[:, qvel]
-        self._eq[first + 1:stop] = physics.data.ptr.eq_active
+        self._eq[first + 1:stop + 1] = physics.data.ptr.eq_active
         self.k = stop
-        self._reached(physics)
+        if stop in self._switches:
+            self._reached(physics)
 
     def _reached(self, physics: Physics) -> None:
         """At the sample just reached: a planned switch applied with the plan's feedback on it, and the constraints

@@ -31,17 +31,20 @@ def observation(plant: Plant, state: State, q_ref: Array, qd_ref: Array, tool_re
         and `q_ref_ahead` (len(AHEAD) * dof,), the references AHEAD samples on (the last sample past the end).
     """
     assert state.data is not None, "an observation needs the live data"
-    return observe(plant, state.k, state.t, state.q, state.qd, state.data, q_ref, qd_ref, tool_ref)
+    return observe(plant, state.k, state.t, np.array(state.q, dtype=float), np.array(state.qd, dtype=float), state.data,
+                   q_ref, qd_ref, tool_ref)
 
 
 def observe(plant: Plant, k: int, t: float, q: Array, qd: Array, data: mujoco.MjData, q_ref: Array, qd_ref: Array,
             tool_ref: Array) -> OrderedDict:
-    """`observation`'s, from the state's parts (an environment's step makes no State: a few microseconds a step)."""
-    ahead = np.minimum(k + _AHEAD, len(q_ref) - 1)
+    """`observation`'s, from the state's parts (an environment's step makes no State: a few microseconds a step);
+    `q` and `qd` are taken as they are (the caller's own copies)."""
+    last = len(q_ref) - 1
+    ahead = k + _AHEAD if k + AHEAD[-1] <= last else np.minimum(k + _AHEAD, last)
     return OrderedDict(
         time=np.array([t]),
-        q=np.array(q, dtype=float),
-        qd=np.array(qd, dtype=float),
+        q=q,
+        qd=qd,
         tool=data.sensordata[plant.sensors[plant.robot.tool_sensor]].copy(),
         q_ref=q_ref[k].copy(),
         qd_ref=qd_ref[k].copy(),
