@@ -76,7 +76,7 @@ from simbench.scenario.schema import JointVector, Orientation, SimbenchModel, Un
 START_TOL = 1e-4  # m: a first line's given start must be this near the tool's point at `start`
 MAX_ACCELERATION = 1e6  # rad/s^2 or m/s^2: time_scaling's acceleration limits at most
 RETIMED = ("time_scaling", "ruckig")  # the methods that keep pinv's exact joint path and retime it
-_NEEDS = ("fk", "tool_rotation", "jacobian", "reach")  # what the planner reads of the robot
+_NEEDS = ("fk", "tool_rotation", "jacobian", "reach", "anchor")  # what the planner reads of the robot
 
 
 class Task(SimbenchModel):

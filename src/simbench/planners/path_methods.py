@@ -107,10 +107,13 @@ def _pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray],
     """x -> Ju+ x, Ju+ = V S^-1 U^T over the singular values above RCOND of the largest; Ju's least singular value,
     I - Ju+ Ju and Ju's rank."""
     u, sv, vt = thin_svd(ju)
-    keep = sv > RCOND * sv[0]
-    inverse = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep)
-    null = np.eye(ju.shape[1]) - vt[keep].T @ vt[keep]
-    return (lambda x: vt.T @ (inverse * (u.T @ x))), float(sv[-1]), null, int(keep.sum())
+    if sv[-1] > RCOND * sv[0]:  # full rank, the usual case: every singular value kept (the masks' cost spared)
+        inverse, rank, kept = 1.0 / sv, len(sv), vt
+    else:
+        keep = sv > RCOND * sv[0]
+        inverse, rank, kept = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep), int(keep.sum()), vt[keep]
+    null = np.eye(ju.shape[1]) - kept.T @ kept
+    return (lambda x: vt.T @ (inverse * (u.T @ x))), float(sv[-1]), null, rank
 
 
 def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:

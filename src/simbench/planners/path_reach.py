@@ -15,7 +15,7 @@ def beyond_reach(path: list, segments: list, robot) -> tuple[str, str] | None:
     """The first segment with a point the arm certainly cannot reach: farther from the first joint's anchor than the
     reach (robots.chain: the chain's length from that anchor, which no joint values exceed). A line's farthest point
     is an end, its start the tool's or the last segment's end; an arc's is _farthest."""
-    anchor = _anchor(robot)
+    anchor = robot.anchor
     for i, (seg, segment) in enumerate(zip(path, segments)):
         point = segment.point(np.ones(1))[0] if seg.line is not None else _farthest(segment, anchor)
         far = float(np.linalg.norm(point - anchor))
@@ -29,16 +29,6 @@ def beyond_reach(path: list, segments: list, robot) -> tuple[str, str] | None:
                            f"{robot.reach * 1e3:.1f} mm (its chain's length from there): no joint values put the "
                            "tool there")
     return None
-
-
-def _anchor(robot) -> np.ndarray:
-    """The first joint's anchor (world, m), where robots.chain measures the reach from; a hinge's stays put."""
-    import mujoco
-
-    model = robot.arm.spec().compile()
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    return data.xanchor[model.joint(robot.joints[0]).id].copy()
 
 
 def _farthest(arc: Arc, centre: np.ndarray) -> np.ndarray:

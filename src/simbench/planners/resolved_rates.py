@@ -143,11 +143,12 @@ def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
     """1/2 (n x n_d + s x s_d + a x a_d) (..., 3) of rotations (..., 3, 3) (Siciliano et al. 2009, eq. 3.85):
     sin(angle) times the axis of the rotation from r to r_goal, world frame. Computed as the same sum's closed form,
     vee of the skew part of r_goal r^T (three cross products cost more at every control sample)."""
-    turn = r_goal @ np.swapaxes(r, -1, -2)
-    return 0.5 * (turn[..., _ROWS, _COLUMNS] - turn[..., _COLUMNS, _ROWS])
+    turn = (r_goal @ np.swapaxes(r, -1, -2)).reshape(*np.shape(r_goal)[:-2], 9)
+    return 0.5 * (turn.take(_LOWER, axis=-1) - turn.take(_UPPER, axis=-1))
 
 
-_ROWS, _COLUMNS = np.array([2, 0, 1]), np.array([1, 2, 0])  # orientation_error's vee: (2, 1), (0, 2), (1, 0)
+# orientation_error's vee in a flattened 3 x 3: (2, 1), (0, 2), (1, 0) less (1, 2), (2, 0), (0, 1)
+_LOWER, _UPPER = np.array([7, 2, 3]), np.array([5, 6, 1])
 
 
 def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, twists: np.ndarray,
@@ -195,9 +196,10 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
             scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
             rates = rates * scale[k]
         q[k], qd[k] = now, rates  # sns's rates come scaled
-        clear = lam2[k] == 0.0 and scale[k] == 1.0 and not held[k].any() and _clear(robot, now, rates, sigma[k],
-                                                                                      every * dt)
-        now = np.clip(now + dt * qd[k], robot.lower, robot.upper)  # a held joint on its limit, not an ulp past
+        clear = (lam2[k] == 0.0 and scale[k] == 1.0 and not np.count_nonzero(held[k])
+                 and _clear(robot, now, rates, sigma[k], every * dt))
+        # a held joint on its limit, not an ulp past (np.clip's result, at half its cost)
+        now = np.minimum(np.maximum(now + dt * qd[k], robot.lower), robot.upper)
         k += 1
     _between(robot, q, qd, sigma, np.array(knots, int), every, dt)
     return q, qd, sigma, lam2, scale, held
@@ -219,9 +221,13 @@ def _clear(robot, q: np.ndarray, rates: np.ndarray, sigma: float, step: float) -
     """Whether the arm at q, moving at `rates`, is clear enough of its singular set (sigma_min at least CLEAR_SIGMA)
     and of its limits (rates within CLEAR_SPEED of the speed limits, twice a knot step's motion inside the ranges)
     for a knot step of `step` seconds."""
-    reach = 2.0 * step * np.abs(rates)
-    return bool(sigma >= CLEAR_SIGMA and np.all(np.abs(rates) <= CLEAR_SPEED * robot.qd_max)
-                and np.all(q - reach > robot.lower) and np.all(q + reach < robot.upper))
+    if sigma < CLEAR_SIGMA:
+        return False
+    speed = np.abs(rates)
+    reach = 2.0 * step * speed
+    # count_nonzero: a tenth of ndarray.all's time (this runs at every control sample)
+    return not (np.count_nonzero(speed > CLEAR_SPEED * robot.qd_max) or np.count_nonzero(q - reach <= robot.lower)
+                or np.count_nonzero(q + reach >= robot.upper))
 
 
 def _between(robot, q: np.ndarray, qd: np.ndarray, sigma: np.ndarray, knots: np.ndarray, every: int,

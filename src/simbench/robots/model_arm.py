@@ -109,6 +109,15 @@ class ModelArm(Robot):
         """The characteristic length L (m) of the unit-consistent Jacobian: the chain's reach."""
         return self.arm.chain.reach
 
+    @property
+    def anchor(self) -> Array:
+        """The first joint's anchor (world, m) at qpos0, where the reach is measured from (robots.chain); nothing
+        moves it."""
+        model, data, adr, _, _ = self._compiled()
+        data.qpos[adr] = model.qpos0[adr]
+        mujoco.mj_kinematics(model, data)
+        return data.xanchor[model.joint(self.joints[0]).id].copy()
+
     def tool_rotation(self, q: Array) -> Array:
         """The tool site's orientation (N, 3, 3) in the world at joint values q (N, dof): MuJoCo's site_xmat."""
         return self.pose(q)[1]
@@ -121,13 +130,14 @@ class ModelArm(Robot):
         """The tool point (N, 3), its rotation (N, 3, 3) and J (N, 6, dof) at joint values q (N, dof), from one
         kinematics pass a row: fk, tool_rotation and jacobian at once (a planner's every control sample needs all
         three)."""
-        _, _, _, dofs, site = self._compiled()
+        model, data, adr, dofs, site = self._compiled()
         q = np.atleast_2d(q)
         points, rotations, out = np.empty((len(q), 3)), np.empty((len(q), 9)), np.empty((len(q), 6, len(dofs)))
-        jac = None
-        for k, (model, data) in enumerate(self._posed(q, com=True)):
-            if jac is None:
-                jac = np.zeros((6, model.nv))
+        jac = np.zeros((6, model.nv))
+        for k, row in enumerate(q):  # _posed's steps written out: a planner calls this a row at a time
+            data.qpos[adr] = row
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
             mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
             out[k] = jac[:, dofs]
             points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
