@@ -25,13 +25,16 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preferenc
     """One sample's rates by the rule, plus the null-space motion `preference` (_preference), with every joint kept
     inside its range (cartesian_path's docstring): the rates, the whole arm's sigma_min (of Ju's rows, those the
     task uses) and lambda^2, and which joints are held (dof,)."""
-    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     rates, sigma, lam2, null = rule(ju, twist)  # no joint held yet: Ju and the twist whole
     out = rates + null @ preference
+    after = now + dt * out
+    # (count_nonzero: a tenth of ndarray.any's time: this runs at every control sample)
+    if not (np.count_nonzero(after > robot.upper) or np.count_nonzero(after < robot.lower)):
+        return out, sigma, lam2, np.zeros(len(now), bool)  # the usual case: no joint reaches a range's end
+    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     while True:
-        after = now + dt * out
         passing = ~held & ((after > robot.upper) | (after < robot.lower))
-        if not np.count_nonzero(passing):  # (a tenth of ndarray.any's time: this runs at every control sample)
+        if not np.count_nonzero(passing):
             return out, sigma, lam2, held
         fixed[passing] = (np.clip(after[passing], robot.lower[passing], robot.upper[passing]) - now[passing]) / dt
         held |= passing
@@ -41,6 +44,7 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preferenc
         rates, _, _, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
         out = fixed.copy()
         out[free] = rates + null @ preference[free]
+        after = now + dt * out
 
 
 def _preference(robot, q0: np.ndarray, now: np.ndarray, rows: int, resolver: Resolver) -> np.ndarray:
@@ -85,9 +89,10 @@ def _error_and_jacobian(robot, now: np.ndarray, point: np.ndarray, rotation: np.
     """The unit-consistent error (rows,) of the tool at the joints `now` from (point, rotation) (task_error's) and
     the task's rows of Ju there, from one kinematics pass."""
     at, turned, jac = pose_jacobian(robot, now[None])
-    error = (point - at[0]) / robot.reach
+    error = np.empty(rows)
+    error[:POSITION_ROWS] = (point - at[0]) / robot.reach
     if rows > POSITION_ROWS:
-        error = np.concatenate([error, orientation_error(rotation, turned[0])])
+        error[POSITION_ROWS:] = orientation_error(rotation, turned[0])
     return error, unit_jacobian(jac[0], robot.reach)[:rows]
 
 

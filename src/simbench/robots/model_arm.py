@@ -42,6 +42,13 @@ ORIENTATION_ERROR = "tool_orientation_error"
 CONTACT_STEP = {"revolute": np.deg2rad(0.5), "prismatic": 1e-3}  # joint motion between contact checks (rad, m)
 
 
+def _as_slice(indices: list[int]) -> np.ndarray | slice:
+    """The indices as a slice where they run one after the other, else as an index array."""
+    if indices == list(range(indices[0], indices[0] + len(indices))):
+        return slice(indices[0], indices[0] + len(indices))
+    return np.array(indices)
+
+
 class ModelArm(Robot):
     """An arm read from its model file (DerivedArm), with speed limits `qd_max` (SI, one per joint). Its scene is
     registered under the model's path followed by '#simbench' (plant.register_scene)."""
@@ -79,15 +86,16 @@ class ModelArm(Robot):
                 mujoco.mj_comPos(model, data)
             yield model, data
 
-    def _compiled(self) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray, np.ndarray, int]:
-        """The arm's kinematics model and data, its joints' qpos and dof addresses and the tool site's id, made once
+    def _compiled(self) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray | slice, np.ndarray | slice, int]:
+        """The arm's kinematics model and data, its joints' qpos and dof addresses (a slice where they run in order,
+        as in most files: a slice indexes at a fraction of an index array's cost) and the tool site's id, made once
         (planning asks for them at every control sample)."""
         if self._kinematics is None:
             model = self.arm.spec().compile()
             joints = [model.joint(name) for name in self.joints]
             data = mujoco.MjData(model)  # its qpos starts at qpos0
-            self._kinematics = (model, data, np.array([j.qposadr[0] for j in joints]),
-                                np.array([j.dofadr[0] for j in joints]), model.site(self.tool_site).id)
+            self._kinematics = (model, data, _as_slice([j.qposadr[0] for j in joints]),
+                                _as_slice([j.dofadr[0] for j in joints]), model.site(self.tool_site).id)
         return self._kinematics
 
     def fk(self, q: Array) -> Array:
@@ -132,13 +140,14 @@ class ModelArm(Robot):
         three)."""
         model, data, adr, dofs, site = self._compiled()
         q = np.atleast_2d(q)
-        points, rotations, out = np.empty((len(q), 3)), np.empty((len(q), 9)), np.empty((len(q), 6, len(dofs)))
+        points, rotations, out = np.empty((len(q), 3)), np.empty((len(q), 9)), np.empty((len(q), 6, self.dof))
         jac = np.zeros((6, model.nv))
+        jacp, jacr = jac[:3], jac[3:]
         for k, row in enumerate(q):  # _posed's steps written out: a planner calls this a row at a time
             data.qpos[adr] = row
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)
-            mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
+            mujoco.mj_jacSite(model, data, jacp, jacr, site)
             out[k] = jac[:, dofs]
             points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
         return points, rotations.reshape(-1, 3, 3), out
