@@ -99,18 +99,21 @@ def plan_dynamics(plant, traj: JointTrajectory) -> PlanDynamics:
                                         np.argmax(np.abs(qdd), axis=0)]))
     data = mujoco.MjData(model)
     site = model.site(plant.robot.tool_site).id
-    full, jacp, jacr = np.zeros((model.nv, model.nv)), np.zeros((3, model.nv)), np.zeros((3, model.nv))
-    diag, fastest = np.empty((len(sampled), len(dofs))), np.empty((len(sampled), len(dofs)))
-    lever, turn = np.zeros(len(dofs)), np.zeros(len(dofs))
-    for i, k in enumerate(sampled):
-        _pose(plant, data, traj, qdd, k)
+    full, jac = np.zeros((model.nv, model.nv)), np.zeros((6, model.nv))
+    jacp, jacr, block = jac[:3], jac[3:], np.ix_(dofs, dofs)
+    inertias, jacs = np.empty((len(sampled), len(dofs), len(dofs))), np.empty((len(sampled), 6, len(dofs)))
+    for i, qpos in enumerate(plant.initial_qpos(traj.q_ref[sampled])):  # positions alone: what M and J read
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
         mujoco.mj_crb(model, data)
         mujoco.mj_fullM(model, data, full)
-        m = full[np.ix_(dofs, dofs)]
-        diag[i], fastest[i] = m.diagonal(), 1 / np.linalg.inv(m).diagonal()
+        inertias[i] = full[block]
         mujoco.mj_jacSite(model, data, jacp, jacr, site)
-        lever = np.maximum(lever, np.linalg.norm(jacp[:, dofs], axis=0))
-        turn = np.maximum(turn, np.linalg.norm(jacr[:, dofs], axis=0))
+        jacs[i] = jac[:, dofs]
+    diag, fastest = np.diagonal(inertias, axis1=1, axis2=2), 1 / np.diagonal(np.linalg.inv(inertias), axis1=1, axis2=2)
+    lever = np.linalg.norm(jacs[:, :3], axis=1).max(axis=0, initial=0.0)
+    turn = np.linalg.norm(jacs[:, 3:], axis=1).max(axis=0, initial=0.0)
     whole = np.empty((n, len(dofs)))  # M qdd + c - passive at every row
     for start in range(0, n, CHUNK):
         whole[start:start + CHUNK] = _torques(plant, data, traj, qdd, slice(start, min(n, start + CHUNK)))
@@ -121,9 +124,9 @@ def plan_dynamics(plant, traj: JointTrajectory) -> PlanDynamics:
 
 
 def _torques(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray, rows: slice) -> np.ndarray:
-    """M qdd + c - passive of the designed joints at the plan's `rows` (rows, dof): each row posed as `_pose` poses
-    it, its full qpos, qvel and qacc made for all the rows at once and MuJoCo's results written into row views
-    (the Python between MuJoCo's calls was most of a row's time)."""
+    """M qdd + c - passive of the designed joints at the plan's `rows` (rows, dof): each row's full qpos (passive
+    joints assembled), qvel and qacc (zero but for the designed joints') made for all the rows at once and MuJoCo's
+    results written into row views (the Python between MuJoCo's calls was most of a row's time)."""
     model, dofs = plant.model, plant.dof_adr
     q = traj.q_ref[rows]
     qpos = plant.initial_qpos(q)
@@ -139,18 +142,6 @@ def _torques(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray,
         mujoco.mj_rne(model, data, 1, inverse[i])
         passive[i] = data.qfrc_passive
     return (inverse - passive)[:, dofs]
-
-
-def _pose(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray, k: int) -> None:
-    """data at the plan's row k: positions, velocities and accelerations, kinematics and centres of mass computed
-    (not the collision detection mj_forward would run: the design needs no contacts)."""
-    data.qpos[:] = plant.initial_qpos(traj.q_ref[k])
-    data.qvel[:] = 0
-    data.qacc[:] = 0
-    data.qvel[plant.dof_adr] = traj.qd_ref[k]
-    data.qacc[plant.dof_adr] = qdd[k]
-    mujoco.mj_kinematics(plant.model, data)
-    mujoco.mj_comPos(plant.model, data)
 
 
 def design(plant, traj: JointTrajectory, dynamics: PlanDynamics, designed: np.ndarray, tolerances,
