@@ -75,17 +75,6 @@ class ModelArm(Robot):
         self.__dict__.update(state)
         register_scene(str(self.scene), self.arm.spec)
 
-    def _posed(self, q: Array, com: bool = False):
-        """(model, data) at each row of q (N, dof) in turn, kinematics computed, and com positions where `com` (a
-        Jacobian needs them). The joints off the chain stay at qpos0, set once."""
-        model, data, adr, _, _ = self._compiled()
-        for row in np.atleast_2d(q):
-            data.qpos[adr] = row
-            mujoco.mj_kinematics(model, data)
-            if com:
-                mujoco.mj_comPos(model, data)
-            yield model, data
-
     def _compiled(self) -> tuple[mujoco.MjModel, mujoco.MjData, np.ndarray | slice, np.ndarray | slice, int]:
         """The arm's kinematics model and data, its joints' qpos and dof addresses (a slice where they run in order,
         as in most files: a slice indexes at a fraction of an index array's cost) and the tool site's id, made once
@@ -105,10 +94,12 @@ class ModelArm(Robot):
     def pose(self, q: Array) -> tuple[Array, Array]:
         """The tool point (N, 3) and its rotation (N, 3, 3) at joint values q (N, dof), from one kinematics pass a
         row."""
-        site = self._compiled()[4]
+        model, data, adr, _, site = self._compiled()  # the joints off the chain stay at qpos0, set once
         q = np.atleast_2d(q)
         points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))
-        for k, (_, data) in enumerate(self._posed(q)):
+        for k, row in enumerate(q):
+            data.qpos[adr] = row
+            mujoco.mj_kinematics(model, data)
             points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
         return points, rotations.reshape(-1, 3, 3)
 
@@ -143,7 +134,7 @@ class ModelArm(Robot):
         points, rotations, out = np.empty((len(q), 3)), np.empty((len(q), 9)), np.empty((len(q), 6, self.dof))
         jac = np.zeros((6, model.nv))
         jacp, jacr = jac[:3], jac[3:]
-        for k, row in enumerate(q):  # _posed's steps written out: a planner calls this a row at a time
+        for k, row in enumerate(q):  # a planner calls this a row at a time
             data.qpos[adr] = row
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)
