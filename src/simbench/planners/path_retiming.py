@@ -62,8 +62,10 @@ def exact_ik(robot, q: np.ndarray, points: np.ndarray, rotations: np.ndarray,
                            robot.upper)
     size = np.linalg.norm(error_of(points, rotations, q), axis=1)
     kept = (size > IK_ACCEPT) | (np.abs(q - start).max(axis=1) > IK_STEP)
-    q[kept] = start[kept]
-    return q, np.linalg.norm(error_of(points, rotations, q), axis=1)
+    if np.count_nonzero(kept):  # the error where the start is kept, the others' as found
+        q[kept] = start[kept]
+        size[kept] = np.linalg.norm(error_of(points[kept], rotations[kept], q[kept]), axis=1)
+    return q, size
 
 
 def retime(s_grid: np.ndarray, q_grid: np.ndarray, law, qd_max: np.ndarray, qdd_max: np.ndarray, dt: float,

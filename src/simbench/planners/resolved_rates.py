@@ -173,6 +173,7 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
     every = max(1, round(knot_step / dt))  # control samples a knot step spans
     knots: list[int] = []
     now, k, damping, clear = q0.copy(), 0, False, False
+    fast = _UNDER * robot.qd_max  # the scaled rules' bound
     while k < n:
         if clear and every > 1 and k + every < n:
             on, rates, sigma[k], spent = _knot(robot, q0, now, points[k], rotations[k], twists[k], resolver)
@@ -198,8 +199,9 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
                 continue
             damping = True
         if resolver.scaled:
-            scale[k] = min(1.0, float(np.min(_UNDER * robot.qd_max / np.maximum(np.abs(rates), 1e-300))))
-            rates = rates * scale[k]
+            scale[k] = min(1.0, float((fast / np.maximum(np.abs(rates), 1e-300)).min()))
+            if scale[k] < 1.0:
+                rates = rates * scale[k]
         q[k], qd[k] = now, rates  # sns's rates come scaled
         clear = (lam2[k] == 0.0 and scale[k] == 1.0 and not np.count_nonzero(held[k])
                  and _clear(robot, now, rates, sigma[k], every * dt))
