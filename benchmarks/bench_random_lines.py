@@ -67,7 +67,8 @@ def _urdf(path: str) -> Path:
 def ur5_robot() -> str:
     """The UR5's robot mapping (millimetres); the tool is the tool0 flange on wrist_3_link, the speed limits the
     URDF's."""
-    return f"{{model: {_urdf('ur_description/urdf/ur5_robot.urdf')}, tool: {{body: wrist_3_link, offset: [0, 82.3, 0]}}}}"
+    model = _urdf("ur_description/urdf/ur5_robot.urdf")
+    return f"{{model: {model}, tool: {{body: wrist_3_link, offset: [0, 82.3, 0]}}}}"
 
 
 def xarm7_robot() -> str:

@@ -8,7 +8,6 @@ import time
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import simbench  # noqa: E402

@@ -87,7 +87,7 @@ def test_joint_move_runs_deterministically_or_is_refused_by_name(name, tmp_path,
         path.write_text(yaml.safe_dump(doc))
         assert main(["validate", str(path)]) == 2
         err = capsys.readouterr().err.splitlines()
-        assert len(err) == 1 and f": planner: 'joint_move' needs the robot's forward kinematics" in err[0], err
+        assert len(err) == 1 and ": planner: 'joint_move' needs the robot's forward kinematics" in err[0], err
         return
     first, second = (pipeline.evaluate(parse_scenario(doc, "test")) for _ in range(2))
     assert np.array_equal(first.recording.qpos, second.recording.qpos)

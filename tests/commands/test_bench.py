@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 from simbench.cli import main
-from simbench.commands import pipeline
 from simbench.commands.bench import board, load_suite, run_bench
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.robots import SHIPPED

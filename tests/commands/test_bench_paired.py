@@ -159,8 +159,9 @@ class _Store:
 
 def _write(out, runs):
     out.mkdir()
-    summary = {"suite": "synthetic", "version": "sb-1", "seed": SEED, "tasks": 12, "methods": ["a", "b", "c"], "runs": len(runs["task"]),
-               "status": {"ok": 1}, "backend": "here", "max_slowdown": 10.0, "plan_seconds": 120.0}
+    summary = {"suite": "synthetic", "version": "sb-1", "seed": SEED, "tasks": 12, "methods": ["a", "b", "c"],
+               "runs": len(runs["task"]), "status": {"ok": 1}, "backend": "here", "max_slowdown": 10.0,
+               "plan_seconds": 120.0}
     boards = (board.leaderboard(runs, SEED), board.leaderboard(runs, SEED, ("robot", "method", "kind")))
     outputs.write(_Store(out), out, runs, boards, summary, 1)
     return out

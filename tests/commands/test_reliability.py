@@ -44,7 +44,8 @@ def test_diverging_run_stops_at_the_first_sign_and_keeps_its_timeseries(tmp_path
     assert err == [f"run failed: physics failed at t = {failure['t']:.4f} s: {failure['cause']}; the report and "
                    f"the timeseries up to then are in {out}"]
     assert "joint 'q3'" in failure["cause"] and "diverging" in failure["cause"]
-    assert sorted(p.name for p in out.iterdir()) == [".simbench", "index.html", "report.json", "timeseries.npz"]  # no video
+    # no video
+    assert sorted(p.name for p in out.iterdir()) == [".simbench", "index.html", "report.json", "timeseries.npz"]
     ts = np.load(out / "timeseries.npz")
     n = ts["t"].size
     assert n == report["samples"] > 10 and np.isclose(ts["t"][-1] + report["timestep"], failure["t"])

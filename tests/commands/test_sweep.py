@@ -164,7 +164,9 @@ def test_interrupted_sweep_resumes_where_it_stopped(tmp_path):
     finished = subprocess.run(command[:-1], capture_output=True, text=True, timeout=300)
     assert finished.returncode == 0 and f"{done} from an earlier start" in finished.stdout
     reference = run_sweep(load_sweep(path), tmp_path / "reference", workers=2)
-    assert reference.summary["status"]["ok"] == 24, [(s, e) for s, e in zip(reference.table["status"], reference.table["error"]) if s != "ok"]
+    table = reference.table
+    failed = [(s, e) for s, e in zip(table["status"], table["error"]) if s != "ok"]
+    assert reference.summary["status"]["ok"] == 24, failed
     assert without_wall_time(read_csv(out / "results.csv")) == without_wall_time(
         read_csv(tmp_path / "reference" / "results.csv"))
 
@@ -210,7 +212,8 @@ def test_output_folder_is_guarded(tmp_path):
     with pytest.raises(ScenarioError, match="holds other results.*force=True"):
         run_sweep(second, out, workers=1)
     assert run_sweep(second, out, workers=1, force=True).table["timing.duration"] == [3]
-    with Store(out, second), pytest.raises(ScenarioError, match="another simbench run or sweep is writing into this folder"):
+    busy = "another simbench run or sweep is writing into this folder"
+    with Store(out, second), pytest.raises(ScenarioError, match=busy):
         run_sweep(second, out, workers=1)
     assert run_sweep(second, out, workers=1).resumed == 1
 

@@ -57,8 +57,8 @@ def _refused(capsys, args: list[str]) -> str:
 def _command(args: list[str], cwd: Path, timeout: float = 60) -> tuple[subprocess.CompletedProcess, float]:
     """`python -m simbench ARGS` in `cwd`, and how long it took (s)."""
     start = time.monotonic()
-    proc = subprocess.run([sys.executable, "-m", "simbench", *args], capture_output=True, text=True, cwd=cwd, check=False,
-                          timeout=timeout)
+    proc = subprocess.run([sys.executable, "-m", "simbench", *args], capture_output=True, text=True, cwd=cwd,
+                          check=False, timeout=timeout)
     return proc, time.monotonic() - start
 
 

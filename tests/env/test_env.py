@@ -10,7 +10,6 @@ import re
 import unittest
 
 import dm_env
-import mujoco
 import numpy as np
 import pytest
 import yaml

@@ -239,8 +239,8 @@ def test_frames_are_fitted_to_their_size_and_look_as_dm_controls(tmp_path):
     facets (kept for the 84x84 frame after it), the model's own settings left as the file has them; the frames are
     dm_control's own render of the same state with the file's 1920x1080 buffer, 4096 map and facets, the floor drawn
     finite, but for the shadows' resolution and the outlines (a mean difference under 1 of 255, seen: 0.62 at 84x84
-    with 11 facets, 0.07 with 28); and the floor drawn finite looks as MuJoCo's endless one (a mean difference under 4 of 255,
-    seen: 1.7 at 84x84, 3.0 at 640x480, where the checker's edge lines fall a pixel apart)."""
+    with 11 facets, 0.07 with 28); and the floor drawn finite looks as MuJoCo's endless one (a mean difference under
+    4 of 255, seen: 1.7 at 84x84, 3.0 at 640x480, where the checker's edge lines fall a pixel apart)."""
     done = subprocess.run([sys.executable, "-c", FITTED, str(tmp_path / "frames.npz")], env=_process_env(),
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -21,7 +21,7 @@ from simbench.outputs.report import build_report
 from simbench.scenario import load_scenario, parse_scenario
 from tests.conftest import scenario_file
 from tests.outputs.test_page import Page, browser  # noqa: F401  (headless chromium: getfixturevalue)
-from tests.project.test_docs import site  # noqa: F401  (the docs site, built once by test_docs' fixture: getfixturevalue)
+from tests.project.test_docs import site  # noqa: F401  (the docs site, built once by test_docs: getfixturevalue)
 
 
 def evaluated(scenario):

@@ -14,7 +14,7 @@ import pytest
 
 import simbench
 from simbench.cli import main
-from simbench.robots.servo_design import STABLE, stable_bandwidth
+from simbench.robots.servo_design import stable_bandwidth
 
 PACKAGE = Path(str(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")))
 ROBOTS = PACKAGE / "robots"
@@ -88,7 +88,8 @@ def line_scenario(folder: Path, name: str, start, end, extra: str = "") -> Path:
     """A cartesian_path scenario (SI): a line from the tool at `start` to `end` in 3 s, orientation held."""
     path = folder / f"{name}.yaml"
     path.write_text(f"robot: {json.dumps(mapping(name))}\nplanner: cartesian_path\n"
-                    f"task:\n  start: {list(map(float, start))}\n  path:\n    - line: {{end: {list(map(float, end))}}}\n"
+                    f"task:\n  start: {list(map(float, start))}\n  path:\n"
+                    f"    - line: {{end: {list(map(float, end))}}}\n"
                     f"  orientation: hold\n{extra}timing: {{duration: 3.0, hold: 0.3}}\n")
     return path
 

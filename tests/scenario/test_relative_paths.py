@@ -70,8 +70,9 @@ def test_the_run_of_a_by_tool_line_ends_where_the_offset_says(truth, tmp_path):
 def test_a_relative_arc_turns_about_its_centre_from_where_the_path_is(truth, tmp_path, case):
     """center_by: the centre 40 mm along -y from the end of a 40 mm line up, the arc about world x, 90 deg (it
     goes on along the line, +z); center_by_tool: the centre 30 mm along the tool's x at the start, the arc about
-    the tool's z there, 120 deg. With radius, start and ref left out the arc starts where the path is and `end` is the angle swept: the plan's
-    tool stays on the circle and ends at the start turned by that angle about the centre."""
+    the tool's z there, 120 deg. With radius, start and ref left out the arc starts where the path is and `end` is
+    the angle swept: the plan's tool stays on the circle and ends at the start turned by that angle about the
+    centre."""
     mj, p0, r0 = truth
     if case == "center_by_tool":
         path = ["arc: {center_by_tool: [30, 0, 0], normal: [0, 0, 1], end: 120}"]

@@ -3,7 +3,8 @@
 A run is `ok` only if the plan stayed within the mechanism's limits and the mechanism did what the plan asked;
 otherwise `limits`, with one Violation per broken promise: a kind of events.KINDS (planners report `goal_missed`,
 `singular_crossing`, `clearance_margin` and `acceleration_limit` in `JointTrajectory.violations`) or an event the
-robot declares breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says whether it met it.
+robot declares breaking (`Robot.breaking`). A scenario's `expect:` does not change the status; the verdict says
+whether it met it.
 An episode that ended early (simbench.env) is `failed` where its physics failed, else `truncated`: never `ok`.
 """
 

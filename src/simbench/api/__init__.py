@@ -28,8 +28,8 @@ if TYPE_CHECKING:
     from simbench.scenario import Scenario
 
 __all__ = ["PRISMATIC", "REVOLUTE", "Array", "Commands", "ControlSettings", "Controller", "Decoration", "Event",
-           "Figures", "JointTrajectory", "Metric", "Plant", "PlantFit", "Planner", "PolicyFactory", "Recording", "Robot",
-           "RunError", "SingularSet", "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
+           "Figures", "JointTrajectory", "Metric", "Plant", "PlantFit", "Planner", "PolicyFactory", "Recording",
+           "Robot", "RunError", "SingularSet", "State", "Summariser", "Summary", "Switch", "Tolerance", "Violation"]
 
 
 def __getattr__(name: str) -> Any:

@@ -385,10 +385,10 @@ class Robot(ABC):
 def _check_robot(robot: Robot) -> None:
     """A robot whose description does not hold together: RegistryError naming the field."""
     n = len(robot.joints)
-    for field, value in (("kinds", robot.kinds), ("lower", robot.lower), ("upper", robot.upper),
-                         ("qd_max", robot.qd_max)):
+    for name, value in (("kinds", robot.kinds), ("lower", robot.lower), ("upper", robot.upper),
+                        ("qd_max", robot.qd_max)):
         if len(value) != n:
-            raise RegistryError(f"robot '{robot.name}': {field} has {len(value)} items, one per joint expected ({n})")
+            raise RegistryError(f"robot '{robot.name}': {name} has {len(value)} items, one per joint expected ({n})")
     if not set(robot.kinds) <= {REVOLUTE, PRISMATIC}:
         raise RegistryError(f"robot '{robot.name}': kinds must be '{REVOLUTE}' or '{PRISMATIC}', got {robot.kinds}")
     if not (robot.lower < robot.upper).all() or not (robot.qd_max > 0).all():

@@ -292,7 +292,8 @@ def _lock(spec: mujoco.MjSpec, model: mujoco.MjModel, locked: tuple[str, ...]) -
           int(mujoco.mjtTrn.mjTRN_TENDON): tendons}
     actuators = [a for a in range(model.nu) if model.actuator_trnid[a, 0] in on.get(int(model.actuator_trntype[a]), [])]
     of = {int(mujoco.mjtEq.mjEQ_JOINT): joints, int(mujoco.mjtEq.mjEQ_TENDON): tendons}
-    equalities = [e for e in range(model.neq) if {model.eq_obj1id[e], model.eq_obj2id[e]} & set(of.get(int(model.eq_type[e]), []))]
+    equalities = [e for e in range(model.neq)
+                  if {model.eq_obj1id[e], model.eq_obj2id[e]} & set(of.get(int(model.eq_type[e]), []))]
     kinds = {int(mujoco.mjtObj.mjOBJ_JOINT): joints, int(mujoco.mjtObj.mjOBJ_TENDON): tendons,
              int(mujoco.mjtObj.mjOBJ_ACTUATOR): actuators}
     sensors = [i for i in range(model.nsensor) if model.sensor_objid[i] in kinds.get(int(model.sensor_objtype[i]), [])]

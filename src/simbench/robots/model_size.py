@@ -199,7 +199,8 @@ def _int(element, attribute: str, default: int, path: Path) -> int:
     try:
         return default if text is None else max(0, int(float(text)))
     except (ValueError, OverflowError):
-        raise ArmError("model", f"{path.name}: {where(element)} {attribute}={text!r}: expected a whole number") from None
+        raise ArmError("model", f"{path.name}: {where(element)} {attribute}={text!r}: expected a whole "
+                                "number") from None
 
 
 def _memory(text: str | None, default: int) -> int:

@@ -66,9 +66,10 @@ class Store:
             destination.check_replace(out, removes=True)
             shutil.rmtree(out)
         elif _fingerprint_in(out / "sweep.json") != fingerprint:
+            flag = destination.option('--force', 'force=True')
             raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or files "
-                                                f"that are not a sweep's); pass {destination.option('--force', 'force=True')} "
-                                                "to replace them, or --out to write elsewhere")
+                                                f"that are not a sweep's); pass {flag} to replace them, or --out to "
+                                                "write elsewhere")
         else:
             destination.check_replace(out, "a sweep resumed here rewrites its own files, and never yours")
 
