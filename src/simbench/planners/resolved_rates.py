@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.planners.path_methods import (EPSILON, GRADIENT_GAIN, Resolver, Rule, damped_rates,
-                                            manipulability_gradient, pinv_rates, sns_rates)
+                                            manipulability_gradient, pinv_rates, pseudo_inverse, sns_rates)
 from simbench.robots.rank_loss import unit_jacobian
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
@@ -219,9 +219,12 @@ def _knot(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: n
     sigma_min, and whether the rule damps there (a knot step is then not taken)."""
     rows = len(twist)
     error, ju = _error_and_jacobian(robot, now, point, rotation, rows)
-    step, sigma, _, _ = pinv_rates(ju, error)
-    rates, _, lam2, null = resolver.rule(ju, twist)
-    return now + step, rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
+    inverse, sigma, null, _ = pseudo_inverse(ju)
+    if resolver.rule is pinv_rates:  # pinv's rates from the Newton step's decomposition (pinv_rates' own)
+        rates, lam2 = inverse(twist), 0.0
+    else:
+        rates, _, lam2, null = resolver.rule(ju, twist)
+    return now + inverse(error), rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
 
 
 def _clear(robot, q: np.ndarray, rates: np.ndarray, sigma: float, step: float) -> bool:
