@@ -100,6 +100,39 @@ def test_jacobian_is_the_derivative_of_fk_and_sigma_min_numpys(jaco, raw):
     np.testing.assert_allclose(jaco.measures(rec)["sigma_min"], truth, rtol=1e-9, atol=1e-12)
 
 
+def test_joints_listed_out_of_the_files_order_pose_and_differentiate_as_mujoco(tmp_path, raw):
+    """`joints:` in another order than the file's (their qpos and dof addresses no longer run in order): the tool's
+    point, rotation and Jacobian columns at random joint values, each joint's value put at its own address, are
+    MuJoCo's (mj_forward, mj_jacSite on the untouched file); and the file's order gives the same poses."""
+    order = ["joint_3", "joint_1", "joint_6", "joint_2", "joint_5", "joint_4"]
+    at = [int(name[-1]) - 1 for name in order]
+    path = _scenario(tmp_path, robot_extra=f"  speed_limits: {[[36, 36, 36, 48, 48, 48][i] for i in at]}\n"
+                                           f"  joints: {order}\n")
+    start, goal = [START[i] for i in at], [GOAL[i] for i in at]  # in the listed order
+    path.write_text(path.read_text().replace(f"task: {{start: {START}, goal: {GOAL}}}",
+                                             f"task: {{start: {start}, goal: {goal}}}"))
+    shuffled = load_scenario(path).robot_def
+    assert shuffled.joints == tuple(order)
+    assert not isinstance(shuffled._compiled()[2], slice)  # the addresses as an index array, not a slice
+    data, site = mujoco.MjData(raw), raw.site("wristsite").id
+    q = _random_q(shuffled, 12, seed=3)
+    points, rotations, jac = shuffled.pose_jacobian(q)
+    for row, point, rotation, j in zip(q, points, rotations, jac):
+        for name, value in zip(order, row):
+            data.qpos[raw.joint(name).qposadr[0]] = value
+        mujoco.mj_forward(raw, data)
+        jacp, jacr = np.zeros((3, raw.nv)), np.zeros((3, raw.nv))
+        mujoco.mj_jacSite(raw, data, jacp, jacr, site)
+        columns = [raw.joint(name).dofadr[0] for name in order]
+        np.testing.assert_allclose(point, data.site_xpos[site], atol=1e-12)
+        np.testing.assert_allclose(rotation, data.site_xmat[site].reshape(3, 3), atol=1e-12)
+        np.testing.assert_allclose(j, np.vstack([jacp, jacr])[:, columns], atol=1e-12)
+    (tmp_path / "in_order").mkdir()
+    in_order = load_scenario(_scenario(tmp_path / "in_order", robot_extra=SPEEDS)).robot_def
+    back = np.argsort([in_order.joints.index(name) for name in order])
+    np.testing.assert_allclose(in_order.pose(q[:, back])[0], points, atol=1e-12)
+
+
 def _velocity_jaco(folder):
     """A copy of dm-control's kinova folder with a model that includes the Jaco and drives every joint by a velocity
     servo."""
