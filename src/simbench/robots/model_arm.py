@@ -94,14 +94,7 @@ class ModelArm(Robot):
     def pose(self, q: Array) -> tuple[Array, Array]:
         """The tool point (N, 3) and its rotation (N, 3, 3) at joint values q (N, dof), from one kinematics pass a
         row."""
-        model, data, adr, _, site = self._compiled()  # the joints off the chain stay at qpos0, set once
-        q = np.atleast_2d(q)
-        points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))
-        for k, row in enumerate(q):
-            data.qpos[adr] = row
-            mujoco.mj_kinematics(model, data)
-            points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
-        return points, rotations.reshape(-1, 3, 3)
+        return self._passes(q, jacobian=False)[:2]
 
     @property
     def reach(self) -> float:
@@ -129,17 +122,25 @@ class ModelArm(Robot):
         """The tool point (N, 3), its rotation (N, 3, 3) and J (N, 6, dof) at joint values q (N, dof), from one
         kinematics pass a row: fk, tool_rotation and jacobian at once (a planner's every control sample needs all
         three)."""
+        return self._passes(q, jacobian=True)
+
+    def _passes(self, q: Array, jacobian: bool) -> tuple[Array, Array, Array | None]:
+        """pose's and pose_jacobian's rows: each row of q posed (the joints off the chain stay at qpos0, set once),
+        kinematics computed, and the Jacobian where asked; None for it where not. A plain loop: a planner calls this
+        a row at a time."""
         model, data, adr, dofs, site = self._compiled()
         q = np.atleast_2d(q)
-        points, rotations, out = np.empty((len(q), 3)), np.empty((len(q), 9)), np.empty((len(q), 6, self.dof))
+        points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))
+        out = np.empty((len(q), 6, self.dof)) if jacobian else None
         jac = np.zeros((6, model.nv))
         jacp, jacr = jac[:3], jac[3:]
-        for k, row in enumerate(q):  # a planner calls this a row at a time
+        for k, row in enumerate(q):
             data.qpos[adr] = row
             mujoco.mj_kinematics(model, data)
-            mujoco.mj_comPos(model, data)
-            mujoco.mj_jacSite(model, data, jacp, jacr, site)
-            out[k] = jac[:, dofs]
+            if out is not None:
+                mujoco.mj_comPos(model, data)
+                mujoco.mj_jacSite(model, data, jacp, jacr, site)
+                out[k] = jac[:, dofs]
             points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
         return points, rotations.reshape(-1, 3, 3), out
 
