@@ -103,7 +103,7 @@ def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, 
     return _damped(ju, twist, _adaptive)
 
 
-def pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], float, np.ndarray, int]:
+def _pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], float, np.ndarray, int]:
     """x -> Ju+ x, Ju+ = V S^-1 U^T over the singular values above RCOND of the largest; Ju's least singular value,
     I - Ju+ Ju and Ju's rank."""
     u, sv, vt = thin_svd(ju)
@@ -118,7 +118,7 @@ def pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], 
 
 def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
     """pinv: Ju+ twist, sigma_min, 0 and I - Ju+ Ju."""
-    inverse, sigma, null, _ = pseudo_inverse(ju)
+    inverse, sigma, null, _ = _pseudo_inverse(ju)
     return inverse(twist), sigma, 0.0, null
 
 
@@ -131,7 +131,7 @@ def priority_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float
     if len(ju) == 3:
         return first, sigma, lam2, n1
     second, _, lam2_second, _ = _damped(ju[3:] @ n1, twist[3:] - ju[3:] @ first, _adaptive, rank_only=True)
-    _, sigma, null, _ = pseudo_inverse(ju)
+    _, sigma, null, _ = _pseudo_inverse(ju)
     return first + second, sigma, max(lam2, lam2_second), null
 
 
@@ -142,7 +142,7 @@ def sns_rates(ju: np.ndarray, twist: np.ndarray, preference: np.ndarray, low: np
     joints' null space, scaled with the twist. Returns the rates, Ju's sigma_min, s and the saturated joints."""
     dof = len(low)
     saturated, fixed = np.zeros(dof, bool), np.zeros(dof)
-    inverse, sigma, null, full = pseudo_inverse(ju)
+    inverse, sigma, null, full = _pseudo_inverse(ju)
     best = (0.0, np.zeros(dof), np.zeros(dof), saturated.copy())  # s* = 0, none saturated: qd = 0
     while True:
         free = ~saturated
@@ -160,7 +160,7 @@ def sns_rates(ju: np.ndarray, twist: np.ndarray, preference: np.ndarray, low: np
         fixed[critical] = high[critical] if rates[critical] > high[critical] else low[critical]
         if saturated.all():
             break
-        inverse, _, null, rank = pseudo_inverse(ju[:, ~saturated])
+        inverse, _, null, rank = _pseudo_inverse(ju[:, ~saturated])
         if rank < full:  # the free joints cannot make the task
             break
     scale, task, kept, saturated = best

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.planners.path_methods import (EPSILON, GRADIENT_GAIN, Resolver, Rule, damped_rates,
-                                            manipulability_gradient, pinv_rates, pseudo_inverse, sns_rates)
+                                            manipulability_gradient, pinv_rates, sns_rates)
 from simbench.robots.rank_loss import unit_jacobian
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
@@ -27,15 +27,10 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preferenc
     task uses) and lambda^2, and which joints are held (dof,)."""
     rates, sigma, lam2, null = rule(ju, twist)  # no joint held yet: Ju and the twist whole
     out = rates + null @ preference
-    after = now + dt * out
-    # (count_nonzero: a tenth of ndarray.any's time: this runs at every control sample)
-    if not (np.count_nonzero(after > robot.upper) or np.count_nonzero(after < robot.lower)):
-        return out, sigma, lam2, np.zeros(len(now), bool)  # the usual case: no joint reaches a range's end
     held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
-    while True:
-        passing = ~held & ((after > robot.upper) | (after < robot.lower))
-        if not np.count_nonzero(passing):
-            return out, sigma, lam2, held
+    after = now + dt * out
+    passing = (after > robot.upper) | (after < robot.lower)
+    while np.count_nonzero(passing):  # (a tenth of ndarray.any's time: this runs at every control sample)
         fixed[passing] = (np.clip(after[passing], robot.lower[passing], robot.upper[passing]) - now[passing]) / dt
         held |= passing
         if np.count_nonzero(held) == len(now):
@@ -45,6 +40,13 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preferenc
         out = fixed.copy()
         out[free] = rates + null @ preference[free]
         after = now + dt * out
+        passing = ~held & ((after > robot.upper) | (after < robot.lower))
+    return out, sigma, lam2, held
+
+
+def _inside(robot, q: np.ndarray) -> np.ndarray:
+    """q within the joint ranges: np.clip's result at half its cost (a step of the integration's every sample)."""
+    return np.minimum(np.maximum(q, robot.lower), robot.upper)
 
 
 def _preference(robot, q0: np.ndarray, now: np.ndarray, rows: int, resolver: Resolver) -> np.ndarray:
@@ -140,7 +142,7 @@ def _crossing(robot, q0: np.ndarray, now: np.ndarray, points: np.ndarray, rotati
         if np.count_nonzero(np.abs(rates) > fast):  # (ndarray.any's answer at a tenth of its time)
             return None
         rows.append((now, rates, sigma, held))
-        now = np.minimum(np.maximum(now + dt * rates, robot.lower), robot.upper)  # np.clip's result
+        now = _inside(robot, now + dt * rates)
     return tuple(np.array(column) for column in zip(*rows)), now
 
 
@@ -205,8 +207,7 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
         q[k], qd[k] = now, rates  # sns's rates come scaled
         clear = (lam2[k] == 0.0 and scale[k] == 1.0 and not np.count_nonzero(held[k])
                  and _clear(robot, now, rates, sigma[k], every * dt))
-        # a held joint on its limit, not an ulp past (np.clip's result, at half its cost)
-        now = np.minimum(np.maximum(now + dt * qd[k], robot.lower), robot.upper)
+        now = _inside(robot, now + dt * qd[k])  # a held joint on its limit, not an ulp past
         k += 1
     _between(robot, q, qd, sigma, np.array(knots, int), every, dt)
     return q, qd, sigma, lam2, scale, held
@@ -219,12 +220,9 @@ def _knot(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: n
     sigma_min, and whether the rule damps there (a knot step is then not taken)."""
     rows = len(twist)
     error, ju = _error_and_jacobian(robot, now, point, rotation, rows)
-    inverse, sigma, null, _ = pseudo_inverse(ju)
-    if resolver.rule is pinv_rates:  # pinv's rates from the Newton step's decomposition (pinv_rates' own)
-        rates, lam2 = inverse(twist), 0.0
-    else:
-        rates, _, lam2, null = resolver.rule(ju, twist)
-    return now + inverse(error), rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
+    step, sigma, _, _ = pinv_rates(ju, error)
+    rates, _, lam2, null = resolver.rule(ju, twist)
+    return now + step, rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
 
 
 def _clear(robot, q: np.ndarray, rates: np.ndarray, sigma: float, step: float) -> bool:
