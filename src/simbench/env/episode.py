@@ -321,9 +321,12 @@ class Track(control.Task):
 
     def stretch(self, nstep: int) -> int:
         """How many of `nstep` physics steps run before the plan's end or its next switch, whichever comes first."""
-        last = self.n - 1
-        stop = min((k for k in self._switches if k > self.k), default=last) if self._switches else last
-        return min(nstep, stop - self.k)  # a switch is before the last sample (`_use`)
+        return min(nstep, self._next_stop(self.k) - self.k)
+
+    def _next_stop(self, k: int) -> int:
+        """The first planned switch's sample after sample k, or the plan's last sample (a switch is before it:
+        `_use`)."""
+        return min((s for s in self._switches if s > k), default=self.n - 1)
 
     def controls(self, physics: Physics, steps: int) -> Array:
         """The commands (steps, nu) of the next physics steps: the action before_step gave, held.
@@ -369,10 +372,9 @@ class Track(control.Task):
         first, stop = self.k, self.k + len(commands)
         self._readings[first:stop], self._ctrl[first:stop] = sensors, commands
         self._qpos[first + 1:stop + 1], self._qvel[first + 1:stop + 1] = states[:, qpos], states[:, qvel]
-        self._eq[first + 1:stop + 1] = physics.data.ptr.eq_active
+        self._eq[first + 1:stop] = physics.data.ptr.eq_active
         self.k = stop
-        if stop in self._switches:
-            self._reached(physics)
+        self._reached(physics)
 
     def _reached(self, physics: Physics) -> None:
         """At the sample just reached: a planned switch applied with the plan's feedback on it, and the constraints

@@ -284,7 +284,7 @@ class RLTrack(Track):
         refs, first, targets = self._targets
         if refs is not self.q_ref or not first <= k <= k + steps <= first + len(targets):
             # up to the next switch, after which the plan's feedback may revise the references (in place)
-            stop = max(min((s for s in self._switches if s > k), default=self.n - 1), k + steps)
+            stop = max(self._next_stop(k), k + steps)
             first, targets = k, self._residual_base(k, stop)
             self._targets = (self.q_ref, first, targets)
         shifted = targets[k - first:k - first + steps] + self._command
