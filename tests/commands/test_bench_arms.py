@@ -12,6 +12,7 @@ the speed limits as the URDF's text states them (ElementTree); the files' bytes 
 """
 
 import hashlib
+import shutil
 import xml.etree.ElementTree as ET
 from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
@@ -29,7 +30,7 @@ import numpy as np
 from simbench.cli import main
 from simbench.commands.bench import load_suite
 from simbench.commands.bench.methods import METHODS
-from simbench.commands.bench.robots import SHIPPED, SINGULAR_TOL
+from simbench.commands.bench.robots import SHIPPED, SINGULAR_TOL, BenchRobot
 from simbench.commands.bench.tasks import draw_one
 from tests.robots.test_derived_plant import ROBOTS, raw_model, tool_pose
 
@@ -150,14 +151,43 @@ def test_every_shipped_arm_but_the_planar_one_holds_its_orientation_with_six_joi
             assert robot.hold == (robot.model_arm().dof >= 6), name
 
 
-def test_all_covers_every_arm_and_its_model_hash_is_the_urdfs_bytes():
-    """`all` lists every shipped arm, example-robot-data's among them; each one's model hash is the first 16 hex
-    digits of SHA-256 over the SHA-256 of its URDF's bytes (a URDF includes no file)."""
+def urdf_hash(urdf: Path, share: Path = ROBOTS.parent) -> str:
+    """The first 16 hex digits of SHA-256 over the SHA-256 of the URDF's bytes (a URDF includes no file), then, for
+    each <mesh> in document order, its filename, a NUL byte and the SHA-256 of the file it names (a package://
+    example-robot-data/ URI is a path in the package's `share` folder)."""
+    digest = hashlib.sha256(hashlib.sha256(urdf.read_bytes()).digest())
+    for mesh in ET.parse(urdf).getroot().iter("mesh"):
+        named = mesh.get("filename")
+        file = share / named.removeprefix("package://example-robot-data/")
+        digest.update(named.encode() + b"\0" + hashlib.sha256(file.read_bytes()).digest())
+    return digest.hexdigest()[:16]
+
+
+def test_all_covers_every_arm_and_its_model_hash_is_the_urdfs_and_meshes_bytes():
+    """`all` lists every shipped arm, example-robot-data's among them; each one's model hash covers its URDF and
+    every mesh file it names, by their bytes (urdf_hash)."""
     names = [r.name for r in load_suite("all").robots]
     assert set(ARMS) | {"panda", "jaco", "puma600", "spherical_arm", "planar3r"} == set(names)
     for name, (urdf, _, _) in ARMS.items():
-        own = hashlib.sha256((ROBOTS / urdf).read_bytes()).digest()
-        assert SHIPPED[name]().model_hash() == hashlib.sha256(own).hexdigest()[:16], name
+        assert SHIPPED[name]().model_hash() == urdf_hash(ROBOTS / urdf), name
+
+
+def test_a_changed_mesh_changes_the_model_hash(tmp_path):
+    """A copy of the UR5's URDF and meshes in a folder of the package's name hashes as the original (names, not paths, enter the hash); one byte of
+    one collision mesh changed in the copy changes the copy's hash, and the recomputation's."""
+    urdf = "ur_description/urdf/ur5_robot.urdf"
+    package = tmp_path / "example-robot-data" / "robots"
+    shutil.copytree(ROBOTS / "ur_description/meshes/ur5", package / "ur_description/meshes/ur5")
+    (package / "ur_description/urdf").mkdir()
+    shutil.copy(ROBOTS / urdf, package / urdf)
+    copy = BenchRobot("ur5", {"model": str(package / urdf), "tool": {"body": "tool0"}, "joints": UR})
+    assert copy.model_hash() == SHIPPED["ur5"]().model_hash() == urdf_hash(ROBOTS / urdf)
+    mesh = package / "ur_description/meshes/ur5/collision/forearm.stl"
+    data = bytearray(mesh.read_bytes())
+    data[100] ^= 1
+    mesh.write_bytes(bytes(data))
+    assert copy.model_hash() != SHIPPED["ur5"]().model_hash()
+    assert copy.model_hash() == urdf_hash(package / urdf, package.parent)
 
 
 def test_an_arm_whose_package_is_missing_is_refused_in_one_line(monkeypatch, tmp_path, capsys):

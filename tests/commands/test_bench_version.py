@@ -6,9 +6,12 @@ one line (exit 2), and a bench folder of one version does not resume as another.
 import hashlib
 import json
 import shutil
+import xml.etree.ElementTree as ET
 from dataclasses import replace
 from importlib.metadata import version
+from pathlib import Path
 
+import dm_control
 import pytest
 
 from simbench.cli import main
@@ -68,6 +71,20 @@ def test_an_edited_model_has_another_hash(tmp_path):
     assert robot.model_hash() == SHIPPED["spherical_arm"]().model_hash()
     copy.write_text(copy.read_text() + "\n<!-- edited -->\n")
     assert robot.model_hash() == _hash(copy) != _hash(MODEL)
+
+
+def test_an_mjcf_arms_hash_covers_the_file_it_includes_and_the_meshes_it_names():
+    """The Jaco (dm_control's MJCF): its file, then common.xml (which it includes), then each <mesh file> in
+    document order by its name, a NUL byte and the SHA-256 of the file under the compiler's meshdir."""
+    jaco = Path(dm_control.__file__).parent / "third_party" / "kinova" / "jaco_arm.xml"
+    root = ET.parse(jaco).getroot()
+    meshes = jaco.parent / root.find("compiler").get("meshdir")
+    digest = hashlib.sha256(b"".join(hashlib.sha256(f.read_bytes()).digest()
+                                     for f in (jaco, jaco.parent / "common.xml")))
+    for mesh in root.iter("mesh"):
+        digest.update(mesh.get("file").encode() + b"\0" + hashlib.sha256((meshes / mesh.get("file")).read_bytes())
+                      .digest())
+    assert SHIPPED["jaco"]().model_hash() == digest.hexdigest()[:16]
 
 
 def test_a_bench_of_an_edited_model_is_another_bench(tmp_path):

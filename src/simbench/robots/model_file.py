@@ -131,14 +131,30 @@ def urdf_limits(path: str) -> dict[str, tuple[float | None, float | None]]:
 
 
 def fingerprint(path: str, packages: tuple[tuple[str, str], ...] = ()) -> str:
-    """A digest of the model's files by content: its own, those it includes, and those its assets name (a URDF's
-    package:// meshes found as read_spec finds them); robots.model_size.fingerprint."""
+    """A digest of the model's files by content (its own, those it includes) and of the files its assets name by
+    their size and times of change; robots.model_size.fingerprint."""
     counts = model_size.survey(path)
-    assets = counts.asset_files(Path(path).parent)
-    for _, named in counts.assets:
-        if named.startswith(_PACKAGE):
-            try:
-                assets.append(_package_folder(named, path, dict(packages)) / named[len(_PACKAGE):].partition("/")[2])
-            except ArmError:  # read_spec says so
-                continue
-    return model_size.fingerprint(counts, assets)
+    return model_size.fingerprint(counts, [file for _, file in _asset_files(path, counts, dict(packages))])
+
+
+def content_hash(path: str, packages: dict[str, str] | None = None) -> str:
+    """A digest of the model by content alone, the files its assets name included (meshes, textures, height
+    fields): the same on any machine for the same files; robots.model_size.content_fingerprint."""
+    counts = model_size.survey(path)
+    return model_size.content_fingerprint(counts, _asset_files(path, counts, packages or {}))
+
+
+def _asset_files(path: str, counts: model_size.Counts, packages: dict[str, str]) -> list[tuple[str, Path]]:
+    """Each file the model's assets name, as the model names it and where read_spec finds it: beside the model
+    under its meshdir or texturedir, or a URDF's package:// mesh in its package's folder (one not found is left
+    out: read_spec says so)."""
+    folder, found = Path(path).parent, []
+    for tag, named in counts.assets:
+        if not named.startswith(_PACKAGE):
+            found.append((named, Path(folder, counts.texturedir if tag == "texture" else counts.meshdir, named)))
+            continue
+        try:
+            found.append((named, _package_folder(named, path, packages) / named[len(_PACKAGE):].partition("/")[2]))
+        except ArmError:
+            continue
+    return found

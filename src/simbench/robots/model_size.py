@@ -74,12 +74,6 @@ class Counts:
     meshdir: str = ""  # <compiler meshdir> (or assetdir): where mesh, height field and skin files are
     texturedir: str = ""
 
-    def asset_files(self, folder: Path) -> list[Path]:
-        """The files the assets name, found as MuJoCo finds them from the model's `folder` (a URDF's package://
-        meshes left out: robots.model_file finds them)."""
-        return [Path(folder, self.texturedir if tag == "texture" else self.meshdir, named)
-                for tag, named in self.assets if not named.startswith("package://")]
-
     def joint(self, kind: str | None, times: int = 1) -> None:
         nq, nv = _DOFS.get(kind or "", (1, 1))
         self.joints += times
@@ -320,10 +314,7 @@ def fit_arena(spec: mujoco.MjSpec, counts: Counts) -> None:
 def fingerprint(counts: Counts, assets: list[Path]) -> str:
     """A digest of the model's files by content, and of `assets` (its assets' files) by size and times of change
     (a mesh may be gigabytes): what a cache of what was derived from the model is keyed by."""
-    digest = hashlib.sha256()
-    for file in counts.files:
-        with open(file, "rb") as handle:
-            digest.update(hashlib.file_digest(handle, "sha256").digest())
+    digest = _files_digest(counts.files)
     for file in assets:
         try:
             info = os.stat(file)
@@ -332,3 +323,27 @@ def fingerprint(counts: Counts, assets: list[Path]) -> str:
         signature = (info.st_ino, info.st_size, info.st_mtime_ns, info.st_ctime_ns) if info else None
         digest.update(f"{os.fsdecode(file)!r} {signature}".encode())
     return digest.hexdigest()[:16]
+
+
+def content_fingerprint(counts: Counts, assets: list[tuple[str, Path]]) -> str:
+    """A digest of the model by content alone: its files' bytes, then each asset's name as the model writes it and
+    its file's bytes (`assets`: (name, file)); the same model gives the same digest on any machine, and a model
+    that names no asset the digest of its files alone."""
+    digest = _files_digest(counts.files)
+    for named, file in assets:
+        digest.update(named.encode() + b"\0")
+        try:
+            with open(file, "rb") as handle:
+                digest.update(hashlib.file_digest(handle, "sha256").digest())
+        except (OSError, ValueError):  # none there: loading the model says so
+            digest.update(b"missing")
+    return digest.hexdigest()[:16]
+
+
+def _files_digest(files: list[Path]) -> hashlib._Hash:
+    """SHA-256 over the SHA-256 digests of the files' bytes, in order (streamed: a file is not held whole)."""
+    digest = hashlib.sha256()
+    for file in files:
+        with open(file, "rb") as handle:
+            digest.update(hashlib.file_digest(handle, "sha256").digest())
+    return digest

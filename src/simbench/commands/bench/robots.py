@@ -49,11 +49,11 @@ class BenchRobot:
         return self.cache["arm"]
 
     def model_hash(self) -> str:
-        """A digest of the model's own files by content, the model and those it includes (not the meshes it
-        names): robots.model_size.fingerprint of them alone, the same for the same files on any machine."""
-        from simbench.robots import model_size
+        """A digest of the model by content: the model, the files it includes and those its assets name (meshes,
+        textures), the same for the same files on any machine (robots.model_file.content_hash)."""
+        from simbench.robots.model_file import content_hash
 
-        return model_size.fingerprint(model_size.survey(self.mapping["model"]), [])
+        return content_hash(self.mapping["model"], self.mapping.get("packages"))
 
     def gap_of(self, q: np.ndarray) -> np.ndarray:
         """The robot's own singular gap (rad) at configurations q (N, dof)."""
