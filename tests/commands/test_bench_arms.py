@@ -173,8 +173,9 @@ def test_all_covers_every_arm_and_its_model_hash_is_the_urdfs_and_meshes_bytes()
 
 
 def test_a_changed_mesh_changes_the_model_hash(tmp_path):
-    """A copy of the UR5's URDF and meshes in a folder of the package's name hashes as the original (names, not paths, enter the hash); one byte of
-    one collision mesh changed in the copy changes the copy's hash, and the recomputation's."""
+    """A copy of the UR5's URDF and meshes in a folder of the package's name hashes as the original (names, not
+    paths, enter the hash); one byte of one collision mesh changed in the copy changes the copy's hash, and the
+    recomputation's."""
     urdf = "ur_description/urdf/ur5_robot.urdf"
     package = tmp_path / "example-robot-data" / "robots"
     shutil.copytree(ROBOTS / "ur_description/meshes/ur5", package / "ur_description/meshes/ur5")

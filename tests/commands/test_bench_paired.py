@@ -68,6 +68,7 @@ def _expected(runs_rows, seed):
             bs = {r["task"]: r for r in mine if r["method"] == b}
             pairs = [(r, bs[r["task"]]) for r in mine if r["method"] == a and r["task"] in bs]
             row = {"robot": robot, "method_a": a, "method_b": b, "tasks": len(pairs)}
+            defined = {name: mine[0][name] for name in ("version", "seed", "model_hash")}  # runs.csv's, to the end
             for name, outcome in (("ok", _outcome_ok), ("deviation", _outcome_deviation)):
                 outcomes = [outcome(x, y) for x, y in pairs]
                 row.update({f"{name}_wins": outcomes.count(1), f"{name}_ties": outcomes.count(0),
@@ -84,7 +85,7 @@ def _expected(runs_rows, seed):
                         float(np.median(d)), np.percentile(medians, [2.5, 97.5]))
                 else:
                     row[median] = row[f"{median}_lo"] = row[f"{median}_hi"] = None
-            expected.append(row)
+            expected.append({**row, **defined})
     return expected
 
 
@@ -161,7 +162,7 @@ def _write(out, runs):
     out.mkdir()
     summary = {"suite": "synthetic", "version": "sb-1", "seed": SEED, "tasks": 12, "methods": ["a", "b", "c"],
                "runs": len(runs["task"]), "status": {"ok": 1}, "backend": "here", "max_slowdown": 10.0,
-               "plan_seconds": 120.0}
+               "plan_seconds": 120.0, "models": {robot: f"hash-of-{robot}" for robot in runs["robot"]}}
     boards = (board.leaderboard(runs, SEED), board.leaderboard(runs, SEED, ("robot", "method", "kind")))
     outputs.write(_Store(out), out, runs, boards, summary, 1)
     return out

@@ -3,6 +3,7 @@ summary.json carries the version, the seed and each arm's model hash, a version 
 one line (exit 2), and a bench folder of one version does not resume as another. Truths: the model file's bytes
 (hashlib), the folder's manifest as JSON, and the CLI's exit status and stderr."""
 
+import csv
 import hashlib
 import json
 import shutil
@@ -56,6 +57,20 @@ def test_summary_carries_the_version_the_seed_and_the_model_hash_of_its_files_by
     assert summary["models"] == {"spherical_arm": _hash(MODEL)}
     manifest = json.loads((out / "sweep.json").read_text())["spec"]
     assert manifest["version"] == "sb-1" and manifest["models"] == summary["models"]
+
+
+def test_every_table_says_the_version_the_seed_and_the_model_hash_of_each_row(tiny):
+    """runs.csv, leaderboard.csv and leaderboard_by_kind.csv (read back with the csv module) end each row with the
+    benchmark version, the seed and the row's robot's model hash recomputed from its file's bytes (paired.csv too,
+    test_bench_paired's benches: one method here, no pair)."""
+    assert not (tiny / "paired.csv").read_text().strip()
+    for name in ("runs.csv", "leaderboard.csv", "leaderboard_by_kind.csv"):
+        with open(tiny / name, newline="") as handle:
+            header, *rows = list(csv.reader(handle))
+        assert header[-3:] == ["version", "seed", "model_hash"] and rows, name
+        for row in rows:
+            assert row[header.index("robot")] == "spherical_arm"
+            assert row[-3:] == ["sb-1", "11", _hash(MODEL)], name
 
 
 def test_a_shipped_suite_and_a_file_without_a_version_are_the_newest(tmp_path):

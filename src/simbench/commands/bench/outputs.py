@@ -87,12 +87,13 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
     store.claim((*RESULTS, *arms))
     with store.writing():
         pairs = paired(runs, summary["seed"])
-        table.write_csv(runs, out / "runs.csv")
-        missing = table.write_parquet_where_installed(runs, out / "runs.parquet")  # bench.command says why
+        table.write_csv(defined(runs, summary), out / "runs.csv")
+        # (bench.command says why where pyarrow is missing)
+        missing = table.write_parquet_where_installed(defined(runs, summary), out / "runs.parquet")
         parquet = [] if missing else ["runs.parquet"]
-        table.write_csv(boards[0], out / "leaderboard.csv")
-        table.write_csv(boards[1], out / "leaderboard_by_kind.csv")
-        table.write_csv(pairs, out / "paired.csv")
+        table.write_csv(defined(boards[0], summary), out / "leaderboard.csv")
+        table.write_csv(defined(boards[1], summary), out / "leaderboard_by_kind.csv")
+        table.write_csv(defined(pairs, summary), out / "paired.csv")
         with staged_folder(out / "plots") as tmp:
             plots = {robot: [f"plots/{name}" for name in names] for robot, names in draw(runs, boards[0], tmp).items()}
         summary = {**summary, "workers": workers,
@@ -112,6 +113,17 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
             write_text(out / name, page(out, f"{title}, arm {robot}", lead, _intro(summary), mine, plots[robot], None))
         lead = grid(boards[0], robots, summary["methods"]) if arms else ""
         write_page(out, page(out, title, lead, _intro(summary), tables, summary["outputs"]["plots"], summary))
+
+
+def defined(columns: dict[str, list], summary: dict) -> dict[str, list]:
+    """A table (columns with a `robot` column) with what defines its rows' figures at its end, so that a table
+    copied out of the folder still says them: the benchmark `version`, the suite's `seed` and each row's robot's
+    `model_hash` (summary.json's)."""
+    if not columns:
+        return columns
+    robots = columns["robot"]
+    return {**columns, "version": [summary["version"]] * len(robots), "seed": [summary["seed"]] * len(robots),
+            "model_hash": [summary["models"][robot] for robot in robots]}
 
 
 def _intro(summary: dict) -> str:
