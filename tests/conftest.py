@@ -26,9 +26,11 @@ SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
 def interrupt(command: list[str], ready, cwd, timeout: float = 120,
               signum: int = signal.SIGINT) -> subprocess.CompletedProcess:
     """Run a command, send it Ctrl-C (SIGINT, or `signum`) once ready() is true, and wait for it (each within
-    `timeout` s)."""
+    `timeout` s). A command still running `timeout` s after the signal fails the test with where each of its threads
+    was (Python's faulthandler, on SIGABRT): a hang seen once in many runs says where it hung."""
     # A shell runs a background job with SIGINT ignored, and the child would inherit that: give it the default.
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"},
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + timeout
     while not ready():
@@ -36,7 +38,13 @@ def interrupt(command: list[str], ready, cwd, timeout: float = 120,
         assert time.monotonic() < deadline
         time.sleep(0.01)
     proc.send_signal(signum)
-    stdout, stderr = proc.communicate(timeout=timeout)
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGABRT)  # faulthandler writes every thread's stack to stderr, then the process ends
+        stdout, stderr = proc.communicate(timeout=timeout)
+        pytest.fail(f"{' '.join(map(str, command))} did not end within {timeout} s of signal {signum}; its "
+                    f"threads then:\n{stderr[-6000:]}")
     return subprocess.CompletedProcess(command, proc.returncode, stdout, stderr)
 
 
