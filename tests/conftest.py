@@ -26,11 +26,12 @@ SHIPPED = sorted(scenarios_dir().rglob("*.yaml"))
 def interrupt(command: list[str], ready, cwd, timeout: float = 120,
               signum: int = signal.SIGINT) -> subprocess.CompletedProcess:
     """Run a command, send it Ctrl-C (SIGINT, or `signum`) once ready() is true, and wait for it (each within
-    `timeout` s). A command still running `timeout` s after the signal fails the test with where each of its threads
-    was (Python's faulthandler, on SIGABRT): a hang seen once in many runs says where it hung."""
+    `timeout` s). A command whose output is still open `timeout` s after the signal fails the test saying why: where
+    each of its threads was, if it still runs (Python's faulthandler, on SIGABRT), and which processes it started
+    still hold its output (its own process group): a hang seen once in many runs says where it hung."""
     # A shell runs a background job with SIGINT ignored, and the child would inherit that: give it the default.
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
-                            env={**os.environ, "PYTHONFAULTHANDLER": "1"},
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"}, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + timeout
     while not ready():
@@ -41,11 +42,34 @@ def interrupt(command: list[str], ready, cwd, timeout: float = 120,
     try:
         stdout, stderr = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        proc.send_signal(signal.SIGABRT)  # faulthandler writes every thread's stack to stderr, then the process ends
-        stdout, stderr = proc.communicate(timeout=timeout)
-        pytest.fail(f"{' '.join(map(str, command))} did not end within {timeout} s of signal {signum}; its "
-                    f"threads then:\n{stderr[-6000:]}")
+        pytest.fail(_hang(proc, command, signum, timeout))
     return subprocess.CompletedProcess(command, proc.returncode, stdout, stderr)
+
+
+def _hang(proc: subprocess.Popen, command: list[str], signum: int, timeout: float) -> str:
+    """Why `proc`'s output is still open after the signal: its threads' stacks if it still runs (SIGABRT:
+    faulthandler), the other processes of its group; the group then killed."""
+    import psutil
+
+    running = proc.poll() is None
+    if running:
+        proc.send_signal(signal.SIGABRT)  # faulthandler writes every thread's stack to stderr, then the process ends
+        time.sleep(1.0)
+    group = []
+    for process in psutil.process_iter(["pid", "cmdline"]):
+        try:
+            if process.pid != proc.pid and os.getpgid(process.pid) == proc.pid:
+                group.append(f"{process.pid}: {' '.join(process.info['cmdline'] or [])[:200]}")
+        except (OSError, psutil.Error):  # gone meanwhile
+            continue
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    _, stderr = proc.communicate(timeout=timeout)
+    state = "still running" if running else f"ended ({proc.returncode}) but its output was held open"
+    return (f"{' '.join(map(str, command))}: {state} {timeout} s after signal {signum}; other processes of its group: "
+            f"{group or 'none'}; its stderr:\n{stderr[-6000:]}")
 
 
 @pytest.fixture(scope="session")
