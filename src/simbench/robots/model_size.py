@@ -333,17 +333,21 @@ def content_fingerprint(counts: Counts, assets: list[tuple[str, Path]]) -> str:
     for named, file in assets:
         digest.update(named.encode() + b"\0")
         try:
-            with open(file, "rb") as handle:
-                digest.update(hashlib.file_digest(handle, "sha256").digest())
+            digest.update(_file_digest(file))
         except (OSError, ValueError):  # none there: loading the model says so
             digest.update(b"missing")
     return digest.hexdigest()[:16]
 
 
 def _files_digest(files: list[Path]) -> hashlib._Hash:
-    """SHA-256 over the SHA-256 digests of the files' bytes, in order (streamed: a file is not held whole)."""
+    """SHA-256 over the SHA-256 digests of the files' bytes, in order."""
     digest = hashlib.sha256()
     for file in files:
-        with open(file, "rb") as handle:
-            digest.update(hashlib.file_digest(handle, "sha256").digest())
+        digest.update(_file_digest(file))
     return digest
+
+
+def _file_digest(file: Path) -> bytes:
+    """The SHA-256 digest of a file's bytes, streamed (a mesh is not held whole)."""
+    with open(file, "rb") as handle:
+        return hashlib.file_digest(handle, "sha256").digest()

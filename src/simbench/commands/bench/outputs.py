@@ -87,9 +87,9 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
     store.claim((*RESULTS, *arms))
     with store.writing():
         pairs = paired(runs, summary["seed"])
-        table.write_csv(defined(runs, summary), out / "runs.csv")
-        # (bench.command says why where pyarrow is missing)
-        missing = table.write_parquet_where_installed(defined(runs, summary), out / "runs.parquet")
+        stamped_runs = defined(runs, summary)
+        table.write_csv(stamped_runs, out / "runs.csv")
+        missing = table.write_parquet_where_installed(stamped_runs, out / "runs.parquet")  # bench.command says why
         parquet = [] if missing else ["runs.parquet"]
         table.write_csv(defined(boards[0], summary), out / "leaderboard.csv")
         table.write_csv(defined(boards[1], summary), out / "leaderboard_by_kind.csv")
