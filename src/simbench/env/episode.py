@@ -3,6 +3,7 @@ inside `control.Environment` (simbench.env builds them; its docstring says what 
 
 from __future__ import annotations
 
+import bisect
 import copy
 from collections import OrderedDict
 from typing import Any
@@ -203,6 +204,7 @@ class Track(control.Task):
         for switch, k in zip(plan.switches, steps):
             if 0 < k < self.n - 1:  # as simulate: the step-0 ones are in the start, none after the last step
                 self._switches.setdefault(int(k), []).append(switch)
+        self._stops = sorted(self._switches) + [self.n - 1]  # where a stretch of physics steps ends, at the latest
         self._settler = self._settling_controller()
 
     def _settling_controller(self) -> Servo | ComputedTorque:
@@ -326,7 +328,8 @@ class Track(control.Task):
     def _next_stop(self, k: int) -> int:
         """The first planned switch's sample after sample k, or the plan's last sample (a switch is before it:
         `_use`)."""
-        return min((s for s in self._switches if s > k), default=self.n - 1)
+        stops = self._stops
+        return stops[min(bisect.bisect_right(stops, k), len(stops) - 1)]
 
     def controls(self, physics: Physics, steps: int) -> Array:
         """The commands (steps, nu) of the next physics steps: the action before_step gave, held.
@@ -364,17 +367,26 @@ class Track(control.Task):
         Args:
             physics: The physics.
             states: Each step's full physics state after it (steps, nstate).
-            sensors: Each step's sensors, at the state it started from (steps, nsensordata).
+            sensors: Each step's sensors, at the state it started from (steps, nsensordata); None where they are
+                in the recording already (`sensor_rows`, which a rollout writes into).
             commands: Each step's command (steps, nu).
             slices: Where qpos and qvel sit in a state (stepping.state_slices), if the caller has them.
         """
         qpos, qvel = slices or state_slices(physics.model.ptr)
         first, stop = self.k, self.k + len(commands)
-        self._readings[first:stop], self._ctrl[first:stop] = sensors, commands
+        if sensors is not None:
+            self._readings[first:stop] = sensors
+        self._ctrl[first:stop] = commands
         self._qpos[first + 1:stop + 1], self._qvel[first + 1:stop + 1] = states[:, qpos], states[:, qvel]
-        self._eq[first + 1:stop] = physics.data.ptr.eq_active
+        if self._eq.shape[1]:  # (a model without equality constraints has none to record)
+            self._eq[first + 1:stop] = physics.data.ptr.eq_active
         self.k = stop
         self._reached(physics)
+
+    def sensor_rows(self, steps: int) -> Array:
+        """The recording's rows (steps, nsensordata) for the sensors of the next `steps` physics steps, which a
+        rollout writes in place (record_steps then copies none)."""
+        return self._readings[self.k:self.k + steps]
 
     def _reached(self, physics: Physics) -> None:
         """At the sample just reached: a planned switch applied with the plan's feedback on it, and the constraints
@@ -386,7 +398,8 @@ class Track(control.Task):
                 if self.plan.feedback is not None:
                     self.references.apply(self.plan.feedback(switch, model, data, k))
             mujoco.mj_step1(model, data)  # the constraints as they now are, for the next step
-        self._eq[k] = data.eq_active
+        if self._eq.shape[1]:
+            self._eq[k] = data.eq_active
 
     def fail(self, physics: Physics, why: str) -> None:
         """End the episode: the physics back at the last sound sample, `failure` saying why.

@@ -19,8 +19,8 @@ from simbench.physics.controllers import Servo
 # Everything that decides the next steps: the integration state (warm start included), what switches edited
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 _ROWS = ("_qpos", "_qvel", "_readings", "_ctrl", "_eq")  # the recording, rows 0..k
-_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_settler", "_hold",
-         "_queue", "drawn")  # the RL mode's delayed actions and what its randomisation drew
+_TASK = ("k", "failure", "_command", "plan", "n", "scenario", "_start", "_eq_active", "_switches", "_stops", "_settler",
+         "_hold", "_queue", "drawn")  # the RL mode's delayed actions and what its randomisation drew
 
 
 @dataclass(frozen=True)

@@ -46,42 +46,43 @@ def in_c(physics: Physics, commands: Array) -> bool:
     Returns:
         Whether the steps ran and were recorded; False: the physics is back where it was, to be stepped in Python.
     """
-    model, data = physics.model.ptr, physics.data.ptr
+    model, data, track = physics.model.ptr, physics.data.ptr, physics.track
     if np.count_nonzero(physics.counts):  # (a tenth of ndarray.any's time: an environment's every control step)
         return False
     steps = len(commands)
-    start, states, sensors, slices = _buffers(physics, steps)
+    start, warmstart, states, slices = _buffers(physics, steps)
+    sensors = track.sensor_rows(steps)  # written in place: rows of the recording
     mujoco.mj_getState(model, data, start[0], FULL)
-    warmstart = data.qacc_warmstart[None].copy()
+    np.copyto(warmstart[0], data.qacc_warmstart)
     try:
         _rollout().rollout([model], [data], start, np.ascontiguousarray(commands, dtype=float)[None],
                            control_spec=_CTRL, skip_checks=True, nstep=steps, initial_warmstart=warmstart,
-                           state=states, sensordata=sensors)
+                           state=states, sensordata=sensors[None])
         mujoco.mj_step1(model, data)  # the next step's position and velocity, as the Python loop leaves them
         # the Python loop's own test of a step (NaN fails the comparison), over every step at once, on a view
         speed = np.maximum.reduce(np.abs(states[0, :, slices[1]]), axis=None)
         sound = not np.count_nonzero(physics.counts) and speed <= MAX_SPEED
     except mujoco.FatalError:  # MuJoCo gave up: found again, and reported, when stepped in Python
         sound = False
-    if not sound:
+    if not sound:  # (the rows it wrote are written again by the Python loop)
         mujoco.mj_setState(model, data, start[0], FULL)
         data.qacc_warmstart[:] = warmstart[0]
         clear_warnings(data)
         mujoco.mj_step1(model, data)
         return False
-    physics.readings = sensors[0, -1].copy()
-    physics.track.record_steps(physics, states[0], sensors[0], commands, slices)
+    physics.readings = sensors[-1]  # a row the recording keeps as it is
+    track.record_steps(physics, states[0], None, commands, slices)
     return True
 
 
 def _buffers(physics: Physics, steps: int) -> tuple[Array, Array, Array, tuple[slice, slice]]:
-    """What a rollout of `steps` writes into (the start state, the states, the sensors), made once a stretch
-    length and kept on the physics (what it records is copied out of them), and where qpos and qvel sit in a
-    state (stepping.state_slices)."""
+    """What a rollout of `steps` reads and writes (the start state, its warm start, the states), made once a
+    stretch length and kept on the physics (what it records is copied out of them), and where qpos and qvel sit in
+    a state (stepping.state_slices)."""
     made = physics.__dict__.setdefault("_c_buffers", {})
     if steps not in made:
         model = physics.model.ptr
         size = mujoco.mj_stateSize(model, FULL)
-        made[steps] = (np.empty((1, size)), np.empty((1, steps, size)), np.empty((1, steps, model.nsensordata)),
+        made[steps] = (np.empty((1, size)), np.empty((1, model.nv)), np.empty((1, steps, size)),
                        state_slices(model))
     return made[steps]
