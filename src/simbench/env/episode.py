@@ -179,6 +179,7 @@ class Track(control.Task):
         self.n_settle = round(scenario.sim.settle / self.dt)
         self._model0 = (model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator))
         self._tool = plant.sensors[plant.robot.tool_sensor]
+        self._joints_at = (_run(plant.qpos_adr), _run(plant.dof_adr))  # where the joints' q and qd sit in the data
         self._tolerance = scenario.analysis.path_tolerance
         self.set_bounds(model, plan)
         self.failure: str | None = None
@@ -437,9 +438,9 @@ class Track(control.Task):
         Returns:
             The observation.
         """
-        data, plant = physics.data.ptr, self.plant
-        return observe(plant, self.k, float(self.plan.t[self.k]), data.qpos[plant.qpos_adr], data.qvel[plant.dof_adr],
-                       data, self.q_ref, self.qd_ref, self.plan.tool_ref)
+        data, (q_at, qd_at) = physics.data.ptr, self._joints_at
+        return observe(self.plant, self.k, float(self.plan.t[self.k]), _copied(data.qpos, q_at),
+                       _copied(data.qvel, qd_at), data, self.q_ref, self.qd_ref, self.plan.tool_ref)
 
     def get_reward(self, physics: Physics) -> float:
         """The step's reward: dm_control's gaussian `rewards.tolerance` of the tool's tracking error.
@@ -494,6 +495,20 @@ class Track(control.Task):
         revised = {name: ref.copy() for name, ref in self.references.recorded().items()}  # the episode goes on
         return recording(plant, model, self.plan.t[:rows].copy(), readings, qpos[:, plant.qpos_adr], qpos,
                          self._qvel[:rows], self._eq[:rows].copy(), ctrl, self.warnings, **revised)
+
+
+def _run(addresses: Array) -> slice | Array:
+    """Addresses as a slice where they are a run (consecutive, increasing), else as they are: an observation copies
+    the joints' values by slice at a third of a fancy index's cost, every control step."""
+    first = int(addresses[0]) if len(addresses) else 0
+    if np.array_equal(addresses, np.arange(first, first + len(addresses))):
+        return slice(first, first + len(addresses))
+    return addresses
+
+
+def _copied(values: Array, at: slice | Array) -> Array:
+    """A copy of values[at] (a fancy index copies already)."""
+    return values[at].copy() if isinstance(at, slice) else values[at]
 
 
 def track_of(env: control.Environment) -> Track:

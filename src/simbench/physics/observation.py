@@ -39,8 +39,6 @@ def observe(plant: Plant, k: int, t: float, q: Array, qd: Array, data: mujoco.Mj
             tool_ref: Array) -> OrderedDict:
     """`observation`'s, from the state's parts (an environment's step makes no State: a few microseconds a step);
     `q` and `qd` are taken as they are (the caller's own copies)."""
-    last = len(q_ref) - 1
-    ahead = k + _AHEAD if k + AHEAD[-1] <= last else np.minimum(k + _AHEAD, last)
     return OrderedDict(
         time=np.array([t]),
         q=q,
@@ -49,5 +47,5 @@ def observe(plant: Plant, k: int, t: float, q: Array, qd: Array, data: mujoco.Mj
         q_ref=q_ref[k].copy(),
         qd_ref=qd_ref[k].copy(),
         tool_ref=tool_ref[k].copy(),
-        q_ref_ahead=q_ref[ahead].ravel(),
+        q_ref_ahead=q_ref.take(k + _AHEAD, axis=0, mode="clip").ravel(),  # the last sample past the end
     )
