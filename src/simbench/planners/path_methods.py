@@ -34,8 +34,9 @@
                   J2 J1# x1: it would not make the orientation's twist even far from every singularity.
 
 Each rule (a Rule) returns the rates, Ju's least singular value, the lambda^2 it used (priority: the larger of its
-two) and the null-space projector I - Ju+ Ju, in which a redundant arm returns to its start posture (gradient:
-climbs w). sns is solved with its bounds (sns_rates). cartesian_path scales the damped rules' rates (dls,
+two) and `basis`, the rows of V^T that span Ju's row space: the null-space projector I - Ju+ Ju, in which a
+redundant arm returns to its start posture (gradient: climbs w), is null_projector(basis), made only where an arm
+has joints to spare. sns is solved with its bounds (sns_rates). cartesian_path scales the damped rules' rates (dls,
 dls_adaptive, priority) down under the speed limits (`Resolver`).
 """
 
@@ -78,11 +79,16 @@ def thin_svd(ju: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return u, sv, vt
 
 
+def null_projector(basis: np.ndarray) -> np.ndarray:
+    """I - Ju+ Ju (dof, dof) from a rule's `basis` (rank, dof), the rows of V^T that span Ju's row space."""
+    return np.eye(basis.shape[1]) - basis.T @ basis
+
+
 def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float], rank_only: bool = False):
     """Ju^T (Ju Ju^T + lambda^2 I)^-1 twist by the SVD (V S (S^2 + lambda^2)^-1 U^T), lambda^2 = lam2_of(sigma_min);
-    sigma_min, lambda^2 and I - Ju+ Ju. Where `rank_only`, the singular values under RCOND of the largest, or of 1
-    (rows a planar arm can never move, a task's rows beyond the joints left to it), count as zero, and sigma_min is
-    the least of the others (0, undamped, where none is left)."""
+    sigma_min, lambda^2 and the basis of Ju's row space (null_projector's). Where `rank_only`, the singular values
+    under RCOND of the largest, or of 1 (rows a planar arm can never move, a task's rows beyond the joints left to
+    it), count as zero, and sigma_min is the least of the others (0, undamped, where none is left)."""
     u, sv, vt = thin_svd(ju)
     if rank_only:
         keep = sv > RCOND * max(float(sv[0]), 1.0)
@@ -90,7 +96,7 @@ def _damped(ju: np.ndarray, twist: np.ndarray, lam2_of: Callable[[float], float]
     sigma = float(sv[-1]) if len(sv) else 0.0
     lam2 = lam2_of(sigma) if len(sv) else 0.0
     rates = vt.T @ (sv / (sv**2 + lam2) * (u.T @ twist))
-    return rates, sigma, lam2, np.eye(ju.shape[1]) - vt.T @ vt
+    return rates, sigma, lam2, vt
 
 
 def _adaptive(sigma: float) -> float:
@@ -105,34 +111,35 @@ def damped_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, 
 
 def _pseudo_inverse(ju: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], float, np.ndarray, int]:
     """x -> Ju+ x, Ju+ = V S^-1 U^T over the singular values above RCOND of the largest; Ju's least singular value,
-    I - Ju+ Ju and Ju's rank."""
+    the basis of its row space (null_projector's) and its rank."""
     u, sv, vt = thin_svd(ju)
     if sv[-1] > RCOND * sv[0]:  # full rank, the usual case: every singular value kept (the masks' cost spared)
         inverse, rank, kept = 1.0 / sv, len(sv), vt
     else:
         keep = sv > RCOND * sv[0]
         inverse, rank, kept = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep), int(keep.sum()), vt[keep]
-    null = np.eye(ju.shape[1]) - kept.T @ kept
-    return (lambda x: vt.T @ (inverse * (u.T @ x))), float(sv[-1]), null, rank
+    return (lambda x: vt.T @ (inverse * (u.T @ x))), float(sv[-1]), kept, rank
 
 
 def pinv_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
-    """pinv: Ju+ twist, sigma_min, 0 and I - Ju+ Ju."""
-    inverse, sigma, null, _ = _pseudo_inverse(ju)
-    return inverse(twist), sigma, 0.0, null
+    """pinv: Ju+ twist, sigma_min, 0 and the basis of Ju's row space."""
+    inverse, sigma, basis, _ = _pseudo_inverse(ju)
+    return inverse(twist), sigma, 0.0, basis
 
 
 def priority_rates(ju: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, float, float, np.ndarray]:
     """priority (Chiaverini 1997, eq. 8, both inverses damped as dls_adaptive's, on the singular values each task's
     Jacobian can have: a planar arm's point has two, the orientation left to a five-joint arm two): the point's rows
     first, the orientation's in what they leave free; the first task alone where Ju has the point's rows alone.
-    Returns the rates, the whole Ju's sigma_min, the larger lambda^2 of the two inverses and I - Ju+ Ju."""
-    first, sigma, lam2, n1 = _damped(ju[:3], twist[:3], _adaptive, rank_only=True)
+    Returns the rates, the whole Ju's sigma_min, the larger lambda^2 of the two inverses and the basis of Ju's row
+    space."""
+    first, sigma, lam2, b1 = _damped(ju[:3], twist[:3], _adaptive, rank_only=True)
     if len(ju) == 3:
-        return first, sigma, lam2, n1
-    second, _, lam2_second, _ = _damped(ju[3:] @ n1, twist[3:] - ju[3:] @ first, _adaptive, rank_only=True)
-    _, sigma, null, _ = _pseudo_inverse(ju)
-    return first + second, sigma, max(lam2, lam2_second), null
+        return first, sigma, lam2, b1
+    second, _, lam2_second, _ = _damped(ju[3:] @ null_projector(b1), twist[3:] - ju[3:] @ first, _adaptive,
+                                        rank_only=True)
+    _, sigma, basis, _ = _pseudo_inverse(ju)
+    return first + second, sigma, max(lam2, lam2_second), basis
 
 
 def sns_rates(ju: np.ndarray, twist: np.ndarray, preference: np.ndarray, low: np.ndarray,
@@ -142,12 +149,12 @@ def sns_rates(ju: np.ndarray, twist: np.ndarray, preference: np.ndarray, low: np
     joints' null space, scaled with the twist. Returns the rates, Ju's sigma_min, s and the saturated joints."""
     dof = len(low)
     saturated, fixed = np.zeros(dof, bool), np.zeros(dof)
-    inverse, sigma, null, full = _pseudo_inverse(ju)
+    inverse, sigma, basis, full = _pseudo_inverse(ju)
     best = (0.0, np.zeros(dof), np.zeros(dof), saturated.copy())  # s* = 0, none saturated: qd = 0
     while True:
         free = ~saturated
         task, kept = np.zeros(dof), fixed.copy()  # qd = s task + kept
-        task[free] = inverse(twist) + null @ preference[free]
+        task[free] = inverse(twist) + null_projector(basis) @ preference[free]
         kept[free] = -inverse(ju[:, saturated] @ fixed[saturated])
         rates = task + kept
         passing = (rates < low) | (rates > high)
@@ -160,7 +167,7 @@ def sns_rates(ju: np.ndarray, twist: np.ndarray, preference: np.ndarray, low: np
         fixed[critical] = high[critical] if rates[critical] > high[critical] else low[critical]
         if saturated.all():
             break
-        inverse, _, null, rank = _pseudo_inverse(ju[:, ~saturated])
+        inverse, _, basis, rank = _pseudo_inverse(ju[:, ~saturated])
         if rank < full:  # the free joints cannot make the task
             break
     scale, task, kept, saturated = best

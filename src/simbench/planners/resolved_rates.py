@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.planners.path_methods import (EPSILON, GRADIENT_GAIN, Resolver, Rule, damped_rates,
-                                            manipulability_gradient, pinv_rates, sns_rates)
+                                            manipulability_gradient, null_projector, pinv_rates, sns_rates)
 from simbench.robots.rank_loss import unit_jacobian
 
 CLIK_SHARE = 0.5  # share of the tool's error removed each control sample (K = CLIK_SHARE / dt)
@@ -20,13 +20,13 @@ _UNDER = 1 - 1e-9  # rates scaled to just under the speed limits, which the plan
 POSITION_ROWS = 3  # a free task's rows of Ju and of the twist: the point's
 
 
-def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preference: np.ndarray, robot,
+def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preference: np.ndarray | None, robot,
                    dt: float, rule: Rule = damped_rates) -> tuple[np.ndarray, float, float, np.ndarray]:
     """One sample's rates by the rule, plus the null-space motion `preference` (_preference), with every joint kept
     inside its range (cartesian_path's docstring): the rates, the whole arm's sigma_min (of Ju's rows, those the
     task uses) and lambda^2, and which joints are held (dof,)."""
-    rates, sigma, lam2, null = rule(ju, twist)  # no joint held yet: Ju and the twist whole
-    out = rates + null @ preference
+    rates, sigma, lam2, basis = rule(ju, twist)  # no joint held yet: Ju and the twist whole
+    out = _plus_null(rates, basis, preference)
     held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     after = now + dt * out
     passing = (after > robot.upper) | (after < robot.lower)
@@ -36,12 +36,21 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preferenc
         if np.count_nonzero(held) == len(now):
             return fixed, sigma, lam2, held
         free = ~held
-        rates, _, _, null = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
+        rates, _, _, basis = rule(ju[:, free], twist - ju[:, held] @ fixed[held])
         out = fixed.copy()
-        out[free] = rates + null @ preference[free]
+        out[free] = _plus_null(rates, basis, None if preference is None else preference[free])
         after = now + dt * out
         passing = ~held & ((after > robot.upper) | (after < robot.lower))
     return out, sigma, lam2, held
+
+
+def _plus_null(rates: np.ndarray, basis: np.ndarray, preference: np.ndarray | None) -> np.ndarray:
+    """The rule's rates plus the null-space motion (I - Ju+ Ju) preference. None: an arm with no joint to spare,
+    whose projector is not made (rates + 0.0 gives the same floats as adding the projection of zero, +0.0, did:
+    a zero rate's sign included)."""
+    if preference is None:
+        return rates + 0.0
+    return rates + null_projector(basis) @ preference
 
 
 def _inside(robot, q: np.ndarray) -> np.ndarray:
@@ -49,25 +58,25 @@ def _inside(robot, q: np.ndarray) -> np.ndarray:
     return np.minimum(np.maximum(q, robot.lower), robot.upper)
 
 
-def _preference(robot, q0: np.ndarray, now: np.ndarray, rows: int, resolver: Resolver) -> np.ndarray:
+def _preference(robot, q0: np.ndarray, now: np.ndarray, rows: int, resolver: Resolver) -> np.ndarray | None:
     """A redundant arm's null-space motion (dof,): up manipulability's gradient (the gradient method) or back to
-    its start posture; none on an arm with no more joints than the task's rows."""
+    its start posture; None on an arm with no more joints than the task's rows."""
     if robot.dof <= rows:
-        return np.zeros(robot.dof)
+        return None
     if resolver.gradient:
         return GRADIENT_GAIN * manipulability_gradient(robot, now, rows)
     return NULL_GAIN * (q0 - now)
 
 
-def _bounded_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preference: np.ndarray, robot,
+def _bounded_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preference: np.ndarray | None, robot,
                    dt: float) -> tuple[np.ndarray, float, float, np.ndarray, float]:
     """sns's rates: each joint's within its speed limit (just under it, as the scaled rules') and within its
     range at the sample's end. Returns the rates, sigma_min, 0, the joints saturated at a range's end (held) and
     the task's scale."""
     to_lower, to_upper = (robot.lower - now) / dt, (robot.upper - now) / dt
     fast = _UNDER * robot.qd_max
-    rates, sigma, scale, saturated = sns_rates(ju, twist, preference, np.maximum(-fast, to_lower),
-                                               np.minimum(fast, to_upper))
+    rates, sigma, scale, saturated = sns_rates(ju, twist, np.zeros(robot.dof) if preference is None else preference,
+                                               np.maximum(-fast, to_lower), np.minimum(fast, to_upper))
     held = saturated & (((rates == to_lower) & (to_lower > -fast)) | ((rates == to_upper) & (to_upper < fast)))
     return rates, sigma, 0.0, held, scale
 
@@ -150,6 +159,9 @@ def orientation_error(r_goal: np.ndarray, r: np.ndarray) -> np.ndarray:
     """1/2 (n x n_d + s x s_d + a x a_d) (..., 3) of rotations (..., 3, 3) (Siciliano et al. 2009, eq. 3.85):
     sin(angle) times the axis of the rotation from r to r_goal, world frame. Computed as the same sum's closed form,
     vee of the skew part of r_goal r^T (three cross products cost more at every control sample)."""
+    if np.ndim(r_goal) == 2 == np.ndim(r):  # one pair, a control sample's: the same product, indexed directly
+        one = (r_goal @ r.T).ravel()
+        return 0.5 * (one[_LOWER] - one[_UPPER])
     turn = (r_goal @ np.swapaxes(r, -1, -2)).reshape(*np.shape(r_goal)[:-2], 9)
     return 0.5 * (turn.take(_LOWER, axis=-1) - turn.take(_UPPER, axis=-1))
 
@@ -221,8 +233,8 @@ def _knot(robot, q0: np.ndarray, now: np.ndarray, point: np.ndarray, rotation: n
     rows = len(twist)
     error, ju = _error_and_jacobian(robot, now, point, rotation, rows)
     step, sigma, _, _ = pinv_rates(ju, error)
-    rates, _, lam2, null = resolver.rule(ju, twist)
-    return now + step, rates + null @ _preference(robot, q0, now, rows, resolver), sigma, lam2 > 0.0
+    rates, _, lam2, basis = resolver.rule(ju, twist)
+    return now + step, _plus_null(rates, basis, _preference(robot, q0, now, rows, resolver)), sigma, lam2 > 0.0
 
 
 def _clear(robot, q: np.ndarray, rates: np.ndarray, sigma: float, step: float) -> bool:
