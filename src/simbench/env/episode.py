@@ -457,7 +457,7 @@ class Track(control.Task):
         if self.failure is not None:
             return 0.0
         offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
-        return _REWARD_AT_TOLERANCE ** (float(offset @ offset) / self._tolerance ** 2)
+        return _REWARD_AT_TOLERANCE ** (float(offset.dot(offset)) / self._tolerance ** 2)  # (ndarray.dot: @'s product for less)
 
     def get_termination(self, physics: Physics) -> float | None:
         """Whether the episode ends here.

@@ -288,8 +288,16 @@ class RLTrack(Track):
             first, targets = k, self._residual_base(k, stop)
             self._targets = (self.q_ref, first, targets)
         shifted = targets[k - first:k - first + steps] + self._command
-        lo, hi = self._ctrl_range
+        lo, hi = self._ctrl_rows(steps)
         return np.minimum(np.maximum(shifted, lo, out=shifted), hi, out=shifted)
+
+    def _ctrl_rows(self, steps: int) -> tuple[Array, Array]:
+        """The control range as `steps` rows (steps, nu) each, made once a stretch length: a clip against arrays of
+        its own shape costs a third of one that broadcasts a row, every control step."""
+        made = self.__dict__.setdefault("_ctrl_tiles", {})
+        if steps not in made:
+            made[steps] = tuple(np.tile(bound, (steps, 1)) for bound in self._ctrl_range)
+        return made[steps]
 
     def _residual_base(self, start: int, stop: int) -> Array:
         """What a residual action shifts at samples start to stop (stop - start, nu): the servo's targets for the
