@@ -27,10 +27,12 @@ def _clamped_rates(ju: np.ndarray, twist: np.ndarray, now: np.ndarray, preferenc
     task uses) and lambda^2, and which joints are held (dof,)."""
     rates, sigma, lam2, basis = rule(ju, twist)  # no joint held yet: Ju and the twist whole
     out = _plus_null(rates, basis, preference)
-    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
     after = now + dt * out
     passing = (after > robot.upper) | (after < robot.lower)
-    while np.count_nonzero(passing):  # (a tenth of ndarray.any's time: this runs at every control sample)
+    if not np.count_nonzero(passing):  # the usual case (a tenth of ndarray.any's time: this runs every sample)
+        return out, sigma, lam2, passing  # none held
+    held, fixed = np.zeros(len(now), bool), np.zeros(len(now))
+    while np.count_nonzero(passing):
         fixed[passing] = (np.clip(after[passing], robot.lower[passing], robot.upper[passing]) - now[passing]) / dt
         held |= passing
         if np.count_nonzero(held) == len(now):
@@ -99,12 +101,21 @@ def _error_and_jacobian(robot, now: np.ndarray, point: np.ndarray, rotation: np.
                         rows: int) -> tuple[np.ndarray, np.ndarray]:
     """The unit-consistent error (rows,) of the tool at the joints `now` from (point, rotation) (task_error's) and
     the task's rows of Ju there, from one kinematics pass."""
-    at, turned, jac = pose_jacobian(robot, now[None])
+    at, turned, jac = _pose_jacobian_at(robot, now)
     error = np.empty(rows)
-    error[:POSITION_ROWS] = (point - at[0]) / robot.reach
+    error[:POSITION_ROWS] = (point - at) / robot.reach
     if rows > POSITION_ROWS:
-        error[POSITION_ROWS:] = orientation_error(rotation, turned[0])
-    return error, unit_jacobian(jac[0], robot.reach)[:rows]
+        error[POSITION_ROWS:] = orientation_error(rotation, turned)
+    return error, unit_jacobian(jac, robot.reach)[:rows]
+
+
+def _pose_jacobian_at(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """pose_jacobian's at one joint vector q (dof,): (3,), (3, 3), (6, dof); the robot's own where it has one
+    (robots.model_arm.ModelArm.pose_jacobian_at)."""
+    if hasattr(robot, "pose_jacobian_at"):
+        return robot.pose_jacobian_at(q)
+    at, turned, jac = pose_jacobian(robot, q[None])
+    return at[0], turned[0], jac[0]
 
 
 def task_error(robot, points: np.ndarray, rotations: np.ndarray, q: np.ndarray, rows: int) -> np.ndarray:
@@ -212,10 +223,9 @@ def integrate(robot, q0: np.ndarray, points: np.ndarray, rotations: np.ndarray, 
                 clear = False
                 continue
             damping = True
-        if resolver.scaled:
+        if resolver.scaled and np.count_nonzero(np.abs(rates) > fast):  # (else the scale is 1: fast / |rate| >= 1)
             scale[k] = min(1.0, float((fast / np.maximum(np.abs(rates), 1e-300)).min()))
-            if scale[k] < 1.0:
-                rates = rates * scale[k]
+            rates = rates * scale[k]
         q[k], qd[k] = now, rates  # sns's rates come scaled
         clear = (lam2[k] == 0.0 and scale[k] == 1.0 and not np.count_nonzero(held[k])
                  and _clear(robot, now, rates, sigma[k], every * dt))

@@ -124,6 +124,17 @@ class ModelArm(Robot):
         three)."""
         return self._passes(q, jacobian=True)
 
+    def pose_jacobian_at(self, q: Array) -> tuple[Array, Array, Array]:
+        """pose_jacobian's at one joint vector q (dof,): the tool point (3,), its rotation (3, 3) and J (6, dof), without
+        the batch's arrays (a resolved-rate planner asks for them at every control sample)."""
+        model, data, adr, dofs, site = self._compiled()
+        data.qpos[adr] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        jac = np.zeros((6, model.nv))
+        mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
+        return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy(), jac[:, dofs]
+
     def _passes(self, q: Array, jacobian: bool) -> tuple[Array, Array, Array | None]:
         """pose's and pose_jacobian's rows: each row of q posed (the joints off the chain stay at qpos0, set once),
         kinematics computed, and the Jacobian where asked; None for it where not. A plain loop: a planner calls this
