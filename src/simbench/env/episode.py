@@ -15,11 +15,12 @@ from dm_control.rl import control
 from dm_env import specs
 
 from simbench.api import Array, JointTrajectory
-from simbench.core.faults import MAX_SPEED, Fault, clear_warnings, fatal_cause, quiet_mujoco, step_fault
+from simbench.core.faults import Fault, clear_warnings, quiet_mujoco
+from simbench.core.indices import as_slice, copied
 from simbench.core.plant import Plant
 from simbench.env.bounds import action_bounds, joint_bounds
 from simbench.env.pixels import FittedRendering
-from simbench.env.substeps import in_c
+from simbench.env.substeps import in_c, in_python
 from simbench.env.task_pool import TaskPool
 from simbench.physics.computed_torque import ComputedTorque, ComputedTorqueSettings
 from simbench.physics.controllers import Servo
@@ -97,28 +98,8 @@ class Physics(FittedRendering):
             while nstep > 0 and track.k < track.n - 1 and track.failure is None:
                 commands = track.controls(self, track.stretch(nstep))
                 if not (self.c_loop and len(commands) > 1 and in_c(self, commands)):
-                    self._in_python(commands)
+                    in_python(self, commands)
                 nstep -= len(commands)
-
-    def _in_python(self, commands: Array) -> None:
-        """One physics step a command, each checked and recorded (until one fails); MuJoCo kept quiet."""
-        model, data, track = self.model.ptr, self.data.ptr, self.track
-        for command in commands:
-            data.ctrl[:] = command
-            try:
-                mujoco.mj_step2(model, data)
-                cause = None
-            except mujoco.FatalError as err:
-                cause = fatal_cause(err)
-            # NaN fails the comparison: one reduction finds a NaN, an infinite or a diverging speed
-            if cause is None and (np.count_nonzero(self.counts) or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED):
-                cause = step_fault(model, data)
-            if cause:
-                track.fail(self, self._when(cause))
-                return
-            self.readings = data.sensordata.copy()
-            mujoco.mj_step1(model, data)
-            track.record(self, command)
 
     def time(self) -> float:
         """The episode's time, as the observation's.
@@ -127,11 +108,6 @@ class Physics(FittedRendering):
             The time (s): 0 at the plan's start, the settle before it excluded.
         """
         return float(self.data.time - self.t0)
-
-    def _when(self, cause: str) -> str:
-        """The fault at the end of the step that failed (MuJoCo may have reset the data's time)."""
-        track = self.track
-        return f"the physics failed at t = {track.plan.t[track.k] + track.dt:.4f} s: {cause}"
 
 
 class Track(control.Task):
@@ -179,7 +155,7 @@ class Track(control.Task):
         self.n_settle = round(scenario.sim.settle / self.dt)
         self._model0 = (model.eq_data.copy(), model.eq_active0.copy(), int(model.opt.disableactuator))
         self._tool = plant.sensors[plant.robot.tool_sensor]
-        self._joints_at = (_run(plant.qpos_adr), _run(plant.dof_adr))  # where the joints' q and qd sit in the data
+        self._joints_at = (as_slice(plant.qpos_adr), as_slice(plant.dof_adr))  # the joints' q, qd in the data
         self._tolerance = scenario.analysis.path_tolerance
         self.set_bounds(model, plan)
         self.failure: str | None = None
@@ -385,8 +361,7 @@ class Track(control.Task):
         self._reached(physics)
 
     def sensor_rows(self, steps: int) -> Array:
-        """The recording's rows (steps, nsensordata) for the sensors of the next `steps` physics steps, which a
-        rollout writes in place (record_steps then copies none)."""
+        """The recording's rows (steps, nsensordata) for the next `steps` physics steps' sensors, written in place."""
         return self._readings[self.k:self.k + steps]
 
     def _reached(self, physics: Physics) -> None:
@@ -439,8 +414,8 @@ class Track(control.Task):
             The observation.
         """
         data, (q_at, qd_at) = physics.data.ptr, self._joints_at
-        return observe(self.plant, self.k, float(self.plan.t[self.k]), _copied(data.qpos, q_at),
-                       _copied(data.qvel, qd_at), data, self.q_ref, self.qd_ref, self.plan.tool_ref)
+        return observe(self.plant, self.k, float(self.plan.t[self.k]), copied(data.qpos, q_at),
+                       copied(data.qvel, qd_at), data, self.q_ref, self.qd_ref, self.plan.tool_ref)
 
     def get_reward(self, physics: Physics) -> float:
         """The step's reward: dm_control's gaussian `rewards.tolerance` of the tool's tracking error.
@@ -495,20 +470,6 @@ class Track(control.Task):
         revised = {name: ref.copy() for name, ref in self.references.recorded().items()}  # the episode goes on
         return recording(plant, model, self.plan.t[:rows].copy(), readings, qpos[:, plant.qpos_adr], qpos,
                          self._qvel[:rows], self._eq[:rows].copy(), ctrl, self.warnings, **revised)
-
-
-def _run(addresses: Array) -> slice | Array:
-    """Addresses as a slice where they are a run (consecutive, increasing), else as they are: an observation copies
-    the joints' values by slice at a third of a fancy index's cost, every control step."""
-    first = int(addresses[0]) if len(addresses) else 0
-    if np.array_equal(addresses, np.arange(first, first + len(addresses))):
-        return slice(first, first + len(addresses))
-    return addresses
-
-
-def _copied(values: Array, at: slice | Array) -> Array:
-    """A copy of values[at] (a fancy index copies already)."""
-    return values[at].copy() if isinstance(at, slice) else values[at]
 
 
 def track_of(env: control.Environment) -> Track:

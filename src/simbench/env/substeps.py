@@ -1,6 +1,6 @@
-"""A control step's physics steps in MuJoCo's C loop: `mujoco.rollout` steps them with their commands (known at
-the control step's start) and records every state and sensor reading in C, where the environment's Python loop
-pays for mj_step2, its checks, mj_step1 and the recording one step at a time.
+"""A control step's physics steps, in MuJoCo's C loop (`in_c`) or one at a time in Python (`in_python`): the rollout
+steps them with their commands (known at the control step's start) and records every state and sensor reading in
+C, where the Python loop pays for mj_step2, its checks, mj_step1 and the recording one step at a time.
 
 mj_step is mj_step1 then mj_step2 (MuJoCo's documentation), so the rollout takes the same steps; a stretch in
 which the Python loop would have looked closer at a step (a warning counted, a speed past MAX_SPEED or NaN) is
@@ -17,7 +17,7 @@ import numpy as np
 from mujoco import rollout
 
 from simbench.api import Array
-from simbench.core.faults import MAX_SPEED, clear_warnings
+from simbench.core.faults import MAX_SPEED, clear_warnings, fatal_cause, step_fault
 from simbench.physics.stepping import FULL, state_slices
 
 if TYPE_CHECKING:
@@ -73,6 +73,28 @@ def in_c(physics: Physics, commands: Array) -> bool:
     physics.readings = sensors[-1]  # a row the recording keeps as it is
     track.record_steps(physics, states[0], None, commands, slices)
     return True
+
+
+def in_python(physics: Physics, commands: Array) -> None:
+    """One physics step a command, each checked and recorded (until one fails: the track's `fail` then says when
+    and why); MuJoCo kept quiet by the caller (Physics.step)."""
+    model, data, track = physics.model.ptr, physics.data.ptr, physics.track
+    for command in commands:
+        data.ctrl[:] = command
+        try:
+            mujoco.mj_step2(model, data)
+            cause = None
+        except mujoco.FatalError as err:
+            cause = fatal_cause(err)
+        # NaN fails the comparison: one reduction finds a NaN, an infinite or a diverging speed
+        if cause is None and (np.count_nonzero(physics.counts) or not np.abs(data.qvel).max(initial=0.0) <= MAX_SPEED):
+            cause = step_fault(model, data)
+        if cause:  # (at the end of the step that failed: MuJoCo may have reset the data's time)
+            track.fail(physics, f"the physics failed at t = {track.plan.t[track.k] + track.dt:.4f} s: {cause}")
+            return
+        physics.readings = data.sensordata.copy()
+        mujoco.mj_step1(model, data)
+        track.record(physics, command)
 
 
 def _buffers(physics: Physics, steps: int) -> tuple[Array, Array, Array, tuple[slice, slice]]:

@@ -31,6 +31,7 @@ from simbench.api import (Array, JointTrajectory, PlantFit, Recording, Robot, Si
                           Tolerance, Violation)
 from simbench.api.events import Event
 from simbench.api.trajectory import ORIENTATION_REF
+from simbench.core.indices import as_slice
 from simbench.core.plant import register_scene
 from simbench.maths.rotations import quat_to_matrix, rotation_angle
 from simbench.robots.contacts import Contacts, Touch, checked_rows
@@ -40,13 +41,6 @@ from simbench.robots.servo_design import design, force_violations, plan_dynamics
 
 ORIENTATION_ERROR = "tool_orientation_error"
 CONTACT_STEP = {"revolute": np.deg2rad(0.5), "prismatic": 1e-3}  # joint motion between contact checks (rad, m)
-
-
-def _as_slice(indices: list[int]) -> np.ndarray | slice:
-    """The indices as a slice where they run one after the other, else as an index array."""
-    if indices == list(range(indices[0], indices[0] + len(indices))):
-        return slice(indices[0], indices[0] + len(indices))
-    return np.array(indices)
 
 
 class ModelArm(Robot):
@@ -83,8 +77,8 @@ class ModelArm(Robot):
             model = self.arm.spec().compile()
             joints = [model.joint(name) for name in self.joints]
             data = mujoco.MjData(model)  # its qpos starts at qpos0
-            self._kinematics = (model, data, _as_slice([j.qposadr[0] for j in joints]),
-                                _as_slice([j.dofadr[0] for j in joints]), model.site(self.tool_site).id)
+            self._kinematics = (model, data, as_slice([j.qposadr[0] for j in joints]),
+                                as_slice([j.dofadr[0] for j in joints]), model.site(self.tool_site).id)
         return self._kinematics
 
     def fk(self, q: Array) -> Array:
