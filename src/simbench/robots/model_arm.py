@@ -132,21 +132,22 @@ class ModelArm(Robot):
     def _passes(self, q: Array, jacobian: bool) -> tuple[Array, Array, Array | None]:
         """pose's and pose_jacobian's rows: each row of q posed (the joints off the chain stay at qpos0, set once),
         kinematics computed, and the Jacobian where asked; None for it where not. A plain loop: a planner calls this
-        a row at a time."""
+        a row at a time. The data's arrays are taken once (each attribute access makes a new view)."""
         model, data, adr, dofs, site = self._compiled()
         q = np.atleast_2d(q)
         points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))
         out = np.empty((len(q), 6, self.dof)) if jacobian else None
         jac = np.zeros((6, model.nv))
         jacp, jacr = jac[:3], jac[3:]
+        qpos, site_xpos, site_xmat = data.qpos, data.site_xpos, data.site_xmat
         for k, row in enumerate(q):
-            data.qpos[adr] = row
+            qpos[adr] = row
             mujoco.mj_kinematics(model, data)
             if out is not None:
                 mujoco.mj_comPos(model, data)
                 mujoco.mj_jacSite(model, data, jacp, jacr, site)
                 out[k] = jac[:, dofs]
-            points[k], rotations[k] = data.site_xpos[site], data.site_xmat[site]
+            points[k], rotations[k] = site_xpos[site], site_xmat[site]
         return points, rotations.reshape(-1, 3, 3), out
 
     def measures(self, rec: Recording) -> dict[str, Array]:

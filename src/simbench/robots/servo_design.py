@@ -133,14 +133,15 @@ def _torques(plant, data: mujoco.MjData, traj: JointTrajectory, qdd: np.ndarray,
     qvel, qacc = np.zeros((len(q), model.nv)), np.zeros((len(q), model.nv))
     qvel[:, dofs], qacc[:, dofs] = traj.qd_ref[rows], qdd[rows]
     inverse, passive = np.empty((len(q), model.nv)), np.empty((len(q), model.nv))
+    at, speed, acceleration, passive_now = data.qpos, data.qvel, data.qacc, data.qfrc_passive  # views, taken once
     for i in range(len(q)):
-        data.qpos[:], data.qvel[:], data.qacc[:] = qpos[i], qvel[i], qacc[i]
+        at[:], speed[:], acceleration[:] = qpos[i], qvel[i], qacc[i]
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_comVel(model, data)
         mujoco.mj_passive(model, data)
         mujoco.mj_rne(model, data, 1, inverse[i])
-        passive[i] = data.qfrc_passive
+        passive[i] = passive_now
     return (inverse - passive)[:, dofs]
 
 
