@@ -337,22 +337,19 @@ class Track(control.Task):
             self.warnings += warning_rows(data, physics.t0)
         self._reached(physics)
 
-    def record_steps(self, physics: Physics, states: Array, sensors: Array, commands: Array,
+    def record_steps(self, physics: Physics, states: Array, commands: Array,
                      slices: tuple[slice, slice] | None = None) -> None:
-        """Record physics steps that ran without a warning, as `record` records each.
+        """Record physics steps that ran without a warning, as `record` records each; their sensors are in the
+        recording already (`sensor_rows`, which the rollout writes into).
 
         Args:
             physics: The physics.
             states: Each step's full physics state after it (steps, nstate).
-            sensors: Each step's sensors, at the state it started from (steps, nsensordata); None where they are
-                in the recording already (`sensor_rows`, which a rollout writes into).
             commands: Each step's command (steps, nu).
             slices: Where qpos and qvel sit in a state (stepping.state_slices), if the caller has them.
         """
         qpos, qvel = slices or state_slices(physics.model.ptr)
         first, stop = self.k, self.k + len(commands)
-        if sensors is not None:
-            self._readings[first:stop] = sensors
         self._ctrl[first:stop] = commands
         self._qpos[first + 1:stop + 1], self._qvel[first + 1:stop + 1] = states[:, qpos], states[:, qvel]
         if self._eq.shape[1]:  # (a model without equality constraints has none to record)
@@ -432,7 +429,8 @@ class Track(control.Task):
         if self.failure is not None:
             return 0.0
         offset = physics.data.ptr.sensordata[self._tool] - self.plan.tool_ref[self.k]
-        return _REWARD_AT_TOLERANCE ** (float(offset.dot(offset)) / self._tolerance ** 2)  # (ndarray.dot: @'s product for less)
+        # (ndarray.dot: @'s product at less cost, every step)
+        return _REWARD_AT_TOLERANCE ** (float(offset.dot(offset)) / self._tolerance ** 2)
 
     def get_termination(self, physics: Physics) -> float | None:
         """Whether the episode ends here.

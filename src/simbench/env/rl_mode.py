@@ -190,6 +190,7 @@ class RLTrack(Track):
         limited = model.actuator_ctrllimited.astype(bool)
         self._ctrl_range = (np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf),
                             np.where(limited, model.actuator_ctrlrange[:, 1], np.inf))
+        self._ctrl_tiles: dict[int, tuple[Array, Array]] = {}  # the range tiled by stretch length (_ctrl_rows)
 
     def _residual_scale(self, model: mujoco.MjModel, plant: Plant) -> Array:
         """Each joint's residual scale: the settings', or RESIDUAL_SCALE by joint type."""
@@ -294,10 +295,9 @@ class RLTrack(Track):
     def _ctrl_rows(self, steps: int) -> tuple[Array, Array]:
         """The control range as `steps` rows (steps, nu) each, made once a stretch length: a clip against arrays of
         its own shape costs a third of one that broadcasts a row, every control step."""
-        made = self.__dict__.setdefault("_ctrl_tiles", {})
-        if steps not in made:
-            made[steps] = tuple(np.tile(bound, (steps, 1)) for bound in self._ctrl_range)
-        return made[steps]
+        if steps not in self._ctrl_tiles:
+            self._ctrl_tiles[steps] = tuple(np.tile(bound, (steps, 1)) for bound in self._ctrl_range)
+        return self._ctrl_tiles[steps]
 
     def _residual_base(self, start: int, stop: int) -> Array:
         """What a residual action shifts at samples start to stop (stop - start, nu): the servo's targets for the

@@ -71,7 +71,7 @@ def in_c(physics: Physics, commands: Array) -> bool:
         mujoco.mj_step1(model, data)
         return False
     physics.readings = sensors[-1]  # a row the recording keeps as it is
-    track.record_steps(physics, states[0], None, commands, slices)
+    track.record_steps(physics, states[0], commands, slices)
     return True
 
 

@@ -119,8 +119,8 @@ class ModelArm(Robot):
         return self._passes(q, jacobian=True)
 
     def pose_jacobian_at(self, q: Array) -> tuple[Array, Array, Array]:
-        """pose_jacobian's at one joint vector q (dof,): the tool point (3,), its rotation (3, 3) and J (6, dof), without
-        the batch's arrays (a resolved-rate planner asks for them at every control sample)."""
+        """pose_jacobian's at one joint vector q (dof,): the tool point (3,), its rotation (3, 3) and J (6, dof),
+        without the batch's arrays (a resolved-rate planner asks for them at every control sample)."""
         model, data, adr, dofs, site = self._compiled()
         data.qpos[adr] = q
         mujoco.mj_kinematics(model, data)
