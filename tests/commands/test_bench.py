@@ -19,9 +19,10 @@ from simbench.cli import main
 from simbench.commands.bench import board, load_suite, run_bench
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.robots import SHIPPED
-from simbench.commands.bench.tasks import bands, draw
+from simbench.commands.bench import tasks as bench_tasks
+from simbench.commands.bench.tasks import bands, draw, draw_all
 from simbench.commands.sweep import table
-from simbench.core.errors import ScenarioError
+from simbench.core.errors import RunError, ScenarioError
 from simbench.robots import puma600 as P
 from simbench.robots import spherical_arm as S
 from simbench.scenario import parse_scenario
@@ -148,6 +149,32 @@ def test_more_tasks_keep_the_first_ones_and_another_seed_changes_them():
     two, three = draw(robot, 2, 5), draw(robot, 3, 5)
     assert two == three[:2]
     assert draw(robot, 2, 6)[0].start != two[0].start
+
+
+def test_tasks_drawn_by_forked_processes_are_the_tasks_drawn_here_in_turn():
+    """draw_all by 2 and 3 processes (a robot whose set is found by minimising its gap among them) gives each
+    robot's tasks as draw gives them here, in order, equal to the last bit."""
+    robots = [SHIPPED[name]() for name in ("planar3r", "so100", "spherical_arm")]
+    here = [draw(robot, 4, 2) for robot in robots]
+    for workers in (2, 3):
+        assert draw_all(robots, 4, 2, workers=workers) == here, workers
+
+
+def test_a_task_none_of_whose_draws_found_one_raises_the_first_in_order(monkeypatch):
+    """Tasks 1 and 2 of 4 find none: drawn by 2 processes (1 in the child, 2 here), task 1's error is the one
+    raised, as drawn in turn."""
+    def generator(robot, index, seed):
+        if index in (1, 2):
+            raise RunError(f"none for task {index} in process {os.getpid()}")
+        return index
+
+    monkeypatch.setitem(bench_tasks.VERSIONS, "sb-test", generator)
+    robot = SHIPPED["planar3r"]()
+    with pytest.raises(RunError, match="none for task 1 in process") as raised:
+        draw_all([robot], 4, 0, "sb-test", workers=2)
+    assert str(os.getpid()) not in str(raised.value)  # drawn by the child
+    with pytest.raises(RunError, match="none for task 1 in process"):
+        draw_all([robot], 4, 0, "sb-test", workers=1)
 
 
 # --- runs and leaderboard -----------------------------------------------------------------------------------------

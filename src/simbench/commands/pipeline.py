@@ -298,7 +298,8 @@ def write_outputs(scenario: Scenario, ev: Evaluation, out: Path, video: bool = T
     robot = scenario.robot_def
     traj, rec = thinned(ev.trajectory, ev.recording)
     result = ev.analysis
-    with staged_folder(out) as tmp, forked(write_plots, robot, traj, rec, result, tmp / "plots", plot_format) as plots:
+    with staged_folder(out) as tmp, forked(write_plots, robot, traj, rec, result, tmp / "plots", plot_format,
+                                           doing="drawing the plots") as plots:
         outputs = {"report": "report.json", "timeseries": "timeseries.npz", "page": "index.html"}
         if video:
             r = scenario.render

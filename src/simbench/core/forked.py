@@ -1,6 +1,7 @@
 """A function run in a forked child process while this one goes on: a run's plots are drawn so while its video
-renders (on a thread, matplotlib stalled the render loop). Only the result or error is pickled back. A plain
-os.fork, so that a sweep's daemonic worker may fork one too; without fork, it runs here when its result is asked."""
+renders (on a thread, matplotlib stalled the render loop), and a bench's tasks and a sweep's figures are dealt out
+to forked children (`dealt`). Only the result or error is pickled back. A plain os.fork, so that a sweep's daemonic
+worker may fork one too; without fork, it runs here when its result is asked."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import pickle
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager, suppress
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import ExitStack, contextmanager, suppress
 from typing import Any, NoReturn
 
 from simbench.core.errors import RunError, described
@@ -31,12 +32,14 @@ def parents_heap_frozen() -> Iterator[None]:
 
 
 @contextmanager
-def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
+def forked(fn: Callable[..., Any], *args: Any, doing: str) -> Iterator[Callable[[], Any]]:
     """Start fn(*args) in a forked child; yields `result`, which waits for it and returns what it returned or
-    raises what it raised. Leaving the block stops a child whose result was not asked for, and waits for it."""
+    raises what it raised (`doing` says what the child does, in its errors: "drawing the plots"). Leaving the
+    block stops a child whose result was not asked for, and waits for it; the child ends with this process."""
     if not hasattr(os, "fork"):
         yield lambda: fn(*args)
         return
+    parent = os.getpid()
     readable, writable = os.pipe()
     pid = 0
     reaped = False
@@ -48,8 +51,8 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         status = os.waitpid(pid, 0)[1]
         reaped = True
         if not sent:
-            raise RunError(f"the process drawing the plots ended (exit code {os.waitstatus_to_exitcode(status)}) "
-                           "before it finished")
+            raise RunError(f"the process {doing} ended (exit code {os.waitstatus_to_exitcode(status)}) before it "
+                           "finished")
         done, value = pickle.loads(sent)
         if done:
             return value
@@ -62,7 +65,7 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         with deferred(), held_back(), parents_heap_frozen():
             pid = os.fork()
             if pid == 0:
-                _child(readable, writable, fn, args)
+                _child(readable, writable, parent, doing, fn, args)
             os.close(writable)
         yield result
     finally:
@@ -76,31 +79,51 @@ def forked(fn: Callable[..., Any], *args: Any) -> Iterator[Callable[[], Any]]:
         os.close(readable)
 
 
-def _child(readable: int, writable: int, fn: Callable[..., Any], args: tuple) -> NoReturn:
+def _child(readable: int, writable: int, parent: int, doing: str, fn: Callable[..., Any], args: tuple) -> NoReturn:
     """fn(*args) in the child, its result or error pickled into the pipe; then os._exit, so that none of the
     parent's clean-up runs twice. Signals stay held back until the child's own handlers are set."""
     try:
         os.close(readable)
+        die_with(parent)
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             sent = pickle.dumps((True, fn(*args)))
         except BaseException as err:  # the parent raises it (an outside robot's plots hook may raise anything)
-            sent = pickle.dumps((False, _sendable(err)))
+            sent = pickle.dumps((False, _sendable(err, doing)))
         with os.fdopen(writable, "wb") as pipe:
             pipe.write(sent)
     finally:
         os._exit(0)
 
 
-def _sendable(err: BaseException) -> BaseException:
+def _sendable(err: BaseException, doing: str) -> BaseException:
     """The error itself where it survives pickling, else a RunError that says what it was."""
     try:
         pickle.loads(pickle.dumps(err))
     except Exception:
-        return RunError(f"drawing the plots raised {described(err)}")
+        return RunError(f"{doing} raised {described(err)}")
     return err
+
+
+def dealt(jobs: Sequence[tuple[Callable[..., Any], tuple]], workers: int, doing: str) -> list[Any]:
+    """Each (fn, args) job's fn(*args), in order, the jobs dealt out in turn to `workers` processes: this one runs
+    every `workers`-th from the first while forked children (`forked`: their jobs are their copy of this process's,
+    nothing pickled to them) run the others. The first error, in the processes' order, is raised."""
+    processes = max(1, min(workers, len(jobs)))
+    out: list[Any] = [None] * len(jobs)
+    with ExitStack() as children:
+        theirs = [children.enter_context(forked(_run_all, jobs[w::processes], doing=doing))
+                  for w in range(1, processes)]
+        out[::processes] = _run_all(jobs[::processes])
+        for w, result in enumerate(theirs, 1):
+            out[w::processes] = result()
+    return out
+
+
+def _run_all(jobs: Sequence[tuple[Callable[..., Any], tuple]]) -> list[Any]:
+    return [fn(*args) for fn, args in jobs]
 
 
 _WATCH = 0.2  # s: how often a worker looks whether its parent is still there

@@ -101,7 +101,7 @@ def _error_and_jacobian(robot, now: np.ndarray, point: np.ndarray, rotation: np.
                         rows: int) -> tuple[np.ndarray, np.ndarray]:
     """The unit-consistent error (rows,) of the tool at the joints `now` from (point, rotation) (task_error's) and
     the task's rows of Ju there, from one kinematics pass."""
-    at, turned, jac = _pose_jacobian_at(robot, now)
+    at, turned, jac = pose_jacobian_at(robot, now)
     error = np.empty(rows)
     error[:POSITION_ROWS] = (point - at) / robot.reach
     if rows > POSITION_ROWS:
@@ -109,7 +109,7 @@ def _error_and_jacobian(robot, now: np.ndarray, point: np.ndarray, rotation: np.
     return error, unit_jacobian(jac, robot.reach)[:rows]
 
 
-def _pose_jacobian_at(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pose_jacobian_at(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """pose_jacobian's at one joint vector q (dof,): (3,), (3, 3), (6, dof); the robot's own where it has one
     (robots.model_arm.ModelArm.pose_jacobian_at)."""
     if hasattr(robot, "pose_jacobian_at"):

@@ -121,20 +121,31 @@ class ModelArm(Robot):
     def pose_jacobian_at(self, q: Array) -> tuple[Array, Array, Array]:
         """pose_jacobian's at one joint vector q (dof,): the tool point (3,), its rotation (3, 3) and J (6, dof),
         without the batch's arrays (a resolved-rate planner asks for them at every control sample)."""
+        return self._row(q, jacobian=True)
+
+    def _row(self, q: Array, jacobian: bool) -> tuple[Array, Array, Array | None]:
+        """One row's kinematics pass: the tool point (3,), its rotation (3, 3) and, where asked, J (6, dof)."""
         model, data, adr, dofs, site = self._compiled()
         data.qpos[adr] = q
         mujoco.mj_kinematics(model, data)
+        point, rotation = data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy()
+        if not jacobian:
+            return point, rotation, None
         mujoco.mj_comPos(model, data)
         jac = np.zeros((6, model.nv))
         mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
-        return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy(), jac[:, dofs]
+        return point, rotation, jac[:, dofs]
 
     def _passes(self, q: Array, jacobian: bool) -> tuple[Array, Array, Array | None]:
         """pose's and pose_jacobian's rows: each row of q posed (the joints off the chain stay at qpos0, set once),
-        kinematics computed, and the Jacobian where asked; None for it where not. A plain loop: a planner calls this
-        a row at a time. The data's arrays are taken once (each attribute access makes a new view)."""
-        model, data, adr, dofs, site = self._compiled()
+        kinematics computed, and the Jacobian where asked; None for it where not. A plain loop, the data's arrays
+        taken once (each attribute access makes a new view); a single row (a search's every evaluation, a Newton
+        step's) by _row, without the batch's arrays."""
         q = np.atleast_2d(q)
+        if len(q) == 1:
+            point, rotation, jac = self._row(q[0], jacobian)
+            return point[None], rotation[None], None if jac is None else np.ascontiguousarray(jac)[None]
+        model, data, adr, dofs, site = self._compiled()
         points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))
         out = np.empty((len(q), 6, self.dof)) if jacobian else None
         jac = np.zeros((6, model.nv))

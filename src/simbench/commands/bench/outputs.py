@@ -19,6 +19,7 @@ from simbench.commands.bench.board import SCENARIOS, scenario_file
 from simbench.commands.bench.paired import paired
 from simbench.commands.sweep import table
 from simbench.core.atomic import staged_folder, write_text
+from simbench.core.forked import dealt
 from simbench.outputs.page import write_page
 from simbench.outputs.page.html import cell, config_section, document, esc, figure_grid, href, paragraphs
 from simbench.outputs.page.tables import MAX_ROWS
@@ -95,7 +96,8 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
         table.write_csv(defined(boards[1], summary), out / "leaderboard_by_kind.csv")
         table.write_csv(defined(pairs, summary), out / "paired.csv")
         with staged_folder(out / "plots") as tmp:
-            plots = {robot: [f"plots/{name}" for name in names] for robot, names in draw(runs, boards[0], tmp).items()}
+            plots = {robot: [f"plots/{name}" for name in names]
+                     for robot, names in draw(runs, boards[0], tmp, workers).items()}
         summary = {**summary, "workers": workers,
                    "outputs": {"tables": ["runs.csv", *parquet, "leaderboard.csv", "leaderboard_by_kind.csv",
                                           "paired.csv"],
@@ -166,16 +168,21 @@ def _table(caption: str, name: str, columns: dict[str, list]) -> str:
             f"</div>\n{more}")
 
 
-def draw(runs: dict[str, list], leaderboard: dict[str, list], folder: Path) -> dict[str, list[str]]:
+def draw(runs: dict[str, list], leaderboard: dict[str, list], folder: Path, workers: int = 1) -> dict[str, list[str]]:
     """Per robot: the Pareto plot of its methods (from `leaderboard`), and by method the path deviation against the
-    closest approach, the plan's joint-speed share and the slowdown, into `folder`; their file names by robot."""
-    names: dict[str, list[str]] = {}
+    closest approach, the plan's joint-speed share and the slowdown, into `folder`, by `workers` processes
+    (core.forked.dealt); their file names by robot."""
+    jobs, owners = [], []
     for robot in dict.fromkeys(runs["robot"]):
         rows = [i for i, r in enumerate(runs["robot"]) if r == robot]
         methods = list(dict.fromkeys(runs["method"][i] for i in rows))
-        names[robot] = [_save(folder, f"pareto_{robot}.png", _pareto, leaderboard, robot, methods)]
+        jobs.append((_save, (folder, f"pareto_{robot}.png", _pareto, leaderboard, robot, methods)))
         for kind, drawer in (("deviation", _deviation), ("speed_share", _speed_share), ("slowdown", _slowdown)):
-            names[robot].append(_save(folder, f"{robot}_{kind}.png", drawer, runs, rows, methods, robot))
+            jobs.append((_save, (folder, f"{robot}_{kind}.png", drawer, runs, rows, methods, robot)))
+        owners += [robot] * 4
+    names: dict[str, list[str]] = {robot: [] for robot in owners}
+    for robot, name in zip(owners, dealt(jobs, workers, "drawing the bench's plots")):
+        names[robot].append(name)
     return names
 
 

@@ -14,8 +14,8 @@ from typing import ClassVar
 from simbench.commands.bench import board, outputs
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.suite import Suite
-from simbench.commands.bench.tasks import draw
-from simbench.commands.sweep import cluster, run_remaining, table
+from simbench.commands.bench.tasks import draw_all
+from simbench.commands.sweep import cluster, execute, run_remaining, table
 from simbench.commands.sweep.spec import Sweep, Variant
 from simbench.commands.sweep.store import Store
 from simbench.core import destination
@@ -65,11 +65,12 @@ class BenchResult:
     summary: dict
 
 
-def plan_bench(suite: Suite) -> Bench:
-    """Every run of the suite: its tasks drawn per robot (bench.tasks), each by every method that applies."""
+def plan_bench(suite: Suite, workers: int = 1) -> Bench:
+    """Every run of the suite: its tasks drawn per robot (bench.tasks) by `workers` processes, each by every method
+    that applies."""
     variants: list[Variant] = []
-    for robot in suite.robots:
-        for task in draw(robot, suite.tasks, suite.seed, suite.version):
+    for robot, tasks in zip(suite.robots, draw_all(suite.robots, suite.tasks, suite.seed, suite.version, workers)):
+        for task in tasks:
             for name in suite.methods:
                 method = METHODS[name]
                 document = method.document(task, robot)
@@ -105,7 +106,7 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     Raises:
         ScenarioError: a bad argument, destination or Ray address, before any run.
     """
-    bench = plan_bench(suite)
+    bench = plan_bench(suite, min(workers or execute.cpu_count(), execute.cpu_count()))  # this machine's processes
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
     if ray is not None:
         cluster.reach(ray)

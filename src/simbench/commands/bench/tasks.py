@@ -17,15 +17,17 @@ generator of its own beside the old ones (VERSIONS), so that a leaderboard of sb
 from __future__ import annotations
 
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from simbench.commands.bench.robots import SINGULAR_TOL, BenchRobot
 from simbench.core.errors import RunError
+from simbench.core.forked import dealt
 from simbench.maths.paths import Arc, Line
 from simbench.maths.rotations import matrix_to_quat
+from simbench.planners.resolved_rates import orientation_error, pose_jacobian, tool_pose
 
 GENERATOR = "sb-1"  # the newest version of the benchmark's definition: a suite's default
 KINDS = ("through", "near", "far")
@@ -70,6 +72,34 @@ def draw(robot: BenchRobot, count: int, seed: int, version: str = GENERATOR) -> 
     return [VERSIONS[version](robot, i, seed) for i in range(count)]
 
 
+def draw_all(robots: Sequence[BenchRobot], count: int, seed: int, version: str = GENERATOR,
+             workers: int = 1) -> list[list[Task]]:
+    """draw's tasks of each robot, drawn by `workers` processes at once (forked: core.forked.dealt), each task by
+    its own generator as draw draws it, so that any count of processes draws the same tasks; the first task in
+    order that none of its draws found raises RunError, as draw raises it."""
+    if workers > 1:  # what every task reads, made here once rather than in each process
+        for robot in robots:
+            robot.model_arm().contacts()
+            bands(robot)
+        if any(robot.singular is None for robot in robots):
+            import scipy.optimize  # noqa: F401  (_on_set's minimize)
+    drawn = dealt([(_drawn_or_error, (VERSIONS[version], robot, i, seed)) for robot in robots for i in range(count)],
+                  workers, "drawing the bench's tasks")
+    for task in drawn:
+        if isinstance(task, RunError):
+            raise task
+    return [drawn[r * count:(r + 1) * count] for r in range(len(robots))]
+
+
+def _drawn_or_error(generator: Callable[[BenchRobot, int, int], Task], robot: BenchRobot, index: int,
+                    seed: int) -> Task | RunError:
+    """The task, or the RunError that says none was found (returned, so that the first in order is raised)."""
+    try:
+        return generator(robot, index, seed)
+    except RunError as err:
+        return err
+
+
 def draw_one(robot: BenchRobot, index: int, seed: int) -> Task:
     """Task `index` of the robot at `seed`; RunError where TRIES draws found none."""
     rng = np.random.default_rng([seed, zlib.crc32(robot.name.encode()), index])
@@ -90,7 +120,7 @@ def _attempt(robot: BenchRobot, index: int, kind: str, shape: str, rng: np.rando
     anchor = _anchor(robot, kind, rng)
     if anchor is None:
         return None
-    point, rot = arm.fk(anchor[None])[0], arm.tool_rotation(anchor[None])[0]
+    (point,), (rot,) = tool_pose(arm, anchor[None])
     before, after = rng.uniform(*LENGTH, 2) * arm.reach
     if robot.boundary and kind != "far":
         after = 0.0
@@ -203,21 +233,19 @@ def _follow(arm, q: np.ndarray, path, s: np.ndarray, rot: np.ndarray,
     """The joints at path(s[-1]), followed from q along path(s) by damped Newton steps (the orientation `rot` held
     where `hold`), and the joints at each step; None where the last point is not reached within TOLERANCE or a
     joint leaves its range."""
-    from simbench.planners.resolved_rates import orientation_error
-
     q = q.copy()
     rows = 6 if hold else 3
     steps = []
     for k, point in enumerate(path.point(s)):
         last = k == len(s) - 1
         for _ in range(50 if last else 8):
-            here = q[None]
-            error = point - arm.fk(here)[0]
+            (at,), (turned,), (jac,) = pose_jacobian(arm, q[None])  # one pass: the error's and the step's
+            error = point - at
             if hold:
-                error = np.concatenate([error, orientation_error(rot, arm.tool_rotation(here)[0])])
+                error = np.concatenate([error, orientation_error(rot, turned)])
             if np.linalg.norm(error[:3]) < TOLERANCE[0] and np.linalg.norm(error[3:]) < TOLERANCE[1]:
                 break
-            jac = arm.jacobian(here)[0][:rows]
+            jac = jac[:rows]
             damping = 1e-6 if last else 1e-4
             q = q + jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(rows), error)
         else:

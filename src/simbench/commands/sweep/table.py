@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import multiprocessing
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +16,7 @@ from matplotlib.figure import Figure
 from simbench.api.panels import plot_text
 from simbench.core import extras
 from simbench.core.atomic import staged_file, staged_folder, write_text
-from simbench.core.forked import as_worker, parents_heap_frozen
+from simbench.core.forked import dealt
 from simbench.outputs import csv_cells
 from simbench.outputs.plots import plain_ticks
 
@@ -149,24 +148,9 @@ def write_plots(table: dict[str, list], params: list[str], grid: list[str], metr
 
 def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
     """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in one
-    thread, so with `workers` > 1 forked processes draw all but every `workers`-th, which this one draws."""
-    jobs = [(draw, (*args, folder)) for draw, args in figures]
-    processes = min(workers, len(jobs))
-    if processes < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        return [draw(*args) for draw, args in jobs]
-    with parents_heap_frozen():
-        pool = multiprocessing.get_context("fork").Pool(processes - 1, initializer=as_worker)
-    with pool:
-        theirs = pool.starmap_async(_call, [job for i, job in enumerate(jobs) if i % processes])
-        mine = iter([draw(*args) for draw, args in jobs[::processes]])
-        others = iter(theirs.get())
-        pool.close()  # the workers end on their own: terminated (the block's end) as they hand back their
-        pool.join()  # last figure, one raised Interrupted from simbench's SIGTERM handler
-    return [next(mine) if i % processes == 0 else next(others) for i in range(len(jobs))]
-
-
-def _call(draw, args: tuple) -> str:
-    return draw(*args)
+    thread, so with `workers` > 1 forked processes draw all but every `workers`-th, which this one draws
+    (core.forked.dealt)."""
+    return dealt([(draw, (*args, folder)) for draw, args in figures], workers, "drawing the sweep's plots")
 
 
 def _scatter(metric: str, y: np.ndarray, status: np.ndarray, params: list[str], axes: dict, folder: Path) -> str:
