@@ -161,7 +161,7 @@ def test_tasks_drawn_by_forked_processes_are_the_tasks_drawn_here_in_turn():
 
 
 def test_a_task_none_of_whose_draws_found_one_raises_the_first_in_order(monkeypatch):
-    """Tasks 1 and 2 of 4 find none: drawn by 2 processes (1 in the child, 2 here), task 1's error is the one
+    """Tasks 1 and 2 of 4 find none: drawn by 2 processes (task 1 the child's first), task 1's error is the one
     raised, as drawn in turn."""
     def generator(robot, index, seed):
         if index in (1, 2):

@@ -76,8 +76,8 @@ def test_switched_runs_leave_the_kept_plant_as_built(monkeypatch):
 
 def test_plots_drawn_at_once_are_the_plots_drawn_in_turn(tmp_path):
     """Two metrics against a grid of two numeric parameters: two scatter figures and two heat maps, drawn here
-    one by one, and here and in forked processes at once (2 or 3 at a time, this process taking every 2nd or
-    3rd), in the same order and to the same bytes."""
+    one by one, and here and in forked processes at once (2 or 3 at a time, each taking the next figure none has
+    taken), in the same order and to the same bytes."""
     params = ["sim.timestep", "timing.duration"]
     columns = {"run": [0, 1, 2, 3], "sim.timestep": [0.001, 0.001, 0.002, 0.002],
                "timing.duration": [2.0, 3.0, 2.0, 3.0], "status": ["ok", "limits", "ok", "run_failed"],

@@ -6,6 +6,7 @@ worker may fork one too; without fork, it runs here when its result is asked."""
 from __future__ import annotations
 
 import gc
+import multiprocessing
 import os
 import pickle
 import signal
@@ -108,22 +109,35 @@ def _sendable(err: BaseException, doing: str) -> BaseException:
 
 
 def dealt(jobs: Sequence[tuple[Callable[..., Any], tuple]], workers: int, doing: str) -> list[Any]:
-    """Each (fn, args) job's fn(*args), in order, the jobs dealt out in turn to `workers` processes: this one runs
-    every `workers`-th from the first while forked children (`forked`: their jobs are their copy of this process's,
-    nothing pickled to them) run the others. The first error, in the processes' order, is raised."""
+    """Each (fn, args) job's fn(*args), in order, by `workers` processes at once: this one and forked children
+    (`forked`: their jobs are their copy of this process's, nothing pickled to them). Process w runs job w first,
+    then each takes the next job none has taken (a counter they share), so that a long job holds up no other. The
+    first error, in the processes' order, is raised."""
     processes = max(1, min(workers, len(jobs)))
-    out: list[Any] = [None] * len(jobs)
+    if processes == 1 or not hasattr(os, "fork"):
+        return [fn(*args) for fn, args in jobs]
+    taken = multiprocessing.get_context("fork").Value("q", processes)  # the next job none has taken
+
+    def share(first: int) -> dict[int, Any]:
+        fn, args = jobs[first]
+        done = {first: fn(*args)}
+        while True:
+            with taken.get_lock():
+                index = taken.value
+                taken.value += 1
+            if index >= len(jobs):
+                return done
+            fn, args = jobs[index]
+            done[index] = fn(*args)
+
     with ExitStack() as children:
-        theirs = [children.enter_context(forked(_run_all, jobs[w::processes], doing=doing))
-                  for w in range(1, processes)]
-        out[::processes] = _run_all(jobs[::processes])
-        for w, result in enumerate(theirs, 1):
-            out[w::processes] = result()
+        theirs = [children.enter_context(forked(share, w, doing=doing)) for w in range(1, processes)]
+        shares = [share(0)] + [result() for result in theirs]
+    out: list[Any] = [None] * len(jobs)
+    for done in shares:
+        for index, value in done.items():
+            out[index] = value
     return out
-
-
-def _run_all(jobs: Sequence[tuple[Callable[..., Any], tuple]]) -> list[Any]:
-    return [fn(*args) for fn, args in jobs]
 
 
 _WATCH = 0.2  # s: how often a worker looks whether its parent is still there

@@ -148,8 +148,8 @@ def write_plots(table: dict[str, list], params: list[str], grid: list[str], metr
 
 def _draw(figures: list[tuple], folder: Path, workers: int) -> list[str]:
     """Draw each (function, arguments) figure into `folder`; the files' names, in order. matplotlib draws in one
-    thread, so with `workers` > 1 forked processes draw all but every `workers`-th, which this one draws
-    (core.forked.dealt)."""
+    thread, so with `workers` > 1 this process and forked ones draw them at once (core.forked.dealt: the first here,
+    the second in a child)."""
     return dealt([(draw, (*args, folder)) for draw, args in figures], workers, "drawing the sweep's plots")
 
 
