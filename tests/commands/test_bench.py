@@ -17,9 +17,9 @@ import pytest
 
 from simbench.cli import main
 from simbench.commands.bench import board, load_suite, run_bench
+from simbench.commands.bench import tasks as bench_tasks
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.robots import SHIPPED
-from simbench.commands.bench import tasks as bench_tasks
 from simbench.commands.bench.tasks import bands, draw, draw_all
 from simbench.commands.sweep import table
 from simbench.core.errors import RunError, ScenarioError

@@ -144,6 +144,7 @@ class ModelArm(Robot):
         q = np.atleast_2d(q)
         if len(q) == 1:
             point, rotation, jac = self._row(q[0], jacobian)
+            # (J contiguous, as the batch's rows are: a product of a strided view may take another BLAS path)
             return point[None], rotation[None], None if jac is None else np.ascontiguousarray(jac)[None]
         model, data, adr, dofs, site = self._compiled()
         points, rotations = np.empty((len(q), 3)), np.empty((len(q), 9))

@@ -172,14 +172,14 @@ def draw(runs: dict[str, list], leaderboard: dict[str, list], folder: Path, work
     """Per robot: the Pareto plot of its methods (from `leaderboard`), and by method the path deviation against the
     closest approach, the plan's joint-speed share and the slowdown, into `folder`, by `workers` processes
     (core.forked.dealt); their file names by robot."""
-    jobs, owners = [], []
+    jobs, owners = [], []  # each figure's job, and its robot
     for robot in dict.fromkeys(runs["robot"]):
         rows = [i for i, r in enumerate(runs["robot"]) if r == robot]
         methods = list(dict.fromkeys(runs["method"][i] for i in rows))
         jobs.append((_save, (folder, f"pareto_{robot}.png", _pareto, leaderboard, robot, methods)))
         for kind, drawer in (("deviation", _deviation), ("speed_share", _speed_share), ("slowdown", _slowdown)):
             jobs.append((_save, (folder, f"{robot}_{kind}.png", drawer, runs, rows, methods, robot)))
-        owners += [robot] * 4
+        owners += [robot] * (len(jobs) - len(owners))
     names: dict[str, list[str]] = {robot: [] for robot in owners}
     for robot, name in zip(owners, dealt(jobs, workers, "drawing the bench's plots")):
         names[robot].append(name)

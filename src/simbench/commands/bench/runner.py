@@ -106,7 +106,7 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     Raises:
         ScenarioError: a bad argument, destination or Ray address, before any run.
     """
-    bench = plan_bench(suite, min(workers or execute.cpu_count(), execute.cpu_count()))  # this machine's processes
+    bench = plan_bench(suite, execute.processes_here(workers))  # drawn here, on Ray too
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
     if ray is not None:
         cluster.reach(ray)

@@ -91,7 +91,7 @@ def run_remaining(store: Store, workers: int | None, ray: str | None, progress: 
     if ray is None or ray == "local":
         workers = worker_count(sweep, todo, workers)
     else:  # a cluster elsewhere has its own CPUs and memory: here the plots are drawn
-        workers = min(workers or execute.cpu_count(), execute.cpu_count())
+        workers = execute.processes_here(workers)
     start = time.perf_counter()
     tqdm.monitor_interval = 0  # no monitor thread: the worker processes are forked from this one
     with tqdm(total=len(sweep.variants), initial=len(rows), desc=sweep.name, unit="run", disable=not progress,

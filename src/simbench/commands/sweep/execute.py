@@ -208,3 +208,8 @@ def cpu_count() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         return os.cpu_count() or 1
+
+
+def processes_here(workers: int | None) -> int:
+    """Processes this machine runs at once for `workers` asked (None: one a CPU), at most its CPUs."""
+    return min(workers or cpu_count(), cpu_count())
