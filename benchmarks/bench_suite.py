@@ -14,7 +14,10 @@ is bounded by that run, however many workers.
 Also in the same rounds: the draw of DRAW_TASKS tasks of the UR3's suite (whose singular set each `through` and
 `near` task searches by minimising its gap: the slowest draw of the shipped arms) by 1 process and by 2
 (`simbench.commands.bench.tasks.draw_all`, as a bench of 2 workers draws them before its runs), the same tasks. A
-task's draws run one after another, so its longest task bounds the speed-up.
+task's draws run one after another, so its longest task bounds the speed-up. And a finished bench of those
+tasks by pinv alone (2 workers) run again in its folder, a resume with every run's row on disk: taking the tasks
+its folder keeps (`simbench.commands.bench.kept_tasks`), and with that record removed first, drawing them again
+(as every resume did before the folder kept them).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 
 from benchmarks.bench_sweep import _cpu_work
 from simbench.commands.bench import load_suite, run_bench
+from simbench.commands.bench.kept_tasks import KEPT
 from simbench.commands.bench.tasks import bands, draw_all
 
 SUITE = "puma600"
@@ -64,11 +68,21 @@ def measure(tasks: int = TASKS, repeats: int = REPEATS, draw_tasks: int = DRAW_T
                 runs = run_bench(suite, Path(tmp) / f"out{next(count)}", workers=workers).summary["runs"]
             return run
 
+        resumed, finished = load_suite(DRAW_SUITE).with_options(draw_tasks, SEED, ["pinv"]), Path(tmp) / "finished"
+
+        def resume(kept: bool):
+            def run() -> None:
+                if not kept:
+                    (finished / KEPT).unlink()
+                run_bench(resumed, finished, workers=2)
+            return run
+
         jobs = {"one": bench_on(1), "two": bench_on(2), "cpu1": lambda: _cpu_work(1), "cpu2": lambda: _cpu_work(2),
-                "draw1": draw_on(1), "draw2": draw_on(2)}
+                "draw1": draw_on(1), "draw2": draw_on(2), "resume_kept": resume(True), "resume_drawn": resume(False)}
         for name, fn in jobs.items():  # warm-up (the draws: what every draw reads, made once, as a bench makes it)
-            if not name.startswith("draw"):
+            if not name.startswith(("draw", "resume")):
                 fn()
+        run_bench(resumed, finished, workers=2)  # the bench the resumes find finished
         for robot in drawn:
             robot.model_arm().contacts()
             bands(robot)
@@ -84,7 +98,8 @@ def measure(tasks: int = TASKS, repeats: int = REPEATS, draw_tasks: int = DRAW_T
             "speedup": float(np.median(t["one"] / t["two"])),
             "reference_speedup": float(np.median(t["cpu1"] / t["cpu2"])),
             "draw_suite": DRAW_SUITE, "draw_tasks": draw_tasks, "draw_one_s": float(np.median(t["draw1"])),
-            "draw_two_s": float(np.median(t["draw2"])), "draw_speedup": float(np.median(t["draw1"] / t["draw2"]))}
+            "draw_two_s": float(np.median(t["draw2"])), "draw_speedup": float(np.median(t["draw1"] / t["draw2"])),
+            "resume_kept_s": float(np.median(t["resume_kept"])), "resume_drawn_s": float(np.median(t["resume_drawn"]))}
 
 
 def markdown(r: dict) -> str:
@@ -105,6 +120,10 @@ def markdown(r: dict) -> str:
         f"{r['draw_one_s']:.2f} s by 1 process ({r['draw_one_s'] / r['draw_tasks']:.2f} s a task), "
         f"{r['draw_two_s']:.2f} s by 2 (medians); speed-up (median of the rounds' ratios) "
         f"{r['draw_speedup']:.2f}.",
+        "",
+        f"That bench by pinv alone ({r['draw_tasks']} runs, 2 workers), finished, run again in its folder (every run's "
+        f"row on disk; its tables, plots and page written again): {r['resume_kept_s']:.2f} s taking the tasks the "
+        f"folder keeps, {r['resume_drawn_s']:.2f} s drawing them again (medians).",
     ])
 
 

@@ -8,6 +8,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import signal
 import statistics
 import sys
@@ -16,7 +17,7 @@ import numpy as np
 import pytest
 
 from simbench.cli import main
-from simbench.commands.bench import board, load_suite, run_bench
+from simbench.commands.bench import board, kept_tasks, load_suite, run_bench
 from simbench.commands.bench import tasks as bench_tasks
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.robots import SHIPPED
@@ -247,6 +248,47 @@ def test_a_killed_bench_resumes_to_the_same_leaderboard(planar, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["resumed"] == finished and summary["runs"] == 4
     assert (out / "leaderboard.csv").read_bytes() == (planar.out / "leaderboard.csv").read_bytes()
+
+
+def _no_draw(*args, **kwargs):
+    raise AssertionError("the bench drew its tasks again")
+
+
+def test_a_resumed_bench_takes_the_tasks_its_folder_keeps(planar, tmp_path, monkeypatch):
+    """The folder keeps the drawn tasks (tasks.json: the planar 3R's first two at seed 0, as draw draws them anew);
+    the same bench resumed there takes them, draws nothing and writes the same leaderboard; --force draws anew."""
+    out = tmp_path / "resumed"
+    shutil.copytree(planar.out, out)
+    assert kept_tasks._taken(out / kept_tasks.KEPT, _suite()) == [draw(SHIPPED["planar3r"](), 2, 0)]
+    monkeypatch.setattr(kept_tasks, "draw_all", _no_draw)
+    again = run_bench(_suite(), out, workers=1)
+    assert again.summary["resumed"] == 4
+    assert (out / "leaderboard.csv").read_bytes() == (planar.out / "leaderboard.csv").read_bytes()
+    with pytest.raises(AssertionError, match="drew its tasks again"):
+        run_bench(_suite(), out, workers=1, force=True)
+
+
+@pytest.mark.parametrize("change", ["numpy", "seed", "task", "garbled"])
+def test_kept_tasks_are_taken_only_where_the_draw_would_give_them(planar, tmp_path, monkeypatch, change):
+    """Another NumPy (whose floating point the draw's searches follow), another seed, a task edited in the file
+    (its digest then differs) or a file that is no record: the tasks are drawn again, not taken."""
+    out = tmp_path / "kept"
+    shutil.copytree(planar.out, out)
+    path, suite = out / kept_tasks.KEPT, _suite()
+    if change == "numpy":
+        monkeypatch.setattr(kept_tasks.np, "__version__", "0.0.1")
+    elif change == "seed":
+        suite = _suite(seed=1)
+    elif change == "task":
+        record = json.loads(path.read_text())
+        record["tasks"][0][1]["duration"] *= 2
+        path.write_text(json.dumps(record))
+    else:
+        path.write_text(path.read_text()[:-40])
+    assert kept_tasks._taken(path, suite) is None
+    drawn = []
+    monkeypatch.setattr(kept_tasks, "draw_all", lambda *args: drawn.append(args) or [[]])
+    assert kept_tasks.tasks_for(out, suite, 1, False) == [[]] and len(drawn) == 1
 
 
 def test_a_bench_folder_is_not_replaced_without_force(planar, tmp_path, capsys):

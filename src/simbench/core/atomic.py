@@ -26,6 +26,14 @@ def write_text(path: Path, text: str) -> None:
         tmp.write_text(text, encoding="utf-8")
 
 
+def holds(path: Path, text: str) -> bool:
+    """Whether `path` is a file (not a link) holding `text`: what need not be written again."""
+    try:
+        return not path.is_symlink() and path.read_text(encoding="utf-8") == text
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 @contextmanager
 def _writing(path: Path) -> Iterator[None]:
     """An OSError in the block as OutputError saying that `path` (the outermost write's) is as it was."""

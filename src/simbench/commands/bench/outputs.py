@@ -18,7 +18,7 @@ from simbench.commands.bench.allarms import arm_page, grid, of_robot
 from simbench.commands.bench.board import SCENARIOS, scenario_file
 from simbench.commands.bench.paired import paired
 from simbench.commands.sweep import table
-from simbench.core.atomic import staged_folder, write_text
+from simbench.core.atomic import holds, staged_folder, write_text
 from simbench.core.forked import dealt
 from simbench.outputs.page import write_page
 from simbench.outputs.page.html import cell, config_section, document, esc, figure_grid, href, paragraphs
@@ -61,7 +61,7 @@ def write_scenarios(store, out: Path, bench) -> None:
     """Every run's scenario file not yet in `out` as it should be, claimed in the folder's marker first; before the
     runs, so that a run in progress can be opened too."""
     texts = {scenario_file(v.id): scenario_text(bench, v) for v in bench.variants}
-    todo = {name: text for name, text in texts.items() if not _holds(out / name, text)}
+    todo = {name: text for name, text in texts.items() if not holds(out / name, text)}
     if not todo:
         return
     store.claim(tuple(todo))
@@ -69,14 +69,6 @@ def write_scenarios(store, out: Path, bench) -> None:
         (out / SCENARIOS).mkdir(exist_ok=True)
         for name, text in todo.items():
             write_text(out / name, text)
-
-
-def _holds(path: Path, text: str) -> bool:
-    """Whether `path` is a file (not a link) holding `text`."""
-    try:
-        return not path.is_symlink() and path.read_text(encoding="utf-8") == text
-    except (OSError, UnicodeDecodeError):
-        return False
 
 
 def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list], dict[str, list]], summary: dict,

@@ -11,10 +11,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
-from simbench.commands.bench import board, outputs
+from simbench.commands.bench import board, kept_tasks, outputs
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.suite import Suite
-from simbench.commands.bench.tasks import draw_all
+from simbench.commands.bench.tasks import Task, draw_all
 from simbench.commands.sweep import cluster, execute, run_remaining, table
 from simbench.commands.sweep.spec import Sweep, Variant
 from simbench.commands.sweep.store import Store
@@ -65,12 +65,14 @@ class BenchResult:
     summary: dict
 
 
-def plan_bench(suite: Suite, workers: int = 1) -> Bench:
-    """Every run of the suite: its tasks drawn per robot (bench.tasks) by `workers` processes, each by every method
-    that applies."""
+def plan_bench(suite: Suite, workers: int = 1, tasks: list[list[Task]] | None = None) -> Bench:
+    """Every run of the suite: its tasks per robot (`tasks`, one list a robot; else drawn by `workers` processes:
+    bench.tasks), each by every method that applies."""
+    if tasks is None:
+        tasks = draw_all(suite.robots, suite.tasks, suite.seed, suite.version, workers)
     variants: list[Variant] = []
-    for robot, tasks in zip(suite.robots, draw_all(suite.robots, suite.tasks, suite.seed, suite.version, workers)):
-        for task in tasks:
+    for robot, own in zip(suite.robots, tasks):
+        for task in own:
             for name in suite.methods:
                 method = METHODS[name]
                 document = method.document(task, robot)
@@ -89,8 +91,9 @@ def plan_bench(suite: Suite, workers: int = 1) -> Bench:
 
 def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
               force: bool = False, progress: bool = False) -> BenchResult:
-    """Write every run's scenario file, run every run of the suite that has no row yet in `out`, then write its
-    tables, plots and page.
+    """Write the suite's tasks and every run's scenario file, run every run of the suite that has no row yet in
+    `out`, then write its tables, plots and page. A resume takes the tasks `out` keeps where they are the suite's
+    (bench.kept_tasks); otherwise they are drawn here (on Ray too).
 
     Args:
         suite: The suite, from `load_suite` (`suite.with_options(tasks=..., methods=...)` to change it).
@@ -106,11 +109,13 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     Raises:
         ScenarioError: a bad argument, destination or Ray address, before any run.
     """
-    bench = plan_bench(suite, execute.processes_here(workers))  # drawn here, on Ray too
-    out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / bench.name)
+    out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / suite.name)
+    tasks = kept_tasks.tasks_for(out, suite, execute.processes_here(workers), force)
+    bench = plan_bench(suite, tasks=tasks)
     if ray is not None:
         cluster.reach(ray)
     with Store(out, bench, force=force) as store:
+        kept_tasks.keep(store, out, suite, tasks)
         outputs.write_scenarios(store, out, bench)
         ran = run_remaining(store, workers, ray, progress, lambda v: {
             "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none",
