@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from simbench import env as simbench_env
-from simbench.env.pixels import OUTLINE_SHARE, facets
+from simbench.env.pixels import CAMERAS, OUTLINE_SHARE, facets
 
 linux = pytest.mark.skipif(sys.platform != "linux", reason="EGL and the MUJOCO_GL values tested are Linux's")
 
@@ -252,6 +252,56 @@ def test_frames_are_fitted_to_their_size_and_look_as_dm_controls(tmp_path):
         assert ours.shape == theirs.shape == shape and ours.std() > 10  # a picture, not a blank
         assert np.abs(ours - theirs).mean() < 1.0
         assert np.abs(theirs - endless).mean() < 4.0
+
+
+KEPT_CAMERAS = """
+import sys
+import numpy as np
+from dm_control.mujoco import engine
+from simbench import env
+from simbench.outputs.drawn_planes import planes_drawn_finite
+env_ = env.load_task("rsmg", "three_turns")
+env_.reset()
+physics, out = env_.physics, {}
+camera = physics.model.ptr.camera(0).name
+for kind, options in (("rgb", {}), ("depth", {"depth": True}), ("segmentation", {"segmentation": True})):
+    for view in (0, camera, -1):
+        first = physics.render(84, 84, camera_id=view, **options)
+        kept = first.copy()
+        for _ in range(20):  # the rotor turned on
+            env_.step(np.zeros(env_.action_spec().shape))
+        second = physics.render(84, 84, camera_id=view, **options)  # the kept Camera's next frame
+        with planes_drawn_finite(physics.model.ptr):  # dm_control's own: a Camera made for the frame
+            theirs = engine.Physics.render(physics, 84, 84, camera_id=view, **options)
+        out[f"{kind} {view}"] = np.stack([first, kept, second, theirs])
+out["cameras"] = np.array(len(physics._cameras))
+physics.reload_from_xml_string('<mujoco><worldbody><light pos="0 0 1"/><geom type="sphere" size=".1"/>'
+                               '<camera name="c" pos="0 -1 0" xyaxes="1 0 0 0 0 1"/></worldbody></mujoco>')
+physics.render(84, 84, camera_id="c")
+context = physics.contexts.mujoco.ptr
+out["reloaded"] = np.array([context.offWidth, context.offHeight, context.shadowSize])
+np.savez(sys.argv[1], **out)
+"""
+
+
+@linux
+def test_a_kept_camera_draws_dm_controls_frames_and_hands_out_its_own_copy(tmp_path):
+    """A frame's Camera is kept for the next frame of its size and camera: its RGB, depth and segmentation frames
+    (camera by index, by name, the free camera) are dm_control's own render of the same state (a Camera made for the
+    frame) bit for bit, and a frame handed out stays as it was drawn after the next (of a later state, which looks
+    otherwise); at most CAMERAS are kept; a
+    physics reloaded from another model fits its GL context again (an 84x84 buffer, a 256 shadow map)."""
+    done = subprocess.run([sys.executable, "-c", KEPT_CAMERAS, str(tmp_path / "frames.npz")], env=_process_env(),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    frames = np.load(tmp_path / "frames.npz")
+    for key in (k for k in frames.files if k not in ("cameras", "reloaded")):
+        first, kept, second, theirs = frames[key]
+        assert np.array_equal(first, kept) and not np.array_equal(second, first), key
+        assert np.array_equal(second, theirs), key
+        assert first.std() > 0, key  # a picture, not a blank
+    assert frames["cameras"] <= CAMERAS
+    assert frames["reloaded"].tolist() == [84, 84, 256]
 
 
 def test_visualize_reward_colours_the_arm_by_the_reward():

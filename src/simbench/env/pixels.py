@@ -10,6 +10,11 @@ texels a pixel of its longer side (a power of two), round geoms with as many fac
 quarter of that side across within half a pixel of the true circle (`facets`), each at most the file's; a larger
 frame remakes the context. The model's own settings are left as the file has them (a video made from the same model
 renders as before).
+
+dm_control's render also makes a Camera a frame, its MjvScene allocated for the model's every geom (a share of a
+small frame's cost on a CPU renderer: BENCHMARKS.md, `bench_env_step`); here a frame's Camera is kept for the next
+frame of the same size and camera (CAMERAS of them, made again with the context), and the frame handed out is a copy
+of its buffer, which the next frame overwrites.
 """
 
 from __future__ import annotations
@@ -28,6 +33,9 @@ SHADOW_TEXELS = 3
 OUTLINE_SHARE = 1 / 4
 """The widest round geom drawn true to half a pixel, as a share of the frame's longer side."""
 
+CAMERAS = 4
+"""Cameras kept, one a frame size and camera (the oldest dropped first)."""
+
 
 def facets(longer: int) -> int:
     """Slices of a round geom whose polygonal outline stays within half a pixel of its circle, for a geom
@@ -41,13 +49,36 @@ class FittedRendering(engine.Physics):
     """dm_control's Physics whose GL context fits the frames it renders (the module's docstring says how)."""
 
     _fitted: tuple[int, int, int, int, int] | None = None  # buffer width, height, shadow map size, slices, stacks
+    _cameras: dict[tuple[int, int, int | str], engine.Camera]  # (height, width, camera_id) -> its Camera
 
-    def render(self, height: int = 240, width: int = 320, *args: Any, **kwargs: Any):
-        """dm_control's render (same arguments), the GL context first fitted to the frame, infinite planes drawn
-        finite (simbench.outputs.drawn_planes)."""
+    def _reload_from_data(self, data: Any) -> None:
+        """dm_control's reload (which frees the GL context), the context then fitted anew at the next frame."""
+        self._fitted, self._cameras = None, {}
+        super()._reload_from_data(data)
+
+    def render(self, height: int = 240, width: int = 320, camera_id: int | str = -1, overlays: Any = (),
+               depth: bool = False, segmentation: bool = False, scene_option: Any = None,
+               render_flag_overrides: Any = None, scene_callback: Any = None):
+        """dm_control's render (same arguments and image), the GL context first fitted to the frame, infinite planes
+        drawn finite (simbench.outputs.drawn_planes), the frame's Camera kept for the next of its size."""
         with planes_drawn_finite(self.model.ptr):  # both where the GL context is made and in the frame
             self._fit(int(width), int(height))
-            return super().render(height, width, *args, **kwargs)
+            if scene_callback is not None:  # (a Camera holds its callback: made for this frame alone)
+                return super().render(height, width, camera_id, overlays, depth, segmentation, scene_option,
+                                      render_flag_overrides, scene_callback)
+            image = self._camera(height, width, camera_id).render(
+                overlays=overlays, depth=depth, segmentation=segmentation, scene_option=scene_option,
+                render_flag_overrides=render_flag_overrides)
+            return image.copy()  # (a view of the Camera's buffer, which its next frame overwrites)
+
+    def _camera(self, height: int, width: int, camera_id: int | str) -> engine.Camera:
+        """The Camera of frames of this size and camera: kept, or made (the oldest of CAMERAS dropped)."""
+        key = (height, width, camera_id)
+        camera = self._cameras.pop(key, None) or engine.Camera(self, height, width, camera_id)
+        if len(self._cameras) >= CAMERAS:
+            del self._cameras[next(iter(self._cameras))]
+        self._cameras[key] = camera  # (the newest last)
+        return camera
 
     def _fit(self, width: int, height: int) -> None:
         """Remake the GL context if this frame needs a larger buffer or shadow map than the one it has."""
@@ -62,6 +93,7 @@ class FittedRendering(engine.Physics):
         fitted = (wide, high, shadow, slices, stacks)
         if self._fitted is not None and fitted == old:
             return
+        self._cameras = {}  # (made with the context)
         with self._contexts_lock:
             if self._contexts:
                 self._free_rendering_contexts()
