@@ -255,7 +255,9 @@ def test_frames_are_fitted_to_their_size_and_look_as_dm_controls(tmp_path):
 
 
 KEPT_CAMERAS = """
+import gc
 import sys
+import weakref
 import numpy as np
 from dm_control.mujoco import engine
 from simbench import env
@@ -275,6 +277,18 @@ for kind, options in (("rgb", {}), ("depth", {"depth": True}), ("segmentation", 
             theirs = engine.Physics.render(physics, 84, 84, camera_id=view, **options)
         out[f"{kind} {view}"] = np.stack([first, kept, second, theirs])
 out["cameras"] = np.array(len(physics._cameras))
+before = physics.render(84, 84)  # the free camera, kept
+physics.model.ptr.vis.global_.azimuth += 60  # the model's view of a free camera turned
+moved = physics.render(84, 84)
+with planes_drawn_finite(physics.model.ptr):
+    out["free view"] = np.stack([before, moved, engine.Physics.render(physics, 84, 84)])
+gc.disable()  # a physics no longer used is freed at once (its Cameras hold it weakly)
+probe = env.load_task("puma600", "line")
+probe.reset()
+probe.physics.render(84, 84, camera_id=0)
+freed = weakref.ref(probe.physics)
+del probe
+out["freed"] = np.array(freed() is None)
 physics.reload_from_xml_string('<mujoco><worldbody><light pos="0 0 1"/><geom type="sphere" size=".1"/>'
                                '<camera name="c" pos="0 -1 0" xyaxes="1 0 0 0 0 1"/></worldbody></mujoco>')
 physics.render(84, 84, camera_id="c")
@@ -289,18 +303,23 @@ def test_a_kept_camera_draws_dm_controls_frames_and_hands_out_its_own_copy(tmp_p
     """A frame's Camera is kept for the next frame of its size and camera: its RGB, depth and segmentation frames
     (camera by index, by name, the free camera) are dm_control's own render of the same state (a Camera made for the
     frame) bit for bit, and a frame handed out stays as it was drawn after the next (of a later state, which looks
-    otherwise); at most CAMERAS are kept; a
-    physics reloaded from another model fits its GL context again (an 84x84 buffer, a 256 shadow map)."""
+    otherwise); at most CAMERAS are kept; the kept free camera takes the model's view as it is at each frame (turned
+    between two frames: dm_control's frame of the turned view); a physics no longer used is freed at once (the
+    garbage collector off); a physics reloaded from another model fits its GL context again (an 84x84 buffer, a 256
+    shadow map)."""
     done = subprocess.run([sys.executable, "-c", KEPT_CAMERAS, str(tmp_path / "frames.npz")], env=_process_env(),
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     frames = np.load(tmp_path / "frames.npz")
-    for key in (k for k in frames.files if k not in ("cameras", "reloaded")):
+    for key in (k for k in frames.files if k not in ("cameras", "reloaded", "free view", "freed")):
         first, kept, second, theirs = frames[key]
         assert np.array_equal(first, kept) and not np.array_equal(second, first), key
         assert np.array_equal(second, theirs), key
         assert first.std() > 0, key  # a picture, not a blank
     assert frames["cameras"] <= CAMERAS
+    before, moved, theirs = frames["free view"]
+    assert not np.array_equal(moved, before) and np.array_equal(moved, theirs)
+    assert frames["freed"]
     assert frames["reloaded"].tolist() == [84, 84, 256]
 
 

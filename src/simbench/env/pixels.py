@@ -14,14 +14,20 @@ renders as before).
 dm_control's render also makes a Camera a frame, its MjvScene allocated for the model's every geom (a share of a
 small frame's cost on a CPU renderer: BENCHMARKS.md, `bench_env_step`); here a frame's Camera is kept for the next
 frame of the same size and camera (CAMERAS of them, made again with the context), and the frame handed out is a copy
-of its buffer, which the next frame overwrites.
+of its buffer, which the next frame overwrites. A kept free camera (camera_id -1) is set again from the model's view
+(its `vis.global_` azimuth and elevation, its extent and centre) before each frame, as a new one is; a Camera holds
+its physics weakly (so that a physics no longer used is freed at once, GL context and all); one frame at a time is
+drawn on a physics.
 """
 
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from typing import Any
 
+import mujoco
 from dm_control.mujoco import engine
 
 from simbench.outputs.drawn_planes import planes_drawn_finite
@@ -53,7 +59,7 @@ class FittedRendering(engine.Physics):
 
     def _reload_from_data(self, data: Any) -> None:
         """dm_control's reload (which frees the GL context), the context then fitted anew at the next frame."""
-        self._fitted, self._cameras = None, {}
+        self._fitted, self._cameras, self._drawing = None, {}, threading.Lock()
         super()._reload_from_data(data)
 
     def render(self, height: int = 240, width: int = 320, camera_id: int | str = -1, overlays: Any = (),
@@ -61,7 +67,7 @@ class FittedRendering(engine.Physics):
                render_flag_overrides: Any = None, scene_callback: Any = None):
         """dm_control's render (same arguments and image), the GL context first fitted to the frame, infinite planes
         drawn finite (simbench.outputs.drawn_planes), the frame's Camera kept for the next of its size."""
-        with planes_drawn_finite(self.model.ptr):  # both where the GL context is made and in the frame
+        with self._drawing, planes_drawn_finite(self.model.ptr):  # both where the GL context is made and in the frame
             self._fit(int(width), int(height))
             if scene_callback is not None:  # (a Camera holds its callback: made for this frame alone)
                 return super().render(height, width, camera_id, overlays, depth, segmentation, scene_option,
@@ -74,7 +80,11 @@ class FittedRendering(engine.Physics):
     def _camera(self, height: int, width: int, camera_id: int | str) -> engine.Camera:
         """The Camera of frames of this size and camera: kept, or made (the oldest of CAMERAS dropped)."""
         key = (height, width, camera_id)
-        camera = self._cameras.pop(key, None) or engine.Camera(self, height, width, camera_id)
+        camera = self._cameras.pop(key, None)
+        if camera is None:
+            camera = engine.Camera(weakref.proxy(self), height, width, camera_id)
+        elif camera_id == -1:  # the view a new free camera takes (the model's may have changed)
+            mujoco.mjv_defaultFreeCamera(self.model.ptr, camera._render_camera)
         if len(self._cameras) >= CAMERAS:
             del self._cameras[next(iter(self._cameras))]
         self._cameras[key] = camera  # (the newest last)

@@ -1,12 +1,14 @@
 """A bench's drawn tasks, kept in its folder (KEPT) so that the same bench resumed there takes them rather than
 drawing them again (0.1 to 1.1 s a task on one core: bench.tasks; some 200 s on two for the suite `all` at 100 tasks).
 
-They are taken only on a resume (never with `force`, which starts over and draws anew), and only where everything
-that decides the draw is as it was when they were drawn (`_key`): the suite's version of the benchmark, its seed and
-task count, each robot (its name, what shapes the generator's searches and the model's hash) and the versions of
-simbench, NumPy, SciPy and MuJoCo, whose floating point the searches follow. A file that is not such a record, or
-whose tasks do not match its digest, is drawn over. Taken or drawn, the tasks are the same: the folder's manifest
-then admits the resume as it would after a draw.
+They are taken only on a resume (never with `force`, which starts over and draws anew), and only where what may
+change between two runs of one installation is as it was when they were drawn (`_key`): the suite's version of the
+benchmark, its seed and task count, each robot (its name, what shapes the generator's searches and the model's
+hash) and the versions of simbench, NumPy, SciPy and MuJoCo, whose floating point the searches follow. A file that is
+not such a record, or whose tasks do not match its digest, is drawn over. The code of a simbench whose version did
+not change (an editable install being worked on) and the machine (its CPU, its BLAS) are not in the key: there the
+resume takes the tasks its folder's finished runs ran, as the folder's manifest, which holds every run's document,
+asks (a draw that differed would be refused there).
 """
 
 from __future__ import annotations
