@@ -336,23 +336,55 @@ def test_noise_is_seeded_and_of_its_stated_size():
     assert np.array_equal(drawn[0], drawn[1])
 
 
-# --- through load's task_kwargs, and replayed from a snapshot ------------------------------------------------
+@pytest.mark.parametrize("task_kwargs", [None, {"random": 3}])
+def test_asking_for_the_observation_spec_leaves_the_seeded_episodes_as_they_are(task_kwargs):
+    """With noise (and random tasks, which draw from the same random state), an environment asked for its
+    observation spec before its reset (as shimmy's wrapper asks when it is made) gives the same episode, noisy
+    observations and task, as one never asked; the spec is the observations' (shapes and dtypes)."""
+    def episode(ask: bool):
+        env = rl_env("puma600", "line", {"noise": True, "seed": 0}, task_kwargs)
+        spec = env.observation_spec() if ask else None
+        steps = run(env, np.zeros((30, 6)))
+        return spec, [step.observation for step in steps], env.task.plan.t[-1]
 
-@pytest.mark.parametrize("rl, control_step", [(True, 0.02), ({"control_timestep": 0.01}, 0.01),
-                                              (RL(control_timestep=0.04), 0.04)])
-def test_task_kwargs_rl_is_the_rl_mode(rl, control_step):
-    """load_task(..., task_kwargs={"rl": ...}) (True, a dict of RL's fields, an RL): actions in [-1, 1] a joint,
-    and each env.step advances MuJoCo's data.time by the control step (20 ms by default)."""
-    env = simbench_env.load_task("puma600", "line", task_kwargs={"rl": rl})
-    spec = env.action_spec()
-    assert spec.shape == (6,) and np.all(spec.minimum == -1.0) and np.all(spec.maximum == 1.0)
-    data = env.physics.data.ptr
-    env.reset()
-    times = [data.time]
-    for action in np.random.default_rng(0).uniform(-1, 1, (5, 6)):
-        env.step(action)
-        times.append(data.time)
-    np.testing.assert_allclose(np.diff(times), control_step, rtol=0, atol=1e-9)
+    spec, asked, asked_end = episode(True)
+    _, plain, plain_end = episode(False)
+    assert asked_end == plain_end
+    for a, b in zip(asked, plain, strict=True):
+        assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    assert all(spec[k].shape == value.shape and spec[k].dtype == value.dtype for k, value in asked[-1].items())
+
+
+def test_the_gymnasium_wrapper_pickles_mid_episode_with_noise_as_the_original():
+    """shimmy's wrapper rebuilds itself on unpickling, asking the environment for its spec: with noise on, the
+    copy's observations, rewards and ends are the original's, step for step."""
+    shimmy = pytest.importorskip("shimmy", reason="shimmy is in the [rl] extra")
+    import pickle
+
+    gym = shimmy.DmControlCompatibilityV0(rl_env("puma600", "line", {"noise": True, "seed": 0}))
+    gym.reset(seed=1)
+    for _ in range(10):
+        gym.step(np.zeros(6))
+    copied = pickle.loads(pickle.dumps(gym))
+    for _ in range(20):
+        a, b = gym.step(np.full(6, 0.1)), copied.step(np.full(6, 0.1))
+        assert all(np.array_equal(a[0][k], b[0][k]) for k in a[0]) and a[1:4] == b[1:4]
+
+
+@pytest.mark.parametrize("draws", [True, False])
+def test_an_observed_randomisation_has_its_spec_before_the_first_reset(draws):
+    """With `observe`, the observation spec asked before any reset (as shimmy's wrapper and gymnasium.make ask for
+    it) holds `randomised` as a reset's observation has it: one value a body's mass (the world's excepted), a
+    joint's damping and dry friction, the contact friction, an actuator's gain and the delay; empty where nothing is
+    drawn (every range None)."""
+    quantities = ("mass", "damping", "friction", "contact_friction", "gain", "delay")
+    randomise = {"observe": True} if draws else {**dict.fromkeys(quantities), "observe": True}
+    env = rl_env("puma600", "line", {"randomise": randomise, "seed": 0})
+    model = env.physics.model.ptr
+    spec = env.observation_spec()["randomised"]
+    drawn = env.reset().observation["randomised"]
+    expected = (model.nbody - 1) + 6 + 6 + 1 + model.nu + 1 if draws else 0
+    assert spec.shape == drawn.shape == (expected,)
 
 
 def test_a_snapshot_replays_an_rl_episode_with_noise_and_a_delay():

@@ -104,6 +104,11 @@ class Environment(control.Environment):
             raise ValueError(f"visualize_reward must be a bool, got {type(value).__name__}")  # noqa: TRY004
         self._visualize_reward = value
 
+    def observation_spec(self) -> Any:
+        """dm_control's, its observation made without noise (Track.noiseless): asking for it draws nothing."""
+        with self._task.noiseless():
+            return super().observation_spec()
+
     def reset(self) -> TimeStep:
         """dm_control's reset, then the arm coloured by the reward at the start (as the suite's tasks do)."""
         timestep = super().reset()

@@ -6,6 +6,8 @@ from __future__ import annotations
 import bisect
 import copy
 from collections import OrderedDict
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import mujoco
@@ -413,6 +415,14 @@ class Track(control.Task):
         data, (q_at, qd_at) = physics.data.ptr, self._joints_at
         return observe(self.plant, self.k, float(self.plan.t[self.k]), copied(data.qpos, q_at),
                        copied(data.qvel, qd_at), data, self.q_ref, self.qd_ref, self.plan.tool_ref)
+
+    @contextmanager
+    def noiseless(self) -> Iterator[None]:
+        """A block in which get_observation draws nothing from the task's random state: where dm_control's
+        Environment makes its observation spec (simbench.env.Environment.observation_spec), so that asking for the
+        spec (as shimmy's wrapper does when it is made, or unpickled) leaves the episodes a seed gives as they are.
+        Track's observation draws nothing; a subclass whose observation is noisy overrides it (RLTrack)."""
+        yield
 
     def get_reward(self, physics: Physics) -> float:
         """The step's reward: dm_control's gaussian `rewards.tolerance` of the tool's tracking error.

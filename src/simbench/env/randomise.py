@@ -115,6 +115,14 @@ class Randomiser:
         self.nominal = {name: getattr(model, name).copy() for name in
                         ("body_mass", "body_inertia", "dof_damping", "dof_frictionloss", "geom_friction",
                          "actuator_gainprm", "actuator_biasprm")}
+        self.sizes = {"mass": model.nbody - 1, "damping": len(self.dof), "friction": len(self.dof),
+                      "contact_friction": 1, "gain": len(self.act), "delay": 1}  # of each quantity drawn
+
+    def unchanged(self) -> dict[str, Array]:
+        """What a draw that leaves the model nominal gives (factors 1, no friction added, no delay), by name in the
+        order of DRAWN: RLTrack.drawn before its first reset."""
+        value = {"mass": 1.0, "damping": 1.0, "friction": 0.0, "contact_friction": 1.0, "gain": 1.0, "delay": 0.0}
+        return {name: np.full(self.sizes[name], value[name]) for name in DRAWN if getattr(self.spec, name) is not None}
 
     def draw(self, random: np.random.RandomState, model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, Array]:
         """The model back at its nominal values, then a new draw applied; `data` is left at qpos0 (mj_setConst).
@@ -125,8 +133,6 @@ class Randomiser:
         spec, nominal = self.spec, self.nominal
         for name, value in nominal.items():
             getattr(model, name)[:] = value
-        sizes = {"mass": model.nbody - 1, "damping": len(self.dof), "friction": len(self.dof),
-                 "contact_friction": 1, "gain": len(self.act)}
         drawn: dict[str, Array] = {}
         for name in DRAWN:
             span = getattr(spec, name)
@@ -135,7 +141,7 @@ class Randomiser:
             if name == "delay":
                 drawn[name] = np.array([random.randint(span[0], span[1] + 1)], dtype=float)
             else:
-                drawn[name] = random.uniform(span[0], span[1], sizes[name])
+                drawn[name] = random.uniform(span[0], span[1], self.sizes[name])
         if "mass" in drawn:
             model.body_mass[1:] *= drawn["mass"]
             model.body_inertia[1:] *= drawn["mass"][:, None]

@@ -29,6 +29,8 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections import OrderedDict, deque
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -160,7 +162,8 @@ class RLTrack(Track):
     Attributes:
         rl: The settings.
         noise_random: What draws the randomisation and the noise.
-        drawn: What the last reset's randomisation drew, by name (empty without randomisation).
+        drawn: What the last reset's randomisation drew, by name (empty without randomisation; before the first
+            reset, the model's nominal values: Randomiser.unchanged).
 
     Raises:
         ValueError: A residual action under torque actuation, or a residual_scale of the wrong length.
@@ -181,7 +184,8 @@ class RLTrack(Track):
         self.noise_random = self.random if self.random is not None else np.random.RandomState(rl.seed)
         randomise: Randomisation | None = rl.randomise  # type: ignore[assignment]
         self._randomiser = Randomiser(randomise, model, plant) if randomise is not None else None
-        self.drawn: dict[str, Array] = {}
+        self.drawn: dict[str, Array] = self._randomiser.unchanged() if self._randomiser is not None else {}
+        self._noiseless = False  # (noiseless())
         self._queue: deque = deque()
         # The servo's targets of the references (the rows from `first`), found a stretch at a time, and the control
         # range the shifted targets are kept within
@@ -332,17 +336,27 @@ class RLTrack(Track):
         """
         obs = super().get_observation(physics)
         noise: Noise | None = self.rl.noise  # type: ignore[assignment]
-        if noise is not None:
+        if noise is not None and not self._noiseless:
             for name in ("q", "qd", "tool"):
                 obs[name] = obs[name] + self.noise_random.normal(0.0, getattr(noise, name), obs[name].shape)
         obs["tool_error"] = obs["tool"] - obs["tool_ref"]
         randomise: Randomisation | None = self.rl.randomise  # type: ignore[assignment]
         if randomise is not None and randomise.observe:
-            obs["randomised"] = np.concatenate([self.drawn[name] for name in DRAWN if name in self.drawn])
+            drawn = [self.drawn[name] for name in DRAWN if name in self.drawn]
+            obs["randomised"] = np.concatenate([np.zeros(0), *drawn])  # (empty where it draws nothing)
         if self.rl.float32:
             for name, value in obs.items():  # the values replaced in place, the order kept
                 obs[name] = value.astype(np.float32)
         return obs
+
+    @contextmanager
+    def noiseless(self) -> Iterator[None]:
+        """A block in which get_observation draws no noise (Track.noiseless's reason)."""
+        self._noiseless = True
+        try:
+            yield
+        finally:
+            self._noiseless = False
 
     def get_reward(self, physics: Physics) -> float:
         """`gaussian`: Track's reward at `width`; `shaped`: exp(-d / width).
