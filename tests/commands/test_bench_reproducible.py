@@ -173,6 +173,26 @@ def test_worker_processes_tell_each_runs_stages_as_they_go():
         assert [stage for i, stage in told if i == index] == ["load", "plan", "simulate", "analyse", "done"]
 
 
+def test_a_limit_that_passes_at_once_leaves_no_timer_behind():
+    """A stage limit of a microsecond, 300 times: each time the stage is cut or ends, and afterwards no timer runs
+    and the SIGALRM handler is the one before (an alarm due before the stage's block began used to escape it and
+    leave the timer cutting whatever ran next, every half second)."""
+    import signal
+
+    from simbench.commands.pipeline import TooSlow, _limited
+
+    before, cut = signal.getsignal(signal.SIGALRM), 0
+    for _ in range(300):
+        try:
+            with _limited("plan", 1e-6):
+                sum(range(200))
+        except TooSlow:
+            cut += 1
+        assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+        assert signal.getsignal(signal.SIGALRM) == before
+    assert cut > 0
+
+
 def test_a_run_planning_past_the_suites_plan_seconds_is_cut_too_slow(tmp_path):
     """plan_seconds 0.001: time_scaling's plan of the planar 3R's first task (seconds when not cut) is cut within
     a second of starting, too_slow, its error saying what passed which limit; the signal handler is as before."""

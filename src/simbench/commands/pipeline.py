@@ -117,14 +117,18 @@ def _limited(name: str, seconds: float | None) -> Iterator[None]:
         yield
         return
 
+    armed = [True]  # cleared first thing once the stage ends: an alarm that comes after cuts nothing
+
     def cut(signum, frame):
-        raise TooSlow(f"{doing(name)} passed the {seconds:g} s it may take")
+        if armed[0]:
+            raise TooSlow(f"{doing(name)} passed the {seconds:g} s it may take")
 
     previous = signal.signal(signal.SIGALRM, cut)
-    signal.setitimer(signal.ITIMER_REAL, seconds, _AGAIN)  # again and again: a library may swallow one
-    try:
+    try:  # (the timer set inside: an alarm due at once is still the stage's, and the timer is then stopped)
+        signal.setitimer(signal.ITIMER_REAL, seconds, _AGAIN)  # again and again: a library may swallow one
         yield
     finally:
+        armed[0] = False
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
 
