@@ -7,6 +7,7 @@ parser reads them, resolved against the folder. Synthetic runs for the arithmeti
 
 import csv
 import itertools
+import json
 import math
 import zlib
 from contextlib import nullcontext
@@ -158,9 +159,10 @@ class _Store:
         return nullcontext()
 
 
-def _write(out, runs):
+def _write(out, runs, robots=None):
     out.mkdir()
     summary = {"suite": "synthetic", "version": "sb-1", "seed": SEED, "tasks": 12, "methods": ["a", "b", "c"],
+               "robots": robots or list(dict.fromkeys(runs["robot"])),
                "runs": len(runs["task"]), "status": {"ok": 1}, "backend": "here", "max_slowdown": 10.0,
                "plan_seconds": 120.0, "models": {robot: f"hash-of-{robot}" for robot in runs["robot"]}}
     boards = (board.leaderboard(runs, SEED), board.leaderboard(runs, SEED, ("robot", "method", "kind")))
@@ -186,6 +188,20 @@ def test_the_same_runs_write_the_same_bytes(synthetic, tmp_path):
     again = _write(tmp_path / "again", _synthetic())
     for name in ("paired.csv", "index.html", "arm-r1.html", "arm-r2.html", "plots/pareto_r1.png"):
         assert (again / name).read_bytes() == (synthetic / name).read_bytes(), name
+
+
+def test_an_arm_no_method_applied_to_has_its_row_and_page(tmp_path):
+    """A suite's arm without a run (no method of the suite applies to it): its row in the all-arms grid says
+    `not run` for every method and links its page, which exists, as does every link on it."""
+    out = _write(tmp_path / "idle", _synthetic(), ["r1", "r2", "r3"])
+    page = _Page(out / "index.html")
+    rows = {row[0]["text"]: row for row in page.grid[1:]}
+    assert list(rows) == ["r1", "r2", "r3"]
+    assert [cell["text"] for cell in rows["r3"][1:]] == ["not run"] * 3
+    assert rows["r3"][0]["href"] == "arm-r3.html" and json.loads((out / "summary.json").read_text())["outputs"][
+        "arm_pages"] == ["arm-r1.html", "arm-r2.html", "arm-r3.html"]
+    assert _resolves(out, rows["r3"][0]["href"])
+    assert all(_resolves(out, link) for link in _Page(out / "arm-r3.html").links)
 
 
 def test_the_pareto_front_is_the_points_no_other_dominates():

@@ -74,8 +74,9 @@ def write_scenarios(store, out: Path, bench) -> None:
 def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list], dict[str, list]], summary: dict,
           workers: int) -> None:
     """Every file of the bench's results into `out`; `boards`: the leaderboard by robot and method, and by robot,
-    method and kind of task. A bench of several arms has a page per arm too (bench.allarms)."""
-    robots = list(dict.fromkeys(runs["robot"]))
+    method and kind of task. A bench of several arms (the suite's, `summary["robots"]`, whether or not a method
+    applied to each) has a page per arm too (bench.allarms)."""
+    robots = list(summary["robots"])
     arms = [arm_page(robot) for robot in robots] if len(robots) > 1 else []
     store.claim((*RESULTS, *arms))
     with store.writing():
@@ -104,7 +105,8 @@ def write(store, out: Path, runs: dict[str, list], boards: tuple[dict[str, list]
         for robot, name in zip(robots, arms):
             mine = [(caption, file, of_robot(columns, robot)) for caption, file, columns in tables]
             lead = '<p><a href="index.html">All arms</a> of this bench, and its configuration.</p>\n'
-            write_text(out / name, page(out, f"{title}, arm {robot}", lead, _intro(summary), mine, plots[robot], None))
+            write_text(out / name, page(out, f"{title}, arm {robot}", lead, _intro(summary), mine,
+                                        plots.get(robot, []), None))
         lead = grid(boards[0], robots, summary["methods"]) if arms else ""
         write_page(out, page(out, title, lead, _intro(summary), tables, summary["outputs"]["plots"], summary))
 
