@@ -8,6 +8,7 @@ import csv
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import statistics
@@ -266,6 +267,22 @@ def test_a_resumed_bench_takes_the_tasks_its_folder_keeps(planar, tmp_path, monk
     assert (out / "leaderboard.csv").read_bytes() == (planar.out / "leaderboard.csv").read_bytes()
     with pytest.raises(AssertionError, match="drew its tasks again"):
         run_bench(_suite(), out, workers=1, force=True)
+
+
+def test_a_destination_it_cannot_use_is_refused_before_the_tasks_are_drawn(planar, tmp_path, monkeypatch):
+    """--out a file, another bench's folder, or a folder with a file of the user's (without and with --force): one
+    line, before any task is drawn (a draw takes minutes on a big suite); the user's file is left as it was."""
+    monkeypatch.setattr(kept_tasks, "draw_all", _no_draw)
+    afile, strange = tmp_path / "afile", tmp_path / "strange"
+    afile.write_text("mine")
+    strange.mkdir()
+    (strange / "notes.txt").write_text("mine")
+    for out, force, words in ((afile, False, "is a file, not a folder"), (planar.out, False, "other results"),
+                              (strange, False, "simbench did not write (such as notes.txt)"),
+                              (strange, True, "simbench did not write (such as notes.txt)")):
+        with pytest.raises(ScenarioError, match=re.escape(words)):
+            run_bench(_suite(tasks=3), out, workers=1, force=force)
+    assert afile.read_text() == (strange / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize("change", ["numpy", "seed", "task", "garbled"])

@@ -17,7 +17,7 @@ from simbench.commands.bench.suite import Suite
 from simbench.commands.bench.tasks import Task, draw_all
 from simbench.commands.sweep import cluster, execute, run_remaining, table
 from simbench.commands.sweep.spec import Sweep, Variant
-from simbench.commands.sweep.store import Store
+from simbench.commands.sweep.store import Store, check_early
 from simbench.core import destination
 from simbench.core.version import __version__
 from simbench.scenario.schema import SimbenchModel
@@ -82,11 +82,15 @@ def plan_bench(suite: Suite, workers: int = 1, tasks: list[list[Task]] | None = 
                           "method": name, "planner": document["planner"], "anchor_gap": task.anchor_gap,
                           "length_mm": task.length * 1e3, "duration": round(task.duration, 6)}
                 variants.append(Variant(len(variants), f"{task.id}-{name}", params, document))
-    spec = BenchSpec(suite=suite.name, version=suite.version, tasks=suite.tasks, seed=suite.seed,
+    return Bench(suite.name, suite.source, bench_spec(suite), Path(suite.source), tuple(variants))
+
+
+def bench_spec(suite: Suite) -> BenchSpec:
+    """What decides the suite's runs, as its folder's manifest records it (BenchSpec)."""
+    return BenchSpec(suite=suite.name, version=suite.version, tasks=suite.tasks, seed=suite.seed,
                      methods=list(suite.methods), robots=[r.name for r in suite.robots],
                      models={r.name: r.model_hash() for r in suite.robots}, max_slowdown=suite.max_slowdown,
                      plan_seconds=suite.plan_seconds)
-    return Bench(suite.name, suite.source, spec, Path(suite.source), tuple(variants))
 
 
 def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | None = None, ray: str | None = None,
@@ -110,6 +114,8 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
         ScenarioError: a bad argument, destination or Ray address, before any run.
     """
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / suite.name)
+    source = Path(suite.source)
+    check_early(out, [source] if source.is_file() else [], bench_spec(suite).model_dump(mode="json"), force)
     tasks = kept_tasks.tasks_for(out, suite, execute.processes_here(workers), force)
     bench = plan_bench(suite, tasks=tasks)
     if ray is not None:

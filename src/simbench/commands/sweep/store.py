@@ -10,6 +10,7 @@ import shutil
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
+from typing import Any, NoReturn
 
 from simbench.commands.sweep.spec import Sweep, Variant
 from simbench.core import destination
@@ -65,11 +66,8 @@ class Store:
         if force:
             destination.check_replace(out, removes=True)
             shutil.rmtree(out)
-        elif _fingerprint_in(out / "sweep.json") != fingerprint:
-            flag = destination.option('--force', 'force=True')
-            raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or files "
-                                                f"that are not a sweep's); pass {flag} to replace them, or --out to "
-                                                "write elsewhere")
+        elif _manifest_field(out / "sweep.json", "fingerprint") != fingerprint:
+            _refuse_other_results(out)
         else:
             destination.check_replace(out, "a sweep resumed here rewrites its own files, and never yours")
 
@@ -149,8 +147,33 @@ def run_folder(out: Path, run_id: str) -> Path:
     return out / "runs" / run_id
 
 
-def _fingerprint_in(manifest: Path) -> str | None:
+def check_early(out: Path, inputs: list[Path], spec: dict, force: bool) -> None:
+    """ScenarioError for what Store would refuse that is known before a sweep's runs are made (a bench draws its
+    tasks first, for minutes): `out` a file or holding an input; with `force`, a file simbench did not write in it;
+    without, another sweep's results (a manifest whose spec is not `spec`). Store checks the rest once the runs are
+    made (their fingerprint)."""
+    destination.check_inputs(out, inputs)
+    with destination.refused(out):
+        holds = out.is_dir() and any(p.name != destination.MARKER for p in out.iterdir())
+    if not holds:
+        return
+    if force:
+        destination.check_replace(out, removes=True)
+    elif _manifest_field(out / "sweep.json", "spec") != spec:
+        _refuse_other_results(out)
+
+
+def _refuse_other_results(out: Path) -> NoReturn:
+    """ScenarioError: `out` holds other results; naming a file simbench did not write where it holds one (which
+    --force would not replace either)."""
+    destination.check_replace(out, removes=True)
+    flag = destination.option('--force', 'force=True')
+    raise ScenarioError(str(out), None, "the output folder holds other results (another sweep, or files that are not "
+                                        f"a sweep's); pass {flag} to replace them, or --out to write elsewhere")
+
+
+def _manifest_field(manifest: Path, key: str) -> Any:
     try:
-        return json.loads(manifest.read_text()).get("fingerprint")
+        return json.loads(manifest.read_text()).get(key)
     except (OSError, ValueError, AttributeError):
         return None
