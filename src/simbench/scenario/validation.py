@@ -214,6 +214,13 @@ def _models_in(annotation: Any) -> list[type[BaseModel]]:
     return [m for arg in typing.get_args(annotation) for m in _models_in(arg)]
 
 
+def _member_name(part: Any) -> bool:
+    """Whether a part of pydantic's error location names a union member pydantic tried, not a key of the document:
+    a type (`float`, `list[...]`, a constrained number's `constrained-float`) or a model's class name."""
+    return isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part or part[:1].isupper()
+                                      or part.startswith("constrained-"))
+
+
 def _field_loc(loc, document: Any) -> tuple:
     """A pydantic error location as the user wrote it, without the names of the union members pydantic tried."""
     out, node = [], document
@@ -222,8 +229,8 @@ def _field_loc(loc, document: Any) -> tuple:
                 and 0 <= part < len(node):
             out.append(part)
             node = node[part]
-        elif isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part or part[:1].isupper()):
-            continue  # a union member's name (a type, or a model's class name), not a key of the document
+        elif _member_name(part):
+            continue
         else:  # a field the document lacks: missing, or the path ends here
             out.append(part)
             node = None
@@ -263,7 +270,7 @@ def _member(loc: tuple, document: Any) -> int | None:
         if isinstance(node, dict) and part in node or isinstance(node, list) and isinstance(part, int) \
                 and 0 <= part < len(node):
             node = node[part]
-        elif isinstance(part, str) and (part in ("float", "int", "str", "bool") or "[" in part or part[:1].isupper()):
+        elif _member_name(part):
             return i
         else:
             return None
@@ -372,6 +379,8 @@ def _in_user_terms(msg: str, given: Any) -> str:
     """pydantic's message as what is expected and what was given (with a hint where YAML read a number as text)."""
     msg = msg.replace("Input should be", "expected").replace("String should", "expected a string to")
     msg = re.sub(r"a valid dictionary or instance of \w+", "a mapping of its fields", msg)
+    if msg.startswith("expected "):  # each alternative once (two models' mappings read alike)
+        msg = "expected " + " or ".join(dict.fromkeys(msg.removeprefix("expected ").split(" or ")))
     counted = _COUNT.match(msg)  # a list or mapping of too few or too many items
     if counted:
         least, bound, found = counted.groups()
