@@ -72,6 +72,20 @@ def test_suite_file_errors_name_the_file_and_field(tmp_path, capsys, text, field
     assert len(lines) == 1 and lines[0].startswith(f"error: {path}: {field}: ")
 
 
+def test_an_empty_suite_file_and_a_bench_of_no_run_are_one_line(tmp_path, capsys):
+    """An empty suite file asks for suite fields; methods that apply to none of the robots (the papers' planner on
+    the planar 3R) make no run: one line naming them, exit 2, and no folder written."""
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("# nothing yet\n")
+    out = tmp_path / "out"
+    assert main(["bench", str(empty), "--out", str(out), "--quiet"]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {empty}: empty file: expected a mapping of suite fields"
+    assert main(["bench", "planar3r", "--methods", "paper", "--tasks", "1", "--out", str(out), "--quiet"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.endswith("methods: no run: no robot of the suite (planar3r) takes one of its methods (paper)")
+    assert not out.exists()
+
+
 def test_a_suite_file_runs_an_arm_of_its_own(tmp_path):
     """A robot mapping in a suite file, its model relative to the file: the planar 3R's own MJCF."""
     model = os.path.relpath(SHIPPED["planar3r"]().mapping["model"], tmp_path)

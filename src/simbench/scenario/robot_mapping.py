@@ -187,7 +187,7 @@ def _mapping(value: dict | str, source: str) -> tuple[dict, str, tuple[str, ...]
     path = Path(value) if Path(value).is_absolute() else Path(source).parent / value
     if "\0" in str(path):  # read_yaml says what else a path may be in the way of
         raise ScenarioError(source, "robot", "expected a path without a NUL byte")
-    raw = read_yaml(path)
+    raw = read_yaml(path, "robot mapping")
     if not isinstance(raw, dict):
         raise ScenarioError(str(path), None, f"expected a robot mapping (model, tool, speed_limits), got "
                                              f"{kind_of(raw)}")

@@ -78,15 +78,15 @@ class _StrictLoader(yaml.SafeLoader):
 _StrictLoader.add_constructor("tag:yaml.org,2002:int", _StrictLoader.construct_yaml_int)
 
 
-def read_yaml(path: Path) -> Any:
-    """The YAML document in `path`; ScenarioError if it cannot be read, is too large, not UTF-8, not YAML,
-    nested too deeply, too large once its aliases are expanded, or empty."""
+def read_yaml(path: Path, what: str = "scenario") -> Any:
+    """The YAML document in `path` (a file of `what` fields); ScenarioError if it cannot be read, is too large, not
+    UTF-8, not YAML, nested too deeply, too large once its aliases are expanded, or empty."""
     path = Path(path)
     source = str(path)
     _check_file(path, source)
     data = _parse(_read_text(path, source), source)
     if data is None:
-        raise ScenarioError(source, None, "empty file: expected a mapping of scenario fields")
+        raise ScenarioError(source, None, f"empty file: expected a mapping of {what} fields")
     _check_shape(data, source)
     return data
 
@@ -398,7 +398,7 @@ def read_spec(path: Path, cls: type[_Model], what: str) -> _Model:
     """A YAML file of `what` fields (a sweep's, a suite's) validated by `cls`; ScenarioError naming the file and
     the field at fault."""
     source = str(path)
-    raw = read_yaml(path)
+    raw = read_yaml(path, what)
     if not isinstance(raw, dict):
         raise ScenarioError(source, None, f"expected a mapping of {what} fields, got {kind_of(raw)}")
     try:

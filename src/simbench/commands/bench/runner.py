@@ -19,6 +19,7 @@ from simbench.commands.sweep import cluster, execute, run_remaining, table
 from simbench.commands.sweep.spec import Sweep, Variant
 from simbench.commands.sweep.store import Store, check_early
 from simbench.core import destination
+from simbench.core.errors import ScenarioError
 from simbench.core.version import __version__
 from simbench.scenario.schema import SimbenchModel
 
@@ -118,6 +119,10 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     check_early(out, [source] if source.is_file() else [], bench_spec(suite).model_dump(mode="json"), force)
     tasks = kept_tasks.tasks_for(out, suite, execute.processes_here(workers), force)
     bench = plan_bench(suite, tasks=tasks)
+    if not bench.variants:
+        raise ScenarioError(suite.source, "methods", f"no run: no robot of the suite "
+                                                     f"({', '.join(r.name for r in suite.robots)}) takes one of its "
+                                                     f"methods ({', '.join(suite.methods)})")
     if ray is not None:
         cluster.reach(ray)
     with Store(out, bench, force=force) as store:
