@@ -128,6 +128,26 @@ def test_at_gives_the_tools_pose_and_measures_as_mujoco_has_them(tmp_path, capsy
     assert "sigma_min_unit" in text and "zyx [yaw, pitch, roll]" in text
 
 
+def test_the_joints_order_changes_neither_the_reach_nor_the_measures(tmp_path, capsys, mj):
+    """A robot file's `joints:` in another order (reversed) drives the same arm: at the same pose (--at in that
+    order) the same tool pose and the same measures as MuJoCo's, L the chain's length from the world on whatever
+    the order; and a path end past the reach is refused naming the joint nearest the world."""
+    order = list(reversed(JOINTS))
+    path = tmp_path / "ur5_reversed.yaml"
+    path.write_text(f"model: {UR5}\ntool: {{body: tool0}}\njoints: [{', '.join(order)}]\n")
+    at = ",".join(str(float(v)) for v in Q[::-1])
+    found = json.loads(_inspect(capsys, path, "--at", at, "--json"))
+    point, rotation = mj.pose(Q, "tool0")
+    _assert_pose(found["tool"], point, rotation)
+    for name, value in mj.measures(Q, "tool0").items():
+        assert found["tool"]["measures"][name] == pytest.approx(value, rel=1e-9), name
+    scenario = tmp_path / "far.yaml"
+    scenario.write_text(f"robot: {path.name}\nplanner: cartesian_path\ntiming: {{duration: 2}}\n"
+                        f"task:\n  start: {Q[::-1].tolist()}\n  path:\n    - line: {{end: [3.0, 0.0, 0.5]}}\n")
+    assert main(["validate", str(scenario)]) == 2
+    assert "mm from shoulder_pan_joint's anchor, beyond the arm's reach" in capsys.readouterr().err
+
+
 def test_at_is_read_in_the_files_units_or_as_units_says(tmp_path, capsys, mj):
     """--at in degrees: a robot file's units: {angle: deg}, or --units deg; the same pose as radians give."""
     point, rotation = mj.pose(Q, "tool0")

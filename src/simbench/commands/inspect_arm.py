@@ -284,7 +284,7 @@ def describe(arm: DerivedArm, joints: Joints, speeds_note: str | None) -> list[s
     lines = [f"{arm.name}: {joints.dof} joints from {arm.path}", *_joint_lines(joints, speeds_note)]
     lines.append("actuators (an added servo's gains are designed for each run's plan; here at the reference pose, "
                  "at rest):")
-    rest = dict(zip(arm.chain.joints, rest_design(arm)))
+    rest = {servo.joint: servo for servo in rest_design(arm)}  # (the designed joints' alone)
     lines += [f"  {d.joint:12s} {_drive(d, rest.get(d.joint))}" for d in arm.drives]
     limits = [d.force_limit for d in arm.drives]
     lines.append("force limits: " + (", ".join("none" if np.isinf(f) else f"{f:g}" for f in limits)

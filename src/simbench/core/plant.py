@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from simbench.api import Robot
 
 FORCE_SENSOR = "simbench/force/"  # prefix of the actuator-force sensors added to every scene (scene_spec)
+UNNAMED_ACTUATOR = "simbench/actuator"  # an actuator the file leaves unnamed is named this and its index (scene_spec)
 Actuation = Literal["position", "torque"]
 
 # While plants are reused (reused_plants): the last Plant built and the arguments it was built from; else None.
@@ -218,7 +219,9 @@ def scene_spec(scene: str) -> mujoco.MjSpec:
     """A scene (an MJCF, or a key of register_scene) with an actuator-force sensor on every actuator, so that the
     recording holds the force MuJoCo really applied."""
     spec = _built[scene]() if scene in _built else mujoco.MjSpec.from_file(scene)
-    for actuator in spec.actuators:
+    for i, actuator in enumerate(spec.actuators):
+        if not actuator.name:  # (a sensor names its actuator: the file's may have none)
+            actuator.name = f"{UNNAMED_ACTUATOR}{i}"
         spec.add_sensor(name=FORCE_SENSOR + actuator.name, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
                         objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator.name)
     return spec

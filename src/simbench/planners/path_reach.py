@@ -1,5 +1,5 @@
-"""A path point no joint values reach, refused at load (cartesian_path.check): farther from the first joint's anchor
-than the chain's reach (robots.chain), which bounds every point the tool takes.
+"""A path point no joint values reach, refused at load (cartesian_path.check): farther from the anchor of the joint
+nearest the world than the chain's reach (robots.chain), which bounds every point the tool takes.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ _ROUNDING = 1e-9  # m: a path point past the reach by this much at most is not r
 
 
 def beyond_reach(path: list, segments: list, robot) -> tuple[str, str] | None:
-    """The first segment with a point the arm certainly cannot reach: farther from the first joint's anchor than the
+    """The first segment with a point the arm certainly cannot reach: farther from the base joint's anchor than the
     reach (robots.chain: the chain's length from that anchor, which no joint values exceed). A line's farthest point
     is an end, its start the tool's or the last segment's end; an arc's is _farthest."""
     anchor = robot.anchor
@@ -25,7 +25,7 @@ def beyond_reach(path: list, segments: list, robot) -> tuple[str, str] | None:
             else:
                 by = seg.line.placed_by
                 field, what = f"task.path[{i}].line.{by}", "lies" if by == "end" else "puts the line's end"
-            return field, (f"{what} {far * 1e3:.1f} mm from {robot.joints[0]}'s anchor, beyond the arm's reach of "
+            return field, (f"{what} {far * 1e3:.1f} mm from {robot.base_joint}'s anchor, beyond the arm's reach of "
                            f"{robot.reach * 1e3:.1f} mm (its chain's length from there): no joint values put the "
                            "tool there")
     return None

@@ -66,9 +66,11 @@ class Tool:
 
 @dataclass(frozen=True)
 class Chain:
-    """The joints from the world to the tool with their kinds and ranges (SI; +-inf: continuous), the tool, and
-    the reach L that makes the Jacobian's units consistent (robots.model_arm): the polyline through the joints'
-    anchors to the tool point at qpos0, plus each slide joint's stroke."""
+    """The joints from the world to the tool (in the order a robot file's `joints:` gives) with their kinds and
+    ranges (SI; +-inf: continuous), the tool, the joint nearest the world (`base`: whatever the order, the reach is
+    measured from its anchor, which none of the joints moves), and the reach L that makes the Jacobian's units
+    consistent (robots.model_arm): the polyline through the joints' anchors, from the world on, to the tool point at
+    qpos0, plus each slide joint's stroke."""
 
     joints: tuple[str, ...]
     kinds: tuple[str, ...]
@@ -76,6 +78,7 @@ class Chain:
     upper: np.ndarray
     tool: Tool
     reach: float
+    base: str
 
 
 def chain_of(model: mujoco.MjModel, tool: Tool | None, joints: tuple[str, ...] | None) -> Chain:
@@ -106,7 +109,8 @@ def chain_of(model: mujoco.MjModel, tool: Tool | None, joints: tuple[str, ...] |
     return Chain(joints=tuple(model.joint(j).name for j in on_chain),
                  kinds=tuple(_KINDS[int(model.jnt_type[j])] for j in on_chain),
                  lower=np.where(limited, ranges[:, 0], -np.inf), upper=np.where(limited, ranges[:, 1], np.inf),
-                 tool=tool, reach=_reach(model, on_chain, tool))
+                 tool=tool, reach=_reach(model, sorted(on_chain), tool),  # (ids rise from the world to the tool)
+                 base=model.joint(min(on_chain)).name)
 
 
 def _joints_to(model: mujoco.MjModel, body: int) -> list[int]:

@@ -97,12 +97,17 @@ class ModelArm(Robot):
 
     @property
     def anchor(self) -> Array:
-        """The first joint's anchor (world, m) at qpos0, where the reach is measured from (robots.chain); nothing
-        moves it."""
+        """The anchor (world, m) at qpos0 of the joint nearest the world (robots.chain's `base`), where the reach is
+        measured from; none of the joints moves it."""
         model, data, adr, _, _ = self._compiled()
         data.qpos[adr] = model.qpos0[adr]
         mujoco.mj_kinematics(model, data)
-        return data.xanchor[model.joint(self.joints[0]).id].copy()
+        return data.xanchor[model.joint(self.base_joint).id].copy()
+
+    @property
+    def base_joint(self) -> str:
+        """The joint nearest the world (robots.chain's `base`), whose anchor the reach is measured from."""
+        return self.arm.chain.base
 
     def tool_rotation(self, q: Array) -> Array:
         """The tool site's orientation (N, 3, 3) in the world at joint values q (N, dof): MuJoCo's site_xmat."""

@@ -200,7 +200,7 @@ def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOption
         removed = tuple(i for i in found if i != keep)
         bound = limit if limit is not None else min(_bound(model, keep), _joint_bound(model, joint))
         return Drive(joint, "replaced" if removed else "kept", _names(model, removed), keep, removed,
-                     float(model.actuator_gainprm[keep, 0]), float(-model.actuator_biasprm[keep, 2]), bound)
+                     float(model.actuator_gainprm[keep, 0]), 0.0 - float(model.actuator_biasprm[keep, 2]), bound)
     kp, kv = pd_gains(np.array([inertia]), options.bandwidth or DEFAULT_BANDWIDTH, options.damping_ratio)
     bound = limit if limit is not None else min([_bound(model, i) for i in found] + [_joint_bound(model, joint)])
     return Drive(joint, "replaced" if found else "added", _names(model, tuple(found)), None, tuple(found),

@@ -54,7 +54,7 @@ def stage(spec: mujoco.MjSpec, model: mujoco.MjModel, arm: DerivedArm) -> None:
     if "lights" in arm.added:
         _lights(spec, data.xpos[root], arm.chain.reach)
     if "camera" in arm.added:
-        anchor = data.xanchor[model.joint(arm.chain.joints[0]).id]
+        anchor = data.xanchor[model.joint(arm.chain.base).id]
         _camera(spec, np.vstack([_arm_corners(model, data, root), _room(anchor, arm.chain.reach, data.xpos[root][2])]))
 
 
