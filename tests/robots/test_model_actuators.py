@@ -1,8 +1,10 @@
 """A model's own actuators as simbench keeps or adds servos beside them (robots.model_scene), on a 3-joint arm
 written here: a position servo the file gives, named or not, is kept with the file's gains and said so on its
 joint's line of `simbench inspect`; the joints without one get servos designed for them, on their own lines, as the
-same arm without any actuator gets them; and the arm runs."""
+same arm without any actuator gets them; an actuator on a tendon over the chain's joints is replaced as any that
+is not the joint's own servo (it fought the servos: the tool 208 mm off); and the arm runs."""
 
+import json
 import re
 
 import pytest
@@ -65,3 +67,25 @@ def test_an_arm_whose_servo_has_no_name_runs(tmp_path, capsys):
     code = main(["run", str(tmp_path / "move.yaml"), "--out", str(tmp_path / "out"), "--no-video", "--quiet"])
     assert code in (0, 3), capsys.readouterr().err
     assert (tmp_path / "out" / "report.json").is_file()
+
+
+TENDON = ('<tendon><fixed name="t23"><joint joint="j2" coef="1"/><joint joint="j3" coef="-1"/></fixed></tendon>'
+          '<actuator><position name="tp" tendon="t23" kp="500"/></actuator>')
+
+
+def test_a_servo_on_a_tendon_over_the_chain_is_replaced_and_the_arm_tracks(tmp_path, capsys):
+    """The tendon's servo moves j2 and j3 (MuJoCo's actuator moment): each is said replaced by a servo designed as
+    on the bare arm, the tendon's taken off the scene; a joint move then ends ok, the tool within 1 mm of its plan."""
+    bare = _lines(tmp_path, capsys, "bare", "")
+    lines = _lines(tmp_path, capsys, "tendon", TENDON)
+    for joint in ("j2", "j3"):
+        said = "position servo 'tp' (on a tendon that moves it) replaced by a position servo, "
+        assert lines[joint] == said + bare[joint].removeprefix("no actuator: added a position servo, ")
+    assert lines["j1"] == bare["j1"]
+    (tmp_path / "move.yaml").write_text(
+        "planner: joint_move\nunits: {angle: deg, length: mm}\n"
+        "robot: {model: tendon.xml, tool: {site: tip}, speed_limits: [180, 180, 180]}\n"
+        "timing: {law: quintic, duration: 1.0, hold: 0.2}\ntask: {start: [0, 20, -40], goal: [60, 40, -80]}\n")
+    assert main(["run", str(tmp_path / "move.yaml"), "--out", str(tmp_path / "out"), "--no-video", "--quiet"]) == 0
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["tracking"]["tool_max"] < 1e-3

@@ -202,10 +202,22 @@ def actuator_kind(model: mujoco.MjModel, i: int) -> str:
 
 
 def actuators_of(model: mujoco.MjModel, joint: str) -> list[int]:
-    """The actuators whose transmission is `joint`."""
+    """The actuators that move `joint`: those whose transmission is the joint, and those whose transmission is
+    something else (a tendon, a site) with a moment on the joint's DOF at qpos0 (MuJoCo's actuator_moment)."""
     j = model.joint(joint).id
-    return [i for i in range(model.nu)
-            if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT and model.actuator_trnid[i, 0] == j]
+    dof = model.jnt_dofadr[j]
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    moment = np.zeros((model.nu, model.nv))
+    mujoco.mju_sparse2dense(moment, data.actuator_moment, data.moment_rownnz, data.moment_rowadr,
+                            data.moment_colind)
+    return [i for i in range(model.nu) if (model.actuator_trnid[i, 0] == j if on_joint(model, i)
+                                           else moment[i, dof] != 0)]
+
+
+def on_joint(model: mujoco.MjModel, i: int) -> bool:
+    """Whether actuator i's transmission is a joint (the one servo of a joint simbench may keep)."""
+    return model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT
 
 
 def qpos0_outside(model: mujoco.MjModel, chain: Chain) -> list[str]:

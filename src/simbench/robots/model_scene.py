@@ -33,7 +33,8 @@ import mujoco
 import numpy as np
 
 from simbench.core.faults import quiet_mujoco
-from simbench.robots.chain import ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, qpos0_outside
+from simbench.robots.chain import (ArmError, Chain, Tool, actuator_kind, actuators_of, chain_of, on_joint,
+                                   qpos0_outside)
 from simbench.robots.contacts import Contacts
 from simbench.robots.model_file import compiled, read_spec
 from simbench.robots.model_stage import stage, staging
@@ -194,7 +195,7 @@ def _start_inertia(model: mujoco.MjModel, chain: Chain) -> np.ndarray:
 def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOptions, limit: float | None) -> Drive:
     """How `joint` is driven: its position servo kept, or one added in place of what it has."""
     found = actuators_of(model, joint)
-    kinds = [actuator_kind(model, i) for i in found]
+    kinds = [actuator_kind(model, i) if on_joint(model, i) else "tendon or site" for i in found]
     if "position" in kinds:
         keep = found[kinds.index("position")]
         removed = tuple(i for i in found if i != keep)
@@ -217,8 +218,14 @@ _WORDS = {"position": "position servo", "velocity": "velocity servo", "motor": "
 
 
 def _names(model: mujoco.MjModel, which: tuple[int, ...]) -> str:
-    """The actuators `which`, each as its kind and name."""
-    return " and ".join(f"{_WORDS[actuator_kind(model, i)]} '{model.actuator(i).name or i}'" for i in which)
+    """The actuators `which`, each as its kind and name (and what it drives, where that is not the joint)."""
+    def named(i: int) -> str:
+        words = f"{_WORDS[actuator_kind(model, i)]} '{model.actuator(i).name or i}'"
+        if on_joint(model, i):
+            return words
+        trn = mujoco.mjtTrn(model.actuator_trntype[i]).name.removeprefix("mjTRN_").lower()
+        return f"{words} (on a {trn} that moves it)"
+    return " and ".join(named(i) for i in which)
 
 
 def _bound(model: mujoco.MjModel, i: int) -> float:
