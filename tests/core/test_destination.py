@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from simbench.cli import main
-from simbench.core.destination import locked
+from simbench.core.destination import LOCK_TOKEN, locked
 from tests.conftest import interrupt, scenario_file
 
 
@@ -185,6 +185,23 @@ def test_the_lock_file_never_follows_a_symlink(tmp_path, capsys, there):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and ".out.lock" in err[0] and "symlink" in err[0]
     assert (victim.read_text() == "the user's file" if there else not victim.exists()) and not out.exists()
+
+
+@pytest.mark.parametrize("content", [b"", b"my notes\n"])
+def test_a_users_file_where_the_lock_goes_is_refused_and_kept(tmp_path, capsys, content):
+    """A file of the user's named as simbench's lock would be (`.out.lock`, empty or not): refused in one line
+    naming it, the file as it was (the lock, removed when a write ends, took it with it); a lock simbench's killed
+    writer left (its token, no holder) is taken and removed as before."""
+    mine = tmp_path / ".out.lock"
+    mine.write_bytes(content)
+    out, case1 = tmp_path / "out", str(scenario_file("spherical_arm", "case1"))
+    assert main(["run", case1, "--out", str(out), "--no-video", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and ".out.lock: is a file simbench did not write" in err[0]
+    assert mine.read_bytes() == content and not out.exists()
+    mine.write_bytes(LOCK_TOKEN)
+    assert main(["run", case1, "--out", str(out), "--no-video", "--quiet"]) == 0
+    assert not mine.exists() and (out / "report.json").is_file()
 
 
 def test_force_never_replaces_a_folder_of_other_runs_outputs(tmp_path, capsys):

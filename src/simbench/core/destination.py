@@ -182,19 +182,25 @@ def _claimed(path: Path) -> bool:
 def _stale_lock(path: Path) -> bool:
     """Whether `path` holds simbench's lock token and no process holds its lock (False where that cannot be told:
     a platform without flock)."""
-    try:
-        import fcntl
-    except ImportError:
-        return False
+    signed, held = _lock_state(path)
+    return signed and held is False
+
+
+def _lock_state(path: Path) -> tuple[bool, bool | None]:
+    """Whether the file at `path` holds simbench's lock token, and whether a process holds a lock on it (None
+    where that cannot be told: a platform without flock)."""
     fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     try:
-        if os.read(fd, len(LOCK_TOKEN)) != LOCK_TOKEN:
-            return False
+        signed = os.read(fd, len(LOCK_TOKEN)) == LOCK_TOKEN
+        try:
+            import fcntl
+        except ImportError:
+            return signed, None
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)  # released as fd is closed
         except OSError:
-            return False
-        return True
+            return signed, True
+        return signed, False
     finally:
         os.close(fd)
 
@@ -299,6 +305,7 @@ def locked(out: Path) -> Iterator[None]:
     try:
         with refused(out):
             out.parent.mkdir(parents=True, exist_ok=True)
+            _refuse_a_strangers_lock(path, out)
             lock = _take(path, out)
         try:
             yield
@@ -319,6 +326,18 @@ def _remove_empty(folders: list[Path]) -> None:
             folder.rmdir()
         except OSError:
             return
+
+
+def _refuse_a_strangers_lock(path: Path, out: Path) -> None:
+    """ScenarioError where a file simbench did not write sits where it keeps the lock of `out`: one neither signed
+    with its token nor held by a writer (which may not have signed it yet) is the user's, even empty (the module's
+    docstring), and the lock, removed when the write ends, would take it with it."""
+    if path.is_symlink() or not path.is_file():
+        return  # (none; or a symlink or folder: _take refuses it)
+    signed, held = _lock_state(path)
+    if not (signed or held):
+        raise ScenarioError(str(path), None, f"is a file simbench did not write, where it keeps the lock of "
+                                             f"{out.name}: move it, or pass --out to write elsewhere")
 
 
 def _take(path: Path, out: Path) -> FileLock:
