@@ -246,6 +246,11 @@ BAD_SWEEPS = [
         "normal": [[120, 75, 5, 90], 1]}}}}, "random.params.task.goal.normal: expected both bounds numbers, or both"),
     ("swept twice", {"base": CASE1, "grid": {"timing.duration": [2]}, "random": {"samples": 2, "params": {
         "timing.duration": {"uniform": [2, 3]}}}}, "swept twice"),
+    ("swept twice, spelt two ways", {"base": CASE1, "grid": {"task.goal[1]": [60]}, "random": {"samples": 2,
+        "params": {"task.goal[01]": {"uniform": [60, 70]}}}}, "random.params.task.goal[01]: swept twice: grid sweeps "
+     "task.goal[1]"),
+    ("a list and an item of it", {"base": CASE1, "grid": {"task.goal[1]": [60, 70], "task.goal": [[120, 75, 5, 90]]}},
+     "grid.task.goal: overlaps: grid sweeps task.goal[1]"),
     ("video without outputs", {"base": CASE1, "grid": {"timing.duration": [2]}, "video": True},
      "video: true needs outputs: full"),
     ("zero samples", {"base": CASE1, "random": {"samples": 0, "params": {"timing.duration": {"uniform": [2, 3]}}}},

@@ -89,3 +89,14 @@ def test_a_servo_on_a_tendon_over_the_chain_is_replaced_and_the_arm_tracks(tmp_p
     assert main(["run", str(tmp_path / "move.yaml"), "--out", str(tmp_path / "out"), "--no-video", "--quiet"]) == 0
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["tracking"]["tool_max"] < 1e-3
+
+
+@pytest.mark.parametrize("integrator, said", [("RK4", "rk4"), ("implicit", "implicit"),
+                                              ("implicitfast", "implicitfast")])
+def test_inspect_names_the_models_integrator(tmp_path, capsys, integrator, said):
+    """The integrator line names the file's integrator as MuJoCo spells it (it lost its first letter: `mplicit`)."""
+    path = tmp_path / "arm.xml"
+    option = f'<mujoco model="arm3"><option integrator="{integrator}"/>'
+    path.write_text(ARM.replace("{actuators}", "").replace('<mujoco model="arm3">', option))
+    assert main(["inspect", str(path)]) == 0
+    assert f"integrator: {said} (the model's)" in capsys.readouterr().out

@@ -100,7 +100,7 @@ def chain_of(model: mujoco.MjModel, tool: Tool | None, joints: tuple[str, ...] |
     for j in on_chain:
         if int(model.jnt_type[j]) not in _KINDS:
             raise ArmError("tool", f"joint '{model.joint(j).name}' on the chain to the tool is a "
-                                   f"{mujoco.mjtJoint(model.jnt_type[j]).name[6:].lower()} joint: simbench drives "
+                                   f"{mujoco.mjtJoint(model.jnt_type[j]).name.removeprefix('mjJNT_').lower()} joint: simbench drives "
                                    "hinge and slide joints")
         if not model.joint(j).name:
             raise ArmError("model", f"joint {j} on the chain to the tool has no name: name it in the model")

@@ -143,8 +143,9 @@ def derive(path: str, options: ArmOptions) -> DerivedArm:
     drives = tuple(_drive(model, name, inertia[i], options, limits[i]) for i, name in enumerate(chain.joints))
     added, camera = staging(model)
     euler = model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    named = mujoco.mjtIntegrator(model.opt.integrator).name.removeprefix("mjINT_").lower()
     integrator = ("implicitfast (the model's: Euler, whose servo damping is explicit)" if euler
-                  else f"{mujoco.mjtIntegrator(model.opt.integrator).name[7:].lower()} (the model's)")
+                  else f"{named} (the model's)")
     arm = DerivedArm(path=path, name=name, chain=chain, drives=drives, camera=camera, added=added,
                      outside=tuple(qpos0_outside(model, chain)), options=options, dropped=dropped,
                      locked=_locked(model, chain), integrator=integrator)

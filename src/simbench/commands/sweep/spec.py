@@ -231,8 +231,9 @@ def _find_base(text: str, folder: Path, source: str) -> Path:
 
 def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str, tuple[str | int, ...]]]:
     """Every swept field path: the sweep file's section that sweeps it (grid or random.params) and the path
-    parsed; a path may be swept once."""
-    found = {}
+    parsed; a field may be swept once, by one path (not by two spellings of it, nor by a path and one within it:
+    the later assignment would override the earlier, and a column of the table would not be what ran)."""
+    found: dict[str, tuple[str, tuple[str | int, ...]]] = {}
     sections = [("grid", spec.grid)] + ([("random.params", spec.random.params)] if spec.random else [])
     for section, fields in sections:
         for text in fields:
@@ -240,8 +241,12 @@ def _paths(spec: SweepSpec, source: str) -> dict[str, tuple[str, tuple[str | int
                 found_path = parse_path(text)
             except ValueError as err:
                 raise ScenarioError(source, f"{section}.{text}", str(err)) from None
-            if text in found:
-                raise ScenarioError(source, f"{section}.{text}", "swept twice: in grid and in random.params")
+            for other, (other_section, other_path) in found.items():
+                shorter = min(len(found_path), len(other_path))
+                if found_path[:shorter] == other_path[:shorter]:
+                    how = "swept twice" if len(found_path) == len(other_path) else "overlaps"
+                    raise ScenarioError(source, f"{section}.{text}", f"{how}: {other_section} sweeps {other}, the "
+                                                                     "same field or one holding it or within it")
             found[text] = (section, found_path)
     return found
 
