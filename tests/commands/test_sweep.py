@@ -232,6 +232,8 @@ BAD_SWEEPS = [
      "grid.simulation.timestep: 'simulation' is an unknown field"),
     ("index beyond the list", {"base": CASE1, "grid": {"task.goal[4]": [1]}},
      "grid.task.goal[4]: the base's task.goal has 4 items, no item [4]"),
+    ("an item of a field the base lacks", {"base": CASE1, "grid": {"task.goa[1]": [1]}},
+     "grid.task.goa[1]: the base has no field task.goa (a list indexed with [1] must be in the base)"),
     ("two kinds", {"base": CASE1, "random": {"samples": 2, "params": {"timing.duration": {
         "uniform": [1, 2], "normal": [1, 1]}}}}, "expected exactly one of uniform"),
     ("low above high", {"base": CASE1, "random": {"samples": 2, "params": {"timing.duration": {

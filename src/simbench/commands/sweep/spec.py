@@ -184,6 +184,10 @@ def assign(document: dict, path: tuple[str | int, ...], value: Any) -> None:
             node[part] = copy.deepcopy(value)
         else:
             if isinstance(part, str) and part not in node:
+                if isinstance(path[depth + 1], int):  # (a mapping made here has no items)
+                    field = part if depth == 0 else f"{where}.{part}"
+                    raise ValueError(f"the base has no field {field} (a list indexed with [{path[depth + 1]}] must "
+                                     "be in the base)")
                 node[part] = {}
             node = node[part]
 
