@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import signal
 import sys
 from pathlib import Path
@@ -355,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     with interrupts.raising_interrupted() as ctrl_c:
         try:
-            args = _parser().parse_args(argv)
+            args = _parser().parse_args(_values_joined(sys.argv[1:] if argv is None else argv))
             with interrupts.held_back():  # imported here, so that --help loads neither psutil nor filelock
                 from simbench.core.destination import command_line
         except interrupts.Interrupted:  # pressed while the command line was read
@@ -363,6 +364,23 @@ def main(argv: list[str] | None = None) -> int:
             return ctrl_c.exit_code
         with command_line():
             return _command(args, ctrl_c)
+
+
+_NUMBERS = re.compile(r"-[\d.][\d.eE+\-, ]*")  # a list of numbers that begins with a minus sign
+
+
+def _values_joined(argv: list[str]) -> list[str]:
+    """`--at -0.2,0.3` as `--at=-0.2,0.3`: argparse takes a value that begins with a minus sign (and holds more
+    than a number) for an option."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] == "--at" and i + 1 < len(argv) and _NUMBERS.fullmatch(argv[i + 1]):
+            out.append(f"--at={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
 
 
 def _command(args: argparse.Namespace, ctrl_c: interrupts.CtrlC) -> int:

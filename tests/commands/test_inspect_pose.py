@@ -148,6 +148,17 @@ def test_the_joints_order_changes_neither_the_reach_nor_the_measures(tmp_path, c
     assert "mm from shoulder_pan_joint's anchor, beyond the arm's reach" in capsys.readouterr().err
 
 
+def test_at_takes_values_that_begin_with_a_minus_sign(tmp_path, capsys, mj):
+    """`--at -0.3,...` (argparse alone takes the value for an option) poses the tool as `--at=-0.3,...` does, at
+    MuJoCo's pose."""
+    q = Q * np.array([-1, 1, 1, 1, 1, 1])
+    at = ",".join(str(float(v)) for v in q)
+    robot = _robot_file(tmp_path)
+    apart = json.loads(_inspect(capsys, robot, "--at", at, "--json"))
+    assert apart == json.loads(_inspect(capsys, robot, f"--at={at}", "--json"))
+    _assert_pose(apart["tool"], *mj.pose(q, "tool0"))
+
+
 def test_at_is_read_in_the_files_units_or_as_units_says(tmp_path, capsys, mj):
     """--at in degrees: a robot file's units: {angle: deg}, or --units deg; the same pose as radians give."""
     point, rotation = mj.pose(Q, "tool0")
