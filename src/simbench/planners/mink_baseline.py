@@ -8,7 +8,7 @@ It follows the Cartesian reference of another planner's plan, so that the two ca
       task: {path: ..., ...}          # that planner's own task, written as its scenarios write it
       damping: 1.0e-3                 # Levenberg-Marquardt damping of every step's QP
       position_cost: 1                # FrameTask weights (1/m and 1/rad)
-      orientation_cost: 1             # default 1 for an arm of 6 joints or more, 0 (position only) for fewer
+      orientation_cost: 1             # default 1 for an arm of 6 joints or more or a task that asks an orientation
       posture_cost: 1.0e-3            # PostureTask towards the first configuration: settles the redundancy
       solver: daqp                    # the QP solver (qpsolvers' name)
 
@@ -58,7 +58,8 @@ class Task(SimbenchModel):
     task: Any = Field(description="the followed planner's task, checked against that planner's own schema")
     damping: Annotated[float, Field(ge=0, le=10)] = 1e-3
     position_cost: Weight = 1.0
-    orientation_cost: Weight | None = Field(None, description="default: 1 for 6 or more joints, 0 for fewer")
+    orientation_cost: Weight | None = Field(None, description="default: 1 for 6 or more joints or a task asking an "
+                                                              "orientation, 0 for the point alone on fewer")
     posture_cost: Weight = 1e-3
     solver: str = Field("daqp", description="daqp (installed with mink) or another QP solver qpsolvers finds")
     _direct: bool = PrivateAttr(False)
@@ -117,8 +118,11 @@ class Task(SimbenchModel):
         return _validated(follow, value, info.context)
 
     def cost(self, robot: Robot) -> tuple[float, float]:
-        """(position, orientation) costs of the FrameTask for `robot`."""
-        default = 1.0 if robot.dof >= 6 else 0.0
+        """(position, orientation) costs of the FrameTask for `robot`: the orientation's by default 1 where the arm
+        has 6 joints or more or the followed task asks an orientation (cartesian_path's `hold` or a goal: a planar
+        arm holds it about its plane's normal), 0 where the point alone is asked of a smaller arm."""
+        asks = getattr(self.task, "orientation", "free") != "free"
+        default = 1.0 if robot.dof >= 6 or asks else 0.0
         return self.position_cost, default if self.orientation_cost is None else self.orientation_cost
 
 
