@@ -10,14 +10,14 @@ from typing import Any, Callable
 
 import numpy as np
 
-NEAR_REFERENCE = 2.0  # s: the tool is measured against the planned path within this time of its reference
+NEAR_REFERENCE = 2.0  # s: the path search's blocks: the tool is measured against its own block and the two beside
 GROUP = 1 << 15  # samples of a run of at most WINDOW whose path the search takes at once, on their stretch alone
 WINDOW = 1 << 15  # a run of at most this many samples is analysed at once (every shipped scenario)
 LONG = 1 << 13  # a longer one about this many at a time, and its path searched in groups of as many
 
 
 def near_reference(dt: float) -> int:
-    """The path search's blocks at control period dt: the samples within NEAR_REFERENCE of a reference."""
+    """The path search's block at control period dt: NEAR_REFERENCE's samples (deviation_near_reference)."""
     return max(1, int(round(NEAR_REFERENCE / dt)))
 
 
