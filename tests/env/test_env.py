@@ -333,6 +333,24 @@ def test_an_outside_policy_tracks_through_the_environment(tmp_path, monkeypatch)
     assert tracking["tool_rms"] == pytest.approx(report["tracking"]["tool_rms"], rel=1e-3)
 
 
+def test_a_derived_arms_episode_reports_the_servos_designed_for_it(tmp_path, monkeypatch):
+    """The Jaco (its MJCF as dm-control ships it, no actuator of its own): an episode written out says what servos
+    simbench designed for the plan (derived_arm.servos, control.servo_design), as `simbench.run`'s report of the
+    same scenario does, the same gains (it said none)."""
+    from tests.planners.test_cartesian_path import TOOL0, _scenario
+
+    no_plots(monkeypatch)
+    path = _scenario(tmp_path, TOOL0 + [0.0, 100.0, 0.0], duration=1.0)
+    env = simbench_env.load(str(path))
+    episode(env, servo_policy(env))
+    mine = simbench_env.write_outputs(env, tmp_path / "env", video=False)
+    theirs = simbench.run(str(path), out=tmp_path / "run", video=False)
+    a, b = (json.loads((r.out / "report.json").read_text()) for r in (mine, theirs))
+    assert len(b["control"]["servo_design"]) == 6 and b["derived_arm"]["servos"] == b["control"]["servo_design"]
+    assert a["control"]["servo_design"] == b["control"]["servo_design"]
+    assert a["derived_arm"]["servos"] == b["derived_arm"]["servos"]
+
+
 def test_an_episode_written_out_is_the_run_simbench_writes(tmp_path, monkeypatch):
     """The servo's episode written by write_outputs: the same report (status, tracking, events, plan) and the
     same timeseries as `simbench.run` of the scenario, but for the controller's name and the last row's command

@@ -201,10 +201,11 @@ def load(scenario: Scenario | str | os.PathLike, task_kwargs: dict | None = None
         from simbench.env.random_task import check, widen
         check(scenario)
     plan = scenario.planner_def.plan(scenario, robot, float(plant.model.opt.timestep))
-    plant, plan, _ = fit(scenario, plant, plan)  # a derived arm's servos designed for the first plan
+    plant, plan, design = fit(scenario, plant, plan)  # a derived arm's servos designed for the first plan
     _, data, _ = at_start(plant, plan)  # the environment's own model copy: switching edits it
     physics = Physics(wrapper.MjData(data))
     task = task_class(scenario, plant, plan, physics, **task_kwargs)
+    task.servo_design = tuple(design)
     if random_tasks:
         widen(task, physics.model.ptr)
     env = Environment(physics, task, visualize_reward, **environment_kwargs)
@@ -295,7 +296,8 @@ def evaluation(env: control.Environment, control_info: dict | None = None) -> Ev
     elif task.k < task.n - 1:
         verdict = cut_short(verdict, TRUNCATED, float(rec.t[-1]), f"the episode stopped at t = {rec.t[-1]:.4f} s, "
                             f"before the plan's end at {task.plan.t[-1]:.4f} s (step {task.k} of {task.n - 1})")
-    info = {"controller": "simbench.env", "actuation": task.actuation, **(control_info or {})}
+    design = {"servo_design": list(task.servo_design)} if task.servo_design else {}
+    info = {"controller": "simbench.env", "actuation": task.actuation, **design, **(control_info or {})}
     return Evaluation(traj, rec, result, verdict, info)
 
 

@@ -131,11 +131,15 @@ class Track(control.Task):
         failure: Why the physics ended the episode; None while it is sound.
         base_scenario: The scenario the environment was made of (`scenario` is the episode's: a random task's).
         pool: The pool of random tasks, made at the first reset (None before, and without `pool`).
+        servo_design: The servos simbench designed for a derived arm's first plan, as report.json's
+            `control.servo_design` has them (empty where none was designed; `load` sets it).
 
     Raises:
         TypeError: `random` is neither a seed nor a RandomState.
         ValueError: A `pool` without `random`, or not a count >= 1.
     """
+
+    servo_design: tuple[dict, ...] = ()
 
     def __init__(self, scenario: Scenario, plant: Plant, plan: JointTrajectory, physics: Physics,
                  random: int | np.random.RandomState | None = None, pool: int | None = None):
