@@ -99,9 +99,9 @@ def chain_of(model: mujoco.MjModel, tool: Tool | None, joints: tuple[str, ...] |
         raise ArmError("tool", f"no hinge or slide joint moves the tool ({tool.describe()})")
     for j in on_chain:
         if int(model.jnt_type[j]) not in _KINDS:
-            raise ArmError("tool", f"joint '{model.joint(j).name}' on the chain to the tool is a "
-                                   f"{mujoco.mjtJoint(model.jnt_type[j]).name.removeprefix('mjJNT_').lower()} joint: simbench drives "
-                                   "hinge and slide joints")
+            kind = mujoco.mjtJoint(model.jnt_type[j]).name.removeprefix("mjJNT_").lower()
+            raise ArmError("tool", f"joint '{model.joint(j).name}' on the chain to the tool is a {kind} joint: "
+                                   "simbench drives hinge and slide joints")
         if not model.joint(j).name:
             raise ArmError("model", f"joint {j} on the chain to the tool has no name: name it in the model")
     limited = model.jnt_limited[on_chain].astype(bool)
@@ -201,18 +201,22 @@ def actuator_kind(model: mujoco.MjModel, i: int) -> str:
     return "general"
 
 
-def actuators_of(model: mujoco.MjModel, joint: str) -> list[int]:
-    """The actuators that move `joint`: those whose transmission is the joint, and those whose transmission is
-    something else (a tendon, a site) with a moment on the joint's DOF at qpos0 (MuJoCo's actuator_moment)."""
-    j = model.joint(joint).id
-    dof = model.jnt_dofadr[j]
+def actuators_of(model: mujoco.MjModel, joints: tuple[str, ...]) -> dict[str, list[int]]:
+    """Each joint's actuators, those that move it: the ones whose transmission is the joint, and those whose
+    transmission is something else (a tendon, a site) with a moment on the joint's DOF at qpos0 (MuJoCo's
+    actuator_moment, found once for all the joints)."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     moment = np.zeros((model.nu, model.nv))
     mujoco.mju_sparse2dense(moment, data.actuator_moment, data.moment_rownnz, data.moment_rowadr,
                             data.moment_colind)
-    return [i for i in range(model.nu) if (model.actuator_trnid[i, 0] == j if on_joint(model, i)
-                                           else moment[i, dof] != 0)]
+    found = {}
+    for joint in joints:
+        j = model.joint(joint).id
+        dof = model.jnt_dofadr[j]
+        found[joint] = [i for i in range(model.nu) if (model.actuator_trnid[i, 0] == j if on_joint(model, i)
+                                                       else moment[i, dof] != 0)]
+    return found
 
 
 def on_joint(model: mujoco.MjModel, i: int) -> bool:

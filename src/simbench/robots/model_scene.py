@@ -140,7 +140,9 @@ def derive(path: str, options: ArmOptions) -> DerivedArm:
     limits = _force_limits(options, chain)
     with quiet_mujoco():
         inertia = _start_inertia(model, chain)
-    drives = tuple(_drive(model, name, inertia[i], options, limits[i]) for i, name in enumerate(chain.joints))
+    actuators = actuators_of(model, chain.joints)
+    drives = tuple(_drive(model, name, actuators[name], inertia[i], options, limits[i])
+                   for i, name in enumerate(chain.joints))
     added, camera = staging(model)
     euler = model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
     named = mujoco.mjtIntegrator(model.opt.integrator).name.removeprefix("mjINT_").lower()
@@ -193,9 +195,10 @@ def _start_inertia(model: mujoco.MjModel, chain: Chain) -> np.ndarray:
     return full[dofs, dofs]
 
 
-def _drive(model: mujoco.MjModel, joint: str, inertia: float, options: ArmOptions, limit: float | None) -> Drive:
-    """How `joint` is driven: its position servo kept, or one added in place of what it has."""
-    found = actuators_of(model, joint)
+def _drive(model: mujoco.MjModel, joint: str, found: list[int], inertia: float, options: ArmOptions,
+           limit: float | None) -> Drive:
+    """How `joint` is driven: its position servo kept, or one added in place of what it has (`found`: the
+    actuators that move it, chain.actuators_of)."""
     kinds = [actuator_kind(model, i) if on_joint(model, i) else "tendon or site" for i in found]
     if "position" in kinds:
         keep = found[kinds.index("position")]
