@@ -22,6 +22,7 @@ from simbench.commands.bench import board, kept_tasks, load_suite, run_bench
 from simbench.commands.bench import tasks as bench_tasks
 from simbench.commands.bench.methods import METHODS
 from simbench.commands.bench.robots import SHIPPED
+from simbench.commands.bench.runner import bench_spec
 from simbench.commands.bench.tasks import bands, draw, draw_all
 from simbench.commands.sweep import table
 from simbench.core.errors import RunError, ScenarioError
@@ -274,7 +275,8 @@ def test_a_resumed_bench_takes_the_tasks_its_folder_keeps(planar, tmp_path, monk
     the same bench resumed there takes them, draws nothing and writes the same leaderboard; --force draws anew."""
     out = tmp_path / "resumed"
     shutil.copytree(planar.out, out)
-    assert kept_tasks._taken(out / kept_tasks.KEPT, _suite()) == [draw(SHIPPED["planar3r"](), 2, 0)]
+    models = bench_spec(_suite()).models
+    assert kept_tasks._taken(out / kept_tasks.KEPT, _suite(), models) == [draw(SHIPPED["planar3r"](), 2, 0)]
     monkeypatch.setattr(kept_tasks, "draw_all", _no_draw)
     again = run_bench(_suite(), out, workers=1)
     assert again.summary["resumed"] == 4
@@ -316,10 +318,11 @@ def test_kept_tasks_are_taken_only_where_the_draw_would_give_them(planar, tmp_pa
         path.write_text(json.dumps(record))
     else:
         path.write_text(path.read_text()[:-40])
-    assert kept_tasks._taken(path, suite) is None
+    models = bench_spec(suite).models
+    assert kept_tasks._taken(path, suite, models) is None
     drawn = []
     monkeypatch.setattr(kept_tasks, "draw_all", lambda *args: drawn.append(args) or [[]])
-    assert kept_tasks.tasks_for(out, suite, 1, False) == [[]] and len(drawn) == 1
+    assert kept_tasks.tasks_for(out, suite, models, 1, False) == [[]] and len(drawn) == 1
 
 
 def test_a_bench_folder_is_not_replaced_without_force(planar, tmp_path, capsys):

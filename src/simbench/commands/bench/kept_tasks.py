@@ -32,16 +32,16 @@ KEPT = "tasks.json"
 _TUPLES = tuple(f.name for f in dataclasses.fields(Task) if str(f.type).startswith("tuple"))  # lists in JSON
 
 
-def tasks_for(out: Path, suite: Suite, workers: int, force: bool) -> list[list[Task]]:
+def tasks_for(out: Path, suite: Suite, models: dict[str, str], workers: int, force: bool) -> list[list[Task]]:
     """The suite's tasks, one list a robot: those kept in `out` where a resume may take them, else drawn by
-    `workers` processes (bench.tasks.draw_all)."""
-    kept = None if force else _taken(out / KEPT, suite)
+    `workers` processes (bench.tasks.draw_all); `models`: each robot's model hash (BenchSpec.models)."""
+    kept = None if force else _taken(out / KEPT, suite, models)
     return kept if kept is not None else draw_all(suite.robots, suite.tasks, suite.seed, suite.version, workers)
 
 
-def keep(store, out: Path, suite: Suite, tasks: list[list[Task]]) -> None:
+def keep(store, out: Path, suite: Suite, models: dict[str, str], tasks: list[list[Task]]) -> None:
     """Write the tasks into `out` (claimed in the folder's marker first) unless it holds them already."""
-    text = _text(suite, tasks)
+    text = _text(suite, models, tasks)
     if holds(out / KEPT, text):
         return
     store.claim((KEPT,))
@@ -49,33 +49,33 @@ def keep(store, out: Path, suite: Suite, tasks: list[list[Task]]) -> None:
         write_text(out / KEPT, text)
 
 
-def _key(suite: Suite) -> dict:
+def _key(suite: Suite, models: dict[str, str]) -> dict:
     """What decides the suite's draw."""
-    robots = [{"name": r.name, "mapping": r.mapping, "model": r.model_hash(), "hold": r.hold, "boundary": r.boundary,
+    robots = [{"name": r.name, "mapping": r.mapping, "model": models[r.name], "hold": r.hold, "boundary": r.boundary,
                "shapes": list(r.shapes), "speed": r.speed, "floor": r.floor, "plane": r.plane} for r in suite.robots]
     return {"version": suite.version, "seed": suite.seed, "tasks": suite.tasks, "robots": robots,
             "simbench": __version__, "numpy": np.__version__, "scipy": scipy.__version__, "mujoco": mujoco.__version__}
 
 
-def _text(suite: Suite, tasks: list[list[Task]]) -> str:
+def _text(suite: Suite, models: dict[str, str], tasks: list[list[Task]]) -> str:
     """The record (a machine's: the runs' scenario files are the tasks to read): the key, the tasks (one list a
     robot, each task its fields) and their digest."""
     drawn = [[dataclasses.asdict(task) for task in robot] for robot in tasks]
-    return json.dumps({"key": _key(suite), "digest": _digest(drawn), "tasks": drawn}) + "\n"
+    return json.dumps({"key": _key(suite, models), "digest": _digest(drawn), "tasks": drawn}) + "\n"
 
 
 def _digest(drawn: list) -> str:
     return hashlib.sha256(json.dumps(drawn, sort_keys=True).encode()).hexdigest()
 
 
-def _taken(path: Path, suite: Suite) -> list[list[Task]] | None:
+def _taken(path: Path, suite: Suite, models: dict[str, str]) -> list[list[Task]] | None:
     """The tasks the record at `path` holds where it is the suite's (key and digest as they should be), else None."""
     try:
         if path.is_symlink() or not path.is_file():
             return None
         record = json.loads(path.read_text(encoding="utf-8"))
         drawn = record["tasks"]
-        if record["key"] != json.loads(json.dumps(_key(suite))) or record["digest"] != _digest(drawn):
+        if record["key"] != json.loads(json.dumps(_key(suite, models))) or record["digest"] != _digest(drawn):
             return None
         tasks = [[_task(fields) for fields in robot] for robot in drawn]
     except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, AttributeError):

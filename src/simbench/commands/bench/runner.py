@@ -66,9 +66,10 @@ class BenchResult:
     summary: dict
 
 
-def plan_bench(suite: Suite, workers: int = 1, tasks: list[list[Task]] | None = None) -> Bench:
+def plan_bench(suite: Suite, workers: int = 1, tasks: list[list[Task]] | None = None,
+               spec: BenchSpec | None = None) -> Bench:
     """Every run of the suite: its tasks per robot (`tasks`, one list a robot; else drawn by `workers` processes:
-    bench.tasks), each by every method that applies."""
+    bench.tasks), each by every method that applies; `spec`: bench_spec(suite), where the caller has it."""
     if tasks is None:
         tasks = draw_all(suite.robots, suite.tasks, suite.seed, suite.version, workers)
     variants: list[Variant] = []
@@ -83,7 +84,7 @@ def plan_bench(suite: Suite, workers: int = 1, tasks: list[list[Task]] | None = 
                           "method": name, "planner": document["planner"], "anchor_gap": task.anchor_gap,
                           "length_mm": task.length * 1e3, "duration": round(task.duration, 6)}
                 variants.append(Variant(len(variants), f"{task.id}-{name}", params, document))
-    return Bench(suite.name, suite.source, bench_spec(suite), Path(suite.source), tuple(variants))
+    return Bench(suite.name, suite.source, spec or bench_spec(suite), Path(suite.source), tuple(variants))
 
 
 def bench_spec(suite: Suite) -> BenchSpec:
@@ -115,10 +116,10 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
         ScenarioError: a bad argument, destination or Ray address, before any run.
     """
     out = destination.followed(Path(out) if out is not None else Path("renders") / "bench" / suite.name)
-    source = Path(suite.source)
-    check_early(out, [source] if source.is_file() else [], bench_spec(suite).model_dump(mode="json"), force)
-    tasks = kept_tasks.tasks_for(out, suite, execute.processes_here(workers), force)
-    bench = plan_bench(suite, tasks=tasks)
+    source, spec = Path(suite.source), bench_spec(suite)  # (the models' hashes read once)
+    check_early(out, [source] if source.is_file() else [], spec.model_dump(mode="json"), force)
+    tasks = kept_tasks.tasks_for(out, suite, spec.models, execute.processes_here(workers), force)
+    bench = plan_bench(suite, tasks=tasks, spec=spec)
     if not bench.variants:
         raise ScenarioError(suite.source, "methods", f"no run: no robot of the suite "
                                                      f"({', '.join(r.name for r in suite.robots)}) takes one of its "
@@ -126,7 +127,7 @@ def run_bench(suite: Suite, out: str | Path | None = None, *, workers: int | Non
     if ray is not None:
         cluster.reach(ray)
     with Store(out, bench, force=force) as store:
-        kept_tasks.keep(store, out, suite, tasks)
+        kept_tasks.keep(store, out, suite, spec.models, tasks)
         outputs.write_scenarios(store, out, bench)
         ran = run_remaining(store, workers, ray, progress, lambda v: {
             "document": v.document, "source": f"{bench.source} {v.id}", "outputs": "none",
